@@ -1,0 +1,39 @@
+# Two commands on a fresh clone: `make demo` and `make test`.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+PIP    := $(PY) -m pip
+STAMP  := $(VENV)/.installed
+DEMO_WORKSPACE ?= runs/demo
+export OMP_NUM_THREADS ?= 1
+
+.PHONY: install demo test lint bench clean
+
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+
+# torch first (a local CPU wheel), then the project under a constraint that keeps that torch.
+$(STAMP): $(PY) pyproject.toml constraints.txt
+	$(PIP) install --quiet --upgrade pip
+	$(PIP) install --quiet torch==2.13.0
+	$(PIP) install --quiet -c constraints.txt -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/rapomdp run --workspace $(DEMO_WORKSPACE)
+	$(VENV)/bin/rapomdp dataset preview --workspace $(DEMO_WORKSPACE) --out $(DEMO_WORKSPACE)/contact_sheet.png
+
+test: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
+	OMP_NUM_THREADS=1 $(PY) -m pytest -q
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
+
+bench: $(STAMP)
+	$(PY) benchmarks/render_speed.py
+
+clean:
+	rm -rf $(VENV) runs
