@@ -73,7 +73,7 @@ def xtion_intrinsics(width: int = XTION_WIDTH_PX, height: int = XTION_HEIGHT_PX)
     At 640x480 the focal length is 320 / tan(29 deg) = 577.3 px, which gives a 45.1 deg
     vertical field of view (the specification says 45 deg). Other resolutions scale it.
     """
-    f = (XTION_WIDTH_PX / 2.0) / np.tan(np.radians(XTION_HFOV_DEG / 2.0))
+    f = float((XTION_WIDTH_PX / 2.0) / np.tan(np.radians(XTION_HFOV_DEG / 2.0)))
     native = Intrinsics(
         width=XTION_WIDTH_PX,
         height=XTION_HEIGHT_PX,

@@ -1,0 +1,161 @@
+"""The validated configuration: one YAML file, a default for every value, unknown keys refused.
+
+Units: metres and degrees at this surface (``*_m``, ``*_deg``); the code converts to radians.
+Each top-level section belongs to the stages that read it, and a stage's cache key hashes only
+the sections it reads.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+
+class ConfigError(ValueError):
+    """The configuration file is unreadable or holds a wrong key or value (named)."""
+
+
+class Section(BaseModel):
+    """A configuration section: unknown keys are errors, assignments are validated."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+class SplitConfig(Section):
+    """Models per class for each role (the paper: 3 train, 1 volume, 1 test)."""
+
+    train: int = Field(3, ge=1)
+    volume: int = Field(1, ge=1)
+    test: int = Field(1, ge=1)
+
+    @property
+    def total(self) -> int:
+        return self.train + self.volume + self.test
+
+
+class DatasetConfig(Section):
+    """Where the meshes come from and how they are normalised and split."""
+
+    source: Literal["procedural", "folder"] = "procedural"
+    path: Path | None = Field(None, description="mesh folder (source: folder)")
+    layout: Literal["auto", "generic", "objectnet3d", "modelnet", "shapenet"] = "auto"
+    up_axis: Literal["auto", "x", "y", "z", "-x", "-y", "-z"] = Field(
+        "auto", description="the meshes' up axis; auto = the layout's convention"
+    )
+    synset_map: Path | None = Field(None, description="ShapeNet synset-to-name JSON")
+    classes: list[str] | None = Field(None, description="use only these classes")
+    models_per_class: int | None = Field(
+        None, ge=1, description="procedural models per class (default: the split's total)"
+    )
+    radius_m: float = Field(0.2, gt=0, description="bounding-sphere radius after normalisation")
+    split: SplitConfig = SplitConfig()
+    too_few_models: Literal["error", "drop"] = "error"
+
+    @model_validator(mode="after")
+    def _folder_needs_path(self) -> DatasetConfig:
+        if self.source == "folder" and self.path is None:
+            raise ValueError("source 'folder' needs dataset.path")
+        if self.models_per_class is not None and self.models_per_class < self.split.total:
+            raise ValueError(
+                f"models_per_class ({self.models_per_class}) is below the split's total "
+                f"({self.split.total})"
+            )
+        return self
+
+
+class CameraConfig(Section):
+    """The depth camera: an Asus Xtion Pro Live rendered at ``width`` x ``height``."""
+
+    width: int = Field(160, ge=8, le=4096)
+    height: int = Field(120, ge=8, le=4096)
+
+
+class NoiseConfig(Section):
+    """Xtion sensor noise (Nguyen et al. 2012); off by default, as in the paper's simulation."""
+
+    enabled: bool = False
+    axial: bool = True
+    quantisation: bool = True
+    missing: bool = True
+    missing_start_deg: float = Field(70.0, ge=0, le=90)
+    missing_full_deg: float = Field(85.0, ge=0, le=90)
+    baseline_m: float = Field(0.075, gt=0)
+    subpixel: int = Field(8, ge=1)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> NoiseConfig:
+        if self.missing_full_deg < self.missing_start_deg:
+            raise ValueError("missing_full_deg must not be below missing_start_deg")
+        return self
+
+
+class RenderConfig(Section):
+    """The training viewsphere: near-uniform views over the whole sphere."""
+
+    views: int = Field(100, ge=1)
+    radius_m: float = Field(0.6, gt=0)
+    noise: NoiseConfig = NoiseConfig()
+
+
+class ViewpointsConfig(Section):
+    """The test viewpoints X_rho: near-uniform on the upper hemisphere."""
+
+    count: int = Field(128, ge=2)
+    radius_m: float = Field(0.6, gt=0)
+
+
+class Config(Section):
+    """Everything a run needs; ``Config()`` is the embedded default."""
+
+    seed: int = 0
+    dataset: DatasetConfig = DatasetConfig()
+    camera: CameraConfig = CameraConfig()
+    render: RenderConfig = RenderConfig()
+    viewpoints: ViewpointsConfig = ViewpointsConfig()
+
+    def section(self, name: str) -> Any:
+        """A section's values as plain JSON-able data (for hashing and records)."""
+        value = getattr(self, name)
+        return value.model_dump(mode="json") if isinstance(value, BaseModel) else value
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
+
+
+def _describe(error: dict[str, Any]) -> str:
+    where = ".".join(str(part) for part in error["loc"]) or "(top level)"
+    if error["type"] == "extra_forbidden":
+        return f"{where}: unknown key"
+    got = error.get("input")
+    shown = "" if isinstance(got, dict) else f" (got {got!r})"
+    return f"{where}: {error['msg']}{shown}"
+
+
+def config_from_dict(data: dict[str, Any], source: str = "configuration") -> Config:
+    """Validate a mapping; errors name every wrong key or value."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: expected a mapping of sections, got {type(data).__name__}")
+    try:
+        return Config.model_validate(data)
+    except ValidationError as exc:
+        lines = "\n".join(f"  {_describe(e)}" for e in exc.errors())
+        raise ConfigError(f"{source}: invalid configuration\n{lines}") from None
+
+
+def load_config(path: str | Path | None) -> Config:
+    """Read a YAML configuration; ``None`` gives the default."""
+    if path is None:
+        return Config()
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML ({exc})") from None
+    return config_from_dict({} if data is None else data, str(path))

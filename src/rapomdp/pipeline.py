@@ -1,0 +1,68 @@
+"""The stages in pipeline order; data flows one way, each stage reading only earlier ones."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+from rapomdp.config import Config
+from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
+from rapomdp.data.training_views import run_render_stage
+from rapomdp.workspace import Stage, StageResult, Workspace
+
+STAGES: list[Stage] = [
+    Stage(
+        name="dataset",
+        run=run_dataset_stage,
+        sections=("seed", "dataset"),
+        fingerprint=dataset_fingerprint,
+        description="normalised meshes and the per-class train/volume/test split",
+    ),
+    Stage(
+        name="render",
+        run=run_render_stage,
+        sections=("seed", "camera", "render"),
+        inputs=("dataset",),
+        description="depth images of every model over the training viewsphere",
+    ),
+]
+
+STAGE_NAMES = [stage.name for stage in STAGES]
+
+
+def get_stage(name: str) -> Stage:
+    for stage in STAGES:
+        if stage.name == name:
+            return stage
+    raise KeyError(f"unknown stage '{name}'; stages are: {', '.join(STAGE_NAMES)}")
+
+
+def stages_up_to(name: str) -> list[Stage]:
+    """The stage and every stage before it (each needed stage, in order)."""
+    get_stage(name)
+    needed = {name}
+    for stage in reversed(STAGES):
+        if stage.name in needed:
+            needed.update(stage.inputs)
+    return [stage for stage in STAGES if stage.name in needed]
+
+
+def run_pipeline(
+    config: Config,
+    workspace: Workspace,
+    until: str | None = None,
+    force: Iterable[str] = (),
+    on_result: Callable[[StageResult], None] | None = None,
+) -> list[StageResult]:
+    """Run every stage (or those ``until`` needs) in order, skipping current ones."""
+    force = set(force)
+    unknown = force - set(STAGE_NAMES)
+    if unknown:
+        raise KeyError(f"unknown stage(s) {sorted(unknown)}; stages are: {', '.join(STAGE_NAMES)}")
+    stages = STAGES if until is None else stages_up_to(until)
+    results = []
+    for stage in stages:
+        result = workspace.run(stage, config, force=stage.name in force)
+        results.append(result)
+        if on_result is not None:
+            on_result(result)
+    return results
