@@ -1,0 +1,187 @@
+"""The ``rapomdp`` command line: the whole pipeline, or one stage, on a workspace folder."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, TypeVar
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from rapomdp.config import Config, ConfigError, load_config
+from rapomdp.data.layouts import DatasetLayoutError
+from rapomdp.data.meshes import MeshLoadError
+from rapomdp.data.splits import TooFewModelsError
+from rapomdp.io import ArtefactError, atomic_path
+from rapomdp.pipeline import STAGE_NAMES, STAGES, run_pipeline
+from rapomdp.workspace import StageError, StageResult, Workspace
+
+app = typer.Typer(
+    help=(
+        "Active object recognition on depth images with recognition self-awareness (RA-POMDP).\n\n"
+        "Every stage writes its artefacts into a workspace folder and is skipped when its "
+        "configuration and inputs are unchanged. `rapomdp run` runs them all; `rapomdp STAGE` "
+        "runs one stage and the stages it needs."
+    ),
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+dataset_app = typer.Typer(
+    help="Build the dataset stage (normalised meshes and split), or preview it.",
+    invoke_without_command=True,
+)
+app.add_typer(dataset_app, name="dataset")
+
+console = Console(stderr=True)
+USER_ERRORS = (
+    ConfigError,
+    StageError,
+    MeshLoadError,
+    DatasetLayoutError,
+    TooFewModelsError,
+    ArtefactError,
+)
+T = TypeVar("T")
+
+ConfigOption = Annotated[
+    Path | None,
+    typer.Option("--config", "-c", help="YAML configuration (default: the embedded default)."),
+]
+WorkspaceOption = Annotated[
+    Path, typer.Option("--workspace", "-w", help="Workspace folder for the artefacts.")
+]
+ForceOption = Annotated[bool, typer.Option("--force", help="Redo the stage even if cached.")]
+
+
+def _guard(action: Callable[[], T]) -> T:
+    """Run ``action``; a user error prints one clear message and exits with status 2."""
+    try:
+        return action()
+    except USER_ERRORS as exc:
+        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        raise typer.Exit(2) from None
+    except KeyError as exc:
+        console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False)
+        raise typer.Exit(2) from None
+
+
+def _report(result: StageResult) -> None:
+    state = "cached" if result.cached else f"done in {result.seconds:.1f} s"
+    console.print(f"[green]✓[/] {result.name:<10} {state}  ({len(result.files)} files)")
+
+
+def _save_config(config: Config, workspace: Workspace) -> None:
+    workspace.root.mkdir(parents=True, exist_ok=True)
+    with atomic_path(workspace.root / "config.yaml") as tmp:
+        tmp.write_text(config.to_yaml())
+
+
+def _run(config_path: Path | None, workspace: Path, until: str | None,
+         force: list[str]) -> None:
+    def action() -> None:
+        config = load_config(config_path)
+        ws = Workspace(workspace)
+        _save_config(config, ws)
+        run_pipeline(config, ws, until=until, force=force, on_result=_report)
+
+    _guard(action)
+
+
+@app.command()
+def run(
+    workspace: WorkspaceOption,
+    config: ConfigOption = None,
+    force: Annotated[
+        list[str] | None,
+        typer.Option("--force", "-f", help=f"Redo a stage ({', '.join(STAGE_NAMES)}); repeatable."),
+    ] = None,
+    until: Annotated[
+        str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
+    ] = None,
+) -> None:
+    """Run every stage in order, skipping those whose inputs are unchanged."""
+    _run(config, workspace, until, list(force or []))
+
+
+@dataset_app.callback()
+def dataset(
+    ctx: typer.Context,
+    workspace: Annotated[Path | None, typer.Option("--workspace", "-w")] = None,
+    config: ConfigOption = None,
+    force: ForceOption = False,
+) -> None:
+    """Build the dataset stage: load or generate meshes, normalise them, split each class."""
+    if ctx.invoked_subcommand is not None:
+        return
+    if workspace is None:
+        console.print("[bold red]error:[/] --workspace is required")
+        raise typer.Exit(2)
+    _run(config, workspace, "dataset", ["dataset"] if force else [])
+
+
+@dataset_app.command("preview")
+def dataset_preview(
+    workspace: WorkspaceOption,
+    out: Annotated[Path | None, typer.Option(help="PNG path (default W/contact_sheet.png).")] = None,
+    width: Annotated[int, typer.Option(help="Tile width in pixels (4:3 tiles).")] = 320,
+    elevation_deg: Annotated[float, typer.Option(help="Camera elevation above the floor.")] = 30.0,
+) -> None:
+    """Write a labelled contact sheet: one depth render per model of the workspace's dataset."""
+
+    def action() -> Path:
+        from rapomdp.data.dataset import load_dataset
+        from rapomdp.data.preview import contact_sheet
+        from rapomdp.geometry.camera import xtion_intrinsics
+
+        ws = Workspace(workspace)
+        dataset = load_dataset(ws.require("dataset"))
+        target = out or ws.root / "contact_sheet.png"
+        height = max(8, round(width * 3 / 4))
+        return contact_sheet(dataset, xtion_intrinsics(width, height), target,
+                             elevation_deg=elevation_deg)
+
+    path = _guard(action)
+    console.print(f"[green]✓[/] contact sheet written to {path}")
+
+
+@app.command()
+def render(workspace: WorkspaceOption, config: ConfigOption = None,
+           force: ForceOption = False) -> None:
+    """Render every model's depth images over the training viewsphere (and build the dataset)."""
+    _run(config, workspace, "render", ["render"] if force else [])
+
+
+@app.command("config")
+def show_config(config: ConfigOption = None) -> None:
+    """Print the resolved configuration as YAML (the default when no file is given)."""
+    resolved = _guard(lambda: load_config(config))
+    sys.stdout.write(resolved.to_yaml())
+
+
+@app.command()
+def status(workspace: WorkspaceOption) -> None:
+    """Show which stages a workspace holds, and when they ran."""
+    manifest = _guard(lambda: Workspace(workspace).manifest())
+    table = Table(title=str(workspace))
+    for column in ("stage", "files", "seconds", "finished", "key"):
+        table.add_column(column)
+    for stage in STAGES:
+        record = manifest["stages"].get(stage.name)
+        if record is None:
+            table.add_row(stage.name, "-", "-", "not run", "-")
+        else:
+            table.add_row(stage.name, str(len(record["files"])), str(record["seconds"]),
+                          record["finished"], record["key"][:12])
+    Console().print(table)
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    main()

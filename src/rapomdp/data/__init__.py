@@ -1,0 +1,1 @@
+"""Meshes and datasets: loading, dataset layouts, splits, the procedural generator, rendering."""

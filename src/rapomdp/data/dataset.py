@@ -1,0 +1,173 @@
+"""The dataset stage: normalised meshes of every class and their train / volume / test roles.
+
+Output (``W/dataset/``): ``dataset.json`` (classes, models, roles, sources) and
+``meshes/<class>/<model>.npz`` (vertices in metres, faces), normalised by
+:func:`rapomdp.data.meshes.normalise_mesh`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from rapomdp.config import Config
+from rapomdp.data.layouts import LAYOUT_UP_AXIS, DatasetLayoutError, discover_models
+from rapomdp.data.meshes import MeshLoadError, centroid, load_mesh, normalise_mesh
+from rapomdp.data.procedural import PROCEDURAL_CLASSES, generate_model
+from rapomdp.data.splits import ROLES, split_models
+from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
+from rapomdp.progress import track
+from rapomdp.workspace import fingerprint_files, stable_hash
+
+DATASET_FILE = "dataset.json"
+PROCEDURAL_VERSION = "1"
+
+
+@dataclass(frozen=True)
+class ModelEntry:
+    """One normalised model of the dataset."""
+
+    id: str
+    class_name: str
+    role: str
+    source: str
+    file: str
+    height_m: float
+    faces: int
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """The bounding-box centre: on the z axis at half the model's height."""
+        return np.array([0.0, 0.0, self.height_m / 2.0])
+
+
+@dataclass
+class Dataset:
+    """The dataset stage's output, read back."""
+
+    root: Path
+    classes: list[str]
+    models: list[ModelEntry]
+
+    def with_role(self, role: str) -> list[ModelEntry]:
+        if role not in ROLES:
+            raise ValueError(f"unknown role '{role}'; roles are: {', '.join(ROLES)}")
+        return [m for m in self.models if m.role == role]
+
+    def label(self, model: ModelEntry) -> int:
+        return self.classes.index(model.class_name)
+
+    def mesh(self, model: ModelEntry) -> trimesh.Trimesh:
+        arrays = load_npz(self.root / model.file)
+        return trimesh.Trimesh(arrays["vertices"], arrays["faces"], process=False)
+
+
+def load_dataset(stage_dir: str | Path) -> Dataset:
+    """Read a dataset stage folder."""
+    stage_dir = Path(stage_dir)
+    data = read_json(stage_dir / DATASET_FILE)
+    models = [ModelEntry(**entry) for entry in data["models"]]
+    return Dataset(stage_dir, list(data["classes"]), models)
+
+
+def _model_id(path: Path, layout: str) -> str:
+    return path.parent.parent.name if layout == "shapenet" else path.stem
+
+
+def _folder_models(config: Config) -> tuple[str, dict[str, list[Path]]]:
+    cfg = config.dataset
+    assert cfg.path is not None
+    layout, found = discover_models(cfg.path, cfg.layout, cfg.synset_map)
+    if cfg.classes is not None:
+        missing = [c for c in cfg.classes if c not in found]
+        if missing:
+            raise DatasetLayoutError(
+                f"{cfg.path}: class folder(s) not found: {', '.join(missing)} "
+                f"(found: {', '.join(found) or 'none'})"
+            )
+        found = {c: found[c] for c in cfg.classes}
+    return layout, found
+
+
+def dataset_fingerprint(config: Config) -> str:
+    """What the stage reads from outside the config: the mesh files, or the generator's version."""
+    if config.dataset.source == "procedural":
+        return f"procedural-{PROCEDURAL_VERSION}"
+    _, found = _folder_models(config)
+    return fingerprint_files([p for paths in found.values() for p in paths])
+
+
+def _write_mesh(out: Path, rel: str, mesh: trimesh.Trimesh) -> None:
+    save_npz(out / rel, vertices=np.asarray(mesh.vertices, dtype=np.float64),
+             faces=np.asarray(mesh.faces, dtype=np.int32))
+
+
+def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """Build the dataset: pick, split, load, normalise and store every model."""
+    cfg = config.dataset
+    counts = cfg.split.model_dump()
+    if cfg.source == "procedural":
+        classes = list(cfg.classes) if cfg.classes is not None else list(PROCEDURAL_CLASSES)
+        unknown = [c for c in classes if c not in PROCEDURAL_CLASSES]
+        if unknown:
+            raise DatasetLayoutError(
+                f"unknown procedural class(es) {', '.join(unknown)}; "
+                f"classes are: {', '.join(PROCEDURAL_CLASSES)}"
+            )
+        per_class = cfg.models_per_class or cfg.split.total
+        candidates = {c: list(range(per_class)) for c in classes}
+        layout, up_axis = "procedural", "z"
+    else:
+        layout, candidates = _folder_models(config)
+        up_axis = LAYOUT_UP_AXIS[layout] if cfg.up_axis == "auto" else cfg.up_axis
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        split = split_models(candidates, counts, config.seed, cfg.too_few_models)
+    dropped = [str(w.message) for w in caught]
+    for message in dropped:
+        warnings.warn(message, stacklevel=2)
+
+    jobs = [(c, role, item) for c, roles in split.items() for role in ROLES for item in roles[role]]
+    models: list[ModelEntry] = []
+    used_ids: set[tuple[str, str]] = set()
+    for class_name, role, item in track(jobs, "dataset: normalising meshes"):
+        if isinstance(item, int):
+            mesh, source = generate_model(class_name, config.seed, item), f"procedural:{item}"
+            model_id = f"{class_name}_{item:03d}"
+        else:
+            mesh, source = load_mesh(item), str(item)
+            model_id = _model_id(item, layout)
+        base, n = model_id, 1
+        while (class_name, model_id) in used_ids:
+            n += 1
+            model_id = f"{base}_{n}"
+        used_ids.add((class_name, model_id))
+        try:
+            normalised = normalise_mesh(mesh, cfg.radius_m, up_axis)
+        except MeshLoadError as exc:
+            raise MeshLoadError(f"{source}: {exc}") from exc
+        rel = f"meshes/{class_name}/{model_id}.npz"
+        _write_mesh(out, rel, normalised)
+        height = float(np.ptp(normalised.vertices[:, 2]))
+        models.append(ModelEntry(model_id, class_name, role, source, rel, height,
+                                 int(len(normalised.faces))))
+        assert np.allclose(centroid(normalised.vertices)[:2], 0.0, atol=1e-9)
+
+    write_json_atomic(
+        out / DATASET_FILE,
+        {
+            "classes": list(split),
+            "layout": layout,
+            "up_axis": up_axis,
+            "radius_m": cfg.radius_m,
+            "dropped": dropped,
+            "split_counts": counts,
+            "models": [asdict(m) for m in models],
+            "content_hash": stable_hash([asdict(m) for m in models]),
+        },
+    )
