@@ -126,7 +126,9 @@ def dataset(
 @dataset_app.command("preview")
 def dataset_preview(
     workspace: WorkspaceOption,
-    out: Annotated[Path | None, typer.Option(help="PNG path (default W/contact_sheet.png).")] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="PNG path (default W/contact_sheet.png).")
+    ] = None,
     width: Annotated[int, typer.Option(help="Tile width in pixels (4:3 tiles).")] = 320,
     elevation_deg: Annotated[float, typer.Option(help="Camera elevation above the floor.")] = 30.0,
 ) -> None:

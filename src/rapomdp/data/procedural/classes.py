@@ -251,7 +251,8 @@ def eyeglasses(rng: np.random.Generator) -> Parts:
             parts.append(disc(c, X, lens_h * 0.95, 0.002))
         hinge = c + [0, side * lens_w, lens_h * 0.4]
         back = hinge + [-temple, side * 0.01, 0]
-        parts += [tube(hinge, back, 0.002, 6), tube(back, (back[0] - 0.025, back[1], rim), 0.002, 6)]
+        ear = (back[0] - 0.025, back[1], rim)
+        parts += [tube(hinge, back, 0.002, 6), tube(back, ear, 0.002, 6)]
     parts.append(tube((0, -bridge / 2 - 0.002, centre_z + lens_h * 0.5),
                       (0, bridge / 2 + 0.002, centre_z + lens_h * 0.5), 0.002, 6))
     return parts
