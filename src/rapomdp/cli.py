@@ -17,6 +17,7 @@ from rapomdp.data.meshes import MeshLoadError
 from rapomdp.data.splits import TooFewModelsError
 from rapomdp.io import ArtefactError, atomic_path
 from rapomdp.pipeline import STAGE_NAMES, STAGES, run_pipeline
+from rapomdp.recognition.classifier import CheckpointError
 from rapomdp.workspace import StageError, StageResult, Workspace
 
 app = typer.Typer(
@@ -44,6 +45,7 @@ USER_ERRORS = (
     DatasetLayoutError,
     TooFewModelsError,
     ArtefactError,
+    CheckpointError,
 )
 T = TypeVar("T")
 
@@ -155,6 +157,42 @@ def render(workspace: WorkspaceOption, config: ConfigOption = None,
            force: ForceOption = False) -> None:
     """Render every model's depth images over the training viewsphere (and build the dataset)."""
     _run(config, workspace, "render", ["render"] if force else [])
+
+
+ThreadsOption = Annotated[
+    int | None,
+    typer.Option(help="CPU threads for PyTorch (default: $RAPOMDP_THREADS, else half the cores)."),
+]
+
+
+def _set_threads(threads: int | None) -> None:
+    from rapomdp.recognition import stage
+
+    stage.threads = threads
+
+
+@app.command()
+def train(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+          threads: ThreadsOption = None) -> None:
+    """Train the depth classifier on the training renders (and build what it needs)."""
+    _set_threads(threads)
+    _run(config, workspace, "train", ["train"] if force else [])
+
+
+@app.command("evaluate-classifier")
+def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
+                        force: ForceOption = False, threads: ThreadsOption = None) -> None:
+    """Single-view accuracy on the test models: per class, confusion, per viewpoint."""
+    _set_threads(threads)
+    _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [])
+    metrics = Path(workspace) / "classifier_eval" / "metrics.json"
+    if metrics.exists():
+        from rapomdp.io import read_json
+
+        data = read_json(metrics)
+        for key, label in (("xrho", "test viewpoints X_rho"), ("sphere", "whole sphere")):
+            console.print(f"  single-view accuracy, {label}: {data[key]['accuracy']:.1%} "
+                          f"(chance {data[key]['chance']:.1%})", highlight=False)
 
 
 @app.command("config")

@@ -107,6 +107,41 @@ class ViewpointsConfig(Section):
     radius_m: float = Field(0.6, gt=0)
 
 
+class PreprocessConfig(Section):
+    """The classifier's input: crop, depth normalisation, size (see recognition.preprocess)."""
+
+    input_size_px: int = Field(64, ge=32, le=512)
+    crop_size_m: float = Field(0.5, gt=0, description="crop side at the object's distance")
+    depth_range_m: float = Field(0.2, gt=0, description="depth offset mapped to +-1")
+    background: float = -1.0
+    fit_margin: float = Field(0.05, ge=0, description="room around an object wider than the crop")
+
+
+class AugmentConfig(Section):
+    """Training augmentation: random crop shifts and scales, optional Xtion depth noise."""
+
+    shift: float = Field(0.05, ge=0, le=0.5, description="max crop shift, fraction of its side")
+    scale: float = Field(0.1, ge=0, lt=1, description="max relative change of the crop size")
+    noise: bool = Field(False, description="add axial + quantisation noise (render.noise model)")
+
+
+class TrainConfig(Section):
+    """The depth classifier and its training (paper Sec. 5.1.1: Adam, 1e-4, 5e-4, batch 128)."""
+
+    width: float = Field(0.5, gt=0, le=4, description="channel multiplier of AlexNet's widths")
+    dropout: float = Field(0.5, ge=0, lt=1)
+    epochs: int = Field(30, ge=1)
+    batch_size: int = Field(128, ge=1)
+    learning_rate: float = Field(1e-4, gt=0)
+    weight_decay: float = Field(5e-4, ge=0)
+    validation_fraction: float = Field(
+        0.1, ge=0, lt=1, description="training views held out per model for validation"
+    )
+    device: Literal["auto", "cpu", "cuda"] = "auto"
+    preprocess: PreprocessConfig = PreprocessConfig()
+    augment: AugmentConfig = AugmentConfig()
+
+
 class Config(Section):
     """Everything a run needs; ``Config()`` is the embedded default."""
 
@@ -115,6 +150,7 @@ class Config(Section):
     camera: CameraConfig = CameraConfig()
     render: RenderConfig = RenderConfig()
     viewpoints: ViewpointsConfig = ViewpointsConfig()
+    train: TrainConfig = TrainConfig()
 
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""

@@ -7,6 +7,12 @@ from collections.abc import Callable, Iterable
 from rapomdp.config import Config
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import run_render_stage
+from rapomdp.recognition.stage import (
+    EVAL_SECTIONS,
+    TRAIN_SECTIONS,
+    run_classifier_eval_stage,
+    run_train_stage,
+)
 from rapomdp.workspace import Stage, StageResult, Workspace
 
 STAGES: list[Stage] = [
@@ -23,6 +29,20 @@ STAGES: list[Stage] = [
         sections=("seed", "camera", "render"),
         inputs=("dataset",),
         description="depth images of every model over the training viewsphere",
+    ),
+    Stage(
+        name="train",
+        run=run_train_stage,
+        sections=TRAIN_SECTIONS,
+        inputs=("dataset", "render"),
+        description="depth CNN classifier trained on the train models' renders",
+    ),
+    Stage(
+        name="classifier_eval",
+        run=run_classifier_eval_stage,
+        sections=EVAL_SECTIONS,
+        inputs=("dataset", "render", "train"),
+        description="single-view accuracy on the test models, confusion, per viewpoint",
     ),
 ]
 

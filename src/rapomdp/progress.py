@@ -25,6 +25,11 @@ def set_progress(enabled: bool) -> None:
     _enabled = enabled
 
 
+def enabled() -> bool:
+    """Whether progress bars are shown (for code that draws its own rich bar)."""
+    return _enabled
+
+
 def track(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:
     """Iterate over ``items`` with a progress bar showing count, elapsed and remaining time."""
     if not _enabled:

@@ -1,0 +1,154 @@
+"""The ``train`` and ``classifier_eval`` pipeline stages.
+
+``W/train/``: ``classifier.pt`` + ``classifier.json`` (the checkpoint), ``history.csv``,
+``training.png`` and ``metrics.json`` (validation accuracy, images per second, wall time).
+
+``W/classifier_eval/``: ``metrics.json`` (accuracy over X_rho and over the whole sphere, per class,
+chance), ``confusion_xrho.csv|png``, ``confusion_sphere.csv|png``, ``accuracy_hemisphere.png``
+and ``probabilities.npz`` (the test models' class probabilities per view, for later stages).
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from rapomdp.config import Config
+from rapomdp.data.renderer import DepthRenderer
+from rapomdp.data.splits import class_seed
+from rapomdp.data.training_views import load_training_views, model_poses, render_depth
+from rapomdp.geometry.viewsphere import fibonacci_directions
+from rapomdp.io import atomic_path, save_npz, write_json_atomic
+from rapomdp.progress import track
+from rapomdp.recognition.classifier import WEIGHTS_FILE, Classifier, configure_torch
+from rapomdp.recognition.evaluation import SingleViewResult, write_confusion_csv
+from rapomdp.recognition.figures import confusion_figure, hemisphere_figure, training_curves
+from rapomdp.recognition.training import (
+    collect_views,
+    preprocess_params,
+    train_classifier,
+    validation_mask,
+)
+from rapomdp.workspace import StageError, stable_hash
+
+TRAIN_SECTIONS = ("seed", "dataset", "camera", "render", "train")
+EVAL_SECTIONS = ("seed", "camera", "render", "viewpoints")
+
+# Threads for this process's stages; the CLI's --threads sets it (None: default_threads()).
+threads: int | None = None
+
+
+def train_config_hash(config: Config) -> str:
+    """The hash a checkpoint carries: every configuration section that shapes the classifier."""
+    return stable_hash({s: config.section(s) for s in TRAIN_SECTIONS})
+
+
+def load_stage_classifier(config: Config, train_dir: Path, classes: list[str]) -> Classifier:
+    """The train stage's classifier, checked against this configuration and class list."""
+    return Classifier.load(
+        train_dir / WEIGHTS_FILE,
+        classes=classes,
+        preprocessing=preprocess_params(config.train.preprocess),
+        config_hash=train_config_hash(config),
+        device=config.train.device,
+        threads=threads,
+    )
+
+
+def run_train_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """Train the depth classifier on the train models' training-viewsphere renders."""
+    views = load_training_views(inputs["render"], inputs["dataset"])
+    classes = views.dataset.classes
+    if len(classes) < 2:
+        raise StageError(f"{inputs['dataset']}: training needs at least 2 classes, got {classes}")
+    data = collect_views(views, "train")
+    held = validation_mask(data, config.train.validation_fraction,
+                           class_seed(config.seed, "train/validation"))
+    device = configure_torch(config.train.device, threads)
+    start = time.perf_counter()
+    classifier, history = train_classifier(
+        data.subset(~held), data.subset(held), classes, config.train,
+        views.intrinsics.fx, views.intrinsics.fy, config.seed, device, config.render.noise,
+    )
+    wall_s = time.perf_counter() - start
+    train_images = int((~held).sum()) * config.train.epochs
+    metrics = {
+        "classes": classes,
+        "train_images": int((~held).sum()),
+        "validation_images": int(held.sum()),
+        "epochs": config.train.epochs,
+        "final_train_accuracy": history.train_accuracy[-1],
+        "final_validation_accuracy": history.val_accuracy[-1],
+        "wall_s": wall_s,
+        "train_images_per_s": train_images / sum(history.seconds),
+        "device": str(device),
+        "threads": torch.get_num_threads(),
+    }
+    classifier.save(out, train_config_hash(config), extra={"training": metrics})
+    rows = history.rows()
+    with atomic_path(out / "history.csv") as tmp, open(tmp, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    training_curves(rows, out / "training.png")
+    write_json_atomic(out / "metrics.json", metrics)
+
+
+def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """Single-view accuracy of the trained classifier on the test models."""
+    views = load_training_views(inputs["render"], inputs["dataset"])
+    dataset = views.dataset
+    classifier = load_stage_classifier(config, inputs["train"], dataset.classes)
+    test_models = dataset.with_role("test")
+    labels = np.array([dataset.label(m) for m in test_models], dtype=np.int64)
+    vp = config.viewpoints
+    xrho, sphere = [], []
+    for model in track(test_models, "classifier: test models"):
+        renderer = DepthRenderer(dataset.mesh(model), views.intrinsics)
+        poses = model_poses(model, vp.count, vp.radius_m, hemisphere=True)
+        rng = class_seed(config.seed, f"classifier_eval/{model.class_name}/{model.id}")
+        xrho.append(classifier.predict(render_depth(renderer, poses, config.render.noise, rng)))
+        sphere.append(classifier.predict(views.load(model)[0]))
+    results = [
+        SingleViewResult("xrho", dataset.classes, np.stack(xrho), labels),
+        SingleViewResult("sphere", dataset.classes, np.stack(sphere), labels),
+    ]
+    for result in results:
+        write_confusion_csv(out / f"confusion_{result.name}.csv", result.confusion(),
+                            dataset.classes)
+        where = "test viewpoints X_rho" if result.name == "xrho" else "whole training sphere"
+        confusion_figure(
+            result.confusion(), dataset.classes,
+            f"single-view confusion, {where} (accuracy {result.accuracy:.1%})",
+            out / f"confusion_{result.name}.png",
+        )
+    on_x = results[0]
+    hemisphere_figure(
+        fibonacci_directions(vp.count, hemisphere=True),
+        [on_x.per_view_accuracy(), on_x.per_view_true_probability()],
+        ["accuracy over the test models", "mean probability of the true class"],
+        f"single-view recognition per test viewpoint ({vp.count} on the hemisphere, "
+        f"radius {vp.radius_m} m)",
+        out / "accuracy_hemisphere.png",
+    )
+    save_npz(
+        out / "probabilities.npz",
+        xrho=on_x.probabilities.astype(np.float32),
+        sphere=results[1].probabilities.astype(np.float32),
+        labels=labels,
+        classes=np.array(dataset.classes),
+        models=np.array([m.id for m in test_models]),
+    )
+    write_json_atomic(
+        out / "metrics.json",
+        {
+            "xrho": on_x.summary(),
+            "sphere": results[1].summary(),
+            "per_view_accuracy_xrho": on_x.per_view_accuracy().tolist(),
+            "checkpoint_config_hash": classifier.meta["config_hash"],
+        },
+    )

@@ -1,0 +1,208 @@
+"""Multi-view training of the depth classifier (paper Sec. 5.1.1).
+
+The training set is every training-viewsphere render of the *train* models; a fraction of each
+model's views is held out for validation. Every batch is preprocessed on the fly by the one
+:func:`~rapomdp.recognition.preprocess.preprocess`, with a random crop shift and scale (and,
+optionally, the Xtion's axial and quantisation noise) as augmentation, so no epoch sees the same
+input twice. Adam with the paper's learning rate, weight decay and batch size.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from torch import nn
+
+from rapomdp.config import AugmentConfig, NoiseConfig, PreprocessConfig, TrainConfig
+from rapomdp.data.noise import apply_sensor_noise
+from rapomdp.data.training_views import TrainingViews
+from rapomdp.progress import enabled as progress_enabled
+from rapomdp.recognition.classifier import Classifier
+from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
+from rapomdp.recognition.preprocess import PreprocessParams, preprocess
+
+
+@dataclass
+class LabelledViews:
+    """Depth images (n, H, W) in metres with class labels (n,), model (n,) and view (n,) indices."""
+
+    depth: np.ndarray
+    labels: np.ndarray
+    models: np.ndarray
+    views: np.ndarray
+
+    def subset(self, mask: np.ndarray) -> LabelledViews:
+        return LabelledViews(self.depth[mask], self.labels[mask], self.models[mask],
+                             self.views[mask])
+
+    def __len__(self) -> int:
+        return int(self.labels.shape[0])
+
+
+@dataclass
+class History:
+    """Per-epoch training record."""
+
+    epoch: list[int] = field(default_factory=list)
+    train_loss: list[float] = field(default_factory=list)
+    train_accuracy: list[float] = field(default_factory=list)
+    val_loss: list[float] = field(default_factory=list)
+    val_accuracy: list[float] = field(default_factory=list)
+    seconds: list[float] = field(default_factory=list)
+
+    def rows(self) -> list[dict[str, float]]:
+        keys = ("epoch", "train_loss", "train_accuracy", "val_loss", "val_accuracy", "seconds")
+        return [{k: getattr(self, k)[i] for k in keys} for i in range(len(self.epoch))]
+
+
+def preprocess_params(cfg: PreprocessConfig) -> PreprocessParams:
+    return PreprocessParams(**cfg.model_dump())
+
+
+def collect_views(views: TrainingViews, role: str = "train") -> LabelledViews:
+    """Every render of the models with ``role``, labelled by the dataset's class list."""
+    depth, labels, models, indices = [], [], [], []
+    for i, model in enumerate(views.dataset.with_role(role)):
+        d, _ = views.load(model)
+        depth.append(d.astype(np.float32))
+        labels.append(np.full(d.shape[0], views.dataset.label(model), dtype=np.int64))
+        models.append(np.full(d.shape[0], i, dtype=np.int64))
+        indices.append(np.arange(d.shape[0]))
+    return LabelledViews(np.concatenate(depth), np.concatenate(labels), np.concatenate(models),
+                         np.concatenate(indices))
+
+
+def validation_mask(data: LabelledViews, fraction: float, rng: np.random.Generator) -> np.ndarray:
+    """True for the held-out views: ``fraction`` of each model's views, picked at random."""
+    held = np.zeros(len(data), dtype=bool)
+    if fraction <= 0:
+        return held
+    # a random key per image, ranked within each model: the lowest ranks are held out
+    keys = rng.random(len(data))
+    order = np.lexsort((keys, data.models))
+    starts = np.searchsorted(data.models[order], data.models[order], side="left")
+    rank = np.arange(len(data)) - starts
+    counts = np.bincount(data.models)[data.models[order]]
+    held[order] = rank < np.round(fraction * counts)
+    return held
+
+
+def augment_batch(
+    depth: np.ndarray,
+    augment: AugmentConfig,
+    noise: NoiseConfig,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Noisy depth (if asked) and random crop shifts (n, 2) and scales (n,) for a batch."""
+    n = depth.shape[0]
+    if augment.noise:
+        # surface angles are unknown after rendering; 0 keeps axial + quantisation noise only
+        depth = apply_sensor_noise(depth, np.zeros_like(depth), noise, rng)
+    shift = rng.uniform(-augment.shift, augment.shift, size=(n, 2))
+    scale = np.exp(rng.uniform(np.log1p(-augment.scale), np.log1p(augment.scale), size=n))
+    return depth, shift, scale
+
+
+def evaluate_inputs(
+    network: nn.Module, inputs: np.ndarray, labels: np.ndarray, device: torch.device,
+    batch_size: int = 512,
+) -> tuple[float, float]:
+    """Mean cross-entropy and accuracy of the network on preprocessed inputs."""
+    if len(labels) == 0:
+        return float("nan"), float("nan")
+    network.eval()
+    loss, correct = 0.0, 0
+    with torch.inference_mode():
+        for start in range(0, len(labels), batch_size):
+            x = torch.from_numpy(inputs[start : start + batch_size]).to(device)
+            y = torch.from_numpy(labels[start : start + batch_size]).to(device)
+            logits = network(x)
+            loss += float(nn.functional.cross_entropy(logits, y, reduction="sum"))
+            correct += int((logits.argmax(1) == y).sum())
+    return loss / len(labels), correct / len(labels)
+
+
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[status]}"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        disable=not progress_enabled(),
+    )
+
+
+def train_classifier(
+    train: LabelledViews,
+    val: LabelledViews,
+    classes: Sequence[str],
+    cfg: TrainConfig,
+    fx_px: float,
+    fy_px: float,
+    seed: int,
+    device: torch.device,
+    noise: NoiseConfig | None = None,
+) -> tuple[Classifier, History]:
+    """Train a DepthAlexNet on ``train``; report ``val`` after every epoch."""
+    params = preprocess_params(cfg.preprocess)
+    spec = NetworkSpec(len(classes), params.input_size_px, cfg.width, cfg.dropout)
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    network = DepthAlexNet(spec).to(device)
+    optimiser = torch.optim.Adam(network.parameters(), lr=cfg.learning_rate,
+                                 weight_decay=cfg.weight_decay)
+    val_inputs = preprocess(val.depth, fx_px, fy_px, params).images if len(val) else None
+    noise = noise or NoiseConfig()
+    history = History()
+    batches = -(-len(train) // cfg.batch_size)
+    with _progress() as bar:
+        task = bar.add_task("train", total=cfg.epochs * batches, status="")
+        for epoch in range(1, cfg.epochs + 1):
+            start_s = time.perf_counter()
+            network.train()
+            order = rng.permutation(len(train))
+            loss_sum, correct = 0.0, 0
+            for b in range(batches):
+                idx = np.sort(order[b * cfg.batch_size : (b + 1) * cfg.batch_size])
+                depth, shift, scale = augment_batch(train.depth[idx], cfg.augment, noise, rng)
+                x = torch.from_numpy(preprocess(depth, fx_px, fy_px, params, shift, scale).images)
+                y = torch.from_numpy(train.labels[idx])
+                x, y = x.to(device), y.to(device)
+                logits = network(x)
+                loss = nn.functional.cross_entropy(logits, y)
+                optimiser.zero_grad(set_to_none=True)
+                loss.backward()
+                optimiser.step()
+                loss_sum += float(loss.detach()) * len(idx)
+                correct += int((logits.argmax(1) == y).sum())
+                seen = min((b + 1) * cfg.batch_size, len(train))
+                bar.update(task, advance=1, description=f"train {epoch}/{cfg.epochs}",
+                           status=f"loss {loss_sum / seen:.3f} acc {correct / seen:.1%}")
+            val_loss, val_acc = (
+                evaluate_inputs(network, val_inputs, val.labels, device)
+                if val_inputs is not None else (float("nan"), float("nan"))
+            )
+            history.epoch.append(epoch)
+            history.train_loss.append(loss_sum / len(train))
+            history.train_accuracy.append(correct / len(train))
+            history.val_loss.append(val_loss)
+            history.val_accuracy.append(val_acc)
+            history.seconds.append(time.perf_counter() - start_s)
+            bar.update(task, status=f"loss {loss_sum / len(train):.3f} "
+                       f"acc {correct / len(train):.1%} val {val_acc:.1%}")
+    network.eval()
+    return Classifier(network, classes, params, fx_px, fy_px, device), history
