@@ -128,9 +128,9 @@ class AugmentConfig(Section):
 class TrainConfig(Section):
     """The depth classifier and its training (paper Sec. 5.1.1: Adam, 1e-4, 5e-4, batch 128)."""
 
-    width: float = Field(0.5, gt=0, le=4, description="channel multiplier of AlexNet's widths")
+    width: float = Field(0.25, gt=0, le=4, description="channel multiplier of AlexNet's widths")
     dropout: float = Field(0.5, ge=0, lt=1)
-    epochs: int = Field(30, ge=1)
+    epochs: int = Field(15, ge=1)
     batch_size: int = Field(128, ge=1)
     learning_rate: float = Field(1e-4, gt=0)
     weight_decay: float = Field(5e-4, ge=0)
