@@ -34,6 +34,7 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/render_speed.py
+	$(PY) benchmarks/classifier_speed.py
 
 clean:
 	rm -rf $(VENV) runs

@@ -78,3 +78,17 @@ def test_validation_holds_out_a_fraction_of_every_models_views():
     held = validation_mask(data, 0.1, np.random.default_rng(0))
     np.testing.assert_array_equal(np.bincount(models[held]), [5, 5, 5, 5])
     assert not validation_mask(data, 0.0, np.random.default_rng(0)).any()
+
+
+def test_noise_augmentation_perturbs_only_the_object():
+    from rapomdp.config import AugmentConfig, NoiseConfig
+    from rapomdp.recognition.training import augment_batch
+
+    depth = toy_views(4, seed=4).depth
+    noisy, shift, scale = augment_batch(depth, AugmentConfig(noise=True, shift=0.05, scale=0.1),
+                                        NoiseConfig(), np.random.default_rng(0))
+    object_px = depth > 0
+    np.testing.assert_array_equal(noisy > 0, object_px)  # no holes: surface angles unknown
+    error = np.abs(noisy - depth)[object_px]
+    assert 0.0005 < error.mean() < 0.01  # millimetres: axial noise and disparity steps
+    assert np.all(np.abs(shift) <= 0.05) and np.all((scale >= 0.9 - 1e-9) & (scale <= 1.1))
