@@ -42,6 +42,11 @@ EVAL_SECTIONS = ("seed", "camera", "render", "viewpoints")
 threads: int | None = None
 
 
+def _finite(value: float) -> float | None:
+    """JSON has no NaN: no validation views gives null."""
+    return None if np.isnan(value) else value
+
+
 def train_config_hash(config: Config) -> str:
     """The hash a checkpoint carries: every configuration section that shapes the classifier."""
     return stable_hash({s: config.section(s) for s in TRAIN_SECTIONS})
@@ -82,7 +87,7 @@ def run_train_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
         "validation_images": int(held.sum()),
         "epochs": config.train.epochs,
         "final_train_accuracy": history.train_accuracy[-1],
-        "final_validation_accuracy": history.val_accuracy[-1],
+        "final_validation_accuracy": _finite(history.val_accuracy[-1]),
         "wall_s": wall_s,
         "train_images_per_s": train_images / sum(history.seconds),
         "device": str(device),
