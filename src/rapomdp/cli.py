@@ -62,10 +62,10 @@ def _guard(action: Callable[[], T]) -> T:
     try:
         return action()
     except USER_ERRORS as exc:
-        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
     except KeyError as exc:
-        console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False)
+        console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
 
 
