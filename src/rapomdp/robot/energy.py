@@ -79,7 +79,8 @@ def movement_energy(
     manipulability = np.asarray(manipulability, dtype=np.float64)
     reference = float(np.max(manipulability[reachable]))
     cost_to = np.full(n, np.inf)
-    cost_to[reachable] = kappa_m * singularity_penalty(manipulability[reachable], reference, penalty)
+    penalties = singularity_penalty(manipulability[reachable], reference, penalty)
+    cost_to[reachable] = kappa_m * penalties
     energy = distance_m + cost_to[None, :]
     if joint_weight_m_per_rad > 0:
         if q_rad is None:

@@ -38,10 +38,11 @@ def plot_robot(
     ``skeletons_m`` holds, per drawn solution, the world points (k, 3) of the link frames and
     the camera; ``camera_poses`` (len(skeletons_m), 4, 4) the camera-to-world poses there.
     """
-    figure = Figure(figsize=(12, 5.5), dpi=110)
+    figure = Figure(figsize=(13, 6), dpi=110)
     FigureCanvasAgg(figure)
     ax3d = figure.add_subplot(1, 2, 1, projection="3d")
     ax2d = figure.add_subplot(1, 2, 2)
+    figure.subplots_adjust(left=0.02, right=0.88, wspace=0.12)
     good = np.asarray(reachable, dtype=bool)
     values = np.asarray(manipulability, dtype=np.float64)
     vmin = float(np.nanmin(values[good])) if good.any() else 0.0
@@ -63,6 +64,7 @@ def plot_robot(
     ax3d.set_xlim(middle[0] - half, middle[0] + half)
     ax3d.set_ylim(middle[1] - half, middle[1] + half)
     ax3d.set_zlim(0.0, 2 * half)
+    ax3d.set_box_aspect((1.0, 1.0, 1.0))
     ax3d.set_xlabel("x (m)")
     ax3d.set_ylabel("y (m)")
     ax3d.set_zlabel("z (m)")
@@ -79,7 +81,8 @@ def plot_robot(
     ax2d.set_xlabel("x (m)")
     ax2d.set_ylabel("y (m)")
     ax2d.set_title("top view (x: unreachable)", fontsize=9)
-    figure.colorbar(scatter, ax=[ax3d, ax2d], shrink=0.8, label="manipulability sqrt(det(J J^T))")
+    colour_axes = figure.add_axes((0.91, 0.15, 0.015, 0.7))
+    figure.colorbar(scatter, cax=colour_axes, label="manipulability sqrt(det(J J^T))")
     if title:
         figure.suptitle(title, fontsize=10)
     with atomic_path(path) as tmp:

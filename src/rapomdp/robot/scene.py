@@ -10,15 +10,27 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from rapomdp.geometry.viewsphere import fibonacci_directions
 
 
-def transform(xyz_m: np.ndarray | tuple[float, ...], rpy_rad=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """A 4x4 transform from a translation and roll-pitch-yaw (URDF convention: Rz Ry Rx)."""
+def rpy_matrix(rpy_rad: np.ndarray | tuple[float, ...]) -> np.ndarray:
+    """Rotation (3, 3) from roll, pitch, yaw about fixed x, y, z (URDF: Rz(y) Ry(p) Rx(r))."""
+    roll, pitch, yaw = np.asarray(rpy_rad, dtype=np.float64)
+    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                              np.cos(yaw), np.sin(yaw))
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    return rz @ ry @ rx
+
+
+def transform(
+    xyz_m: np.ndarray | tuple[float, ...], rpy_rad: np.ndarray | tuple[float, ...] = (0, 0, 0)
+) -> np.ndarray:
+    """A 4x4 transform from a translation and roll-pitch-yaw (see :func:`rpy_matrix`)."""
     pose = np.eye(4)
-    pose[:3, :3] = Rotation.from_euler("xyz", np.asarray(rpy_rad, dtype=np.float64)).as_matrix()
+    pose[:3, :3] = rpy_matrix(rpy_rad)
     pose[:3, 3] = np.asarray(xyz_m, dtype=np.float64)
     return pose
 
