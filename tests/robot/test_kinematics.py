@@ -78,7 +78,7 @@ def test_target_two_metres_away_is_unreachable(arm: CameraArm) -> None:
     result = solve_viewpoints(arm, far[None], IKSettings(roll_samples=4, restarts=2))
     assert result.reachable.tolist() == [False]
     assert np.isnan(result.q_rad).all() and np.isnan(result.manipulability).all()
-    assert result.feasible_count.tolist() == [0]
+    assert result.converged_count.tolist() == [0]
 
 
 def test_out_of_reach_target_is_unreachable_without_the_prefilter(arm: CameraArm) -> None:

@@ -48,7 +48,9 @@ class RobotConfig(Section):
     """
 
     base_xyz_m: Vector3 = Field(
-        (-0.45, 0.0, 0.0), description="the arm's base (panda_link0) in the world frame"
+        (-0.4, 0.0, 0.2),
+        description="the arm's base (panda_link0) in the world frame: 0.4 m behind the object, "
+        "on a 0.2 m riser",
     )
     base_yaw_deg: float = Field(0.0, description="the base's rotation about world Z")
     centroid_m: Vector3 = Field(
@@ -63,9 +65,9 @@ class RobotConfig(Section):
         description="camera frame (optical axis = z) relative to the flange, roll-pitch-yaw",
     )
     roll_samples: int = Field(
-        12, ge=1, le=360, description="rolls about the optical axis searched per viewpoint"
+        8, ge=1, le=360, description="rolls about the optical axis searched per viewpoint"
     )
-    restarts: int = Field(6, ge=1, le=100, description="IK starting configurations per roll")
+    restarts: int = Field(4, ge=1, le=100, description="IK starting configurations per roll")
     iterations: int = Field(40, ge=1, le=1000, description="Levenberg-Marquardt steps per try")
     position_tolerance_m: float = Field(0.001, gt=0, description="FK check: camera position")
     angle_tolerance_deg: float = Field(0.5, gt=0, description="FK check: camera orientation")

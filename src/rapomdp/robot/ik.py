@@ -5,8 +5,8 @@ rotation), so it is free: each viewpoint is solved at ``roll_samples`` rolls, ea
 ``restarts`` seeded starting configurations, and the feasible solution with the highest
 manipulability is kept. A solution is feasible when ``ik_LM`` converged inside the joint
 limits, forward kinematics puts the camera within the position and angle tolerances of the
-target, and (optionally) every joint centre stays above the floor. A viewpoint with no feasible
-solution is unreachable; it is reported as such, never with a bad solution.
+target, and (optionally) the arm's skeleton clears the floor and the object. A viewpoint with no
+feasible solution is unreachable; it is reported as such, never with a bad solution.
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ SOLVER_TOLERANCE = 1e-10
 class IKSettings:
     """How hard to search; see :class:`~rapomdp.robot.config.RobotConfig`."""
 
-    roll_samples: int = 12
-    restarts: int = 6
+    roll_samples: int = 8
+    restarts: int = 4
     iterations: int = 40
     position_tolerance_m: float = 1e-3
     angle_tolerance_rad: float = float(np.radians(0.5))
@@ -54,7 +54,7 @@ class ViewpointSolutions:
     camera_pose_world: np.ndarray  # (n, 4, 4) the pose FK reaches, NaN where unreachable
     position_error_m: np.ndarray  # (n,) |FK - target|, NaN where unreachable
     angle_error_rad: np.ndarray  # (n,) rotation angle between FK and target, NaN likewise
-    feasible_count: np.ndarray  # (n,) int, feasible solutions found over all rolls and restarts
+    converged_count: np.ndarray  # (n,) int, IK tries that converged (before the checks)
 
     @property
     def count(self) -> int:
@@ -115,7 +115,7 @@ def solve_viewpoints(
     q_out = np.full((n, joints), np.nan)
     roll_out = np.full(n, np.nan)
     target_out = np.full((n, 4, 4), np.nan)
-    feasible_count = np.zeros(n, dtype=np.int64)
+    converged_count = np.zeros(n, dtype=np.int64)
     for i in range(n):  # the solver is per target (C++); keep the Python work per try minimal
         found_q, found_roll = [], []
         for r in np.flatnonzero(may_reach[i]):
@@ -127,22 +127,21 @@ def solve_viewpoints(
         if not found_q:
             continue
         candidates = np.array(found_q)
-        achieved = arm.camera_poses_world(candidates)
-        position, angle = pose_errors(achieved, targets_world[i, found_roll])
-        feasible = (
-            arm.within_limits(candidates)
-            & (position <= settings.position_tolerance_m)
-            & (angle <= settings.angle_tolerance_rad)
-        )
-        if not feasible.any():
-            continue
-        manipulability = np.where(feasible, arm.manipulability(candidates), -np.inf)
-        for best in np.argsort(-manipulability, kind="stable")[: int(feasible.sum())]:
-            if collision_free(arm, candidates[best], settings):
+        converged_count[i] = len(candidates)
+        # Most manipulable first; the first that passes every check is the viewpoint's solution.
+        order = np.argsort(-arm.manipulability(candidates), kind="stable")
+        for best in order:
+            target = targets_world[i, found_roll[best]]
+            position, angle = pose_errors(arm.camera_poses_world(candidates[best]), target)
+            if (
+                arm.within_limits(candidates[best])
+                and position[0] <= settings.position_tolerance_m
+                and angle[0] <= settings.angle_tolerance_rad
+                and collision_free(arm, candidates[best], settings)
+            ):
                 q_out[i] = candidates[best]
                 roll_out[i] = rolls[found_roll[best]]
-                target_out[i] = targets_world[i, found_roll[best]]
-                feasible_count[i] = int(feasible.sum())
+                target_out[i] = target
                 break
 
     reachable = ~np.isnan(q_out[:, 0])
@@ -164,7 +163,7 @@ def solve_viewpoints(
         camera_pose_world=poses,
         position_error_m=position_error,
         angle_error_rad=angle_error,
-        feasible_count=feasible_count,
+        converged_count=converged_count,
     )
 
 
