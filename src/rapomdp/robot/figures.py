@@ -32,6 +32,7 @@ def plot_robot(
     skeletons_m: list[np.ndarray],
     camera_poses: np.ndarray,
     title: str = "",
+    arm_labels: list[str] | None = None,
 ) -> None:
     """Write a PNG: 3D view (arm drawn at a few solutions) and a top view of the hemisphere.
 
@@ -55,7 +56,8 @@ def plot_robot(
     ax3d.scatter(*centroid_m, marker="*", color="black", s=80, label="object centroid")
     ax3d.scatter(*base_m, marker="s", color="tab:gray", s=60, label="arm base")
     for k, (points, pose) in enumerate(zip(skeletons_m, camera_poses, strict=True)):
-        ax3d.plot(*points.T, "-o", color=f"C{k + 1}", markersize=3, linewidth=2.5)
+        label = arm_labels[k] if arm_labels else None
+        ax3d.plot(*points.T, "-o", color=f"C{k + 1}", markersize=3, linewidth=2.5, label=label)
         axis = np.stack([pose[:3, 3], pose[:3, 3] + 0.12 * pose[:3, 2]])
         ax3d.plot(*axis.T, color=f"C{k + 1}", linewidth=1, linestyle="--")
     everything = np.concatenate([viewpoints_m, [centroid_m, base_m], *skeletons_m])

@@ -174,8 +174,9 @@ def plot_result(result: RobotResult, config: Config, path: str | Path, arms: int
         camera_poses=s.camera_pose_world[picks],
         title=(
             f"Panda: {int(s.reachable.sum())}/{s.count} viewpoints reachable "
-            f"(radius {config.viewpoints.radius_m} m); arm at viewpoints {picks.tolist()}"
+            f"(radius {config.viewpoints.radius_m} m), coloured by manipulability"
         ),
+        arm_labels=[f"arm at viewpoint {i} (man. {s.manipulability[i]:.3f})" for i in picks],
     )
 
 
