@@ -124,3 +124,17 @@ def test_transform_round_trip() -> None:
     pose = transform([0.1, -0.2, 0.3], [0.3, -0.7, 1.9])
     np.testing.assert_allclose(invert(pose) @ pose, np.eye(4), atol=1e-12)
     assert FLANGE_LINK == "panda_link8"
+
+
+def test_a_turned_base_still_reaches_its_targets() -> None:
+    """The base pose is applied everywhere: the arm turned 90 deg about Z, placed to match."""
+    from rapomdp.robot.config import RobotConfig
+
+    scene = Scene.from_config(RobotConfig(base_xyz_m=(0.0, -0.4, 0.2), base_yaw_deg=90.0))
+    turned = CameraArm(scene)
+    eyes = scene.viewpoints_world(16, 0.6)
+    result = solve_viewpoints(turned, eyes, IKSettings(roll_samples=4, restarts=2))
+    assert result.reachable.sum() >= 5
+    for i in np.flatnonzero(result.reachable):
+        pose = dh_camera_pose_world(scene, result.q_rad[i])
+        assert np.linalg.norm(pose[:3, 3] - eyes[i]) <= 1e-3

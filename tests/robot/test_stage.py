@@ -16,6 +16,7 @@ from rapomdp.robot.stage import (
     ROBOT_FIGURE,
     ROBOT_SUMMARY,
     UnreachableError,
+    describe,
     load_robot,
     run_robot_stage,
     solve_robot,
@@ -35,6 +36,7 @@ def test_stage_writes_arrays_summary_and_figure(tmp_path: Path) -> None:
     assert summary["reachable"] == int(arrays["reachable"].sum()) > 0
     assert summary["unreachable_indices"] == np.flatnonzero(~arrays["reachable"]).tolist()
     assert summary["max_position_error_m"] <= 1e-3
+    assert describe(summary).startswith(f"{summary['reachable']}/24 viewpoints reachable")
     recomputed = movement_energy(
         arrays["distance_m"], arrays["manipulability"], arrays["reachable"], kappa_m=0.1
     )
@@ -91,3 +93,12 @@ def test_pick_poses_spans_the_manipulability_range() -> None:
     reachable = ~np.isnan(m)
     assert pick_poses(m, reachable, 3).tolist() == [2, 4, 3]  # best, middle, worst
     assert pick_poses(m, np.zeros(5, dtype=bool)).size == 0
+
+
+def test_config_yaml_round_trip_keeps_the_robot_section() -> None:
+    import yaml
+
+    config = Config(robot={"base_yaw_deg": 30.0, "floor_clearance_m": None})
+    again = config_from_dict(yaml.safe_load(config.to_yaml()))
+    assert again.robot == config.robot
+    assert again.section("robot")["base_xyz_m"] == [-0.4, 0.0, 0.2]

@@ -190,6 +190,16 @@ def run_robot_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
     plot_result(result, config, out / ROBOT_FIGURE)
 
 
+def describe(summary: dict[str, Any]) -> str:
+    """One line for the command line from a ``robot.json`` summary."""
+    m = summary["manipulability"]
+    return (
+        f"{summary['reachable']}/{summary['viewpoints']} viewpoints reachable "
+        f"({100 * summary['reachable_fraction']:.0f} %), IK {summary['ik_seconds']:.2f} s, "
+        f"manipulability {m['min']:.3f}-{m['max']:.3f} (median {m['median']:.3f})"
+    )
+
+
 def load_robot(folder: str | Path) -> dict[str, np.ndarray]:
     """The arrays of a finished robot stage (``robot.npz`` in ``folder``), checked for shape."""
     arrays = load_npz(Path(folder) / ROBOT_ARRAYS)
