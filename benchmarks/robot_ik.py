@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from rapomdp.config import Config
+from rapomdp.progress import set_progress
 from rapomdp.robot.arm import CameraArm
 from rapomdp.robot.ik import solve_viewpoints
 from rapomdp.robot.scene import Scene
@@ -40,6 +41,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--placements", action="store_true")
     args = parser.parse_args()
+    set_progress(False)
 
     start = time.perf_counter()
     import roboticstoolbox  # noqa: F401  (timed: the first import is slow)

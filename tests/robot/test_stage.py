@@ -102,3 +102,19 @@ def test_config_yaml_round_trip_keeps_the_robot_section() -> None:
     again = config_from_dict(yaml.safe_load(config.to_yaml()))
     assert again.robot == config.robot
     assert again.section("robot")["base_xyz_m"] == [-0.4, 0.0, 0.2]
+
+
+def test_stage_in_a_workspace_is_cached_and_survives_a_failed_rerun(tmp_path: Path) -> None:
+    from rapomdp.workspace import Stage, Workspace
+
+    stage = Stage(name="robot", run=run_robot_stage, sections=("seed", "viewpoints", "robot"))
+    workspace = Workspace(tmp_path)
+    config = Config(viewpoints={"count": 16})
+    first = workspace.run(stage, config)
+    assert not first.cached and ROBOT_ARRAYS in first.files
+    assert workspace.run(stage, config).cached
+    before = (tmp_path / "robot" / ROBOT_ARRAYS).read_bytes()
+    with pytest.raises(UnreachableError):
+        workspace.run(stage, Config(viewpoints={"count": 16}, robot={"base_xyz_m": (5, 0, 0)}))
+    assert (tmp_path / "robot" / ROBOT_ARRAYS).read_bytes() == before
+    assert load_robot(tmp_path / "robot")["reachable"].shape == (16,)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rapomdp.geometry.camera import look_at_many
+from rapomdp.progress import track
 from rapomdp.robot.arm import CameraArm
 
 # ik_LM's residual is 0.5 e^T e of the 6-vector pose error; 1e-10 is ~1e-5 m / rad.
@@ -116,7 +117,8 @@ def solve_viewpoints(
     roll_out = np.full(n, np.nan)
     target_out = np.full((n, 4, 4), np.nan)
     converged_count = np.zeros(n, dtype=np.int64)
-    for i in range(n):  # the solver is per target (C++); keep the Python work per try minimal
+    # the solver is per target (C++); keep the Python work per try minimal
+    for i in track(range(n), "robot: IK per viewpoint"):
         found_q, found_roll = [], []
         for r in np.flatnonzero(may_reach[i]):
             for q0 in starts:
