@@ -13,6 +13,8 @@ from typing import Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from rapomdp.robot.config import RobotConfig
+
 
 class ConfigError(ValueError):
     """The configuration file is unreadable or holds a wrong key or value (named)."""
@@ -115,6 +117,7 @@ class Config(Section):
     camera: CameraConfig = CameraConfig()
     render: RenderConfig = RenderConfig()
     viewpoints: ViewpointsConfig = ViewpointsConfig()
+    robot: RobotConfig = RobotConfig()
 
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""

@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterable
 from rapomdp.config import Config
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import run_render_stage
+from rapomdp.robot.stage import run_robot_stage
 from rapomdp.workspace import Stage, StageResult, Workspace
 
 STAGES: list[Stage] = [
@@ -23,6 +24,12 @@ STAGES: list[Stage] = [
         sections=("seed", "camera", "render"),
         inputs=("dataset",),
         description="depth images of every model over the training viewsphere",
+    ),
+    Stage(
+        name="robot",
+        run=run_robot_stage,
+        sections=("seed", "viewpoints", "robot"),
+        description="Panda IK, reachability and manipulability per test viewpoint; energy E_M",
     ),
 ]
 
