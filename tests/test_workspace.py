@@ -15,28 +15,28 @@ from tests.conftest import tiny_config
 def test_pipeline_builds_caches_and_reruns_only_what_changed(workspace_dir: Path) -> None:
     cfg = tiny_config()
     ws = Workspace(workspace_dir)
-    first = run_pipeline(cfg, ws)
+    first = run_pipeline(cfg, ws, until="render")
     assert [(r.name, r.cached) for r in first] == [("dataset", False), ("render", False)]
     manifest = ws.manifest()
     assert "meshes/cup/cup_000.npz" in manifest["stages"]["dataset"]["files"] or any(
         f.startswith("meshes/cup/") for f in manifest["stages"]["dataset"]["files"])
     assert manifest["stages"]["render"]["config"]["render"]["views"] == 6
 
-    again = run_pipeline(cfg, ws)
+    again = run_pipeline(cfg, ws, until="render")
     assert all(r.cached for r in again)
 
     more_views = tiny_config(render={"views": 8})
-    third = run_pipeline(more_views, ws)
+    third = run_pipeline(more_views, ws, until="render")
     assert [(r.name, r.cached) for r in third] == [("dataset", True), ("render", False)]
 
-    forced = run_pipeline(more_views, ws, force=["dataset"])
+    forced = run_pipeline(more_views, ws, until="render", force=["dataset"])
     assert [r.cached for r in forced] == [False, True]
 
 
 def test_dataset_and_render_artefacts(workspace_dir: Path) -> None:
     cfg = tiny_config()
     ws = Workspace(workspace_dir)
-    run_pipeline(cfg, ws)
+    run_pipeline(cfg, ws, until="render")
     dataset = load_dataset(ws.stage_dir("dataset"))
     assert dataset.classes == ["cup", "mug", "bicycle"]
     assert len(dataset.models) == 15
@@ -54,7 +54,7 @@ def test_dataset_and_render_artefacts(workspace_dir: Path) -> None:
     np.testing.assert_allclose(np.linalg.norm(centres, axis=1), 0.6)
     # same seed, same artefacts
     other = Workspace(workspace_dir.parent / "other")
-    run_pipeline(cfg, other)
+    run_pipeline(cfg, other, until="render")
     np.testing.assert_array_equal(
         load_training_views(other.stage_dir("render"), other.stage_dir("dataset"))
         .load(dataset.models[0])[0], depth)

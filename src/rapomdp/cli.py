@@ -157,6 +157,21 @@ def render(workspace: WorkspaceOption, config: ConfigOption = None,
     _run(config, workspace, "render", ["render"] if force else [])
 
 
+@app.command()
+def robot(workspace: WorkspaceOption, config: ConfigOption = None,
+          force: ForceOption = False) -> None:
+    """Solve the Panda's IK at every test viewpoint: reachability, manipulability, energy."""
+    _run(config, workspace, "robot", ["robot"] if force else [])
+
+    def summary() -> str:
+        from rapomdp.io import read_json
+        from rapomdp.robot.stage import describe
+
+        return describe(read_json(Workspace(workspace).require("robot") / "robot.json"))
+
+    console.print(f"  {_guard(summary)}", highlight=False, soft_wrap=True)
+
+
 @app.command("config")
 def show_config(config: ConfigOption = None) -> None:
     """Print the resolved configuration as YAML (the default when no file is given)."""

@@ -7,19 +7,11 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
+
+from rapomdp.section import Section
 
 Vector3 = tuple[float, float, float]
-
-
-class Section(BaseModel):
-    """As :class:`rapomdp.config.Section` (unknown keys are errors, assignments validated).
-
-    Repeated here because ``rapomdp.config`` imports this module: importing it back would be a
-    cycle.
-    """
-
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
 
 
 class EnergyConfig(Section):
