@@ -48,3 +48,12 @@ def test_preview_without_a_dataset_says_how_to_make_one(tmp_path: Path) -> None:
     result = runner.invoke(app, ["dataset", "preview", "-w", str(tmp_path)])
     assert result.exit_code == 2
     assert "stage 'dataset' has not been run here" in result.output
+
+
+def test_robot_command_reports_reachability(tmp_path: Path) -> None:
+    path = tmp_path / "tiny.yaml"
+    path.write_text(tiny_config().to_yaml())
+    result = runner.invoke(app, ["robot", "-w", str(tmp_path / "ws"), "-c", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "/16 viewpoints reachable" in result.output
+    assert (tmp_path / "ws" / "robot" / "robot.npz").exists()
