@@ -60,7 +60,7 @@ def test_all_forms_and_overrides():
         + "start include: 0 2\n"
         + "T: * : * : * 0\nT: * : * : 0 1\n"  # everything to state 0 ...
         + "T: 1 : 2\n0 0.5 0.5\n"  # ... except one row
-        + "Z: 0\nuniform\nO: 1\n1 0\n0 1\n0.3 0.7\n"
+        + "O: 0\nuniform\nO: 1\n1 0\n0 1\n0.3 0.7\n"
         + "R: * : * : * : * 2\n"
         + "R: 1 : 0 : 1 : 1 10\n"  # depends on s' and o: folded into the expectation
         + "R: 0 : 1\n1 2\n3 4\n5 6\n"
@@ -123,8 +123,8 @@ def test_writer_round_trip():
         (HEAD + "T: 0 : 0\n0.5 0.5 x\n", 7, "expected a probability but found 'x'"),
         (HEAD + "Q: 0\n", 6, "expected 'T:', 'Z:' or 'R:'"),
         (HEAD + "T 0 : 0 : 0 1\n", 6, "expected ':'"),
-        (HEAD + "Z: 0 : 0\nidentity\n", 7, "expected a probability"),
-        (HEAD + "Z: 0\nidentity\n", 7, "only defined for T"),
+        (HEAD + "O: 0 : 0\nidentity\n", 7, "expected a probability"),
+        (HEAD + "O: 0\nidentity\n", 7, "only defined for T"),
         (HEAD + "T: * \nuniform\nO: * \nuniform\nR: 0 : foo : * : * 1\n", 10, "unknown state"),
         (HEAD + "T: * \nuniform\nO: * \nuniform\ndiscount: 0.5\n", 10, "must come before"),
         ("states: 2\nactions: 2\nobservations: 2\n", 3, "lacks 'discount:'"),
