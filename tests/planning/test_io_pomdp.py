@@ -121,7 +121,7 @@ def test_writer_round_trip():
         (HEAD + "T: 0 : 0 : 0 1.5\n", 6, "outside [0, 1]"),
         (HEAD + "T: 0 : 0\n0.5 0.5\n", 7, "unexpected end of file"),
         (HEAD + "T: 0 : 0\n0.5 0.5 x\n", 7, "expected a probability but found 'x'"),
-        (HEAD + "Q: 0\n", 6, "expected 'T:', 'Z:' or 'R:'"),
+        (HEAD + "Q: 0\n", 6, "expected 'T:', 'O:' or 'R:'"),
         (HEAD + "T 0 : 0 : 0 1\n", 6, "expected ':'"),
         (HEAD + "O: 0 : 0\nidentity\n", 7, "expected a probability"),
         (HEAD + "O: 0\nidentity\n", 7, "only defined for T"),
