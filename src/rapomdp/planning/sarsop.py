@@ -113,7 +113,9 @@ class FlatSarsop:
             "q_up": q_up,
         }
 
-    def _backup(self, b: np.ndarray, ex: dict[str, np.ndarray] | None = None) -> tuple[float, float]:
+    def _backup(
+        self, b: np.ndarray, ex: dict[str, np.ndarray] | None = None
+    ) -> tuple[float, float]:
         """Point-based backup of both bounds at b; returns the new (lower, upper) at b."""
         ex = self._expand(b) if ex is None else ex
         a = int(np.argmax(ex["q_low"]))
