@@ -174,7 +174,12 @@ class ActiveRecognitionSolver:
 
     # -- the loop ------------------------------------------------------------------------
     def _trajectory(
-        self, eps: float, max_depth: int, deadline: float, follow_lower: bool, rng: np.random.Generator
+        self,
+        eps: float,
+        max_depth: int,
+        deadline: float,
+        follow_lower: bool,
+        rng: np.random.Generator,
     ) -> None:
         v, b = self.problem.start_viewpoint, self.problem.start_belief
         path: list[tuple[int, np.ndarray, _Expansion, int, int]] = []
