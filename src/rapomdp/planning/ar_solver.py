@@ -298,7 +298,7 @@ class ActiveRecognitionSolver:
         v0, b0 = self.problem.start_viewpoint, self.problem.start_belief
         rng = np.random.default_rng(seed)
         history: list[Progress] = []
-        it, next_prune, last = 0, 16, -np.inf
+        it, next_prune, last, pruned_size = 0, 16, -np.inf, 0
         pending = sorted(checkpoints)
         while True:
             now = time.perf_counter()
@@ -327,9 +327,10 @@ class ActiveRecognitionSolver:
             eps = max(precision, gap_fraction * snap.gap)
             self._trajectory(eps, max_depth, deadline, policy_trajectories and it % 2 == 1, rng)
             it += 1
-            if it >= next_prune:
+            if it >= next_prune or len(self.slots) > 2 * pruned_size + 256:
                 self.prune()
                 next_prune = int(it * 1.5) + 1
+                pruned_size = len(self.slots)
         final = history[-1]
         return SolveResult(
             self.policy(), final.lower, final.upper, final.elapsed, it, converged, history
