@@ -64,10 +64,10 @@ def _guard(action: Callable[[], T]) -> T:
     try:
         return action()
     except USER_ERRORS as exc:
-        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
     except KeyError as exc:
-        console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False)
+        console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
 
 
@@ -193,6 +193,21 @@ def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
         for key, label in (("xrho", "test viewpoints X_rho"), ("sphere", "whole sphere")):
             console.print(f"  single-view accuracy, {label}: {data[key]['accuracy']:.1%} "
                           f"(chance {data[key]['chance']:.1%})", highlight=False)
+
+
+@app.command()
+def robot(workspace: WorkspaceOption, config: ConfigOption = None,
+          force: ForceOption = False) -> None:
+    """Solve the Panda's IK at every test viewpoint: reachability, manipulability, energy."""
+    _run(config, workspace, "robot", ["robot"] if force else [])
+
+    def summary() -> str:
+        from rapomdp.io import read_json
+        from rapomdp.robot.stage import describe
+
+        return describe(read_json(Workspace(workspace).require("robot") / "robot.json"))
+
+    console.print(f"  {_guard(summary)}", highlight=False, soft_wrap=True)
 
 
 @app.command("config")

@@ -11,17 +11,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, model_validator
+
+from rapomdp.robot.config import RobotConfig
+from rapomdp.section import Section
 
 
 class ConfigError(ValueError):
     """The configuration file is unreadable or holds a wrong key or value (named)."""
-
-
-class Section(BaseModel):
-    """A configuration section: unknown keys are errors, assignments are validated."""
-
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
 
 
 class SplitConfig(Section):
@@ -151,6 +148,7 @@ class Config(Section):
     render: RenderConfig = RenderConfig()
     viewpoints: ViewpointsConfig = ViewpointsConfig()
     train: TrainConfig = TrainConfig()
+    robot: RobotConfig = RobotConfig()
 
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""

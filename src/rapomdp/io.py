@@ -13,6 +13,15 @@ from typing import Any
 import numpy as np
 
 
+def _default_file_mode() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+_FILE_MODE = _default_file_mode()
+
+
 class ArtefactError(RuntimeError):
     """An artefact is missing, unreadable or not what the reader expects."""
 
@@ -27,6 +36,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        os.chmod(tmp_path, _FILE_MODE)  # mkstemp makes 0600; artefacts get the usual mode
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():

@@ -13,6 +13,7 @@ from rapomdp.recognition.stage import (
     run_classifier_eval_stage,
     run_train_stage,
 )
+from rapomdp.robot.stage import run_robot_stage
 from rapomdp.workspace import Stage, StageResult, Workspace
 
 STAGES: list[Stage] = [
@@ -43,6 +44,12 @@ STAGES: list[Stage] = [
         sections=EVAL_SECTIONS,
         inputs=("dataset", "render", "train"),
         description="single-view accuracy on the test models, confusion, per viewpoint",
+    ),
+    Stage(
+        name="robot",
+        run=run_robot_stage,
+        sections=("seed", "viewpoints", "robot"),
+        description="Panda IK, reachability and manipulability per test viewpoint; energy E_M",
     ),
 ]
 
