@@ -41,9 +41,9 @@ class CheckpointMismatchError(CheckpointError):
 def default_threads() -> int:
     """Threads for PyTorch on the CPU: ``RAPOMDP_THREADS``, else half the usable cores.
 
-    Half, not all: on a small shared machine a second busy core makes PyTorch's spinning worker
-    threads wait on each other (measured up to 100x slower on 2 cores), and one thread per
-    physical core is as fast for these small convolutions anyway.
+    Half, not all: on a small shared machine a busy core makes PyTorch's worker threads wait on
+    each other (on 2 busy cores, 2 threads trained 2.7x and predicted 12x slower than 1; see
+    docs/recognition.md), and these small convolutions gain little from more threads.
     """
     value = os.environ.get(THREADS_ENV)
     if value:
