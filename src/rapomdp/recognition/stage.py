@@ -24,7 +24,12 @@ from rapomdp.data.training_views import load_training_views, model_poses, render
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, write_json_atomic
 from rapomdp.progress import track
-from rapomdp.recognition.classifier import WEIGHTS_FILE, Classifier, configure_torch
+from rapomdp.recognition.classifier import (
+    WEIGHTS_FILE,
+    Classifier,
+    configure_torch,
+    default_threads,
+)
 from rapomdp.recognition.evaluation import SingleViewResult, write_confusion_csv
 from rapomdp.recognition.figures import confusion_figure, hemisphere_figure, training_curves
 from rapomdp.recognition.training import (
@@ -53,14 +58,17 @@ def train_config_hash(config: Config) -> str:
 
 
 def load_stage_classifier(config: Config, train_dir: Path, classes: list[str]) -> Classifier:
-    """The train stage's classifier, checked against this configuration and class list."""
+    """The train stage's classifier, checked against this configuration and class list.
+
+    Sets PyTorch's thread count (the CLI's ``--threads``, else :func:`default_threads`).
+    """
     return Classifier.load(
         train_dir / WEIGHTS_FILE,
         classes=classes,
         preprocessing=preprocess_params(config.train.preprocess),
         config_hash=train_config_hash(config),
         device=config.train.device,
-        threads=threads,
+        threads=threads or default_threads(),
     )
 
 
