@@ -17,6 +17,7 @@ from rapomdp.data.meshes import MeshLoadError
 from rapomdp.data.splits import TooFewModelsError
 from rapomdp.io import ArtefactError, atomic_path
 from rapomdp.pipeline import STAGE_NAMES, STAGES, run_pipeline
+from rapomdp.planning.cli import pomdp_app
 from rapomdp.recognition.classifier import CheckpointError
 from rapomdp.workspace import StageError, StageResult, Workspace
 
@@ -36,6 +37,7 @@ dataset_app = typer.Typer(
     invoke_without_command=True,
 )
 app.add_typer(dataset_app, name="dataset")
+app.add_typer(pomdp_app, name="pomdp")
 
 console = Console(stderr=True)
 USER_ERRORS = (
