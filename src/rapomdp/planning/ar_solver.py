@@ -227,7 +227,8 @@ class ActiveRecognitionSolver:
         K, n_j, n_o = prob.shape
         # one step: declaring, or a move (≥ the cheapest) followed by at most 0
         umax = self.moves.unnormalised(B).max(axis=3)
-        out = np.maximum(-self.lam * (prob - umax), -prob * self.min_cost[self.targets][None, :, None])
+        step_cost = self.min_cost[self.targets][None, :, None]
+        out = np.maximum(-self.lam * (prob - umax), -prob * step_cost)
         n = self.up_points.shape[0]
         if n:
             vals = self.up_values[:, self.targets].T  # (J, N)
@@ -516,6 +517,9 @@ def solve_active_recognition(
 ) -> SolveResult:
     """Solve the MOMDP with :class:`ActiveRecognitionSolver`; ``result.policy`` is an
     :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`. ``options`` go to
-    :meth:`ActiveRecognitionSolver.solve` (``clock``, ``checkpoints``, …)."""
-    solver = ActiveRecognitionSolver(problem)
+    :meth:`ActiveRecognitionSolver.solve` (``clock``, ``checkpoints``, …), except ``chunk``,
+    ``grid`` (False: no grid bound; an int: that resolution) and ``grid_entries``, which go
+    to the constructor."""
+    init = {k: options.pop(k) for k in ("chunk", "grid", "grid_entries") if k in options}
+    solver = ActiveRecognitionSolver(problem, **init)  # type: ignore[arg-type]
     return solver.solve(precision, timeout, callback, **options)  # type: ignore[arg-type]
