@@ -1,7 +1,7 @@
 """SARSOP-style solver for the active-recognition MOMDP, exploiting its structure.
 
 Because the class never changes and the viewpoint is observed, a belief is (v, b) with b on the
-|C|-simplex, and the value function is one convex function of b per viewpoint. Two facts make
+|C|-simplex, and the value function is one convex function of b per viewpoint. Three facts make
 it cheap:
 
 * Moving to j costs E[v, j] whatever the class, so the value of "move to j, then act" is
@@ -11,64 +11,132 @@ it cheap:
   {β_m − E[v, j_m]} plus the declare vectors −λ(1 − e_k). Likewise one upper-bound backup at b
   gives an upper value for every viewpoint: the points are beliefs b_i with a value per
   viewpoint U_i[v].
-* With the class known the best is to declare it at once for 0 (moves cost ≥ 0), so the
-  upper bound is 0 at every corner of the simplex; sawtooth interpolation from the corners and
-  the points gives U(v, b) = min(0, min_i φ_i(b) U_i[v]), φ_i(b) = min_c b(c)/b_i(c). (The
-  generic FIB degenerates to 0 here; these corners are exact.)
+* The upper bound starts from a grid bound where the grid is affordable (few classes; see
+  :mod:`rapomdp.planning.grid_bound`): value iteration on a Freudenthal grid over the simplex,
+  interpolated — far tighter than the trivial corners (0 where the class is known). Points
+  added by backups refine it by sawtooth interpolation: U(v, b) = min(0, grid(v, b),
+  min_i φ_i(b) U_i[v]), φ_i(b) = min_c b(c)/b_i(c).
+* Where the labels' confusion is "right with probability a_j(c), else the same probability
+  w_j(c) for each wrong label" (the synthetic family), a child is b ⊙ w_j plus one bump at the
+  observed label, so dot products with the library and sawtooth ratios at all |C| children of
+  a move cost O(|C|) instead of O(|C|²). General confusion matrices take the plain path.
 
-Sampling, backups and pruning follow :mod:`rapomdp.planning.sarsop`: trajectories from
-(v0, b0) alternately guided by the upper bound with the largest weighted excess gap, and by
-the policy in hand with sampled observations; reverse-order backups; library vectors that are
-best nowhere among the sampled beliefs are pruned.
+Sampling: trajectories from (v0, b0) guided by the upper bound (the action with the best
+upper value, the label with the largest weighted excess gap, as HSVI / SARSOP) with
+reverse-order backups of both bounds; alternately, a batch of episodes of the policy in hand
+with sampled classes and labels, whose beliefs are backed up (lower bound, deepest step
+first) so the plans improve where the policy actually goes. Library vectors best at none of
+the visited (belief, viewpoint) pairs are pruned. All clocks (time limit, checkpoints,
+``Progress.elapsed``) use ``clock`` ("process": CPU time of this process, or "wall").
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
 
 import numpy as np
 
+from rapomdp.planning.grid_bound import GridUpperBound, grid_size, grid_upper_bound
 from rapomdp.planning.momdp import ActiveRecognitionProblem
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.sarsop import Progress, ProgressCallback, SolveResult
 
+CLOCKS: dict[str, Callable[[], float]] = {
+    "process": time.process_time,
+    "wall": time.perf_counter,
+}
 
-@dataclass
-class _Expansion:
-    """Everything one backup at belief b needs and produces."""
 
-    prob: np.ndarray  # (J, Zo) p(o | b, move to target a)
-    children: np.ndarray  # (J, Zo, C) normalised posteriors
-    low_child: np.ndarray  # (J, Zo) lower bound at the child (at viewpoint targets[a])
-    up_child: np.ndarray  # (J, Zo) upper bound at the child
-    betas: np.ndarray  # (J, C) backed-up continuation vectors, one per target
-    q_up: np.ndarray  # (J,) upper bound on the continuation value of each target
+class _Moves:
+    """Children of class beliefs under every move target a and label o.
+
+    ``Pj[a, o, c]`` = P(o | c, targets[a]). With the structure P = w_j(c) off the diagonal
+    and a_j(c) on it, the products use it (``fast``).
+    """
+
+    def __init__(self, Pj: np.ndarray) -> None:
+        self.Pj = Pj
+        n_j, n_o, n_c = Pj.shape
+        self.fast = False
+        self.idx = np.arange(n_c)
+        if n_o == n_c:
+            diag = Pj[:, self.idx, self.idx]  # (J, C)
+            off = Pj.copy()
+            off[:, self.idx, self.idx] = np.nan
+            hi, lo = np.nanmax(off, axis=1), np.nanmin(off, axis=1)  # (J, C) over wrong o
+            if np.all(hi - lo <= 1e-12):
+                self.fast = True
+                self.A, self.W, self.D = diag, lo, diag - lo
+
+    def unnormalised(self, B: np.ndarray) -> np.ndarray:
+        """u[k, a, o, c] = B[k, c] P(o | c, a): (K, J, O, C)."""
+        return B[:, None, None, :] * self.Pj[None]
+
+    def dots(self, B: np.ndarray, betas: np.ndarray) -> np.ndarray:
+        """u[k, a, o] · β_m: (K, J, O, M)."""
+        if self.fast:
+            first = (B[:, None, :] * self.W[None]) @ betas.T  # (K, J, M)
+            bump = B[:, None, :] * self.D[None]  # (K, J, O)
+            return first[:, :, None, :] + bump[..., None] * betas.T[None, None]
+        return self.unnormalised(B) @ betas.T
+
+    def phi(self, B: np.ndarray, inv: np.ndarray, off: np.ndarray) -> np.ndarray:
+        """min_c u[k, a, o, c] inv_i(c) (+inf off the point's support): (K, J, O, N)."""
+        if self.fast:
+            x = (B[:, None, :] * self.W[None])[:, :, None, :] * inv[None, None] + off
+            part = np.partition(x, 1, axis=-1)  # (K, J, N, C)
+            m1, m2 = part[..., 0], part[..., 1]
+            arg = x.argmin(axis=-1)
+            y = (B[:, None, :] * self.A[None])[:, :, None, :] * inv[None, None] + off
+            excl = np.where(arg[..., None] == self.idx, m2[..., None], m1[..., None])
+            return np.minimum(y, excl).transpose(0, 1, 3, 2)
+        u = self.unnormalised(B)
+        return (u[:, :, :, None, :] * inv + off).min(axis=-1)
+
+    def backup(self, alpha: np.ndarray) -> np.ndarray:
+        """Σ_o P(o | c, a) α[k, a, o, c]: (K, J, C)."""
+        if self.fast:
+            return self.W[None] * alpha.sum(axis=2) + self.D[None] * alpha[:, :, self.idx, self.idx]
+        return np.einsum("aoc,kaoc->kac", self.Pj, alpha)
 
 
 class ActiveRecognitionSolver:
     """Point-based solver with one shared library of continuation vectors over the simplex."""
 
-    def __init__(self, problem: ActiveRecognitionProblem, chunk: int = 4_000_000) -> None:
+    def __init__(
+        self,
+        problem: ActiveRecognitionProblem,
+        chunk: int = 2_000_000,
+        grid: bool | int = True,
+        grid_entries: int = 12_000_000,
+    ) -> None:
         self.problem = problem
         self.targets = problem.targets  # (J,) viewpoint index of each move target
         self.cost = problem.move_cost()  # (V, J)
         self.cost_tt = self.cost[self.targets]  # (J, J): from a target to a target
-        # Pj[a, o, c] = P(o | c, targets[a]): the layout the backups multiply with
-        self.Pj = np.ascontiguousarray(
-            problem.observation_model[self.targets].transpose(0, 2, 1)
+        self.min_cost = self.cost.min(axis=1)  # (V,) a move costs at least this much
+        self.moves = _Moves(
+            np.ascontiguousarray(problem.observation_model[self.targets].transpose(0, 2, 1))
         )
         self.lam = problem.lambda_
         self.g = problem.discount
-        n_c = problem.n_classes
+        n_c, n_v = problem.n_classes, problem.n_viewpoints
         self.betas = np.zeros((0, n_c))
         self.slots = np.zeros(0, dtype=np.int64)  # target slot (index into targets) of β
         self.up_points = np.zeros((0, n_c))
         self.up_inv = np.zeros((0, n_c))
         self.up_off = np.zeros((0, n_c))
-        self.up_values = np.zeros((0, problem.n_viewpoints))
-        self.sampled: list[np.ndarray] = [problem.start_belief]
+        self.up_values = np.zeros((0, n_v))
+        self.grid: GridUpperBound | None = None
+        self.grid_option = grid
+        self.grid_entries = grid_entries
+        # visited (belief, viewpoint) pairs: pruning keeps the vectors best at one of them
+        self.visited_b: list[np.ndarray] = [problem.start_belief[None]]
+        self.visited_v: list[np.ndarray] = [np.array([problem.start_viewpoint])]
         self.chunk = chunk
+        self.clock: Callable[[], float] = time.process_time
+        self.deadline = np.inf
 
     # -- bounds --------------------------------------------------------------------------
     def lower_values(self, beliefs: np.ndarray) -> np.ndarray:
@@ -78,92 +146,143 @@ class ActiveRecognitionSolver:
         out = np.repeat(dec[:, None], self.problem.n_viewpoints, axis=1)
         if len(self.slots):
             step = max(1, self.chunk // (len(self.slots) * self.problem.n_viewpoints))
+            cost = self.cost[:, self.slots]
             for i in range(0, B.shape[0], step):
                 s = B[i : i + step] @ self.betas.T  # (k, M)
-                moves = (s[:, None, :] - self.cost[:, self.slots][None]).max(axis=2)
+                moves = (s[:, None, :] - cost[None]).max(axis=2)
                 out[i : i + step] = np.maximum(out[i : i + step], moves)
         return out
 
-    def _phi(self, beliefs: np.ndarray) -> np.ndarray:
-        """φ_i(b) = min_c b(c)/b_i(c) over each point's support: (K, N)."""
+    def _lower_at(self, B: np.ndarray, views: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lower bound at pairs (B[k], views[k]) and the chosen target slot (−1: declare)."""
+        dec = -self.lam * (1.0 - B.max(axis=1))
+        if not len(self.slots):
+            return dec, np.full(B.shape[0], -1)
+        s = B @ self.betas.T - self.cost[views][:, self.slots]  # (K, M)
+        m = s.argmax(axis=1)
+        best = s[np.arange(B.shape[0]), m]
+        go = best > dec + 1e-12
+        return np.where(go, best, dec), np.where(go, self.slots[m], -1)
+
+    def _sawtooth(self, beliefs: np.ndarray) -> np.ndarray:
+        """Sawtooth part (K, V) of the upper bound (0 without points)."""
         n = self.up_points.shape[0]
         K, n_c = beliefs.shape
-        out = np.empty((K, n))
-        step = max(1, self.chunk // max(1, n * n_c))
+        out = np.zeros((K, self.problem.n_viewpoints))
+        if n == 0:
+            return out
+        step = max(1, self.chunk // max(1, n * max(n_c, self.problem.n_viewpoints)))
         for i in range(0, K, step):
             r = beliefs[i : i + step, None, :] * self.up_inv[None]
             r += self.up_off[None]
-            out[i : i + step] = r.min(axis=2)
+            phi = r.min(axis=2)  # (k, N)
+            out[i : i + step] = np.minimum(0.0, (phi[:, :, None] * self.up_values[None]).min(1))
         return out
 
     def upper_values(self, beliefs: np.ndarray) -> np.ndarray:
         """Upper bound (K, V) at beliefs (K, C) for every viewpoint."""
         B = np.atleast_2d(beliefs)
-        if self.up_points.shape[0] == 0:
-            return np.zeros((B.shape[0], self.problem.n_viewpoints))
-        phi = self._phi(B)  # (K, N)
-        return np.minimum(0.0, (phi[:, :, None] * self.up_values[None]).min(axis=1))
+        out = self._sawtooth(B)
+        dec = -self.lam * (1.0 - B.max(axis=1))
+        out = np.minimum(out, np.maximum(dec[:, None], -self.min_cost[None]))
+        if self.grid is not None:
+            out = np.minimum(out, self.grid.evaluate(B))
+        return out
 
-    # -- one belief ----------------------------------------------------------------------
-    def _lower_children(
-        self, u: np.ndarray, prob: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Best plan at every child (unnormalised u (J, Zo, C)): its value (J, Zo) and the
-        backed-up continuation vectors β_a = γ Σ_o P[a, o, :] ⊙ α_{a,o} (J, C)."""
-        n_j, n_z, n_c = u.shape
-        kstar = u.argmax(axis=2)  # best class to declare at each child
-        dec = -self.lam * (prob - np.take_along_axis(u, kstar[..., None], axis=2)[..., 0])
-        alpha = -self.lam * (1.0 - np.eye(n_c)[kstar])  # (J, Zo, C) declare vectors
-        value = dec
-        if len(self.slots):
-            s = u @ self.betas.T  # (J, Zo, M)
-            s -= prob[:, :, None] * self.cost_tt[:, self.slots][:, None, :]
-            m = s.argmax(axis=2)
-            best = np.take_along_axis(s, m[..., None], axis=2)[..., 0]
-            use = best > dec
-            if use.any():
-                lib = self.betas[m] - self.cost_tt[np.arange(n_j)[:, None], self.slots[m]][
-                    ..., None
-                ]
-                alpha = np.where(use[..., None], lib, alpha)
-                value = np.where(use, best, dec)
-        betas = self.g * np.einsum("aoc,aoc->ac", self.Pj, alpha)
-        return value, betas
+    # -- children ------------------------------------------------------------------------
+    def _child_lower(self, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Best plan at every child of B (K, C): probabilities (K, J, O), unnormalised values
+        (K, J, O) and the alpha vectors used (K, J, O, C)."""
+        u = self.moves.unnormalised(B)
+        prob = u.sum(axis=3)
+        kstar = u.argmax(axis=3)
+        umax = np.take_along_axis(u, kstar[..., None], axis=3)[..., 0]
+        value = -self.lam * (prob - umax)
+        n_c = B.shape[1]
+        n_m = len(self.slots)
+        choice = np.full(prob.shape, -1)
+        if n_m:
+            K, n_j, n_o = prob.shape
+            cost = self.cost_tt[:, self.slots]  # (J, M)
+            step = max(1, self.chunk // (K * n_j * n_o))
+            for i in range(0, n_m, step):
+                blk = slice(i, min(n_m, i + step))
+                s = self.moves.dots(B, self.betas[blk])
+                s -= prob[..., None] * cost[None, :, None, blk]
+                m = s.argmax(axis=3)
+                best = np.take_along_axis(s, m[..., None], axis=3)[..., 0]
+                better = best > value
+                value = np.where(better, best, value)
+                choice = np.where(better, m + i, choice)
+        alpha = -self.lam * (1.0 - np.eye(n_c)[kstar])
+        use = choice >= 0
+        if use.any():
+            jj = np.broadcast_to(np.arange(prob.shape[1])[None, :, None], prob.shape)[use]
+            mm = choice[use]
+            alpha[use] = self.betas[mm] - self.cost_tt[jj, self.slots[mm]][:, None]
+        return prob, value, alpha
 
-    def _expand(self, b: np.ndarray) -> _Expansion:
-        u = b[None, None, :] * self.Pj  # (J, Zo, C) unnormalised children
-        prob = u.sum(axis=2)
-        safe = np.where(prob > 0, prob, 1.0)
-        children = u / safe[..., None]
-        low, betas = self._lower_children(u, prob)
-        n_j, n_z, n_c = u.shape
-        up = np.zeros((n_j, n_z))
-        if self.up_points.shape[0]:
-            phi = self._phi(children.reshape(n_j * n_z, n_c)).reshape(n_j, n_z, -1)
-            vals = self.up_values[:, self.targets].T  # (J, N): each point's value at target a
-            up = np.minimum(0.0, (phi * vals[:, None, :]).min(axis=2))
-        q_up = self.g * (prob * up).sum(axis=1)
-        return _Expansion(prob, children, low / safe, up, betas, q_up)
+    def _child_upper(self, B: np.ndarray, prob: np.ndarray) -> np.ndarray:
+        """Unnormalised upper bound prob · U(targets[a], child) at every child: (K, J, O)."""
+        K, n_j, n_o = prob.shape
+        # one step: declaring, or a move (≥ the cheapest) followed by at most 0
+        umax = self.moves.unnormalised(B).max(axis=3)
+        step_cost = self.min_cost[self.targets][None, :, None]
+        out = np.maximum(-self.lam * (prob - umax), -prob * step_cost)
+        n = self.up_points.shape[0]
+        if n:
+            vals = self.up_values[:, self.targets].T  # (J, N)
+            step = max(1, self.chunk // (K * n_j * n_o))
+            for i in range(0, n, step):
+                blk = slice(i, min(n, i + step))
+                ph = self.moves.phi(B, self.up_inv[blk], self.up_off[blk])  # (K, J, O, n)
+                out = np.minimum(out, (ph * vals[None, :, None, blk]).min(axis=3))
+        if self.grid is not None:
+            u = self.moves.unnormalised(B)
+            safe = np.where(prob > 0, prob, 1.0)
+            ch = (u / safe[..., None]).reshape(-1, B.shape[1])
+            views = np.broadcast_to(self.targets[None, :, None], prob.shape).ravel()
+            g = self.grid.evaluate(ch, views).reshape(prob.shape)
+            out = np.minimum(out, g * prob)
+        return out
 
-    def _backup(self, b: np.ndarray, ex: _Expansion) -> tuple[np.ndarray, np.ndarray]:
-        """Add the improving plans and the upper point at b; returns (lower, upper) (V,)."""
-        dec = -self.lam * (1.0 - b.max())
-        old_low = self.lower_values(b[None])[0]
-        cand = ex.betas @ b - self.cost  # (V, J)
-        best_a = cand.argmax(axis=1)
-        best = cand[np.arange(cand.shape[0]), best_a]
+    # -- backups -------------------------------------------------------------------------
+    def backup(
+        self, B: np.ndarray, views: np.ndarray | None = None, upper: bool = True
+    ) -> tuple[np.ndarray, dict]:
+        """Back up the beliefs B (K, C): add the plan that improves most at (B[k], views[k])
+        (at every viewpoint where it improves when ``views`` is None) and, if ``upper``, an
+        upper point with values for every viewpoint. Returns the lower bound (K, V) after and
+        the children's bounds (``prob``, ``low``, ``up`` unnormalised (K, J, O))."""
+        prob, low_u, alpha = self._child_lower(B)
+        betas = self.g * self.moves.backup(alpha)  # (K, J, C)
+        q_low = np.einsum("kjc,kc->kj", betas, B)
+        cand = q_low[:, None, :] - self.cost[None]  # (K, V, J)
+        best_a = cand.argmax(axis=2)
+        best = np.take_along_axis(cand, best_a[..., None], axis=2)[..., 0]
+        old_low = self.lower_values(B)
         better = best > old_low + 1e-10
+        if views is not None:
+            mask = np.zeros_like(better)
+            mask[np.arange(B.shape[0]), views] = True
+            better &= mask
         if better.any():
-            new = np.unique(best_a[better])
-            self.betas = np.vstack([self.betas, ex.betas[new]])
-            self.slots = np.concatenate([self.slots, new])
-        low = np.maximum(old_low, best)
-        old_up = self.upper_values(b[None])[0]
-        new_up = np.maximum(dec, (ex.q_up[None, :] - self.cost).max(axis=1))
-        up = np.minimum(old_up, new_up)
-        if np.any(new_up < old_up - 1e-10):
-            self._add_point(b, up)
-        return low, up
+            kk, vv = np.nonzero(better)
+            pairs = np.unique(np.stack([kk, best_a[kk, vv]], axis=1), axis=0)
+            self.betas = np.vstack([self.betas, betas[pairs[:, 0], pairs[:, 1]]])
+            self.slots = np.concatenate([self.slots, pairs[:, 1]])
+        info: dict[str, np.ndarray] = {"prob": prob, "low": low_u}
+        if upper:
+            up_u = self._child_upper(B, prob)
+            q_up = self.g * up_u.sum(axis=2)  # (K, J)
+            dec = -self.lam * (1.0 - B.max(axis=1))
+            new_up = np.maximum(dec[:, None], (q_up[:, None, :] - self.cost[None]).max(axis=2))
+            old_up = self.upper_values(B)
+            up = np.minimum(old_up, new_up)
+            for k in np.flatnonzero(np.any(new_up < old_up - 1e-10, axis=1)):
+                self._add_point(B[k], up[k])
+            info.update(up=up_u, q_up=q_up)
+        return np.maximum(old_low, best), info
 
     def _add_point(self, b: np.ndarray, values: np.ndarray) -> None:
         support = b > 0
@@ -172,95 +291,132 @@ class ActiveRecognitionSolver:
         self.up_off = np.vstack([self.up_off, np.where(support, 0.0, np.inf)[None]])
         self.up_values = np.vstack([self.up_values, values[None]])
 
-    # -- the loop ------------------------------------------------------------------------
-    def _trajectory(
-        self,
-        eps: float,
-        max_depth: int,
-        deadline: float,
-        follow_lower: bool,
-        rng: np.random.Generator,
-    ) -> None:
+    # -- sampling ------------------------------------------------------------------------
+    def _trajectory(self, eps: float, max_depth: int) -> None:
+        """One upper-bound-guided trajectory from (v0, b0), then reverse-order backups."""
         v, b = self.problem.start_viewpoint, self.problem.start_belief
-        path: list[tuple[int, np.ndarray, _Expansion, int, int]] = []
+        path: list[tuple[int, np.ndarray]] = []
         for depth in range(max_depth):
-            ex = self._expand(b)
-            low, up = self._backup(b, ex)
-            target = eps * self.g ** (-depth)
-            moves_low = ex.betas @ b - self.cost[v]
-            moves_up = ex.q_up - self.cost[v]
-            dec = -self.lam * (1.0 - b.max())
-            if up[v] - low[v] <= target or time.perf_counter() > deadline:
-                path.append((v, b, ex, -1, -1))
+            path.append((v, b))
+            if self.clock() > self.deadline:
                 break
-            if follow_lower:
-                a = int(np.argmax(moves_low))
-                if moves_low[a] <= dec:
-                    path.append((v, b, ex, -1, -1))
-                    break
-                pr = ex.prob[a]
-                o = int(rng.choice(pr.size, p=pr / pr.sum()))
-                path.append((v, b, ex, a, o))
-                if ex.up_child[a, o] - ex.low_child[a, o] <= target / self.g:
-                    break
-            else:
-                a = int(np.argmax(moves_up))
-                if moves_up[a] <= dec:
-                    path.append((v, b, ex, -1, -1))
-                    break
-                excess = ex.prob[a] * (ex.up_child[a] - ex.low_child[a] - target / self.g)
-                o = int(np.argmax(excess))
-                path.append((v, b, ex, a, o))
-                if excess[o] <= 0:
-                    break
-            v, b = int(self.targets[a]), ex.children[a, o]
-        # reverse-order backups; cached children upper values stay valid (the bound only
-        # falls), only the child on the path is refreshed; the lower part is redone
-        child_up: np.ndarray | None = None
-        for _v, belief, ex, a, o in reversed(path):
-            if a >= 0 and child_up is not None:
-                ex.up_child[a, o] = min(ex.up_child[a, o], child_up[self.targets[a]])
-                ex.q_up[a] = self.g * float(ex.prob[a] @ ex.up_child[a])
-            u = belief[None, None, :] * self.Pj
-            _, ex.betas = self._lower_children(u, ex.prob)
-            _, child_up = self._backup(belief, ex)
-        self.sampled.extend(item[1] for item in path)
+            B = b[None]
+            prob, low_u, _ = self._child_lower(B)
+            up_u = self._child_upper(B, prob)
+            q_up = self.g * up_u[0].sum(axis=1) - self.cost[v]  # (J,)
+            dec = -self.lam * (1.0 - b.max())
+            up_here = min(float(self.upper_values(B)[0, v]), max(dec, float(q_up.max())))
+            low_here = float(self.lower_values(B)[0, v])
+            target = eps * self.g ** (-depth)
+            if up_here - low_here <= target:
+                break
+            a = int(np.argmax(q_up))
+            if q_up[a] <= dec:
+                break
+            excess = up_u[0, a] - low_u[0, a] - prob[0, a] * target / self.g
+            o = int(np.argmax(excess))
+            if excess[o] <= 0:
+                break
+            v, b = int(self.targets[a]), self.moves.Pj[a, o] * b / prob[0, a, o]
+        for view, belief in reversed(path):
+            self.backup(belief[None], np.array([view]), upper=True)
+        self._visit(np.array([p[1] for p in path]), np.array([p[0] for p in path]))
 
-    def prune(self) -> None:
-        """Drop library vectors best at no (sampled belief, viewpoint) and redundant points."""
-        B = np.unique(np.vstack(self.sampled), axis=0)
-        self.sampled = list(B)
+    def _policy_batch(self, rng: np.random.Generator, n_runs: int, max_steps: int) -> None:
+        """Episodes of the policy in hand (sampled classes and labels); back up the beliefs
+        it reaches, deepest step first (lower bound only)."""
+        pb = self.problem
+        n_c = pb.n_classes
+        cls = rng.choice(n_c, size=n_runs, p=pb.start_belief)
+        views = np.full(n_runs, pb.start_viewpoint)
+        B = np.broadcast_to(pb.start_belief, (n_runs, n_c)).copy()
+        steps: list[np.ndarray] = []
+        step_v: list[np.ndarray] = []
+        all_b, all_v = [], []
+        for _ in range(max_steps):
+            _, slot = self._lower_at(B, views)
+            go = slot >= 0
+            if not go.any():
+                break
+            B, views, cls, slot = B[go], views[go], cls[go], slot[go]
+            all_b.append(B)
+            all_v.append(views)
+            j = self.targets[slot]
+            like = pb.observation_model[j, cls]  # (k, O)
+            u = rng.random(j.size)
+            labels = np.minimum((u[:, None] > np.cumsum(like, axis=1)).sum(axis=1), n_c - 1)
+            B = B * pb.observation_model[j, :, labels]
+            B /= B.sum(axis=1, keepdims=True)
+            views = j
+            steps.append(B)
+            step_v.append(views)
+        for Bs, vs in zip(reversed(steps), reversed(step_v), strict=True):
+            key = np.concatenate([np.round(Bs, 12), vs[:, None]], axis=1)
+            _, first = np.unique(key, axis=0, return_index=True)
+            Bs, vs = Bs[first], vs[first]
+            per = len(self.targets) * Bs.shape[1] * (1 + len(self.slots))
+            step = max(1, self.chunk // per)
+            for i in range(0, Bs.shape[0], step):
+                if self.clock() > self.deadline:
+                    return
+                self.backup(Bs[i : i + step], vs[i : i + step], upper=False)
+        if all_b:
+            self._visit(np.vstack(all_b), np.concatenate(all_v))
+
+    def _visit(self, B: np.ndarray, views: np.ndarray) -> None:
+        self.visited_b.append(np.atleast_2d(B))
+        self.visited_v.append(np.atleast_1d(views))
+
+    def prune(self, keep_pairs: int = 20_000) -> None:
+        """Drop library vectors best at no visited (belief, viewpoint) pair."""
+        B = np.vstack(self.visited_b)[-keep_pairs:]
+        views = np.concatenate(self.visited_v)[-keep_pairs:]
+        key = np.concatenate([np.round(B, 12), views[:, None]], axis=1)
+        _, first = np.unique(key, axis=0, return_index=True)
+        B, views = B[first], views[first]
+        self.visited_b, self.visited_v = [B], [views]
         n_m = len(self.slots)
-        if n_m:
-            used = np.zeros(n_m, dtype=bool)
-            n_v = self.problem.n_viewpoints
-            step = max(1, self.chunk // (n_m * n_v))
-            cost = self.cost[:, self.slots]  # (V, M)
-            for i in range(0, B.shape[0], step):
-                blk = B[i : i + step]
-                s = (blk @ self.betas.T)[:, None, :] - cost[None]  # (k, V, M)
-                m = s.argmax(axis=2)
-                best = np.take_along_axis(s, m[..., None], axis=2)[..., 0]
-                dec = -self.lam * (1.0 - blk.max(axis=1))
-                used[m[best > dec[:, None]]] = True
-            self.betas, self.slots = self.betas[used], self.slots[used]
-        n = self.up_points.shape[0]
-        if n > 1:
-            phi = self._phi(self.up_points)  # (N, N): φ_j(b_i)
-            drop = np.zeros(n, dtype=bool)
-            idx = np.arange(n)
-            step = max(1, self.chunk // (n * self.problem.n_viewpoints))
-            for i in range(0, n, step):
-                rows = slice(i, min(n, i + step))
-                bound = phi[rows, :, None] * self.up_values[None]  # (r, N, V)
-                own = self.up_values[rows, None, :]
-                later = (idx[None, :] > idx[rows, None])[..., None]
-                dominated = np.where(later, bound <= own + 1e-12, bound < own - 1e-12).all(axis=2)
-                dominated[np.arange(rows.stop - rows.start), idx[rows]] = False
-                drop[rows] = dominated.any(axis=1)
-            keep = ~drop
-            self.up_points, self.up_inv = self.up_points[keep], self.up_inv[keep]
-            self.up_off, self.up_values = self.up_off[keep], self.up_values[keep]
+        if not n_m:
+            return
+        used = np.zeros(n_m, dtype=bool)
+        step = max(1, self.chunk // n_m)
+        for i in range(0, B.shape[0], step):
+            blk, vb = B[i : i + step], views[i : i + step]
+            s = blk @ self.betas.T - self.cost[vb][:, self.slots]
+            m = s.argmax(axis=1)
+            dec = -self.lam * (1.0 - blk.max(axis=1))
+            used[m[s[np.arange(blk.shape[0]), m] > dec]] = True
+        self.betas, self.slots = self.betas[used], self.slots[used]
+
+    # -- the grid ------------------------------------------------------------------------
+    def _build_grid(self, until: float) -> None:
+        """Grid upper bounds of growing resolution while they fit in entries and time."""
+        pb = self.problem
+        n_c, n_j = pb.n_classes, len(self.targets)
+        if self.grid_option is False:
+            return
+        if isinstance(self.grid_option, int) and not isinstance(self.grid_option, bool):
+            resolutions = [int(self.grid_option)]
+        else:
+            resolutions = [2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80, 96, 128]
+        last_cost, last_entries = 0.0, 0
+        for res in resolutions:
+            entries = grid_size(res, n_c) * n_j * n_c * n_c
+            if entries > self.grid_entries:
+                break
+            now = self.clock()
+            if last_entries and now + 1.5 * last_cost * entries / last_entries > until:
+                break
+            if now > until:
+                break
+            grid = grid_upper_bound(
+                pb.observation_model, self.cost, self.targets, self.lam, self.g, res,
+                deadline=until, clock=self.clock, tol=1e-5, initial=self.grid,
+            )
+            if grid.sweeps == 0:
+                break
+            self.grid = grid
+            last_cost, last_entries = self.clock() - now, entries
 
     def policy(self) -> ActiveRecognitionPolicy:
         """The lower-bound policy, with the upper bound attached."""
@@ -282,26 +438,33 @@ class ActiveRecognitionSolver:
         timeout: float = 30.0,
         callback: ProgressCallback | None = None,
         report_every: float = 0.5,
-        max_depth: int = 200,
+        max_depth: int = 60,
         gap_fraction: float = 0.5,
         max_iterations: int | None = None,
         policy_trajectories: bool = True,
         seed: int = 0,
         checkpoints: tuple[float, ...] = (),
+        clock: str = "process",
+        grid_share: float = 0.3,
+        policy_runs: int = 16,
     ) -> SolveResult:
-        """Improve both bounds at (v0, b0) until their gap ≤ ``precision`` or ``timeout`` s.
+        """Improve both bounds at (v0, b0) until their gap ≤ ``precision`` or ``timeout`` s
+        of ``clock`` ("process": CPU time, or "wall").
 
-        ``checkpoints`` (seconds) force a history entry as soon as each is passed.
+        ``checkpoints`` (seconds) force a history entry as soon as each is passed. Up to
+        ``grid_share`` of the time goes to the grid upper bound (where affordable).
         """
-        start = time.perf_counter()
-        deadline = start + timeout
+        self.clock = CLOCKS[clock]
+        start = self.clock()
+        self.deadline = start + timeout
         v0, b0 = self.problem.start_viewpoint, self.problem.start_belief
         rng = np.random.default_rng(seed)
         history: list[Progress] = []
-        it, next_prune, last, pruned_size = 0, 16, -np.inf, 0
+        it, next_prune, last, pruned = 0, 8, -np.inf, 0
         pending = sorted(checkpoints)
+        self._build_grid(start + grid_share * timeout)
         while True:
-            now = time.perf_counter()
+            now = self.clock()
             snap = Progress(
                 now - start,
                 float(self.lower_values(b0[None])[0, v0]),
@@ -311,7 +474,7 @@ class ActiveRecognitionSolver:
                 it,
             )
             converged = snap.gap <= precision
-            done = converged or now > deadline or (
+            done = converged or now > self.deadline or (
                 max_iterations is not None and it >= max_iterations
             )
             hit = bool(pending) and snap.elapsed >= pending[0]
@@ -325,12 +488,20 @@ class ActiveRecognitionSolver:
             if done:
                 break
             eps = max(precision, gap_fraction * snap.gap)
-            self._trajectory(eps, max_depth, deadline, policy_trajectories and it % 2 == 1, rng)
+            if policy_trajectories and it % 2 == 1:
+                self._policy_batch(rng, policy_runs, max_depth)
+            else:
+                self._trajectory(eps, max_depth)
             it += 1
-            if it >= next_prune or len(self.slots) > 2 * pruned_size + 256:
+            if it >= next_prune or len(self.slots) > 2 * pruned + 256:
                 self.prune()
-                next_prune = int(it * 1.5) + 1
-                pruned_size = len(self.slots)
+                next_prune = int(it * 1.3) + 4
+                pruned = len(self.slots)
+        # the policy file's sawtooth carries the reported upper bound at the start
+        up0 = self.upper_values(b0[None])[0]
+        if np.any(up0 < self._sawtooth(b0[None])[0] - 1e-12):
+            self._add_point(b0, up0)
+        self.prune()
         final = history[-1]
         return SolveResult(
             self.policy(), final.lower, final.upper, final.elapsed, it, converged, history
@@ -345,6 +516,10 @@ def solve_active_recognition(
     **options: object,
 ) -> SolveResult:
     """Solve the MOMDP with :class:`ActiveRecognitionSolver`; ``result.policy`` is an
-    :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`."""
-    solver = ActiveRecognitionSolver(problem)
+    :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`. ``options`` go to
+    :meth:`ActiveRecognitionSolver.solve` (``clock``, ``checkpoints``, …), except ``chunk``,
+    ``grid`` (False: no grid bound; an int: that resolution) and ``grid_entries``, which go
+    to the constructor."""
+    init = {k: options.pop(k) for k in ("chunk", "grid", "grid_entries") if k in options}
+    solver = ActiveRecognitionSolver(problem, **init)  # type: ignore[arg-type]
     return solver.solve(precision, timeout, callback, **options)  # type: ignore[arg-type]
