@@ -139,6 +139,18 @@ class TrainConfig(Section):
     augment: AugmentConfig = AugmentConfig()
 
 
+class SolveConfig(Section):
+    """The active-recognition POMDP built from the workspace, and its solver."""
+
+    wrong_declaration_cost_m: float = Field(
+        2.0, gt=0, description="lambda (Eq. 1): a wrong declaration's cost, in metres of E_M")
+    discount: float = Field(0.95, gt=0, lt=1)
+    precision: float = Field(1e-3, gt=0, description="stop when upper - lower is below this")
+    timeout_s: float = Field(20.0, gt=0, description="CPU seconds per observation model")
+    models: list[str] | None = Field(
+        None, description="observation models to solve (default: every one the observe stage made)")
+
+
 class Config(Section):
     """Everything a run needs; ``Config()`` is the embedded default."""
 
@@ -149,6 +161,7 @@ class Config(Section):
     viewpoints: ViewpointsConfig = ViewpointsConfig()
     train: TrainConfig = TrainConfig()
     robot: RobotConfig = RobotConfig()
+    solve: SolveConfig = SolveConfig()
 
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""

@@ -14,6 +14,8 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
+from rapomdp.config import Config, ConfigError, load_config
+from rapomdp.io import ArtefactError
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.io_pomdp import PomdpParseError, read_pomdp, write_pomdp
 from rapomdp.planning.io_pomdpx import write_pomdpx
@@ -25,6 +27,7 @@ from rapomdp.planning.momdp import (
 )
 from rapomdp.planning.sarsop import Progress, SolveResult, solve_pomdp
 from rapomdp.planning.workspace import load_problem_arrays
+from rapomdp.workspace import StageError, Workspace
 
 pomdp_app = typer.Typer(
     help="Solve POMDPs (Cassandra .pomdp) with the SARSOP-style solver; export problems.",
@@ -90,7 +93,7 @@ def solve_cmd(
     out: Path | None = typer.Option(None, "--out", help="Write the policy (.npz)."),
 ) -> None:
     """Solve a .pomdp file, printing the bounds as they improve and the final policy size."""
-    console = Console()
+    console = Console(soft_wrap=True)
     try:
         pomdp = read_pomdp(file)
     except PomdpParseError as exc:
@@ -118,6 +121,15 @@ def _parse_size(text: str) -> tuple[int, int]:
     return int(m.group(1)), int(m.group(2))
 
 
+def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
+    """The problem the solve stage builds from a workspace, with the workspace's configuration."""
+    from rapomdp.planning.stage import workspace_problem
+
+    ws = Workspace(root)
+    config = load_config(root / "config.yaml") if (root / "config.yaml").exists() else Config()
+    return workspace_problem(config, ws.require("observe"), ws.require("robot"), model)
+
+
 @pomdp_app.command("export")
 def export_cmd(
     out: Path = typer.Option(..., "--out", help="Output file: .pomdpx (MOMDP) or .pomdp (flat)."),
@@ -129,6 +141,11 @@ def export_cmd(
         None, "--benchmark", help="Instead of --problem: a synthetic problem VxC of the "
         "pomdp-benchmarks family, e.g. 64x10.",
     ),
+    workspace: Path | None = typer.Option(
+        None, "--workspace", "-w", help="Instead of --problem: the workspace's problem, from its "
+        "observe and robot stages and its configuration's solve section.",
+    ),
+    model: str = typer.Option("ra", "--model", help="With --workspace: the observation model."),
     seed: int = typer.Option(0, "--seed", help="Seed of the synthetic problem."),
     lambda_: float = typer.Option(10.0, "--lambda", help="Cost of a wrong declaration (λ)."),
     discount: float = typer.Option(0.95, "--discount"),
@@ -138,11 +155,13 @@ def export_cmd(
     ),
 ) -> None:
     """Write an active-recognition problem as .pomdpx (viewpoint fully observed) or .pomdp."""
-    console = Console()
+    console = Console(soft_wrap=True)
     try:
-        if (problem is None) == (benchmark is None):
-            raise ValueError("give exactly one of --problem and --benchmark")
-        if benchmark is not None:
+        if sum(x is not None for x in (problem, benchmark, workspace)) != 1:
+            raise ValueError("give exactly one of --problem, --benchmark and --workspace")
+        if workspace is not None:
+            ar = _workspace_problem(workspace, model)
+        elif benchmark is not None:
             n_v, n_c = _parse_size(benchmark)
             ar: ActiveRecognitionProblem = benchmark_problem(n_v, n_c, seed, lambda_, discount)
         else:
@@ -151,7 +170,7 @@ def export_cmd(
                 arrays["observation_model"], arrays["move_energy"], arrays.get("reachable"),
                 lambda_, discount, start,
             )
-    except ValueError as exc:
+    except (ValueError, StageError, ArtefactError, ConfigError) as exc:
         console.print(f"[red]error:[/red] {exc}", soft_wrap=True)
         raise typer.Exit(2) from None
     if out.suffix == ".pomdp":

@@ -13,12 +13,12 @@ from __future__ import annotations
 import math
 import os
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from rapomdp.io import write_text_atomic
 from rapomdp.planning.pomdp import POMDP
 
 #: Largest dense reward table (A·S·S·Z entries) the reader builds for rewards that depend on
@@ -458,21 +458,6 @@ def format_pomdp(pomdp: POMDP) -> str:
     return "\n".join(lines) + "\n"
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
-    """Write ``text`` to a temporary file beside ``path`` and rename it into place."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
 def write_pomdp(pomdp: POMDP, path: str | os.PathLike[str]) -> Path:
     """Write a flat POMDP as a ``.pomdp`` file (atomically)."""
-    return atomic_write_text(path, format_pomdp(pomdp))
+    return write_text_atomic(path, format_pomdp(pomdp))

@@ -14,7 +14,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from rapomdp.planning.io_pomdp import atomic_write_text
+from rapomdp.io import write_text_atomic
 from rapomdp.planning.momdp import FORBIDDEN_REWARD, ActiveRecognitionProblem
 
 
@@ -116,4 +116,4 @@ def write_pomdpx(
     problem: ActiveRecognitionProblem, path: str | os.PathLike[str], description: str = ""
 ) -> Path:
     """Write the problem as ``.pomdpx`` (atomically)."""
-    return atomic_write_text(path, format_pomdpx(problem, description))
+    return write_text_atomic(path, format_pomdpx(problem, description))

@@ -10,36 +10,27 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from rapomdp.io import ArtefactError, load_npz, save_npz
 
 FORMAT_FLAT = "rapomdp.alpha-vector-policy.v1"
 FORMAT_AR = "rapomdp.active-recognition-policy.v1"
 
 
 def save_npz_atomic(path: str | os.PathLike[str], **arrays: np.ndarray) -> Path:
-    """Write arrays to ``path`` via a temporary file in the same folder and a rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    """Write a policy's arrays atomically (compressed, no pickle); returns the path."""
+    save_npz(path, compressed=True, **arrays)
+    return Path(path)
 
 
 def _load(path: str | os.PathLike[str], expected: str) -> dict[str, np.ndarray]:
     try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as exc:
+        arrays = load_npz(path)
+    except ArtefactError as exc:
         raise ValueError(f"{path}: not a readable policy file ({exc})") from None
     fmt = str(arrays.get("format", ""))
     if fmt != expected:

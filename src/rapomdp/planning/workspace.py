@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rapomdp.io import write_text_atomic
 from rapomdp.planning.ar_solver import solve_active_recognition
-from rapomdp.planning.io_pomdp import atomic_write_text
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.sarsop import ProgressCallback
 
@@ -74,5 +74,5 @@ def solve_workspace_problems(
             "converged": result.converged,
             "vectors": int(len(result.policy.targets)),  # type: ignore[attr-defined]
         }
-    atomic_write_text(out / "solve_summary.json", json.dumps(summary, indent=2) + "\n")
+    write_text_atomic(out / "solve_summary.json", json.dumps(summary, indent=2) + "\n")
     return paths

@@ -1,0 +1,84 @@
+"""The ``solve`` stage: one active-recognition policy per observation model of the workspace.
+
+Reads ``W/observe/observation_models.npz`` (``models``: the names; per name an array (V, C, C) =
+P(o | class, viewpoint); ``classes``) and ``W/robot/robot.npz`` (``energy`` (V, V) E_M,
+``reachable`` (V,), ``distance_m``). Writes ``policy_<model>.npz`` and ``solve_summary.json``.
+
+Moves to or from an unreachable viewpoint are not actions (the robot stage gives them +inf);
+the planner never uses those entries, so they are replaced by the geodesic distance to keep
+the energy matrix finite.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rapomdp.config import Config
+from rapomdp.io import load_npz
+from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
+from rapomdp.planning.workspace import solve_workspace_problems
+from rapomdp.workspace import StageError
+
+OBSERVATION_FILE = "observation_models.npz"
+ROBOT_FILE = "robot.npz"
+
+
+def workspace_arrays(
+    config: Config, observe_dir: Path, robot_dir: Path
+) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[str]]:
+    """The observation models to solve, E_M (finite), the reachable mask and the class names."""
+    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+    robot = load_npz(Path(robot_dir) / ROBOT_FILE)
+    available = [str(name) for name in observe["models"]]
+    wanted = config.solve.models if config.solve.models is not None else available
+    unknown = [name for name in wanted if name not in available]
+    if unknown:
+        raise StageError(
+            f"solve.models names {', '.join(unknown)}; the observe stage made "
+            f"{', '.join(available)}"
+        )
+    models = {name: observe[name] for name in wanted}
+    reachable = robot["reachable"].astype(bool)
+    for name, array in models.items():
+        if array.shape[0] != reachable.size:
+            raise StageError(
+                f"observation model '{name}' covers {array.shape[0]} viewpoints, the robot "
+                f"stage {reachable.size}: run both with the same viewpoints.count"
+            )
+    energy = np.where(np.isfinite(robot["energy"]), robot["energy"], robot["distance_m"])
+    return models, energy, reachable, [str(c) for c in observe["classes"]]
+
+
+def start_viewpoint(reachable: np.ndarray) -> int:
+    """The reachable viewpoint nearest the pole (viewpoints are ordered from the pole down)."""
+    return int(np.flatnonzero(reachable)[0])
+
+
+def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path,
+                      model: str) -> ActiveRecognitionProblem:
+    """One observation model's MOMDP, as the solve stage builds it (for export)."""
+    models, energy, reachable, classes = workspace_arrays(config, observe_dir, robot_dir)
+    if model not in models:
+        raise StageError(f"no observation model '{model}'; available: {', '.join(models)}")
+    return build_active_recognition_problem(
+        models[model], energy, reachable, config.solve.wrong_declaration_cost_m,
+        config.solve.discount, start_viewpoint(reachable), class_names=classes,
+    )
+
+
+def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """Solve the workspace's active-recognition problem once per observation model."""
+    models, energy, reachable, classes = workspace_arrays(config, inputs["observe"],
+                                                         inputs["robot"])
+    solve_workspace_problems(
+        models, energy, reachable, out,
+        lambda_=config.solve.wrong_declaration_cost_m,
+        discount=config.solve.discount,
+        start_viewpoint=start_viewpoint(reachable),
+        precision=config.solve.precision,
+        timeout=config.solve.timeout_s,
+        allow_stay=False,
+        class_names=classes,
+    )

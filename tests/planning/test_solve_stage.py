@@ -1,0 +1,111 @@
+"""The solve stage and `pomdp export --workspace` on synthetic observe and robot artefacts."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from rapomdp.config import config_from_dict
+from rapomdp.geometry.viewsphere import geodesic_distance_matrix, viewpoints
+from rapomdp.io import read_json, save_npz
+from rapomdp.planning.cli import pomdp_app
+from rapomdp.planning.policy import ActiveRecognitionPolicy
+from rapomdp.planning.stage import run_solve_stage, workspace_problem
+from rapomdp.workspace import Stage, StageError, Workspace
+
+V, C = 10, 3
+UNREACHABLE = 6
+
+
+def _observation_model(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    right = rng.uniform(0.4, 0.95, size=(V, C))
+    P = np.repeat(((1 - right) / (C - 1))[:, :, None], C, axis=2)
+    P[:, np.arange(C), np.arange(C)] = right
+    return P
+
+
+def _write_observe(config, inputs, out: Path) -> None:  # noqa: ANN001
+    save_npz(out / "observation_models.npz", models=np.array(["ra", "classifier"]),
+             classes=np.array(["cup", "mug", "bottle"]), ra=_observation_model(0),
+             classifier=_observation_model(1))
+
+
+def _write_robot(config, inputs, out: Path) -> None:  # noqa: ANN001
+    distance = geodesic_distance_matrix(viewpoints(V, 0.6, hemisphere=True), 0.6)
+    reachable = np.ones(V, dtype=bool)
+    reachable[UNREACHABLE] = False
+    energy = distance + 0.05
+    np.fill_diagonal(energy, 0.0)
+    energy[UNREACHABLE, :] = np.inf
+    energy[:, UNREACHABLE] = np.inf
+    energy[UNREACHABLE, UNREACHABLE] = 0.0
+    save_npz(out / "robot.npz", energy=energy, reachable=reachable, distance_m=distance)
+
+
+@pytest.fixture
+def workspace(tmp_path: Path) -> Workspace:
+    ws = Workspace(tmp_path / "ws")
+    cfg = config_from_dict({})
+    ws.run(Stage("observe", _write_observe), cfg)
+    ws.run(Stage("robot", _write_robot), cfg)
+    return ws
+
+
+def test_solve_stage_writes_one_policy_per_model(workspace: Workspace, tmp_path: Path) -> None:
+    cfg = config_from_dict({"solve": {"timeout_s": 3, "wrong_declaration_cost_m": 3.0}})
+    out = tmp_path / "solve"
+    out.mkdir()
+    run_solve_stage(cfg, {"observe": workspace.stage_dir("observe"),
+                          "robot": workspace.stage_dir("robot")}, out)
+    summary = read_json(out / "solve_summary.json")
+    assert set(summary) == {"ra", "classifier"}
+    for name, bounds in summary.items():
+        assert bounds["lower"] <= bounds["upper"] + 1e-9
+        # declaring at once costs lambda (C - 1) / C; the policy can only do better
+        assert bounds["lower"] >= -3.0 * (C - 1) / C - 1e-9
+        policy = ActiveRecognitionPolicy.load(out / f"policy_{name}.npz")
+        for start in (0, 3):
+            action = policy.act(start, np.full(C, 1 / C))
+            assert action.kind in ("move", "declare")
+            if action.kind == "move":
+                assert action.target != UNREACHABLE and action.target != start
+        # a certain belief is declared at once
+        certain = policy.act(0, np.array([0.0, 1.0, 0.0]))
+        assert (certain.kind, certain.target) == ("declare", 1)
+
+
+def test_solve_stage_errors_name_the_model_and_the_mismatch(workspace: Workspace) -> None:
+    cfg = config_from_dict({"solve": {"models": ["ra", "blackbox"]}})
+    with pytest.raises(StageError, match="solve.models names blackbox; the observe stage made "
+                                         "ra, classifier"):
+        workspace_problem(cfg, workspace.stage_dir("observe"), workspace.stage_dir("robot"), "ra")
+    save_npz(workspace.stage_dir("robot") / "robot.npz", energy=np.zeros((4, 4)),
+             reachable=np.ones(4, dtype=bool), distance_m=np.zeros((4, 4)))
+    with pytest.raises(StageError, match="covers 10 viewpoints, the robot stage 4"):
+        workspace_problem(config_from_dict({}), workspace.stage_dir("observe"),
+                          workspace.stage_dir("robot"), "ra")
+
+
+def test_workspace_problem_uses_the_robot_and_solve_section(workspace: Workspace) -> None:
+    cfg = config_from_dict({"solve": {"wrong_declaration_cost_m": 4.0}})
+    problem = workspace_problem(cfg, workspace.stage_dir("observe"),
+                                workspace.stage_dir("robot"), "classifier")
+    assert problem.lambda_ == 4.0
+    assert problem.class_names == ["cup", "mug", "bottle"]
+    assert UNREACHABLE not in problem.targets
+    assert np.all(np.isfinite(problem.move_energy))
+
+
+def test_export_workspace_problem(workspace: Workspace, tmp_path: Path) -> None:
+    out = tmp_path / "ra.pomdpx"
+    result = CliRunner().invoke(pomdp_app, ["export", "--workspace", str(workspace.root),
+                                            "--model", "ra", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert f"{V} viewpoints x {C} classes" in result.output
+    assert out.read_text().lstrip().startswith("<?xml")
+    missing = CliRunner().invoke(pomdp_app, ["export", "--workspace", str(tmp_path / "none"),
+                                             "--out", str(out)])
+    assert missing.exit_code == 2
+    assert "has not been run here" in missing.output
