@@ -148,7 +148,8 @@ def test_cli_export_pomdpx_and_flat(tmp_path):
     flat = read_pomdp(tmp_path / "ar.pomdp")
     assert flat.n_states == 3 * 2 + 1 and flat.n_actions == 3 + 2
     res = runner.invoke(pomdp_app, ["export", "--out", str(tmp_path / "x.pomdpx")])
-    assert res.exit_code == 2 and "exactly one of --problem, --benchmark and --workspace" in res.output
+    assert res.exit_code == 2
+    assert "exactly one of --problem, --benchmark and --workspace" in res.output
 
 
 def test_solve_workspace_problems_writes_one_policy_per_model(tmp_path):
