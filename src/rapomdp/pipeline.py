@@ -4,6 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
+from rapomdp.awareness.stage import (
+    OBSERVE_SECTIONS,
+    SALIENCY_SECTIONS,
+    VOLUME_SECTIONS,
+    run_observe_stage,
+    run_saliency_stage,
+    run_volume_stage,
+)
 from rapomdp.config import Config
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import run_render_stage
@@ -43,6 +51,27 @@ STAGES: list[Stage] = [
         sections=EVAL_SECTIONS,
         inputs=("dataset", "render", "train"),
         description="single-view accuracy on the test models, confusion, per viewpoint",
+    ),
+    Stage(
+        name="saliency",
+        run=run_saliency_stage,
+        sections=SALIENCY_SECTIONS,
+        inputs=("dataset", "render", "train"),
+        description="2D saliency maps of each class's volume model over the training viewsphere",
+    ),
+    Stage(
+        name="volume",
+        run=run_volume_stage,
+        sections=VOLUME_SECTIONS,
+        inputs=("dataset", "render", "saliency"),
+        description="3D dense saliency volume per class (voxel median of back-projected saliency)",
+    ),
+    Stage(
+        name="observe",
+        run=run_observe_stage,
+        sections=OBSERVE_SECTIONS,
+        inputs=("dataset", "train", "volume"),
+        description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
 ]
 

@@ -296,9 +296,11 @@ class Occlusion(_CaptumMethod):
 
 
 def make_attribution(method: str, network: nn.Module, input_px: int,
-                     cfg: object | None = None, seed: int = 0) -> Attribution:
+                     cfg: object | None = None, seed: int = 0,
+                     baseline: float = -1.0) -> Attribution:
     """The attribution ``method`` (one of :data:`METHODS`) for ``network`` at input size
-    ``input_px``, with hyperparameters from a ``SaliencyConfig`` (defaults when ``None``)."""
+    ``input_px``, with hyperparameters from a ``SaliencyConfig`` (defaults when ``None``);
+    ``baseline`` is the input value of an empty view (the preprocessing's background)."""
     get = (lambda name, default=None: getattr(cfg, name, default)) if cfg is not None else (
         lambda name, default=None: default)
     if method == "mask":
@@ -317,8 +319,8 @@ def make_attribution(method: str, network: nn.Module, input_px: int,
     if method == "gradcam":
         return GradCam(network)
     if method == "integrated_gradients":
-        return IntegratedGradients(network, get("ig_steps", 32), get("baseline", -1.0))
+        return IntegratedGradients(network, get("ig_steps", 32), baseline)
     if method == "occlusion":
         window = get("occlusion_window_px") or max(2, round(input_px / 8))
-        return Occlusion(network, window, max(1, window // 2), get("baseline", -1.0))
+        return Occlusion(network, window, max(1, window // 2), baseline)
     raise ValueError(f"unknown saliency method {method!r}; choose one of {', '.join(METHODS)}")
