@@ -32,8 +32,13 @@ test: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
 
+# Measured figures (minutes; not part of the tests). Outputs: benchmarks/results/.
 bench: $(STAMP)
-	$(PY) benchmarks/render_speed.py
+	$(PY) benchmarks/render_speed.py | tee benchmarks/results/render_speed.txt
+	$(PY) benchmarks/robot_ik.py --placements | tee benchmarks/results/robot_ik.txt
+	$(PY) benchmarks/planning_flat_benchmarks.py | tee benchmarks/results/planning_flat_benchmarks.txt
+	$(PY) benchmarks/planning_active_recognition.py | tee benchmarks/results/planning_active_recognition.txt
+	$(PY) benchmarks/classifier_speed.py | tee benchmarks/results/classifier_speed.txt
 
 clean:
 	rm -rf $(VENV) runs

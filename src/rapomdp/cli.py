@@ -17,6 +17,7 @@ from rapomdp.data.meshes import MeshLoadError
 from rapomdp.data.splits import TooFewModelsError
 from rapomdp.io import ArtefactError, atomic_path
 from rapomdp.pipeline import STAGE_NAMES, STAGES, run_pipeline
+from rapomdp.planning.cli import pomdp_app
 from rapomdp.recognition.classifier import CheckpointError
 from rapomdp.workspace import StageError, StageResult, Workspace
 
@@ -36,6 +37,7 @@ dataset_app = typer.Typer(
     invoke_without_command=True,
 )
 app.add_typer(dataset_app, name="dataset")
+app.add_typer(pomdp_app, name="pomdp")
 
 console = Console(stderr=True)
 USER_ERRORS = (
@@ -64,10 +66,10 @@ def _guard(action: Callable[[], T]) -> T:
     try:
         return action()
     except USER_ERRORS as exc:
-        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
     except KeyError as exc:
-        console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False)
+        console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
 
 
@@ -276,6 +278,21 @@ def figure_fig2(
 
     png, html = _guard(action)
     console.print(f"[green]✓[/] Fig. 2 written to {png} and {html}")
+
+
+@app.command()
+def robot(workspace: WorkspaceOption, config: ConfigOption = None,
+          force: ForceOption = False) -> None:
+    """Solve the Panda's IK at every test viewpoint: reachability, manipulability, energy."""
+    _run(config, workspace, "robot", ["robot"] if force else [])
+
+    def summary() -> str:
+        from rapomdp.io import read_json
+        from rapomdp.robot.stage import describe
+
+        return describe(read_json(Workspace(workspace).require("robot") / "robot.json"))
+
+    console.print(f"  {_guard(summary)}", highlight=False, soft_wrap=True)
 
 
 @app.command("config")

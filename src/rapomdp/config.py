@@ -11,17 +11,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, model_validator
+
+from rapomdp.robot.config import RobotConfig
+from rapomdp.section import Section
 
 
 class ConfigError(ValueError):
     """The configuration file is unreadable or holds a wrong key or value (named)."""
-
-
-class Section(BaseModel):
-    """A configuration section: unknown keys are errors, assignments are validated."""
-
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
 
 
 class SplitConfig(Section):
@@ -128,9 +125,9 @@ class AugmentConfig(Section):
 class TrainConfig(Section):
     """The depth classifier and its training (paper Sec. 5.1.1: Adam, 1e-4, 5e-4, batch 128)."""
 
-    width: float = Field(0.5, gt=0, le=4, description="channel multiplier of AlexNet's widths")
+    width: float = Field(0.25, gt=0, le=4, description="channel multiplier of AlexNet's widths")
     dropout: float = Field(0.5, ge=0, lt=1)
-    epochs: int = Field(30, ge=1)
+    epochs: int = Field(15, ge=1)
     batch_size: int = Field(128, ge=1)
     learning_rate: float = Field(1e-4, gt=0)
     weight_decay: float = Field(5e-4, ge=0)
@@ -195,6 +192,7 @@ class Config(Section):
     saliency: SaliencyConfig = SaliencyConfig()
     volume: VolumeConfig = VolumeConfig()
     observe: ObserveConfig = ObserveConfig()
+    robot: RobotConfig = RobotConfig()
 
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""

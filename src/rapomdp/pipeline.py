@@ -21,6 +21,7 @@ from rapomdp.recognition.stage import (
     run_classifier_eval_stage,
     run_train_stage,
 )
+from rapomdp.robot.stage import run_robot_stage
 from rapomdp.workspace import Stage, StageResult, Workspace
 
 STAGES: list[Stage] = [
@@ -65,6 +66,12 @@ STAGES: list[Stage] = [
         sections=VOLUME_SECTIONS,
         inputs=("dataset", "render", "saliency"),
         description="3D dense saliency volume per class (voxel median of back-projected saliency)",
+    ),
+    Stage(
+        name="robot",
+        run=run_robot_stage,
+        sections=("seed", "viewpoints", "robot"),
+        description="Panda IK, reachability and manipulability per test viewpoint; energy E_M",
     ),
     Stage(
         name="observe",

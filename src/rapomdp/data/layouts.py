@@ -54,8 +54,9 @@ def _modelnet(root: Path) -> dict[str, list[Path]]:
     found = {}
     for folder in _class_dirs(root):
         files = sorted(
-            p for part in ("train", "test") if (folder / part).is_dir()
-            for p in (folder / part).glob("*.off")
+            (p for part in ("train", "test") if (folder / part).is_dir()
+             for p in (folder / part).glob("*.off")),
+            key=lambda p: (p.name, str(p)),
         )
         if files:
             found[folder.name] = files

@@ -55,7 +55,7 @@ def contact_sheet(
         f"{elevation_deg:.0f} deg, radius {radius_m} m (near = yellow)",
         fontsize=10,
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - 0.35 / rows))
     out_png = Path(out_png)
     with atomic_path(out_png) as tmp:
         fig.savefig(tmp, format="png", dpi=110)

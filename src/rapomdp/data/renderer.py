@@ -15,8 +15,8 @@ from rapomdp.geometry.camera import Intrinsics, pixel_directions
 
 # Embree reports a miss as a huge distance; anything beyond this is background.
 _MISS_M = 1e30
-# Rays per Embree call: bounds the temporary arrays (about 60 bytes a ray).
-_RAYS_PER_CALL = 1 << 21
+# Rays per Embree call: bounds the temporary arrays (about 30 bytes a ray).
+_RAYS_PER_CALL = 1 << 18
 
 
 class DepthRenderer:

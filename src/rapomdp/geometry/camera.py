@@ -93,8 +93,10 @@ def look_at_many(
     """Camera-to-world poses (n, 4, 4) with each camera at ``eyes[i]`` looking at ``target``.
 
     The image's up direction is the world ``up`` (default +Z) projected onto the image plane.
-    Where the optical axis is parallel to ``up`` (a camera at the pole), the image's up is the
-    world +X axis instead, so the pose stays well defined there.
+    Where the optical axis is parallel to ``up`` (a camera at the pole), the pose is the limit
+    reached by a camera approaching the pole from azimuth 0 (the +X side): image right is world
+    +Y and image up is world -X. So the pose is well defined there and continuous along that
+    meridian.
     """
     eyes = np.atleast_2d(np.asarray(eyes, dtype=np.float64))
     target = np.zeros(3) if target is None else np.asarray(target, dtype=np.float64)
@@ -108,7 +110,7 @@ def look_at_many(
     norm = np.linalg.norm(right, axis=1, keepdims=True)
     degenerate = norm[:, 0] < 1e-9
     if np.any(degenerate):
-        fallback = np.cross(forward[degenerate], np.array([1.0, 0.0, 0.0]))
+        fallback = np.cross(forward[degenerate], np.array([-1.0, 0.0, 0.0]))
         right[degenerate] = fallback
         norm[degenerate] = np.linalg.norm(fallback, axis=1, keepdims=True)
     right = right / norm

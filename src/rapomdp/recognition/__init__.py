@@ -5,6 +5,8 @@ from rapomdp.recognition.classifier import (
     CheckpointMismatchError,
     Classifier,
     configure_torch,
+    default_threads,
+    select_device,
 )
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
 from rapomdp.recognition.preprocess import (
@@ -23,6 +25,8 @@ __all__ = [
     "PreprocessParams",
     "Preprocessed",
     "configure_torch",
+    "default_threads",
     "input_to_image",
     "preprocess",
+    "select_device",
 ]

@@ -41,9 +41,9 @@ class CheckpointMismatchError(CheckpointError):
 def default_threads() -> int:
     """Threads for PyTorch on the CPU: ``RAPOMDP_THREADS``, else half the usable cores.
 
-    Half, not all: on a small shared machine a second busy core makes PyTorch's spinning worker
-    threads wait on each other (measured up to 100x slower on 2 cores), and one thread per
-    physical core is as fast for these small convolutions anyway.
+    Half, not all: on a small shared machine a busy core makes PyTorch's worker threads wait on
+    each other (on 2 busy cores, 2 threads trained 2.7x and predicted 12x slower than 1; see
+    docs/recognition.md), and these small convolutions gain little from more threads.
     """
     value = os.environ.get(THREADS_ENV)
     if value:
@@ -58,14 +58,18 @@ def default_threads() -> int:
     return max(1, (cores or 1) // 2)
 
 
-def configure_torch(device: str = "auto", threads: int | None = None) -> torch.device:
-    """The device to use (CUDA when available for ``auto``); sets the CPU thread count."""
+def select_device(device: str = "auto") -> torch.device:
+    """``auto``: CUDA when available, else the CPU; ``cuda`` fails clearly without CUDA."""
     if device == "cuda" and not torch.cuda.is_available():
         raise RuntimeError("device 'cuda' was asked for, but CUDA is not available here")
     use_cuda = device == "cuda" or (device == "auto" and torch.cuda.is_available())
-    chosen = "cuda" if use_cuda else "cpu"
+    return torch.device("cuda" if use_cuda else "cpu")
+
+
+def configure_torch(device: str = "auto", threads: int | None = None) -> torch.device:
+    """Set PyTorch's CPU thread count (``threads`` or :func:`default_threads`); the device."""
     torch.set_num_threads(threads or default_threads())
-    return torch.device(chosen)
+    return select_device(device)
 
 
 def _sha256(data: bytes) -> str:
@@ -196,6 +200,7 @@ class Classifier:
 
         ``classes``, ``preprocessing`` and ``config_hash``, when given, must match the
         checkpoint's, or :class:`CheckpointMismatchError` names the file and the difference.
+        PyTorch's thread count is left alone unless ``threads`` is given.
         """
         weights_path, meta_path = _resolve(path)
         meta = read_json(meta_path) if meta_path.exists() else None
@@ -220,7 +225,7 @@ class Classifier:
                 f"{weights_path}: weights do not match the SHA-256 recorded in {meta_path.name} "
                 "(a partial copy, or weights from another run)"
             )
-        torch_device = configure_torch(device, threads)
+        torch_device = configure_torch(device, threads) if threads else select_device(device)
         try:
             state = torch.load(io.BytesIO(data), map_location=torch_device, weights_only=True)
             spec = NetworkSpec(**meta["network"])

@@ -28,7 +28,7 @@ class NetworkSpec:
 
     classes: int
     input_size_px: int = 64
-    width: float = 0.5
+    width: float = 0.25
     dropout: float = 0.5
 
     def to_dict(self) -> dict[str, float | int]:

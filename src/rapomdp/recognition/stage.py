@@ -24,7 +24,12 @@ from rapomdp.data.training_views import load_training_views, model_poses, render
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, write_json_atomic
 from rapomdp.progress import track
-from rapomdp.recognition.classifier import WEIGHTS_FILE, Classifier, configure_torch
+from rapomdp.recognition.classifier import (
+    WEIGHTS_FILE,
+    Classifier,
+    configure_torch,
+    default_threads,
+)
 from rapomdp.recognition.evaluation import SingleViewResult, write_confusion_csv
 from rapomdp.recognition.figures import confusion_figure, hemisphere_figure, training_curves
 from rapomdp.recognition.training import (
@@ -42,20 +47,28 @@ EVAL_SECTIONS = ("seed", "camera", "render", "viewpoints")
 threads: int | None = None
 
 
+def _finite(value: float) -> float | None:
+    """JSON has no NaN: no validation views gives null."""
+    return None if np.isnan(value) else value
+
+
 def train_config_hash(config: Config) -> str:
     """The hash a checkpoint carries: every configuration section that shapes the classifier."""
     return stable_hash({s: config.section(s) for s in TRAIN_SECTIONS})
 
 
 def load_stage_classifier(config: Config, train_dir: Path, classes: list[str]) -> Classifier:
-    """The train stage's classifier, checked against this configuration and class list."""
+    """The train stage's classifier, checked against this configuration and class list.
+
+    Sets PyTorch's thread count (the CLI's ``--threads``, else :func:`default_threads`).
+    """
     return Classifier.load(
         train_dir / WEIGHTS_FILE,
         classes=classes,
         preprocessing=preprocess_params(config.train.preprocess),
         config_hash=train_config_hash(config),
         device=config.train.device,
-        threads=threads,
+        threads=threads or default_threads(),
     )
 
 
@@ -82,7 +95,7 @@ def run_train_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
         "validation_images": int(held.sum()),
         "epochs": config.train.epochs,
         "final_train_accuracy": history.train_accuracy[-1],
-        "final_validation_accuracy": history.val_accuracy[-1],
+        "final_validation_accuracy": _finite(history.val_accuracy[-1]),
         "wall_s": wall_s,
         "train_images_per_s": train_images / sum(history.seconds),
         "device": str(device),

@@ -1,0 +1,171 @@
+"""``rapomdp pomdp ...``: solve ``.pomdp`` files and export active-recognition problems.
+
+Registered by the top-level CLI as ``app.add_typer(pomdp_app, name="pomdp")``.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.live import Live
+from rich.table import Table
+
+from rapomdp.planning.ar_solver import solve_active_recognition
+from rapomdp.planning.io_pomdp import PomdpParseError, read_pomdp, write_pomdp
+from rapomdp.planning.io_pomdpx import write_pomdpx
+from rapomdp.planning.momdp import (
+    ActiveRecognitionProblem,
+    benchmark_problem,
+    build_active_recognition_problem,
+    to_flat_pomdp,
+)
+from rapomdp.planning.sarsop import Progress, SolveResult, solve_pomdp
+from rapomdp.planning.workspace import load_problem_arrays
+
+pomdp_app = typer.Typer(
+    help="Solve POMDPs (Cassandra .pomdp) with the SARSOP-style solver; export problems.",
+    no_args_is_help=True,
+)
+
+
+class BoundsDisplay:
+    """Live table of the bounds on a terminal; one plain line per update otherwise."""
+
+    def __init__(self, console: Console, title: str) -> None:
+        self.console = console
+        self.title = title
+        self.live: Live | None = None
+        self.last: Progress | None = None
+
+    def _table(self, p: Progress) -> Table:
+        t = Table(title=self.title)
+        for col in ("time s", "lower", "upper", "gap", "vectors", "points", "iterations"):
+            t.add_column(col, justify="right")
+        t.add_row(
+            f"{p.elapsed:.1f}", f"{p.lower:.6g}", f"{p.upper:.6g}", f"{p.gap:.4g}",
+            str(p.n_alpha), str(p.n_points), str(p.iterations),
+        )
+        return t
+
+    def __enter__(self) -> BoundsDisplay:
+        if self.console.is_terminal:
+            self.live = Live(console=self.console, refresh_per_second=4, transient=False)
+            self.live.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.live is not None:
+            self.live.__exit__(None, None, None)
+
+    def __call__(self, p: Progress) -> None:
+        self.last = p
+        if self.live is not None:
+            self.live.update(self._table(p))
+        else:
+            self.console.print(
+                f"t={p.elapsed:7.2f}s  lower={p.lower:.6g}  upper={p.upper:.6g}  "
+                f"gap={p.gap:.4g}  vectors={p.n_alpha}  points={p.n_points}",
+                soft_wrap=True,
+            )
+
+
+def _report(console: Console, result: SolveResult, size: int) -> None:
+    state = "converged" if result.converged else "stopped at the time limit"
+    console.print(
+        f"{state} after {result.elapsed:.2f} s, {result.iterations} iterations: "
+        f"lower {result.lower:.6g}, upper {result.upper:.6g}, gap {result.upper - result.lower:.4g}"
+    )
+    console.print(f"policy: {size} alpha vectors")
+
+
+@pomdp_app.command("solve")
+def solve_cmd(
+    file: Path = typer.Argument(..., help="A .pomdp file (Cassandra's format)."),
+    precision: float = typer.Option(1e-3, "--precision", help="Stop when upper - lower <= P."),
+    timeout: float = typer.Option(60.0, "--timeout", help="Stop after S seconds."),
+    out: Path | None = typer.Option(None, "--out", help="Write the policy (.npz)."),
+) -> None:
+    """Solve a .pomdp file, printing the bounds as they improve and the final policy size."""
+    console = Console()
+    try:
+        pomdp = read_pomdp(file)
+    except PomdpParseError as exc:
+        console.print(f"[red]error:[/red] {exc}", soft_wrap=True)
+        raise typer.Exit(2) from None
+    if precision <= 0 or timeout <= 0:
+        console.print("[red]error:[/red] --precision and --timeout must be positive")
+        raise typer.Exit(2)
+    console.print(
+        f"{file}: {pomdp.n_states} states, {pomdp.n_actions} actions, "
+        f"{pomdp.n_observations} observations, discount {pomdp.discount}"
+    )
+    with BoundsDisplay(console, str(file.name)) as display:
+        result = solve_pomdp(pomdp, precision, timeout, display)
+    _report(console, result, len(result.policy))  # type: ignore[arg-type]
+    if out is not None:
+        path = result.policy.save(out)  # type: ignore[attr-defined]
+        console.print(f"wrote {path}")
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
+    if not m:
+        raise typer.BadParameter(f"expected VIEWPOINTSxCLASSES such as 128x35, got {text!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+@pomdp_app.command("export")
+def export_cmd(
+    out: Path = typer.Option(..., "--out", help="Output file: .pomdpx (MOMDP) or .pomdp (flat)."),
+    problem: Path | None = typer.Option(
+        None, "--problem", help="An .npz with observation_model (V,C,C), move_energy (V,V), "
+        "reachable (V,) [optional].",
+    ),
+    benchmark: str | None = typer.Option(
+        None, "--benchmark", help="Instead of --problem: a synthetic problem VxC of the "
+        "pomdp-benchmarks family, e.g. 64x10.",
+    ),
+    seed: int = typer.Option(0, "--seed", help="Seed of the synthetic problem."),
+    lambda_: float = typer.Option(10.0, "--lambda", help="Cost of a wrong declaration (λ)."),
+    discount: float = typer.Option(0.95, "--discount"),
+    start: int = typer.Option(0, "--start", help="Index of the start viewpoint."),
+    solve_seconds: float = typer.Option(
+        0.0, "--solve", help="Also solve for this many seconds and print the bounds."
+    ),
+) -> None:
+    """Write an active-recognition problem as .pomdpx (viewpoint fully observed) or .pomdp."""
+    console = Console()
+    try:
+        if (problem is None) == (benchmark is None):
+            raise ValueError("give exactly one of --problem and --benchmark")
+        if benchmark is not None:
+            n_v, n_c = _parse_size(benchmark)
+            ar: ActiveRecognitionProblem = benchmark_problem(n_v, n_c, seed, lambda_, discount)
+        else:
+            arrays = load_problem_arrays(problem)  # type: ignore[arg-type]
+            ar = build_active_recognition_problem(
+                arrays["observation_model"], arrays["move_energy"], arrays.get("reachable"),
+                lambda_, discount, start,
+            )
+    except ValueError as exc:
+        console.print(f"[red]error:[/red] {exc}", soft_wrap=True)
+        raise typer.Exit(2) from None
+    if out.suffix == ".pomdp":
+        path = write_pomdp(to_flat_pomdp(ar), out)
+    elif out.suffix == ".pomdpx":
+        path = write_pomdpx(ar, out)
+    else:
+        console.print("[red]error:[/red] --out must end in .pomdpx or .pomdp")
+        raise typer.Exit(2)
+    console.print(
+        f"wrote {path}: {ar.n_viewpoints} viewpoints x {ar.n_classes} classes, "
+        f"{ar.targets.size} move targets"
+    )
+    if solve_seconds > 0:
+        with BoundsDisplay(console, "active recognition") as display:
+            result = solve_active_recognition(ar, 1e-3, solve_seconds, display)
+        _report(console, result, int(np.size(result.policy.targets)))  # type: ignore[attr-defined]

@@ -1,0 +1,478 @@
+"""Cassandra's ``.pomdp`` format: a complete reader and a writer for any flat POMDP.
+
+The grammar (Cassandra, "POMDP file format"): a preamble of ``discount``, ``values``,
+``states``, ``actions``, ``observations`` (count or names) and ``start`` (a distribution, a
+state, ``uniform``, or ``start include`` / ``start exclude`` lists), then ``T:``, ``O:`` and
+``R:`` specifications in their one-entry, row and matrix forms, with ``*`` wildcards and the
+``uniform`` / ``identity`` keywords. Later specifications overwrite earlier ones. Every syntax
+error is a :class:`PomdpParseError` naming the file and line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rapomdp.planning.pomdp import POMDP
+
+#: Largest dense reward table (A·S·S·Z entries) the reader builds for rewards that depend on
+#: the next state or observation; larger problems are refused with a parse error.
+MAX_DENSE_ENTRIES = 50_000_000
+SUM_TOL = 1e-3
+
+
+class PomdpParseError(ValueError):
+    """A malformed ``.pomdp`` file; ``line`` is 1-based (0 when no single line is at fault)."""
+
+    def __init__(self, message: str, line: int = 0, source: str = "<string>") -> None:
+        self.message = message
+        self.line = line
+        self.source = source
+        where = f"{source}:{line}" if line else source
+        super().__init__(f"{where}: {message}")
+
+
+@dataclass(frozen=True)
+class _Tok:
+    text: str
+    line: int
+
+
+_TOKEN_RE = re.compile(r":|[^\s:]+")
+_PREAMBLE = ("discount", "values", "states", "actions", "observations", "start")
+
+
+def _tokenize(text: str) -> list[_Tok]:
+    tokens: list[_Tok] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0]
+        tokens.extend(_Tok(m.group(0), lineno) for m in _TOKEN_RE.finditer(line))
+    return tokens
+
+
+class _Parser:
+    def __init__(self, text: str, source: str) -> None:
+        self.toks = _tokenize(text)
+        self.i = 0
+        self.source = source
+        self.discount: float | None = None
+        self.values = "reward"
+        self.names: dict[str, list[str] | None] = {}
+        self.sizes: dict[str, int] = {}
+        self.start: np.ndarray | None = None
+        self.start_spec: tuple[str, list[_Tok], int] | None = None
+
+    # -- token helpers -------------------------------------------------------------------
+    def error(self, message: str, tok: _Tok | None = None) -> PomdpParseError:
+        if tok is None:
+            tok = self.toks[self.i] if self.i < len(self.toks) else None
+        line = tok.line if tok else (self.toks[-1].line if self.toks else 0)
+        return PomdpParseError(message, line, self.source)
+
+    def peek(self, k: int = 0) -> _Tok | None:
+        j = self.i + k
+        return self.toks[j] if j < len(self.toks) else None
+
+    def next(self, what: str) -> _Tok:
+        tok = self.peek()
+        if tok is None:
+            raise self.error(f"unexpected end of file, expected {what}")
+        self.i += 1
+        return tok
+
+    def expect_colon(self) -> None:
+        tok = self.next("':'")
+        if tok.text != ":":
+            raise self.error(f"expected ':' but found {tok.text!r}", tok)
+
+    def number(self, what: str = "a number") -> float:
+        tok = self.next(what)
+        try:
+            value = float(tok.text)
+        except ValueError:
+            raise self.error(f"expected {what} but found {tok.text!r}", tok) from None
+        if not math.isfinite(value):
+            raise self.error(f"{what} must be finite, found {tok.text!r}", tok)
+        return value
+
+    def numbers(self, count: int, what: str) -> np.ndarray:
+        return np.array([self.number(what) for _ in range(count)], dtype=np.float64)
+
+    def at_keyword(self) -> bool:
+        tok = self.peek()
+        return tok is not None and tok.text in ("T", "O", "R", *_PREAMBLE)
+
+    # -- preamble ------------------------------------------------------------------------
+    def parse_preamble(self) -> None:
+        seen: set[str] = set()
+        while True:
+            tok = self.peek()
+            if tok is None or tok.text not in _PREAMBLE:
+                break
+            key = tok.text
+            if key == "start" and self.peek(1) is not None and self.peek(1).text in (
+                "include",
+                "exclude",
+            ):
+                self.i += 2
+                self.expect_colon()
+                key = f"start {self.toks[self.i - 2].text}"
+                self.start_spec = (key, self.collect_until_keyword(), tok.line)
+                if "start" in seen:
+                    raise self.error("more than one start specification", tok)
+                seen.add("start")
+                continue
+            self.i += 1
+            self.expect_colon()
+            if key in seen:
+                raise self.error(f"'{key}' is given twice", tok)
+            seen.add(key)
+            if key == "discount":
+                d = self.number("a discount factor")
+                if not 0.0 <= d <= 1.0:
+                    raise self.error(f"discount must be in [0, 1], got {d}", tok)
+                self.discount = d
+            elif key == "values":
+                v = self.next("'reward' or 'cost'")
+                if v.text not in ("reward", "cost"):
+                    raise self.error(f"values must be 'reward' or 'cost', not {v.text!r}", v)
+                self.values = v.text
+            elif key in ("states", "actions", "observations"):
+                self.parse_set(key, tok)
+            else:
+                self.start_spec = ("start", self.collect_until_keyword(), tok.line)
+        for key in ("discount", "states", "actions", "observations"):
+            if key not in seen:
+                raise self.error(f"the preamble lacks '{key}:'")
+
+    def parse_set(self, key: str, keytok: _Tok) -> None:
+        items = self.collect_until_keyword()
+        if not items:
+            raise self.error(f"'{key}:' needs a count or a list of names", keytok)
+        if len(items) == 1 and re.fullmatch(r"\d+", items[0].text):
+            n = int(items[0].text)
+            if n < 1:
+                raise self.error(f"'{key}:' count must be positive", items[0])
+            if n > 100_000:
+                raise self.error(f"'{key}:' count {n} is too large", items[0])
+            self.sizes[key] = n
+            self.names[key] = None
+        else:
+            names = [t.text for t in items]
+            dup = {n for n in names if names.count(n) > 1}
+            if dup:
+                raise self.error(f"duplicate {key} name(s): {sorted(dup)}", items[0])
+            bad = [n for n in names if n == "*" or n in ("T", "O", "R")]
+            if bad:
+                raise self.error(f"{bad[0]!r} cannot be a name in '{key}:'", items[0])
+            self.sizes[key] = len(names)
+            self.names[key] = names
+
+    def collect_until_keyword(self) -> list[_Tok]:
+        out: list[_Tok] = []
+        while (
+            self.peek() is not None
+            and not self.at_keyword()
+            and self.peek().text != ":"
+            and (self.peek(1) is None or self.peek(1).text != ":")
+        ):
+            out.append(self.next("a value"))
+        return out
+
+    # -- references ----------------------------------------------------------------------
+    def ref(self, kind: str, tok: _Tok) -> slice | int:
+        """Index (or ``slice(None)`` for '*') of a state/action/observation reference."""
+        if tok.text == "*":
+            return slice(None)
+        names = self.names[kind]
+        if names is not None and tok.text in names:
+            return names.index(tok.text)
+        if re.fullmatch(r"\d+", tok.text):
+            idx = int(tok.text)
+            if idx < self.sizes[kind]:
+                return idx
+            raise self.error(
+                f"{kind[:-1]} index {idx} is out of range (there are {self.sizes[kind]})", tok
+            )
+        raise self.error(f"unknown {kind[:-1]} {tok.text!r}", tok)
+
+    def build_start(self, n_s: int) -> np.ndarray:
+        if self.start_spec is None:
+            return np.full(n_s, 1.0 / n_s)
+        key, items, line = self.start_spec
+        if key == "start":
+            if len(items) == 1 and items[0].text == "uniform":
+                return np.full(n_s, 1.0 / n_s)
+            if n_s == 1 and len(items) == 1:
+                if not _is_float(items[0].text):
+                    self.ref("states", items[0])
+                return np.ones(1)
+            if len(items) == n_s:
+                try:
+                    b = np.array([float(t.text) for t in items])
+                except ValueError:
+                    raise PomdpParseError(
+                        "start distribution must be numbers", line, self.source
+                    ) from None
+                if not np.all(np.isfinite(b)) or np.any(b < 0):
+                    raise PomdpParseError(
+                        "start distribution has a negative or non-finite entry", line, self.source
+                    )
+                if abs(b.sum() - 1.0) > SUM_TOL:
+                    raise PomdpParseError(
+                        f"start distribution sums to {b.sum():.6g}, not 1", line, self.source
+                    )
+                return b / b.sum()
+            if len(items) == 1:
+                b = np.zeros(n_s)
+                b[self.ref("states", items[0])] = 1.0
+                return b
+            raise PomdpParseError(
+                f"start needs {n_s} probabilities, 'uniform' or one state; got {len(items)} values",
+                line,
+                self.source,
+            )
+        if not items:
+            raise PomdpParseError(f"'{key}:' needs at least one state", line, self.source)
+        mask = np.zeros(n_s, dtype=bool)
+        for t in items:
+            mask[self.ref("states", t)] = True
+        if key == "start exclude":
+            mask = ~mask
+        if not mask.any():
+            raise PomdpParseError(f"'{key}:' leaves no start state", line, self.source)
+        return mask / mask.sum()
+
+    # -- parameters ----------------------------------------------------------------------
+    def parse(self) -> POMDP:
+        self.parse_preamble()
+        n_s, n_a, n_z = self.sizes["states"], self.sizes["actions"], self.sizes["observations"]
+        if n_a * n_s * n_s + n_a * n_s * n_z > MAX_DENSE_ENTRIES:
+            raise self.error(f"problem too large for dense arrays ({n_s} states, {n_a} actions)")
+        T = np.zeros((n_a, n_s, n_s))
+        Z = np.zeros((n_a, n_s, n_z))
+        T_line = np.zeros((n_a, n_s), dtype=np.int64)
+        O_line = np.zeros((n_a, n_s), dtype=np.int64)
+        R2 = np.zeros((n_a, n_s))
+        R4: np.ndarray | None = None
+        while self.peek() is not None:
+            tok = self.next("T:, O: or R:")
+            if tok.text in _PREAMBLE:
+                raise self.error(f"'{tok.text}:' must come before the T/O/R specifications", tok)
+            if tok.text not in ("T", "O", "R"):
+                raise self.error(f"expected 'T:', 'O:' or 'R:' but found {tok.text!r}", tok)
+            self.expect_colon()
+            if tok.text == "T":
+                self.parse_prob("T", T, T_line, "states", n_s, tok)
+            elif tok.text == "O":
+                self.parse_prob("O", Z, O_line, "observations", n_z, tok)
+            else:
+                R4 = self.parse_reward(R2, R4, tok)
+        self.check_rows("T", T, T_line)
+        self.check_rows("O", Z, O_line)
+        T /= T.sum(axis=2, keepdims=True)
+        Z /= Z.sum(axis=2, keepdims=True)
+        if R4 is not None:
+            R = np.einsum("ast,atz,astz->as", T, Z, R4)
+        else:
+            R = R2
+        if self.values == "cost":
+            R = -R
+        b0 = self.build_start(n_s)
+        discount = float(self.discount if self.discount is not None else 0.95)
+        if discount >= 1.0:
+            raise PomdpParseError(
+                "discount 1 is not supported (the solver needs discount < 1)", 0, self.source
+            )
+        return POMDP.from_arrays(
+            T,
+            Z,
+            R,
+            discount,
+            b0,
+            state_names=self.names["states"] or [],
+            action_names=self.names["actions"] or [],
+            observation_names=self.names["observations"] or [],
+        )
+
+    def parse_prob(
+        self, name: str, arr: np.ndarray, lines: np.ndarray, second: str, n_last: int, key: _Tok
+    ) -> None:
+        """``T: a [: s [: s' p]]`` or ``O: a [: s' [: o p]]`` with rows/matrices/keywords."""
+        a = self.ref("actions", self.next("an action"))
+        n_s = arr.shape[1]
+        if self.peek() is not None and self.peek().text == ":":
+            self.i += 1
+            s = self.ref("states", self.next("a state"))
+            if self.peek() is not None and self.peek().text == ":":
+                self.i += 1
+                target = self.ref(second, self.next(f"a {second[:-1]}"))
+                value = self.number("a probability")
+                if not 0.0 <= value <= 1.0:
+                    raise self.error(f"probability {value} is outside [0, 1]", key)
+                arr[a, s, target] = value
+            else:
+                tok = self.peek()
+                if tok is not None and tok.text == "uniform":
+                    self.i += 1
+                    row = np.full(n_last, 1.0 / n_last)
+                else:
+                    row = self.numbers(n_last, "a probability")
+                    self.check_probs(row, key)
+                arr[a, s, :] = row
+            lines[a, s] = key.line
+            return
+        tok = self.peek()
+        if tok is not None and tok.text == "uniform":
+            self.i += 1
+            arr[a] = 1.0 / n_last
+        elif tok is not None and tok.text == "identity":
+            if name != "T":
+                raise self.error("'identity' is only defined for T", tok)
+            self.i += 1
+            arr[a] = np.eye(n_s)
+        else:
+            matrix = self.numbers(n_s * n_last, "a probability").reshape(n_s, n_last)
+            self.check_probs(matrix, key)
+            arr[a] = matrix
+        lines[a] = key.line
+
+    def check_probs(self, values: np.ndarray, key: _Tok) -> None:
+        if np.any(values < 0) or np.any(values > 1):
+            raise self.error("probabilities must lie in [0, 1]", key)
+
+    def check_rows(self, name: str, arr: np.ndarray, lines: np.ndarray) -> None:
+        sums = arr.sum(axis=2)
+        bad = np.argwhere(np.abs(sums - 1.0) > SUM_TOL)
+        if bad.size:
+            a, s = (int(v) for v in bad[0])
+            an = self.names["actions"][a] if self.names["actions"] else str(a)
+            sn = self.names["states"][s] if self.names["states"] else str(s)
+            what = "end state" if name == "O" else "start state"
+            msg = (
+                f"{name} probabilities for action {an!r}, {what} {sn!r} sum to "
+                f"{sums[a, s]:.6g}, not 1"
+            )
+            if lines[a, s] == 0:
+                msg += " (never specified)"
+            raise PomdpParseError(msg, int(lines[a, s]), self.source)
+
+    def parse_reward(self, R2: np.ndarray, R4: np.ndarray | None, key: _Tok) -> np.ndarray | None:
+        """``R: a : s [: s' [: o v]]`` and the row/matrix forms; expands to (A,S,S,Z) only
+        when a reward depends on the next state or the observation."""
+        n_a, n_s = R2.shape
+        n_z = self.sizes["observations"]
+        a = self.ref("actions", self.next("an action"))
+        self.expect_colon()
+        s = self.ref("states", self.next("a state"))
+        s2: slice | int = slice(None)
+        o: slice | int = slice(None)
+        if self.peek() is not None and self.peek().text == ":":
+            self.i += 1
+            s2 = self.ref("states", self.next("an end state"))
+            if self.peek() is not None and self.peek().text == ":":
+                self.i += 1
+                o = self.ref("observations", self.next("an observation"))
+                value: np.ndarray | float = self.number("a reward")
+            else:
+                value = self.numbers(n_z, "a reward")
+        else:
+            value = self.numbers(n_s * n_z, "a reward").reshape(n_s, n_z)
+        flat = np.ravel(value)
+        simple = isinstance(s2, slice) and isinstance(o, slice) and bool(np.all(flat == flat[0]))
+        if R4 is None and simple:
+            R2[a, s] = float(np.ravel(value)[0])
+            return None
+        if R4 is None:
+            if n_a * n_s * n_s * n_z > MAX_DENSE_ENTRIES:
+                raise self.error("rewards that depend on s' or o make this problem too large", key)
+            R4 = np.broadcast_to(R2[:, :, None, None], (n_a, n_s, n_s, n_z)).copy()
+        R4[a, s, s2, o] = value
+        return R4
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def parse_pomdp(text: str, source: str = "<string>") -> POMDP:
+    """Parse the text of a ``.pomdp`` file; raises :class:`PomdpParseError` on any error."""
+    try:
+        return _Parser(text, source).parse()
+    except PomdpParseError:
+        raise
+    except ValueError as exc:  # a model-level check (e.g. from POMDP.__post_init__)
+        raise PomdpParseError(str(exc), 0, source) from None
+
+
+def read_pomdp(path: str | os.PathLike[str]) -> POMDP:
+    """Read a ``.pomdp`` file; a missing or undecodable file is a :class:`PomdpParseError`."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="strict")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise PomdpParseError(f"cannot read file: {exc}", 0, str(path)) from None
+    return parse_pomdp(text, str(path))
+
+
+def _fmt(values: np.ndarray) -> str:
+    return " ".join(repr(float(v)) for v in np.ravel(values))
+
+
+def format_pomdp(pomdp: POMDP) -> str:
+    """The ``.pomdp`` text of a flat POMDP (names kept when they are valid identifiers)."""
+
+    def names(items: list[str], n: int) -> str:
+        ok = all(re.fullmatch(r"[A-Za-z][\w\-.]*", x) for x in items) and len(items) == n
+        return " ".join(items) if ok else str(n)
+
+    lines = [
+        "# written by rapomdp",
+        f"discount: {pomdp.discount!r}",
+        "values: reward",
+        f"states: {names(pomdp.state_names, pomdp.n_states)}",
+        f"actions: {names(pomdp.action_names, pomdp.n_actions)}",
+        f"observations: {names(pomdp.observation_names, pomdp.n_observations)}",
+        f"start: {_fmt(pomdp.initial_belief)}",
+        "",
+    ]
+    for a in range(pomdp.n_actions):
+        lines.append(f"T: {a}")
+        lines.extend(_fmt(row) for row in pomdp.T[a])
+    for a in range(pomdp.n_actions):
+        lines.append(f"O: {a}")
+        lines.extend(_fmt(row) for row in pomdp.Z[a])
+    for a in range(pomdp.n_actions):
+        for s in np.flatnonzero(pomdp.R[a]):
+            lines.append(f"R: {a} : {s} : * : * {float(pomdp.R[a, s])!r}")
+    return "\n".join(lines) + "\n"
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
+    """Write ``text`` to a temporary file beside ``path`` and rename it into place."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_pomdp(pomdp: POMDP, path: str | os.PathLike[str]) -> Path:
+    """Write a flat POMDP as a ``.pomdp`` file (atomically)."""
+    return atomic_write_text(path, format_pomdp(pomdp))

@@ -1,0 +1,338 @@
+"""The active-recognition problem as a MOMDP (paper Sec. 4.1, Eqs. 1-5).
+
+A state is (viewpoint, class): the viewpoint is observed, the class hidden and constant. From
+viewpoint v the robot may move to a reachable viewpoint j (reward −E_M[v, j], Eqs. 1 and 3),
+where it observes the classifier's predicted label o with probability P[j, c, o]; or declare a
+class k (reward −λ·[k ≠ c], Eq. 2) and stop in an absorbing terminal state worth 0. A belief
+is therefore the pair (viewpoint, b) with b on the class simplex, and Eq. 5 reduces to
+b'(c) ∝ P[j, c, o] b(c).
+
+Array shapes (V viewpoints, C classes):
+
+- ``observation_model`` (V, C, C): ``P[v, c, o]`` = P(predicted label o | class c, viewpoint v),
+  rows over o sum to 1 (the observation stage's output).
+- ``move_energy`` (V, V): ``E[v, j]`` ≥ 0, the cost of moving from v to j and taking an image
+  (the robot stage's E_M).
+- ``reachable`` (V,) bool: viewpoints the arm can reach; only they are move targets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
+from rapomdp.planning.pomdp import POMDP
+
+
+@dataclass
+class ActiveRecognitionProblem:
+    """The MOMDP's parts as arrays; see the module docstring for shapes."""
+
+    observation_model: np.ndarray
+    move_energy: np.ndarray
+    reachable: np.ndarray
+    lambda_: float = 10.0
+    discount: float = 0.95
+    start_viewpoint: int = 0
+    start_belief: np.ndarray | None = None
+    allow_stay: bool = False
+    class_names: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        P = np.asarray(self.observation_model, dtype=np.float64)
+        E = np.asarray(self.move_energy, dtype=np.float64)
+        reach = np.asarray(self.reachable, dtype=bool)
+        if P.ndim != 3 or P.shape[1] != P.shape[2]:
+            raise ValueError(f"observation_model must have shape (V, C, C), got {P.shape}")
+        n_v, n_c, _ = P.shape
+        if n_c < 2:
+            raise ValueError("the problem needs at least two classes")
+        if not np.all(np.isfinite(P)) or np.any(P < 0):
+            raise ValueError("observation_model has negative or non-finite probabilities")
+        sums = P.sum(axis=2)
+        if np.any(np.abs(sums - 1.0) > 1e-6):
+            v, c = (int(i) for i in np.argwhere(np.abs(sums - 1.0) > 1e-6)[0])
+            raise ValueError(
+                f"observation_model[{v}, {c}, :] sums to {sums[v, c]:.6g}; rows must sum to 1"
+            )
+        if E.shape != (n_v, n_v):
+            raise ValueError(f"move_energy must have shape ({n_v}, {n_v}), got {E.shape}")
+        if not np.all(np.isfinite(E)) or np.any(E < 0):
+            raise ValueError("move_energy must be finite and non-negative")
+        if reach.shape != (n_v,):
+            raise ValueError(f"reachable must have shape ({n_v},), got {reach.shape}")
+        if not reach.any():
+            raise ValueError("no viewpoint is reachable: the robot cannot take any image")
+        if not 0.0 <= self.discount < 1.0:
+            raise ValueError(f"discount must be in [0, 1), got {self.discount}")
+        if self.lambda_ < 0:
+            raise ValueError(f"lambda must be non-negative, got {self.lambda_}")
+        if not 0 <= self.start_viewpoint < n_v:
+            raise ValueError(f"start viewpoint {self.start_viewpoint} is not in [0, {n_v})")
+        b0 = (
+            np.full(n_c, 1.0 / n_c)
+            if self.start_belief is None
+            else np.asarray(self.start_belief, dtype=np.float64)
+        )
+        if b0.shape != (n_c,) or np.any(b0 < 0) or abs(b0.sum() - 1.0) > 1e-6:
+            raise ValueError(f"start belief must be a distribution over {n_c} classes")
+        self.observation_model, self.move_energy, self.reachable = P, E, reach
+        self.start_belief = b0 / b0.sum()
+        if not self.class_names:
+            self.class_names = [f"class{c}" for c in range(n_c)]
+
+    @property
+    def n_viewpoints(self) -> int:
+        return self.observation_model.shape[0]
+
+    @property
+    def n_classes(self) -> int:
+        return self.observation_model.shape[1]
+
+    @property
+    def targets(self) -> np.ndarray:
+        """Indices of the move targets (the reachable viewpoints)."""
+        return np.flatnonzero(self.reachable)
+
+    def move_cost(self) -> np.ndarray:
+        """(V, J) cost of moving from each viewpoint to each target; +inf where forbidden
+        (staying put when ``allow_stay`` is off: the same image would be classified again)."""
+        cost = self.move_energy[:, self.targets].copy()
+        if not self.allow_stay:
+            cost[self.targets, np.arange(self.targets.size)] = np.inf
+        return cost
+
+    def update(self, belief: np.ndarray, viewpoint: int, label: int) -> np.ndarray:
+        """Eq. 5 for the MOMDP: b'(c) ∝ P[viewpoint, c, label] b(c)."""
+        return update_beliefs(self.observation_model, belief, viewpoint, label)
+
+    def declare_value(self, belief: np.ndarray) -> np.ndarray:
+        """max_k −λ(1 − b_k) for beliefs (..., C): the value of stopping now."""
+        return -self.lambda_ * (1.0 - np.max(belief, axis=-1))
+
+
+def update_beliefs(
+    observation_model: np.ndarray,
+    beliefs: np.ndarray,
+    viewpoints: np.ndarray | int,
+    labels: np.ndarray | int,
+) -> np.ndarray:
+    """Vectorised Eq. 5 over a batch: beliefs (..., C), viewpoints and labels broadcastable."""
+    like = observation_model[viewpoints, :, labels]  # (..., C)
+    post = beliefs * like
+    total = post.sum(axis=-1, keepdims=True)
+    if np.any(total <= 0):
+        raise ValueError("an observation has probability 0 under the belief")
+    return post / total
+
+
+def build_active_recognition_problem(
+    observation_model: np.ndarray,
+    move_energy: np.ndarray,
+    reachable: np.ndarray | None = None,
+    lambda_: float = 10.0,
+    discount: float = 0.95,
+    start_viewpoint: int = 0,
+    start_belief: np.ndarray | None = None,
+    allow_stay: bool = False,
+    class_names: list[str] | None = None,
+) -> ActiveRecognitionProblem:
+    """The pipeline's entry point: the MOMDP from the observe and robot stages' arrays.
+
+    ``observation_model`` (V, C, C) = P(o | class, viewpoint); ``move_energy`` (V, V) = E_M;
+    ``reachable`` (V,) bool (all True when omitted); ``lambda_`` weighs a wrong declaration
+    (Eq. 1); the episode starts at ``start_viewpoint`` with ``start_belief`` (uniform).
+    """
+    P = np.asarray(observation_model, dtype=np.float64)
+    reach = np.ones(P.shape[0], dtype=bool) if reachable is None else reachable
+    return ActiveRecognitionProblem(
+        P,
+        np.asarray(move_energy, dtype=np.float64),
+        np.asarray(reach, dtype=bool),
+        float(lambda_),
+        float(discount),
+        int(start_viewpoint),
+        start_belief,
+        allow_stay,
+        list(class_names or []),
+    )
+
+
+def benchmark_problem(
+    n_viewpoints: int,
+    n_classes: int,
+    seed: int = 0,
+    lambda_: float = 10.0,
+    discount: float = 0.95,
+) -> ActiveRecognitionProblem:
+    """A synthetic problem of the family in ``pomdp-benchmarks/README.md`` (seeded).
+
+    Viewpoints: a Fibonacci lattice on the upper unit hemisphere, starting at the one nearest
+    the pole with a uniform belief; moving to j costs great-circle distance + 0.5 (moving to
+    the current viewpoint included, as "move to viewpoint j" reads for every j); declaring is
+    0 / −λ; the label is right with probability 0.3 + 0.6·f_c(j), else uniform over the other
+    labels, where f_c is the larger of two von Mises bumps exp(κ(μ·v − 1)), κ ~ U[3, 8] and μ
+    uniform on the hemisphere, drawn per class.
+    """
+    rng = np.random.default_rng(seed)
+    dirs = fibonacci_directions(n_viewpoints, hemisphere=True)
+    dist = geodesic_distance_matrix(dirs, radius_m=1.0)
+    mu = rng.normal(size=(n_classes, 2, 3))
+    mu /= np.linalg.norm(mu, axis=2, keepdims=True)
+    mu[..., 2] = np.abs(mu[..., 2])
+    kappa = rng.uniform(3.0, 8.0, size=(n_classes, 2))
+    bumps = np.exp(kappa[None] * (np.einsum("vx,cbx->vcb", dirs, mu) - 1.0))  # (V, C, 2)
+    acc = 0.3 + 0.6 * bumps.max(axis=2)  # (V, C)
+    wrong = (1.0 - acc) / (n_classes - 1)
+    P = np.broadcast_to(wrong[:, :, None], (n_viewpoints, n_classes, n_classes)).copy()
+    idx = np.arange(n_classes)
+    P[:, idx, idx] = acc
+    return ActiveRecognitionProblem(
+        P,
+        dist + 0.5,
+        np.ones(n_viewpoints, dtype=bool),
+        lambda_,
+        discount,
+        start_viewpoint=0,
+        start_belief=None,
+        allow_stay=True,
+    )
+
+
+#: Reward given in the flat model to the (forbidden) move to the current viewpoint.
+FORBIDDEN_REWARD = -1e6
+
+
+def to_flat_pomdp(problem: ActiveRecognitionProblem) -> POMDP:
+    """The same problem as a flat POMDP (for checks and for ``.pomdp`` export).
+
+    States (v, c) at index v·C + c, then one terminal state. Actions: move to each target,
+    then declare each class. Observations (v, o) at v·C + o (the arrival viewpoint is
+    observed with the label), then "done" in the terminal state. A forbidden stay costs
+    ``FORBIDDEN_REWARD``.
+    """
+    P, n_v, n_c = problem.observation_model, problem.n_viewpoints, problem.n_classes
+    targets = problem.targets
+    n_s, n_j = n_v * n_c + 1, targets.size
+    n_a, n_z = n_j + n_c, n_v * n_c + 1
+    term = n_s - 1
+    v_of = np.repeat(np.arange(n_v), n_c)
+    c_of = np.tile(np.arange(n_c), n_v)
+    T = np.zeros((n_a, n_s, n_s))
+    R = np.zeros((n_a, n_s))
+    cost = problem.move_cost()
+    for a, j in enumerate(targets):
+        T[a, np.arange(n_s - 1), j * n_c + c_of] = 1.0
+        R[a, : n_s - 1] = np.where(np.isfinite(cost[v_of, a]), -cost[v_of, a], FORBIDDEN_REWARD)
+    for k in range(n_c):
+        T[n_j + k, :, term] = 1.0
+        R[n_j + k, : n_s - 1] = -problem.lambda_ * (c_of != k)
+    T[:, term, :] = 0.0
+    T[:, term, term] = 1.0
+    Z1 = np.zeros((n_s, n_z))
+    rows = np.arange(n_s - 1)
+    Z1[rows[:, None], (v_of * n_c)[:, None] + np.arange(n_c)[None, :]] = P[v_of, c_of]
+    Z1[term, n_z - 1] = 1.0
+    b0 = np.zeros(n_s)
+    b0[problem.start_viewpoint * n_c : (problem.start_viewpoint + 1) * n_c] = problem.start_belief
+    names = problem.class_names
+    return POMDP.from_arrays(
+        T,
+        np.broadcast_to(Z1, (n_a, n_s, n_z)).copy(),
+        R,
+        problem.discount,
+        b0,
+        state_names=[f"v{v}_{names[c]}" for v, c in zip(v_of, c_of, strict=True)] + ["done"],
+        action_names=[f"move{j}" for j in targets] + [f"declare_{n}" for n in names],
+        observation_names=[f"v{v}_{names[c]}" for v, c in zip(v_of, c_of, strict=True)]
+        + ["none"],
+    )
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Episodes of a policy on the model: discounted and plain returns, accuracy, steps."""
+
+    discounted_return: np.ndarray  # (runs,)
+    total_reward: np.ndarray  # (runs,)
+    correct: np.ndarray  # (runs,) bool
+    steps: np.ndarray  # (runs,) moves made
+
+    def summary(self) -> dict[str, float]:
+        n = self.discounted_return.size
+        return {
+            "mean_discounted_return": float(self.discounted_return.mean()),
+            "stderr": float(self.discounted_return.std(ddof=1) / np.sqrt(n)) if n > 1 else 0.0,
+            "mean_total_reward": float(self.total_reward.mean()),
+            "accuracy": float(self.correct.mean()),
+            "mean_steps": float(self.steps.mean()),
+        }
+
+
+def simulate_policy(
+    problem: ActiveRecognitionProblem,
+    policy: object,
+    n_runs: int = 1000,
+    seed: int = 0,
+    max_steps: int = 200,
+) -> SimulationResult:
+    """Run ``policy`` (an ActiveRecognitionPolicy) on the model itself, all runs at once.
+
+    The true class is drawn from the start belief; each step the policy moves (the label is
+    drawn from P[j, c, :]) or declares. An episode still running after ``max_steps`` counts
+    as a wrong declaration then.
+    """
+    from rapomdp.planning.policy import ActiveRecognitionPolicy
+
+    if not isinstance(policy, ActiveRecognitionPolicy):
+        raise TypeError("policy must be an ActiveRecognitionPolicy")
+    rng = np.random.default_rng(seed)
+    n_c, lam, g = problem.n_classes, problem.lambda_, problem.discount
+    P = problem.observation_model
+    cls = rng.choice(n_c, size=n_runs, p=problem.start_belief)
+    view = np.full(n_runs, problem.start_viewpoint)
+    belief = np.broadcast_to(problem.start_belief, (n_runs, n_c)).copy()
+    disc_ret, total = np.zeros(n_runs), np.zeros(n_runs)
+    correct, steps = np.zeros(n_runs, dtype=bool), np.zeros(n_runs, dtype=np.int64)
+    active = np.ones(n_runs, dtype=bool)
+    discount = np.ones(n_runs)
+    for _ in range(max_steps):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        b = belief[idx]
+        dec = -lam * (1.0 - b.max(axis=1))
+        move_target = np.full(idx.size, -1)
+        if len(policy.targets):
+            s = b @ policy.betas.T - policy.move_energy[view[idx]][:, policy.targets]
+            m = s.argmax(axis=1)
+            go = s[np.arange(idx.size), m] > dec + 1e-12
+            move_target = np.where(go, policy.targets[m], -1)
+        stop = move_target < 0
+        # declarations
+        d = idx[stop]
+        k = belief[d].argmax(axis=1)
+        r = np.where(k == cls[d], 0.0, -lam)
+        disc_ret[d] += discount[d] * r
+        total[d] += r
+        correct[d] = k == cls[d]
+        active[d] = False
+        # moves
+        mv, j = idx[~stop], move_target[~stop]
+        r = -problem.move_energy[view[mv], j]
+        disc_ret[mv] += discount[mv] * r
+        total[mv] += r
+        discount[mv] *= g
+        steps[mv] += 1
+        u = rng.random(mv.size)
+        cdf = np.cumsum(P[j, cls[mv]], axis=1)
+        labels = np.minimum((u[:, None] > cdf).sum(axis=1), n_c - 1)
+        belief[mv] = update_beliefs(P, belief[mv], j, labels)
+        view[mv] = j
+    if active.any():  # unfinished: charged as a wrong declaration
+        a = np.flatnonzero(active)
+        disc_ret[a] += discount[a] * -lam
+        total[a] += -lam
+    return SimulationResult(disc_ret, total, correct, steps)

@@ -1,0 +1,183 @@
+"""Solved policies as artefacts: alpha vectors in an ``.npz`` (no pickle anywhere).
+
+- :class:`AlphaVectorPolicy` for a flat POMDP: ``act(belief)``, ``value(belief)``.
+- :class:`ActiveRecognitionPolicy` for the active-recognition MOMDP: ``act(viewpoint, belief)``
+  returns an :class:`ARAction` (move to a viewpoint or declare a class), ``value(viewpoint,
+  belief)`` the lower bound (the value the policy is guaranteed), ``upper(viewpoint, belief)``
+  the solver's upper bound.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+FORMAT_FLAT = "rapomdp.alpha-vector-policy.v1"
+FORMAT_AR = "rapomdp.active-recognition-policy.v1"
+
+
+def save_npz_atomic(path: str | os.PathLike[str], **arrays: np.ndarray) -> Path:
+    """Write arrays to ``path`` via a temporary file in the same folder and a rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _load(path: str | os.PathLike[str], expected: str) -> dict[str, np.ndarray]:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: not a readable policy file ({exc})") from None
+    fmt = str(arrays.get("format", ""))
+    if fmt != expected:
+        raise ValueError(f"{path}: expected a {expected!r} file, found format {fmt!r}")
+    return arrays
+
+
+@dataclass(frozen=True)
+class AlphaVectorPolicy:
+    """Max over alpha vectors (N, S); each vector's action is the policy's choice there."""
+
+    alphas: np.ndarray
+    actions: np.ndarray
+    discount: float = 0.95
+
+    def value(self, belief: np.ndarray) -> float:
+        return float((self.alphas @ np.asarray(belief)).max())
+
+    def act(self, belief: np.ndarray) -> int:
+        return int(self.actions[int(np.argmax(self.alphas @ np.asarray(belief)))])
+
+    def __len__(self) -> int:
+        return self.alphas.shape[0]
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        return save_npz_atomic(
+            path,
+            format=np.array(FORMAT_FLAT),
+            alphas=self.alphas,
+            actions=self.actions,
+            discount=np.array(self.discount),
+        )
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> AlphaVectorPolicy:
+        a = _load(path, FORMAT_FLAT)
+        return cls(a["alphas"], a["actions"].astype(np.int64), float(a["discount"]))
+
+
+@dataclass(frozen=True)
+class ARAction:
+    """An action of the active-recognition MOMDP: ``kind`` is "move" or "declare"; ``target``
+    is the viewpoint index (move) or the class index (declare)."""
+
+    kind: str
+    target: int
+
+    @property
+    def is_declare(self) -> bool:
+        return self.kind == "declare"
+
+
+def declare_values(belief: np.ndarray, lambda_: float) -> np.ndarray:
+    """Value of declaring each class: −λ(1 − b_k), shape (..., C)."""
+    return -lambda_ * (1.0 - belief)
+
+
+@dataclass(frozen=True)
+class ActiveRecognitionPolicy:
+    """Lower-bound policy of the active-recognition MOMDP.
+
+    The vectors ``betas`` (M, C) are continuation values of "move to ``targets[m]`` then act":
+    from viewpoint v the plan m is worth β_m·b − E[v, targets[m]]. Declaring k is worth
+    −λ(1 − b_k). The policy takes the best of all of them. ``upper_points`` (N, C) with
+    ``upper_values`` (N, V) give the sawtooth upper bound (corners: 0, the class known).
+    """
+
+    betas: np.ndarray
+    targets: np.ndarray
+    move_energy: np.ndarray
+    lambda_: float
+    discount: float
+    upper_points: np.ndarray
+    upper_values: np.ndarray
+
+    @property
+    def n_viewpoints(self) -> int:
+        return self.move_energy.shape[0]
+
+    @property
+    def n_classes(self) -> int:
+        return self.betas.shape[1]
+
+    def _moves(self, viewpoint: int, belief: np.ndarray) -> np.ndarray:
+        return self.betas @ belief - self.move_energy[viewpoint, self.targets]
+
+    def value(self, viewpoint: int, belief: np.ndarray) -> float:
+        """The lower bound at (viewpoint, belief): the policy's guaranteed expected return."""
+        b = np.asarray(belief, dtype=np.float64)
+        best = float(declare_values(b, self.lambda_).max())
+        if len(self.targets):
+            best = max(best, float(self._moves(viewpoint, b).max()))
+        return best
+
+    def act(self, viewpoint: int, belief: np.ndarray) -> ARAction:
+        """The action of the best plan at (viewpoint, belief); ties go to declaring."""
+        b = np.asarray(belief, dtype=np.float64)
+        dv = declare_values(b, self.lambda_)
+        k = int(np.argmax(dv))
+        if len(self.targets):
+            moves = self._moves(viewpoint, b)
+            m = int(np.argmax(moves))
+            if moves[m] > dv[k] + 1e-12:
+                return ARAction("move", int(self.targets[m]))
+        return ARAction("declare", k)
+
+    def upper(self, viewpoint: int, belief: np.ndarray) -> float:
+        """The solver's upper bound on the optimal value at (viewpoint, belief)."""
+        b = np.asarray(belief, dtype=np.float64)
+        if self.upper_points.shape[0] == 0:
+            return 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(self.upper_points > 0, b[None, :] / self.upper_points, np.inf)
+        phi = ratio.min(axis=1)
+        return float(min(0.0, (phi * self.upper_values[:, viewpoint]).min()))
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        return save_npz_atomic(
+            path,
+            format=np.array(FORMAT_AR),
+            betas=self.betas,
+            targets=self.targets,
+            move_energy=self.move_energy,
+            lambda_=np.array(self.lambda_),
+            discount=np.array(self.discount),
+            upper_points=self.upper_points,
+            upper_values=self.upper_values,
+        )
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> ActiveRecognitionPolicy:
+        a = _load(path, FORMAT_AR)
+        return cls(
+            a["betas"],
+            a["targets"].astype(np.int64),
+            a["move_energy"],
+            float(a["lambda_"]),
+            float(a["discount"]),
+            a["upper_points"],
+            a["upper_values"],
+        )

@@ -1,0 +1,193 @@
+"""A flat discrete POMDP as separate named parts: transition, observation, reward, belief.
+
+Arrays use the action-first layout that point-based backups want:
+
+- ``T[a, s, s']`` = P(s' | s, a), rows sum to 1;
+- ``Z[a, s', o]`` = P(o | s', a), the observation after arriving in s' by a;
+- ``R[a, s]`` = expected immediate reward of a in s (the ``.pomdp`` reader folds rewards that
+  depend on s' and o into this expectation, which is all a solver of expected return needs).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+PROB_TOL = 1e-6
+
+
+def _check_stochastic(name: str, array: np.ndarray, tol: float = 1e-6) -> None:
+    """Raise ValueError unless ``array`` is non-negative with last-axis sums of 1."""
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} has non-finite entries")
+    if np.any(array < 0):
+        raise ValueError(f"{name} has negative probabilities")
+    sums = array.sum(axis=-1)
+    bad = np.argwhere(np.abs(sums - 1.0) > tol)
+    if bad.size:
+        idx = tuple(int(i) for i in bad[0])
+        raise ValueError(f"{name}{list(idx)} sums to {sums[idx]:.6g}, not 1")
+
+
+@dataclass(frozen=True)
+class TransitionModel:
+    """P(s' | s, a) as an array ``T[a, s, s']``."""
+
+    T: np.ndarray
+
+    def probability(self, next_state: int, state: int, action: int) -> float:
+        return float(self.T[action, state, next_state])
+
+    def sample(self, state: int, action: int, rng: np.random.Generator) -> int:
+        return int(rng.choice(self.T.shape[2], p=self.T[action, state]))
+
+
+@dataclass(frozen=True)
+class ObservationModel:
+    """P(o | s', a) as an array ``Z[a, s', o]``."""
+
+    Z: np.ndarray
+
+    def probability(self, observation: int, next_state: int, action: int) -> float:
+        return float(self.Z[action, next_state, observation])
+
+    def sample(self, next_state: int, action: int, rng: np.random.Generator) -> int:
+        return int(rng.choice(self.Z.shape[2], p=self.Z[action, next_state]))
+
+
+@dataclass(frozen=True)
+class RewardModel:
+    """Expected immediate reward ``R[a, s]``."""
+
+    R: np.ndarray
+
+    def reward(self, state: int, action: int) -> float:
+        return float(self.R[action, state])
+
+
+@dataclass(frozen=True)
+class Belief:
+    """A distribution over the states of a flat POMDP, updated by Eq. 5 of the paper."""
+
+    probs: np.ndarray
+
+    def update(self, pomdp: POMDP, action: int, observation: int) -> Belief:
+        """b'(s') ∝ O(s', a, o) Σ_s T(s, a, s') b(s); ValueError if o is impossible under b."""
+        return Belief(belief_update(pomdp.T, pomdp.Z, self.probs, action, observation))
+
+
+def belief_update(
+    T: np.ndarray, Z: np.ndarray, belief: np.ndarray, action: int, observation: int
+) -> np.ndarray:
+    """Eq. 5, vectorised: the posterior after ``action`` and ``observation``."""
+    unnorm = (belief @ T[action]) * Z[action, :, observation]
+    total = unnorm.sum()
+    if total <= 0:
+        raise ValueError(f"observation {observation} has probability 0 after action {action}")
+    return unnorm / total
+
+
+@dataclass
+class POMDP:
+    """A flat discrete POMDP: (S, A, T, R, Ω, O), discount and initial belief."""
+
+    transition: TransitionModel
+    observation: ObservationModel
+    reward: RewardModel
+    discount: float
+    initial_belief: np.ndarray
+    state_names: list[str] = field(default_factory=list)
+    action_names: list[str] = field(default_factory=list)
+    observation_names: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        T, Z, R = self.T, self.Z, self.R
+        if T.ndim != 3 or T.shape[1] != T.shape[2]:
+            raise ValueError(f"T must have shape (A, S, S), got {T.shape}")
+        n_a, n_s, _ = T.shape
+        if Z.ndim != 3 or Z.shape[:2] != (n_a, n_s):
+            raise ValueError(f"Z must have shape ({n_a}, {n_s}, n_obs), got {Z.shape}")
+        if R.shape != (n_a, n_s):
+            raise ValueError(f"R must have shape ({n_a}, {n_s}), got {R.shape}")
+        if not 0.0 <= self.discount < 1.0:
+            raise ValueError(f"discount must be in [0, 1), got {self.discount}")
+        b0 = np.asarray(self.initial_belief, dtype=np.float64)
+        if b0.shape != (n_s,):
+            raise ValueError(f"initial belief must have shape ({n_s},), got {b0.shape}")
+        _check_stochastic("T", T)
+        _check_stochastic("O", Z)
+        _check_stochastic("initial belief", b0)
+        self.initial_belief = b0
+        if not self.state_names:
+            self.state_names = [str(i) for i in range(n_s)]
+        if not self.action_names:
+            self.action_names = [str(i) for i in range(n_a)]
+        if not self.observation_names:
+            self.observation_names = [str(i) for i in range(Z.shape[2])]
+
+    @classmethod
+    def from_arrays(
+        cls,
+        T: np.ndarray,
+        Z: np.ndarray,
+        R: np.ndarray,
+        discount: float,
+        initial_belief: np.ndarray,
+        **names: list[str],
+    ) -> POMDP:
+        """Build from plain arrays ``T[a,s,s']``, ``Z[a,s',o]``, ``R[a,s]``."""
+        return cls(
+            TransitionModel(np.asarray(T, dtype=np.float64)),
+            ObservationModel(np.asarray(Z, dtype=np.float64)),
+            RewardModel(np.asarray(R, dtype=np.float64)),
+            float(discount),
+            np.asarray(initial_belief, dtype=np.float64),
+            **names,
+        )
+
+    @property
+    def T(self) -> np.ndarray:
+        return self.transition.T
+
+    @property
+    def Z(self) -> np.ndarray:
+        return self.observation.Z
+
+    @property
+    def R(self) -> np.ndarray:
+        return self.reward.R
+
+    @property
+    def n_states(self) -> int:
+        return self.T.shape[1]
+
+    @property
+    def n_actions(self) -> int:
+        return self.T.shape[0]
+
+    @property
+    def n_observations(self) -> int:
+        return self.Z.shape[2]
+
+    def simulate(
+        self,
+        policy_act: object,
+        n_runs: int,
+        horizon: int,
+        rng: np.random.Generator,
+    ) -> np.ndarray:
+        """Discounted returns of ``policy_act(belief) -> action`` over ``n_runs`` episodes."""
+        returns = np.zeros(n_runs)
+        for run in range(n_runs):
+            b = self.initial_belief.copy()
+            s = int(rng.choice(self.n_states, p=b))
+            disc = 1.0
+            for _ in range(horizon):
+                a = int(policy_act(b))  # type: ignore[operator]
+                returns[run] += disc * self.R[a, s]
+                s = self.transition.sample(s, a, rng)
+                o = self.observation.sample(s, a, rng)
+                b = belief_update(self.T, self.Z, b, a, o)
+                disc *= self.discount
+        return returns

@@ -1,0 +1,215 @@
+"""The ``robot`` stage: IK for every test viewpoint, manipulability, and the E_M matrix.
+
+Writes ``robot.npz`` (arrays, index = viewpoint index of X_rho), ``robot.json`` (a summary with
+the measured figures) and ``robot.png`` (the figure).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rapomdp.config import Config
+from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
+from rapomdp.io import ArtefactError, load_npz, save_npz, write_json_atomic
+from rapomdp.robot.arm import CameraArm
+from rapomdp.robot.energy import joint_distance_matrix, movement_energy, singularity_penalty
+from rapomdp.robot.figures import pick_poses, plot_robot
+from rapomdp.robot.ik import IKSettings, ViewpointSolutions, arm_skeleton_world, solve_viewpoints
+from rapomdp.robot.scene import Scene
+from rapomdp.workspace import StageError
+
+ROBOT_ARRAYS = "robot.npz"
+ROBOT_SUMMARY = "robot.json"
+ROBOT_FIGURE = "robot.png"
+
+
+class UnreachableError(StageError):
+    """No test viewpoint can be reached from the configured placement."""
+
+
+@dataclass(frozen=True)
+class RobotResult:
+    """Everything the robot stage computes; arrays are indexed by viewpoint (n = |X_rho|)."""
+
+    viewpoints_m: np.ndarray  # (n, 3) camera centres, world frame
+    directions: np.ndarray  # (n, 3) unit directions from the centroid (same for every stage)
+    solutions: ViewpointSolutions
+    distance_m: np.ndarray  # (n, n) geodesic distances on the viewsphere
+    joint_distance_rad: np.ndarray  # (n, n) |q' - q|, inf where either end is unreachable
+    penalty: np.ndarray  # (n,) kappa * singularity penalty of moving *to* each viewpoint
+    energy: np.ndarray  # (n, n) E_M, metres; 0 on the diagonal, inf to/from unreachable ones
+    ik_seconds: float
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def reachable(self) -> np.ndarray:
+        return self.solutions.reachable
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The arrays written to ``robot.npz``."""
+        s = self.solutions
+        return {
+            "viewpoints_m": self.viewpoints_m,
+            "directions": self.directions,
+            "reachable": s.reachable,
+            "q_rad": s.q_rad,
+            "manipulability": s.manipulability,
+            "roll_rad": s.roll_rad,
+            "camera_pose_world": s.camera_pose_world,
+            "position_error_m": s.position_error_m,
+            "angle_error_rad": s.angle_error_rad,
+            "distance_m": self.distance_m,
+            "joint_distance_rad": self.joint_distance_rad,
+            "penalty": self.penalty,
+            "energy": self.energy,
+        }
+
+
+def ik_settings(config: Config) -> IKSettings:
+    """The IK search settings of a configuration (degrees become radians here)."""
+    robot = config.robot
+    return IKSettings(
+        roll_samples=robot.roll_samples,
+        restarts=robot.restarts,
+        iterations=robot.iterations,
+        position_tolerance_m=robot.position_tolerance_m,
+        angle_tolerance_rad=float(np.radians(robot.angle_tolerance_deg)),
+        floor_clearance_m=robot.floor_clearance_m,
+        object_clearance_m=robot.object_clearance_m,
+        seed=config.seed,
+    )
+
+
+def solve_robot(config: Config) -> RobotResult:
+    """IK, manipulability, distances and movement energy for the configured X_rho.
+
+    Raises :class:`UnreachableError`, naming the placement, when no viewpoint is reachable.
+    """
+    scene = Scene.from_config(config.robot)
+    arm = CameraArm(scene)
+    count, radius_m = config.viewpoints.count, config.viewpoints.radius_m
+    eyes = scene.viewpoints_world(count, radius_m)
+    start = time.perf_counter()
+    solutions = solve_viewpoints(arm, eyes, ik_settings(config))
+    ik_seconds = time.perf_counter() - start
+    reachable = solutions.reachable
+    if not reachable.any():
+        raise UnreachableError(
+            f"robot: none of the {count} viewpoints (radius {radius_m} m around the centroid "
+            f"{list(config.robot.centroid_m)}) is reachable from the base at "
+            f"{list(config.robot.base_xyz_m)} with camera mount "
+            f"{list(config.robot.camera_mount_xyz_m)}; move robot.base_xyz_m or "
+            f"robot.centroid_m closer together, or lower viewpoints.radius_m"
+        )
+    directions = fibonacci_directions(count, hemisphere=True)
+    distance = geodesic_distance_matrix(directions, radius_m)
+    energy_cfg = config.robot.energy
+    energy = movement_energy(
+        distance,
+        solutions.manipulability,
+        reachable,
+        kappa_m=energy_cfg.kappa_m,
+        penalty=energy_cfg.penalty,
+        q_rad=solutions.q_rad,
+        joint_weight_m_per_rad=energy_cfg.joint_weight_m_per_rad,
+    )
+    joints = joint_distance_matrix(solutions.q_rad)
+    joints = np.where(np.isnan(joints), np.inf, joints)
+    np.fill_diagonal(joints, 0.0)
+    m = solutions.manipulability
+    reference = float(np.max(m[reachable]))
+    penalty = np.full(count, np.inf)
+    penalty[reachable] = energy_cfg.kappa_m * singularity_penalty(
+        m[reachable], reference, energy_cfg.penalty
+    )
+    summary = {
+        "viewpoints": count,
+        "radius_m": radius_m,
+        "reachable": int(reachable.sum()),
+        "reachable_fraction": round(float(reachable.mean()), 4),
+        "ik_seconds": round(ik_seconds, 3),
+        "manipulability": {
+            "min": float(np.min(m[reachable])),
+            "median": float(np.median(m[reachable])),
+            "max": reference,
+        },
+        "max_position_error_m": float(np.nanmax(solutions.position_error_m)),
+        "max_angle_error_deg": float(np.degrees(np.nanmax(solutions.angle_error_rad))),
+        "centroid_in_base_m": [round(float(v), 4) for v in scene.centroid_base],
+        "energy_finite_max_m": float(np.max(energy[np.isfinite(energy)])),
+        "unreachable_indices": np.flatnonzero(~reachable).tolist(),
+    }
+    return RobotResult(
+        viewpoints_m=eyes,
+        directions=directions,
+        solutions=solutions,
+        distance_m=distance,
+        joint_distance_rad=joints,
+        penalty=penalty,
+        energy=energy,
+        ik_seconds=ik_seconds,
+        summary=summary,
+    )
+
+
+def plot_result(result: RobotResult, config: Config, path: str | Path, arms: int = 3) -> None:
+    """The stage's figure for ``result``: the arm drawn at ``arms`` of its solutions."""
+    scene = Scene.from_config(config.robot)
+    arm = CameraArm(scene)
+    s = result.solutions
+    picks = pick_poses(s.manipulability, s.reachable, arms)
+    plot_robot(
+        path,
+        viewpoints_m=result.viewpoints_m,
+        reachable=s.reachable,
+        manipulability=s.manipulability,
+        centroid_m=scene.centroid_world,
+        base_m=scene.base_world[:3, 3],
+        skeletons_m=[arm_skeleton_world(arm, s.q_rad[i], samples_per_link=1) for i in picks],
+        camera_poses=s.camera_pose_world[picks],
+        title=(
+            f"Panda: {int(s.reachable.sum())}/{s.count} viewpoints reachable "
+            f"(radius {config.viewpoints.radius_m} m), coloured by manipulability"
+        ),
+        arm_labels=[f"arm at viewpoint {i} (man. {s.manipulability[i]:.3f})" for i in picks],
+    )
+
+
+def run_robot_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """The pipeline stage: writes robot.npz, robot.json and robot.png into ``out``."""
+    del inputs  # the robot stage reads only the configuration
+    result = solve_robot(config)
+    out = Path(out)
+    save_npz(out / ROBOT_ARRAYS, **result.arrays())
+    write_json_atomic(out / ROBOT_SUMMARY, result.summary)
+    plot_result(result, config, out / ROBOT_FIGURE)
+
+
+def describe(summary: dict[str, Any]) -> str:
+    """One line for the command line from a ``robot.json`` summary."""
+    m = summary["manipulability"]
+    return (
+        f"{summary['reachable']}/{summary['viewpoints']} viewpoints reachable "
+        f"({100 * summary['reachable_fraction']:.0f} %), IK {summary['ik_seconds']:.2f} s, "
+        f"manipulability {m['min']:.3f}-{m['max']:.3f} (median {m['median']:.3f})"
+    )
+
+
+def load_robot(folder: str | Path) -> dict[str, np.ndarray]:
+    """The arrays of a finished robot stage (``robot.npz`` in ``folder``), checked for shape."""
+    arrays = load_npz(Path(folder) / ROBOT_ARRAYS)
+    missing = {"reachable", "energy", "distance_m", "manipulability", "q_rad"} - set(arrays)
+    if missing:
+        raise ArtefactError(f"{Path(folder) / ROBOT_ARRAYS}: missing arrays {sorted(missing)}")
+    n = arrays["reachable"].shape[0]
+    if arrays["energy"].shape != (n, n) or arrays["distance_m"].shape != (n, n):
+        raise ArtefactError(
+            f"{Path(folder) / ROBOT_ARRAYS}: energy/distance are not {n}x{n} "
+            f"(got {arrays['energy'].shape}, {arrays['distance_m'].shape})"
+        )
+    return arrays

@@ -1,0 +1,99 @@
+"""The train and classifier_eval stages end to end on a tiny workspace, and the CLI's errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from rapomdp.cli import app
+from rapomdp.config import config_from_dict
+from rapomdp.io import load_npz, read_json
+from rapomdp.pipeline import run_pipeline
+from rapomdp.recognition.classifier import META_FILE, CheckpointMismatchError
+from rapomdp.recognition.stage import load_stage_classifier, train_config_hash
+from rapomdp.workspace import Workspace
+
+TINY = {
+    "dataset": {"classes": ["cup", "bottle", "chair"]},
+    "camera": {"width": 80, "height": 60},
+    "render": {"views": 12},
+    "viewpoints": {"count": 8},
+    "train": {"epochs": 2, "width": 0.125, "batch_size": 16,
+              "preprocess": {"input_size_px": 32}},
+}
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory):
+    from rapomdp.progress import set_progress
+
+    set_progress(False)
+    root = tmp_path_factory.mktemp("ws")
+    config = config_from_dict(TINY)
+    run_pipeline(config, Workspace(root), until="classifier_eval")
+    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY))
+    return root, config
+
+
+def test_train_stage_writes_a_checked_checkpoint(workspace):
+    root, config = workspace
+    meta = read_json(root / "train" / META_FILE)
+    assert meta["classes"] == ["cup", "bottle", "chair"]
+    assert meta["config_hash"] == train_config_hash(config)
+    assert meta["preprocessing"]["input_size_px"] == 32
+    history = list(csv.DictReader((root / "train" / "history.csv").open()))
+    assert [int(r["epoch"]) for r in history] == [1, 2]
+    metrics = read_json(root / "train" / "metrics.json")
+    # 3 classes x 3 train models x 12 views, 10 % of each model's views held out (1 of 12)
+    assert metrics["train_images"] == 3 * 3 * 11 and metrics["validation_images"] == 3 * 3 * 1
+    classifier = load_stage_classifier(config, root / "train", ["cup", "bottle", "chair"])
+    assert classifier.classes == ["cup", "bottle", "chair"]
+    with pytest.raises(CheckpointMismatchError, match="class list"):
+        load_stage_classifier(config, root / "train", ["cup", "bottle", "table"])
+    changed = config_from_dict({**TINY, "train": {**TINY["train"], "epochs": 3}})
+    with pytest.raises(CheckpointMismatchError, match="configuration hash"):
+        load_stage_classifier(changed, root / "train", ["cup", "bottle", "chair"])
+
+
+def test_classifier_eval_reports_consistent_figures(workspace):
+    root, _ = workspace
+    out = root / "classifier_eval"
+    metrics = read_json(out / "metrics.json")
+    arrays = load_npz(out / "probabilities.npz")
+    assert arrays["xrho"].shape == (3, 8, 3) and arrays["sphere"].shape == (3, 12, 3)
+    np.testing.assert_allclose(arrays["xrho"].sum(axis=2), 1.0, atol=1e-5)
+    labels = arrays["labels"]
+    accuracy = (arrays["xrho"].argmax(axis=2) == labels[:, None]).mean()
+    assert metrics["xrho"]["accuracy"] == pytest.approx(accuracy)
+    assert metrics["xrho"]["chance"] == pytest.approx(1 / 3)
+    assert np.mean(metrics["per_view_accuracy_xrho"]) == pytest.approx(accuracy)
+    rows = list(csv.reader((out / "confusion_xrho.csv").open()))
+    assert rows[0][1:] == ["cup", "bottle", "chair"]
+    counts = np.array([[int(v) for v in row[1:]] for row in rows[1:]])
+    assert counts.sum() == 3 * 8 and (counts.sum(axis=1) == 8).all()
+    assert np.trace(counts) / counts.sum() == pytest.approx(accuracy)
+    for name in ("confusion_xrho.png", "confusion_sphere.png", "accuracy_hemisphere.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_cli_refuses_a_checkpoint_for_other_classes(workspace):
+    root, _ = workspace
+    meta_path = root / "train" / META_FILE
+    original = meta_path.read_text()
+    meta = json.loads(original)
+    meta["classes"] = ["cup", "bottle", "table"]
+    meta_path.write_text(json.dumps(meta))
+    try:
+        result = CliRunner().invoke(app, ["evaluate-classifier", "-w", str(root), "-c",
+                                          str(root / "tiny.yaml"), "--force", "--threads", "1"])
+    finally:
+        meta_path.write_text(original)
+    assert result.exit_code == 2
+    assert "class list does not match" in result.output
+    assert "classifier.json" in result.output
+    assert (root / "classifier_eval" / "metrics.json").exists()  # the earlier result survives

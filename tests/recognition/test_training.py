@@ -1,0 +1,94 @@
+"""The network and its training: a separable toy set is learned; views are split per model."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from rapomdp.config import PreprocessConfig, TrainConfig
+from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
+from rapomdp.recognition.training import LabelledViews, train_classifier, validation_mask
+
+TOY_CLASSES = ["disc", "cross", "bar", "ring"]
+
+
+def toy_views(per_class: int, seed: int) -> LabelledViews:
+    """Depth images (160x120) of four flat shapes at random distance, size, place and tilt."""
+    rng = np.random.default_rng(seed)
+    n = per_class * len(TOY_CLASSES)
+    labels = np.repeat(np.arange(len(TOY_CLASSES)), per_class)
+    v, u = np.mgrid[0:120, 0:160].astype(np.float32)
+    distance = rng.uniform(0.5, 0.8, n)[:, None, None]
+    half = (rng.uniform(0.08, 0.12, n) * 144.3)[:, None, None] / distance  # pixels
+    du = u[None] - (80 + rng.uniform(-15, 15, n))[:, None, None]
+    dv = v[None] - (60 + rng.uniform(-10, 10, n))[:, None, None]
+    r = np.hypot(du, dv)
+    shapes = {
+        0: r <= half,
+        1: (np.abs(du) <= half) & (np.abs(dv) <= half)
+        & ((np.abs(du) <= 0.3 * half) | (np.abs(dv) <= 0.3 * half)),
+        2: (np.abs(du) <= 1.6 * half) & (np.abs(dv) <= 0.3 * half),
+        3: (r <= half) & (r >= 0.6 * half),
+    }
+    mask = np.select([labels[:, None, None] == k for k in shapes], list(shapes.values()))
+    tilt = rng.uniform(-0.001, 0.001, (n, 1, 1)) * du
+    depth = np.where(mask, distance + tilt, 0.0).astype(np.float32)
+    return LabelledViews(depth, labels, labels.copy(), np.arange(n))
+
+
+def test_network_shapes_follow_the_spec():
+    spec = NetworkSpec(classes=7, input_size_px=64, width=0.25)
+    net = DepthAlexNet(spec)
+    assert net.feature_shape == (64, 3, 3)
+    assert net(torch.zeros(5, 1, 64, 64)).shape == (5, 7)
+    linear = [m for m in net.modules() if isinstance(m, torch.nn.Linear)]
+    assert len(linear) == 1 and linear[0].in_features == 64 * 3 * 3  # one linear layer
+    assert isinstance(net.last_conv, torch.nn.Conv2d) and net.last_conv.out_channels == 64
+
+
+def test_network_learns_a_separable_toy_set():
+    cfg = TrainConfig(
+        width=0.125, epochs=16, batch_size=32, learning_rate=1e-3, dropout=0.0,
+        preprocess=PreprocessConfig(input_size_px=32),
+    )
+    train, val = toy_views(60, seed=1), toy_views(25, seed=2)
+    classifier, history = train_classifier(
+        train, val, TOY_CLASSES, cfg, 144.3, 144.3, seed=0, device=torch.device("cpu")
+    )
+    assert history.val_accuracy[-1] > 0.95
+    assert history.train_loss[-1] < history.train_loss[0]
+    probabilities = classifier.predict(val.depth)
+    assert probabilities.shape == (len(val), 4)
+    np.testing.assert_allclose(probabilities.sum(axis=1), 1.0, atol=1e-5)
+    assert (probabilities.argmax(axis=1) == val.labels).mean() > 0.95
+
+
+def test_training_is_deterministic_for_a_seed():
+    cfg = TrainConfig(width=0.125, epochs=1, batch_size=32,
+                      preprocess=PreprocessConfig(input_size_px=32))
+    data = toy_views(10, seed=3)
+    runs = [train_classifier(data, data, TOY_CLASSES, cfg, 144.3, 144.3, seed=5,
+                             device=torch.device("cpu"))[0].predict(data.depth) for _ in range(2)]
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_validation_holds_out_a_fraction_of_every_models_views():
+    models = np.repeat(np.arange(4), 50)
+    data = LabelledViews(np.zeros((200, 2, 2), np.float32), models, models, np.arange(200))
+    held = validation_mask(data, 0.1, np.random.default_rng(0))
+    np.testing.assert_array_equal(np.bincount(models[held]), [5, 5, 5, 5])
+    assert not validation_mask(data, 0.0, np.random.default_rng(0)).any()
+
+
+def test_noise_augmentation_perturbs_only_the_object():
+    from rapomdp.config import AugmentConfig, NoiseConfig
+    from rapomdp.recognition.training import augment_batch
+
+    depth = toy_views(4, seed=4).depth
+    noisy, shift, scale = augment_batch(depth, AugmentConfig(noise=True, shift=0.05, scale=0.1),
+                                        NoiseConfig(), np.random.default_rng(0))
+    object_px = depth > 0
+    np.testing.assert_array_equal(noisy > 0, object_px)  # no holes: surface angles unknown
+    error = np.abs(noisy - depth)[object_px]
+    assert 0.0005 < error.mean() < 0.01  # millimetres: axial noise and disparity steps
+    assert np.all(np.abs(shift) <= 0.05) and np.all((scale >= 0.9 - 1e-9) & (scale <= 1.1))

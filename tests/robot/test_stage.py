@@ -1,0 +1,120 @@
+"""The robot stage's artefacts, its configuration section and its errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rapomdp.config import Config, ConfigError, config_from_dict
+from rapomdp.io import load_npz, read_json
+from rapomdp.robot.energy import movement_energy
+from rapomdp.robot.figures import pick_poses
+from rapomdp.robot.stage import (
+    ROBOT_ARRAYS,
+    ROBOT_FIGURE,
+    ROBOT_SUMMARY,
+    UnreachableError,
+    describe,
+    load_robot,
+    run_robot_stage,
+    solve_robot,
+)
+from rapomdp.workspace import StageError
+
+
+def test_stage_writes_arrays_summary_and_figure(tmp_path: Path) -> None:
+    config = Config(viewpoints={"count": 24})
+    run_robot_stage(config, {}, tmp_path)
+    arrays = load_robot(tmp_path)
+    n = 24
+    assert arrays["reachable"].shape == (n,) and arrays["reachable"].dtype == bool
+    assert arrays["q_rad"].shape == (n, 7)
+    assert arrays["energy"].shape == (n, n) and arrays["distance_m"].shape == (n, n)
+    summary = read_json(tmp_path / ROBOT_SUMMARY)
+    assert summary["reachable"] == int(arrays["reachable"].sum()) > 0
+    assert summary["unreachable_indices"] == np.flatnonzero(~arrays["reachable"]).tolist()
+    assert summary["max_position_error_m"] <= 1e-3
+    assert describe(summary).startswith(f"{summary['reachable']}/24 viewpoints reachable")
+    recomputed = movement_energy(
+        arrays["distance_m"], arrays["manipulability"], arrays["reachable"], kappa_m=0.1
+    )
+    np.testing.assert_array_equal(arrays["energy"], recomputed)
+    png = (tmp_path / ROBOT_FIGURE).read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [ROBOT_ARRAYS, ROBOT_SUMMARY, ROBOT_FIGURE]
+    )
+
+
+def test_solved_default_scene(solved) -> None:
+    reach = solved.reachable
+    assert solved.energy.shape == (128, 128)
+    assert np.all(np.diag(solved.energy) == 0) and np.all(solved.energy >= 0)
+    assert np.isinf(solved.penalty[~reach]).all() and np.all(solved.penalty[reach] >= 0)
+    assert solved.penalty[reach].min() == 0.0  # at the most manipulable viewpoint
+    m = solved.solutions.manipulability[reach]
+    assert np.all(m > 0)
+    assert solved.summary["manipulability"]["max"] == pytest.approx(m.max())
+
+
+def test_no_reachable_viewpoint_is_a_clear_error() -> None:
+    config = Config(robot={"base_xyz_m": (5.0, 0.0, 0.0)})
+    with pytest.raises(UnreachableError, match=r"none of the 128 viewpoints.*base_xyz_m"):
+        solve_robot(config)
+    assert issubclass(UnreachableError, StageError)
+
+
+def test_robot_section_is_validated() -> None:
+    config = config_from_dict({"robot": {"base_xyz_m": [-0.5, 0.1, 0.0],
+                                         "energy": {"penalty": "log"}}})
+    assert config.robot.base_xyz_m == (-0.5, 0.1, 0.0)
+    assert config.robot.energy.penalty == "log"
+    with pytest.raises(ConfigError, match="robot.roll_sample: unknown key"):
+        config_from_dict({"robot": {"roll_sample": 4}})
+    with pytest.raises(ConfigError, match="robot.energy.penalty"):
+        config_from_dict({"robot": {"energy": {"penalty": "cubic"}}})
+    with pytest.raises(ConfigError, match="robot.restarts"):
+        config_from_dict({"robot": {"restarts": 0}})
+
+
+def test_load_robot_refuses_a_wrong_file(tmp_path: Path) -> None:
+    from rapomdp.io import ArtefactError, save_npz
+
+    save_npz(tmp_path / ROBOT_ARRAYS, reachable=np.ones(3, dtype=bool))
+    with pytest.raises(ArtefactError, match="missing arrays"):
+        load_robot(tmp_path)
+    assert set(load_npz(tmp_path / ROBOT_ARRAYS)) == {"reachable"}
+
+
+def test_pick_poses_spans_the_manipulability_range() -> None:
+    m = np.array([0.05, np.nan, 0.09, 0.01, 0.07])
+    reachable = ~np.isnan(m)
+    assert pick_poses(m, reachable, 3).tolist() == [2, 4, 3]  # best, middle, worst
+    assert pick_poses(m, np.zeros(5, dtype=bool)).size == 0
+
+
+def test_config_yaml_round_trip_keeps_the_robot_section() -> None:
+    import yaml
+
+    config = Config(robot={"base_yaw_deg": 30.0, "floor_clearance_m": None})
+    again = config_from_dict(yaml.safe_load(config.to_yaml()))
+    assert again.robot == config.robot
+    assert again.section("robot")["base_xyz_m"] == [-0.4, 0.0, 0.2]
+
+
+def test_stage_in_a_workspace_is_cached_and_survives_a_failed_rerun(tmp_path: Path) -> None:
+    from rapomdp.workspace import Stage, Workspace
+
+    stage = Stage(name="robot", run=run_robot_stage, sections=("seed", "viewpoints", "robot"))
+    workspace = Workspace(tmp_path)
+    config = Config(viewpoints={"count": 16})
+    first = workspace.run(stage, config)
+    assert not first.cached and ROBOT_ARRAYS in first.files
+    assert workspace.run(stage, config).cached
+    before = (tmp_path / "robot" / ROBOT_ARRAYS).read_bytes()
+    with pytest.raises(UnreachableError):
+        workspace.run(stage, Config(viewpoints={"count": 16}, robot={"base_xyz_m": (5, 0, 0)}))
+    assert (tmp_path / "robot" / ROBOT_ARRAYS).read_bytes() == before
+    assert load_robot(tmp_path / "robot")["reachable"].shape == (16,)

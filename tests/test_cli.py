@@ -1,0 +1,59 @@
+from pathlib import Path
+
+import yaml
+from typer.testing import CliRunner
+
+from rapomdp.cli import app
+from rapomdp.config import Config
+from tests.conftest import tiny_config
+
+runner = CliRunner()
+
+
+def test_config_prints_the_default() -> None:
+    result = runner.invoke(app, ["config"])
+    assert result.exit_code == 0
+    assert Config.model_validate(yaml.safe_load(result.stdout)) == Config()
+
+
+def test_bad_config_exits_2_naming_the_key(tmp_path: Path) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("camera:\n  widht: 10\n")
+    result = runner.invoke(app, ["run", "-w", str(tmp_path / "ws"), "-c", str(path)])
+    assert result.exit_code == 2
+    assert "camera.widht: unknown key" in result.output
+    assert not (tmp_path / "ws" / "manifest.json").exists()
+
+
+def test_run_status_and_preview(tmp_path: Path) -> None:
+    path = tmp_path / "tiny.yaml"
+    path.write_text(tiny_config().to_yaml())
+    ws = tmp_path / "ws"
+    result = runner.invoke(app, ["render", "-w", str(ws), "-c", str(path)])
+    assert result.exit_code == 0, result.output
+    assert (ws / "render" / "render.json").exists()
+    assert yaml.safe_load((ws / "config.yaml").read_text())["render"]["views"] == 6
+    again = runner.invoke(app, ["run", "-w", str(ws), "-c", str(path), "--until", "render"])
+    assert "cached" in again.output
+    sheet = tmp_path / "sheet.png"
+    preview = runner.invoke(app, ["dataset", "preview", "-w", str(ws), "--out", str(sheet),
+                                  "--width", "64"])
+    assert preview.exit_code == 0, preview.output
+    assert sheet.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    status = runner.invoke(app, ["status", "-w", str(ws)])
+    assert "dataset" in status.output and "render" in status.output
+
+
+def test_preview_without_a_dataset_says_how_to_make_one(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["dataset", "preview", "-w", str(tmp_path)])
+    assert result.exit_code == 2
+    assert "stage 'dataset' has not been run here" in result.output
+
+
+def test_robot_command_reports_reachability(tmp_path: Path) -> None:
+    path = tmp_path / "tiny.yaml"
+    path.write_text(tiny_config().to_yaml())
+    result = runner.invoke(app, ["robot", "-w", str(tmp_path / "ws"), "-c", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "/16 viewpoints reachable" in result.output
+    assert (tmp_path / "ws" / "robot" / "robot.npz").exists()
