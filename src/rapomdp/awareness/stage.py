@@ -18,6 +18,7 @@ normalised Eq. 6 scores, ``raw_scores``, ``directions`` (V, 3); ``calibration.js
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,9 @@ import torch
 from rapomdp.awareness.observation import (
     BlackBoxObservationModel,
     ClassifierObservationModel,
+    ObservationModel,
     RAObservationModel,
+    ScoreCalibration,
     calibrate_correctness,
     wrong_label_distribution,
 )
@@ -167,67 +170,120 @@ def xrho_renders(dataset: Dataset, model: ModelEntry, config: Config,
     return clean, render_depth(renderer, poses, config.render.noise, rng), poses
 
 
+@dataclass
+class XrhoOutcomes:
+    """A model's renders at X_rho and the classifier's labels there (reusable across volumes)."""
+
+    clean: np.ndarray
+    poses: np.ndarray
+    predicted: np.ndarray
+
+
+def xrho_outcomes(dataset: Dataset, model: ModelEntry, config: Config, classifier: Classifier,
+                  purpose: str) -> XrhoOutcomes:
+    clean, sensed, poses = xrho_renders(dataset, model, config, purpose)
+    return XrhoOutcomes(clean, poses, classifier.predict(sensed).argmax(axis=1))
+
+
+@dataclass
+class Observation:
+    """Everything the observe stage computes."""
+
+    models: dict[str, ObservationModel]
+    raw_scores: np.ndarray
+    scores: np.ndarray
+    calibration: ScoreCalibration
+    volume_labels: np.ndarray
+    volume_predictions: np.ndarray
+    test_labels: np.ndarray
+    test_predictions: np.ndarray
+    quality: list[dict[str, float | str]]
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def observe(config: Config, dataset: Dataset, classifier: Classifier,
+            volumes: dict[str, SaliencyVolume],
+            cache: dict[str, XrhoOutcomes] | None = None) -> Observation:
+    """Viewpoint scores, observation models and their quality on the test models.
+
+    ``cache`` ("class/model id" -> :class:`XrhoOutcomes`) lets callers that try several volumes (the
+    voxel-resolution sweep) render and classify each model at X_rho once.
+    """
+    cache = {} if cache is None else cache
+    classes = dataset.classes
+    intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
+    cfg = config.observe
+    start = time.perf_counter()
+
+    def outcomes(model: ModelEntry, purpose: str) -> XrhoOutcomes:
+        key = f"{model.class_name}/{model.id}"
+        if key not in cache:
+            cache[key] = xrho_outcomes(dataset, model, config, classifier, purpose)
+        return cache[key]
+
+    raw = np.zeros((len(classes), config.viewpoints.count))
+    vol_labels, vol_pred = [], []
+    for c, class_name in enumerate(track(classes, "observe: volume models at X_rho")):
+        volume = volumes[class_name]
+        per_model = []
+        for model in (m for m in dataset.with_role("volume") if m.class_name == class_name):
+            seen = outcomes(model, "observe/volume")
+            vis = visibility_from_depth(seen.clean, seen.poses, intrinsics, volume.grid)
+            per_model.append(viewpoint_scores(vis, volume.flat_scores()))
+            vol_pred.append(seen.predicted)
+            vol_labels.append(c)
+        raw[c] = np.nanmean(np.stack(per_model), axis=0)
+    scores_s = time.perf_counter() - start
+    scores = normalise_scores(raw)
+    labels, predicted = np.array(vol_labels), np.stack(vol_pred)
+    correct = predicted == labels[:, None]
+    calibration = calibrate_correctness(scores[labels], correct, cfg.calibration)
+    wrong = wrong_label_distribution(np.broadcast_to(labels[:, None], predicted.shape),
+                                     predicted, len(classes), cfg.confusion_pseudo_count)
+    models: dict[str, ObservationModel] = {
+        "ra": RAObservationModel(scores, calibration, wrong, classes),
+        "classifier": ClassifierObservationModel(labels, predicted, classes,
+                                                 cfg.classifier_pseudo_count),
+        "blackbox": BlackBoxObservationModel(labels, predicted, classes,
+                                             cfg.confusion_pseudo_count),
+    }
+    models_s = time.perf_counter() - start
+    test_models = dataset.with_role("test")
+    test_labels = np.array([dataset.label(m) for m in test_models])
+    test_pred = np.stack([outcomes(m, "classifier_eval").predicted
+                          for m in track(test_models, "observe: test models at X_rho")])
+    rows = quality_table(models, test_labels, test_pred)
+    return Observation(models, raw, scores, calibration, labels, predicted, test_labels,
+                       test_pred, rows, {"scores_s": scores_s, "observation_models_s": models_s,
+                                         "total_s": time.perf_counter() - start})
+
+
 def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
     """Viewpoint scores, the RA / Classifier / black-box observation models and their quality."""
     from rapomdp.awareness.figures import calibration_figure
 
     dataset = load_dataset(inputs["dataset"])
-    classes = dataset.classes
-    classifier = load_stage_classifier(config, inputs["train"], classes)
-    intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
-    cfg = config.observe
-    start = time.perf_counter()
-    raw = np.zeros((len(classes), config.viewpoints.count))
-    vol_labels, vol_pred = [], []
-    for c, class_name in enumerate(track(classes, "observe: volume models at X_rho")):
-        volume = SaliencyVolume.load(inputs["volume"] / f"{class_name}.npz")
-        models = [m for m in dataset.with_role("volume") if m.class_name == class_name]
-        per_model = []
-        for model in models:
-            clean, sensed, poses = xrho_renders(dataset, model, config, "observe/volume")
-            vis = visibility_from_depth(clean, poses, intrinsics, volume.grid)
-            per_model.append(viewpoint_scores(vis, volume.flat_scores()))
-            vol_pred.append(classifier.predict(sensed).argmax(axis=1))
-            vol_labels.append(c)
-        raw[c] = np.nanmean(per_model, axis=0) if len(per_model) > 1 else per_model[0]
-    build_s = time.perf_counter() - start
-    scores = normalise_scores(raw)
-    vol_labels_a, vol_pred_a = np.array(vol_labels), np.stack(vol_pred)
-    correct = vol_pred_a == vol_labels_a[:, None]
-    calibration = calibrate_correctness(scores[vol_labels_a], correct, cfg.calibration)
-    wrong = wrong_label_distribution(np.broadcast_to(vol_labels_a[:, None], vol_pred_a.shape),
-                                     vol_pred_a, len(classes), cfg.confusion_pseudo_count)
-    models = {
-        "ra": RAObservationModel(scores, calibration, wrong, classes),
-        "classifier": ClassifierObservationModel(vol_labels_a, vol_pred_a, classes,
-                                                 cfg.classifier_pseudo_count),
-        "blackbox": BlackBoxObservationModel(vol_labels_a, vol_pred_a, classes,
-                                             cfg.confusion_pseudo_count),
-    }
-    models_s = time.perf_counter() - start
-    test_labels, test_pred = [], []
-    for model in track(dataset.with_role("test"), "observe: test models at X_rho"):
-        _, sensed, _ = xrho_renders(dataset, model, config, "classifier_eval")
-        test_pred.append(classifier.predict(sensed).argmax(axis=1))
-        test_labels.append(dataset.label(model))
-    rows = quality_table(models, np.array(test_labels), np.stack(test_pred))
-    write_quality(rows, out / "quality.csv", out / "quality.md")
+    classifier = load_stage_classifier(config, inputs["train"], dataset.classes)
+    volumes = {name: SaliencyVolume.load(inputs["volume"] / f"{name}.npz")
+               for name in dataset.classes}
+    result = observe(config, dataset, classifier, volumes)
+    write_quality(result.quality, out / "quality.csv", out / "quality.md")
     directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
-    save_npz(out / OBSERVATION_FILE, **{name: m.probabilities for name, m in models.items()},
-             models=np.array(list(models)), classes=np.array(classes), scores=scores,
-             raw_scores=raw, directions=directions, volume_labels=vol_labels_a,
-             volume_predictions=vol_pred_a, test_labels=np.array(test_labels),
-             test_predictions=np.stack(test_pred))
+    save_npz(out / OBSERVATION_FILE,
+             **{name: m.probabilities for name, m in result.models.items()},
+             models=np.array(list(result.models)), classes=np.array(dataset.classes),
+             scores=result.scores, raw_scores=result.raw_scores, directions=directions,
+             volume_labels=result.volume_labels, volume_predictions=result.volume_predictions,
+             test_labels=result.test_labels, test_predictions=result.test_predictions)
+    correct = result.volume_predictions == result.volume_labels[:, None]
     write_json_atomic(out / "calibration.json", {
-        **calibration.to_dict(),
+        **result.calibration.to_dict(),
         "volume_accuracy": float(correct.mean()),
         "pairs": int(correct.size),
     })
-    calibration_figure(scores[vol_labels_a], correct, calibration, out / "calibration.png")
-    write_json_atomic(out / "timing.json", {
-        "scores_s": build_s, "observation_models_s": models_s,
-        "total_s": time.perf_counter() - start,
-    })
+    calibration_figure(result.scores[result.volume_labels], correct, result.calibration,
+                       out / "calibration.png")
+    write_json_atomic(out / "timing.json", result.seconds)
 
 
 def read_observe_timing(observe_dir: Path) -> dict[str, float]:
