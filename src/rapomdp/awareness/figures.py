@@ -62,11 +62,14 @@ def _voxels(volume: SaliencyVolume) -> tuple[np.ndarray, np.ndarray]:
 
 def _volume_axes(ax, volume: SaliencyVolume, title: str) -> None:  # noqa: ANN001
     centres, scores = _voxels(volume)
-    size = max(1.0, 2000.0 / max(1, len(scores)) ** 0.5)
-    ax.scatter(centres[:, 0], centres[:, 1], centres[:, 2], c=scores, cmap=CMAP, vmin=0, vmax=1,
-               s=size, marker="s", depthshade=False)
     span = (centres.max(axis=0) - centres.min(axis=0)).max() / 2 if len(centres) else 0.1
     mid = (centres.max(axis=0) + centres.min(axis=0)) / 2 if len(centres) else np.zeros(3)
+    # a marker about one voxel wide: the axes span ~220 points across 2 * span metres
+    side_pt = 220.0 * volume.grid.voxel_size_m / (2.0 * max(span, 1e-6))
+    order = np.argsort(scores)  # salient voxels drawn last, on top
+    ax.scatter(centres[order, 0], centres[order, 1], centres[order, 2], c=scores[order],
+               cmap=CMAP, vmin=0, vmax=1, s=max(0.5, side_pt**2), marker="s", depthshade=False,
+               linewidths=0)
     ax.set(xlim=(mid[0] - span, mid[0] + span), ylim=(mid[1] - span, mid[1] + span),
            zlim=(mid[2] - span, mid[2] + span), title=title)
     ax.view_init(elev=20, azim=-60)
