@@ -11,6 +11,7 @@ from rapomdp.awareness.observation import (
     ObservationModel,
     RAObservationModel,
     calibrate_correctness,
+    calibrate_per_class,
     wrong_label_distribution,
 )
 from rapomdp.awareness.quality import awareness_quality, roc_auc
@@ -57,6 +58,19 @@ def test_ra_rows_sum_to_one_and_correct_label_rises_with_the_score():
         order = np.argsort(scores[c])
         assert np.all(np.diff(model.correct_probability()[order, c]) >= 0)
     assert model.likelihood(5, 1).shape == (3,)
+
+
+def test_per_class_calibration_separates_class_difficulty_from_the_score():
+    rng = np.random.default_rng(2)
+    scores = rng.random((3, 300))
+    base = np.array([-2.0, 0.0, 2.0])  # class 0 hard, class 2 easy; same score effect
+    p_true = 1 / (1 + np.exp(-(base[:, None] + 2.0 * scores)))
+    correct = rng.random((3, 300)) < p_true
+    fit = calibrate_per_class(scores, correct, np.repeat(np.arange(3)[:, None], 300, axis=1), 3)
+    assert fit.slope == pytest.approx(2.0, abs=0.7)
+    assert fit.intercepts[0] < fit.intercepts[1] < fit.intercepts[2]
+    p = fit(np.tile(np.linspace(0, 1, 11), (3, 1)))
+    assert p.shape == (3, 11) and np.all(np.diff(p, axis=1) >= 0)
 
 
 def test_wrong_label_distribution_has_zero_diagonal_and_follows_confusion():

@@ -69,7 +69,7 @@ def test_one_volume_per_class_with_empty_voxels_marked(workspace):
 def test_observation_models_follow_the_planner_contract(workspace):
     data = load_npz(workspace.root / "observe" / "observation_models.npz")
     assert list(data["classes"]) == ["bicycle", "teapot"]
-    assert list(data["models"]) == ["ra", "classifier", "blackbox"]
+    assert list(data["models"]) == ["ra", "ra_class", "classifier", "blackbox"]
     for name in data["models"]:
         p = data[name]
         assert p.shape == (10, 2, 2) and np.allclose(p.sum(axis=2), 1) and np.all(p > 0)
@@ -77,10 +77,10 @@ def test_observation_models_follow_the_planner_contract(workspace):
     assert data["scores"].min() >= 0 and data["scores"].max() <= 1
     assert data["directions"].shape == (10, 3) and np.all(data["directions"][:, 2] >= 0)
     models = load_observation_models(workspace.root / "observe" / "observation_models.npz")
-    assert set(models) == {"ra", "classifier", "blackbox"}
+    assert set(models) == {"ra", "ra_class", "classifier", "blackbox"}
     with open(workspace.root / "observe" / "quality.csv") as handle:
         rows = list(csv.DictReader(handle))
-    assert [r["model"] for r in rows] == ["ra", "classifier", "blackbox"]
+    assert [r["model"] for r in rows] == ["ra", "ra_class", "classifier", "blackbox"]
     assert all(float(r["log_likelihood"]) <= 0 for r in rows)
 
 

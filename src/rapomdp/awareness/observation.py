@@ -102,6 +102,52 @@ def _fit_logistic(s: np.ndarray, y: np.ndarray, ridge: float = 1e-3) -> tuple[fl
     return float(w[0]), float(w[1])
 
 
+@dataclass
+class ClassScoreCalibration:
+    """P(correct | class c, score s) = sigmoid(a_c + b * s): one intercept per class (its
+    difficulty), one shared slope ``b >= 0`` (what the saliency score adds). Applied to scores
+    (C, V), rows in class order."""
+
+    intercepts: np.ndarray
+    slope: float
+    method: str = "logistic_per_class"
+
+    def __call__(self, scores: np.ndarray) -> np.ndarray:
+        s = np.asarray(scores, dtype=np.float64)
+        p = 1.0 / (1.0 + np.exp(-(self.intercepts[:, None] + self.slope * s)))
+        return np.clip(p, PROBABILITY_FLOOR, 1.0 - PROBABILITY_FLOOR)
+
+    def to_dict(self) -> dict[str, object]:
+        return {"method": self.method, "intercepts": self.intercepts.tolist(),
+                "slope": self.slope}
+
+
+def calibrate_per_class(scores: np.ndarray, correct: np.ndarray, classes: np.ndarray,
+                        count: int, ridge: float = 1e-2) -> ClassScoreCalibration:
+    """Fit :class:`ClassScoreCalibration` on pairs (score, right?, class) by Newton steps with a
+    small ridge (a class that is always right or always wrong keeps a finite intercept)."""
+    s = np.asarray(scores, dtype=np.float64).reshape(-1)
+    y = np.asarray(correct, dtype=np.float64).reshape(-1)
+    g = np.asarray(classes).reshape(-1)
+    x = np.zeros((s.size, count + 1))
+    x[np.arange(s.size), g] = 1.0
+    x[:, count] = s
+    w = np.zeros(count + 1)
+    for _ in range(50):
+        p = 1.0 / (1.0 + np.exp(-(x @ w)))
+        grad = x.T @ (p - y) + ridge * w
+        hess = (x * (p * (1 - p))[:, None]).T @ x + ridge * np.eye(count + 1)
+        step = np.linalg.solve(hess, grad)
+        w = w - step
+        if np.max(np.abs(step)) < 1e-10:
+            break
+    if w[count] < 0:  # monotone in the score: refit the intercepts alone
+        rate = np.clip((np.bincount(g, weights=y, minlength=count) + 0.5)
+                       / (np.bincount(g, minlength=count) + 1.0), 1e-6, 1 - 1e-6)
+        return ClassScoreCalibration(np.log(rate / (1 - rate)), 0.0)
+    return ClassScoreCalibration(w[:count].copy(), float(w[count]))
+
+
 def _pool_adjacent_violators(y: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Non-decreasing block means of ``y`` (already ordered) and each block's size."""
     means: list[float] = []
@@ -166,7 +212,8 @@ class RAObservationModel(ObservationModel):
 
     name = "ra"
 
-    def __init__(self, scores: np.ndarray, calibration: ScoreCalibration,
+    def __init__(self, scores: np.ndarray,
+                 calibration: ScoreCalibration | ClassScoreCalibration,
                  wrong_labels: np.ndarray, classes: Sequence[str]) -> None:
         scores = np.asarray(scores, dtype=np.float64)  # (C, V), normalised per class
         c = len(classes)

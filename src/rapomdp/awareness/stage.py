@@ -8,7 +8,8 @@ clean input and, for the mask, ``perturbed_probability`` (views,) after the pert
 ``W/volume/``: ``<class>.npz`` (a :class:`~rapomdp.awareness.volume.SaliencyVolume`: ``scores``
 with NaN = empty, ``counts``, ``origin``, ``voxel_size_m``, ``shape``) and ``volume.json``.
 
-``W/observe/``: ``observation_models.npz`` with ``ra``, ``classifier`` and ``blackbox``, each
+``W/observe/``: ``observation_models.npz`` with ``ra``, ``ra_class``, ``classifier`` and
+``blackbox``, each
 (V, C, C) = P(o | class, viewpoint) over the test viewpoints X_rho in order and the dataset's
 classes in order (rows sum to 1), ``models`` (their names), ``classes``, ``scores`` (C, V)
 normalised Eq. 6 scores, ``raw_scores``, ``directions`` (V, 3); ``calibration.json``;
@@ -31,6 +32,7 @@ from rapomdp.awareness.observation import (
     RAObservationModel,
     ScoreCalibration,
     calibrate_correctness,
+    calibrate_per_class,
     wrong_label_distribution,
 )
 from rapomdp.awareness.quality import quality_table, write_quality
@@ -242,6 +244,10 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                                      predicted, len(classes), cfg.confusion_pseudo_count)
     models: dict[str, ObservationModel] = {
         "ra": RAObservationModel(scores, calibration, wrong, classes),
+        "ra_class": RAObservationModel(
+            scores, calibrate_per_class(scores[labels], correct,
+                                        np.broadcast_to(labels[:, None], correct.shape),
+                                        len(classes)), wrong, classes),
         "classifier": ClassifierObservationModel(labels, predicted, classes,
                                                  cfg.classifier_pseudo_count),
         "blackbox": BlackBoxObservationModel(labels, predicted, classes,
@@ -278,6 +284,7 @@ def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path) -> Non
     correct = result.volume_predictions == result.volume_labels[:, None]
     write_json_atomic(out / "calibration.json", {
         **result.calibration.to_dict(),
+        "per_class": result.models["ra_class"].calibration.to_dict(),
         "volume_accuracy": float(correct.mean()),
         "pairs": int(correct.size),
     })
