@@ -37,12 +37,13 @@ def workspace(tmp_path_factory):
 
     set_progress(False)
     torch.set_num_threads(1)
-    stage.threads = 1
+    previous, stage.threads = stage.threads, 1
     config = config_from_dict(TINY)
     ws = Workspace(tmp_path_factory.mktemp("ws"))
     run_pipeline(config, ws, until="observe")
     (ws.root / "tiny.yaml").write_text(config.to_yaml())
-    return ws
+    yield ws
+    stage.threads = previous
 
 
 def test_saliency_maps_cover_object_pixels_only(workspace):
