@@ -151,8 +151,10 @@ class PerturbationMask(Attribution):
         mask = torch.full((n, 1, p.mask_size_px, p.mask_size_px), p.initial, device=x.device,
                           requires_grad=True)
         optimiser = torch.optim.Adam([mask], lr=p.learning_rate)
-        for p_ in self.network.parameters():
-            p_.requires_grad_(False)
+        params = list(self.network.parameters())
+        trainable = [q.requires_grad for q in params]
+        for q in params:
+            q.requires_grad_(False)  # gradients w.r.t. the mask only
         # channels-last convolutions and pooling: measured 1.45x faster on the CPU for a batch
         self.network.to(memory_format=torch.channels_last)
         try:
@@ -179,8 +181,8 @@ class PerturbationMask(Attribution):
                 self.last_probability = final.gather(1, t[:, None])[:, 0]
         finally:
             self.network.to(memory_format=torch.contiguous_format)
-            for p_ in self.network.parameters():
-                p_.requires_grad_(True)
+            for q, flag in zip(params, trainable, strict=True):
+                q.requires_grad_(flag)
         return (1.0 - up[:, 0]).clamp(0.0, 1.0).detach()
 
 
