@@ -39,6 +39,7 @@ bench: $(STAMP)
 	$(PY) benchmarks/planning_flat_benchmarks.py | tee benchmarks/results/planning_flat_benchmarks.txt
 	$(PY) benchmarks/planning_active_recognition.py | tee benchmarks/results/planning_active_recognition.txt
 	$(PY) benchmarks/classifier_speed.py | tee benchmarks/results/classifier_speed.txt
+	$(PY) benchmarks/saliency_speed.py | tee benchmarks/results/saliency_speed.txt
 
 clean:
 	rm -rf $(VENV) runs

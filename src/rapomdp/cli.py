@@ -198,6 +198,89 @@ def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
 
 
 @app.command()
+def saliency(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+             threads: ThreadsOption = None) -> None:
+    """2D saliency maps of each class's volume model (method: config saliency.method)."""
+    _set_threads(threads)
+    _run(config, workspace, "saliency", ["saliency"] if force else [])
+
+
+@app.command()
+def volume(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+           threads: ThreadsOption = None) -> None:
+    """The 3D dense saliency volume of every class (and the stages it needs)."""
+    _set_threads(threads)
+    _run(config, workspace, "volume", ["volume"] if force else [])
+
+
+@app.command()
+def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+            threads: ThreadsOption = None) -> None:
+    """Observation models P(o | class, viewpoint) and the self-awareness quality table."""
+    _set_threads(threads)
+    _run(config, workspace, "observe", ["observe"] if force else [])
+    table = Path(workspace) / "observe" / "quality.md"
+    if table.exists():
+        sys.stdout.write(table.read_text())
+
+
+figure_app = typer.Typer(help="Figures of recognition self-awareness (paper Figs. 1 and 2).")
+app.add_typer(figure_app, name="figure")
+
+
+@figure_app.command("fig1")
+def figure_fig1(
+    workspace: WorkspaceOption,
+    config: ConfigOption = None,
+    class_name: Annotated[str | None, typer.Option("--class", help="Class (default: first).")]
+    = None,
+    view: Annotated[int | None, typer.Option(help="Training view (default: most pixels).")]
+    = None,
+    threads: ThreadsOption = None,
+) -> None:
+    """Fig. 1: depth, 2D saliency, 3D volume and viewpoint scores of one class (PNG + HTML)."""
+    _set_threads(threads)
+    _run(config, workspace, "observe", [])
+
+    def action() -> tuple[Path, Path]:
+        from rapomdp.awareness.report import write_fig1
+
+        return write_fig1(Workspace(workspace), class_name, view)
+
+    png, html = _guard(action)
+    console.print(f"[green]✓[/] Fig. 1 written to {png} and {html}")
+
+
+@figure_app.command("fig2")
+def figure_fig2(
+    workspace: WorkspaceOption,
+    config: ConfigOption = None,
+    target: Annotated[str, typer.Option(help="The class whose volume is shown.")] = "bicycle",
+    against: Annotated[str, typer.Option(help="Comma-separated opponents, one two-class "
+                                               "problem each.")] = "teapot,eyeglasses,motorbike",
+    epochs: Annotated[int | None, typer.Option(help="Training epochs of the two-class "
+                                                    "classifiers (default: the config's).")]
+    = None,
+    threads: ThreadsOption = None,
+) -> None:
+    """Fig. 2: the target's volume in two-class problems and in the all-class problem.
+
+    Each two-class problem trains its own classifier in W/fig2/<target>-vs-<other>.
+    """
+    _set_threads(threads)
+
+    def action() -> tuple[Path, Path]:
+        from rapomdp.awareness.report import write_fig2
+
+        return write_fig2(load_config(config), Workspace(workspace), target,
+                          [a.strip() for a in against.split(",") if a.strip()], epochs,
+                          on_result=_report)
+
+    png, html = _guard(action)
+    console.print(f"[green]✓[/] Fig. 2 written to {png} and {html}")
+
+
+@app.command()
 def robot(workspace: WorkspaceOption, config: ConfigOption = None,
           force: ForceOption = False) -> None:
     """Solve the Panda's IK at every test viewpoint: reachability, manipulability, energy."""
@@ -210,6 +293,23 @@ def robot(workspace: WorkspaceOption, config: ConfigOption = None,
         return describe(read_json(Workspace(workspace).require("robot") / "robot.json"))
 
     console.print(f"  {_guard(summary)}", highlight=False, soft_wrap=True)
+
+
+@app.command()
+def solve(workspace: WorkspaceOption, config: ConfigOption = None,
+          force: ForceOption = False) -> None:
+    """Solve one active-recognition POMDP per observation model (policies as .npz)."""
+    _run(config, workspace, "solve", ["solve"] if force else [])
+
+    def summary() -> dict:
+        from rapomdp.io import read_json
+
+        return read_json(Workspace(workspace).require("solve") / "solve_summary.json")
+
+    for name, bounds in _guard(summary).items():
+        console.print(
+            f"  {name:<11} value in [{bounds['lower']:.4f}, {bounds['upper']:.4f}] after "
+            f"{bounds['seconds']:.1f} s, {bounds['vectors']} vectors", highlight=False)
 
 
 @app.command("config")

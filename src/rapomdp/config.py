@@ -139,6 +139,48 @@ class TrainConfig(Section):
     augment: AugmentConfig = AugmentConfig()
 
 
+class SaliencyConfig(Section):
+    """2D saliency maps of each class's volume model (paper Sec. 4.2; see docs/awareness.md).
+
+    ``mask`` is Fong & Vedaldi's meaningful perturbation; its sizes default to their 224 px
+    values scaled to the classifier's input (None = scaled).
+    """
+
+    method: Literal["mask", "gradient", "smoothgrad", "gradcam", "integrated_gradients",
+                    "occlusion"] = "mask"
+    iterations: int = Field(
+        100, ge=1, description="mask: Adam steps (reference 300; 100 measured r = 0.992 to it)")
+    learning_rate: float = Field(0.1, gt=0, description="mask: Adam learning rate")
+    l1: float = Field(1e-2, ge=0, description="mask: weight of mean(1 - m)")
+    tv: float = Field(1e-4, ge=0, description="mask: weight of the mean TV_beta")
+    tv_beta: float = Field(3.0, gt=0)
+    mask_initial: float = Field(0.5, ge=0, le=1, description="mask: starting value")
+    mask_size_px: int | None = Field(None, ge=2, description="mask side (None: 28 * S / 224)")
+    blur_sigma_px: float | None = Field(None, ge=0, description="None: 10 * S / 224")
+    jitter_px: int | None = Field(None, ge=0, description="None: 4 * S / 224")
+    smoothgrad_samples: int = Field(16, ge=1)
+    smoothgrad_sigma: float = Field(0.15, gt=0, description="noise std in input units")
+    ig_steps: int = Field(32, ge=2)
+    occlusion_window_px: int | None = Field(None, ge=1, description="None: S / 8")
+    batch_size: int = Field(128, ge=1, description="views attributed together")
+
+
+class VolumeConfig(Section):
+    """The 3D dense saliency volume: voxels along the object's longest side (paper: 25-80)."""
+
+    resolution: int = Field(40, ge=2, le=256)
+
+
+class ObserveConfig(Section):
+    """Observation models P(o | class, viewpoint) (see docs/awareness.md)."""
+
+    calibration: Literal["logistic", "isotonic"] = "logistic"
+    classifier_pseudo_count: float = Field(
+        0.1, gt=0, description="Classifier model: pseudo-count per (viewpoint, class, label)")
+    confusion_pseudo_count: float = Field(
+        1.0, ge=0, description="RA / black-box: pseudo-count per (class, label) of the confusion")
+
+
 class SolveConfig(Section):
     """The active-recognition POMDP built from the workspace, and its solver."""
 
@@ -160,6 +202,9 @@ class Config(Section):
     render: RenderConfig = RenderConfig()
     viewpoints: ViewpointsConfig = ViewpointsConfig()
     train: TrainConfig = TrainConfig()
+    saliency: SaliencyConfig = SaliencyConfig()
+    volume: VolumeConfig = VolumeConfig()
+    observe: ObserveConfig = ObserveConfig()
     robot: RobotConfig = RobotConfig()
     solve: SolveConfig = SolveConfig()
 

@@ -4,6 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
+from rapomdp.awareness.stage import (
+    OBSERVE_SECTIONS,
+    SALIENCY_SECTIONS,
+    VOLUME_SECTIONS,
+    run_observe_stage,
+    run_saliency_stage,
+    run_volume_stage,
+)
 from rapomdp.config import Config
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import run_render_stage
@@ -13,6 +21,7 @@ from rapomdp.recognition.stage import (
     run_classifier_eval_stage,
     run_train_stage,
 )
+from rapomdp.planning.stage import run_solve_stage
 from rapomdp.robot.stage import run_robot_stage
 from rapomdp.workspace import Stage, StageResult, Workspace
 
@@ -46,10 +55,38 @@ STAGES: list[Stage] = [
         description="single-view accuracy on the test models, confusion, per viewpoint",
     ),
     Stage(
+        name="saliency",
+        run=run_saliency_stage,
+        sections=SALIENCY_SECTIONS,
+        inputs=("dataset", "render", "train"),
+        description="2D saliency maps of each class's volume model over the training viewsphere",
+    ),
+    Stage(
+        name="volume",
+        run=run_volume_stage,
+        sections=VOLUME_SECTIONS,
+        inputs=("dataset", "render", "saliency"),
+        description="3D dense saliency volume per class (voxel median of back-projected saliency)",
+    ),
+    Stage(
         name="robot",
         run=run_robot_stage,
         sections=("seed", "viewpoints", "robot"),
         description="Panda IK, reachability and manipulability per test viewpoint; energy E_M",
+    ),
+    Stage(
+        name="observe",
+        run=run_observe_stage,
+        sections=OBSERVE_SECTIONS,
+        inputs=("dataset", "train", "volume"),
+        description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
+    ),
+    Stage(
+        name="solve",
+        run=run_solve_stage,
+        sections=("solve",),
+        inputs=("observe", "robot"),
+        description="one active-recognition POMDP policy per observation model",
     ),
 ]
 

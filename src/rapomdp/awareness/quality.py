@@ -1,0 +1,75 @@
+"""Self-awareness quality: how well an observation model predicts whether the classifier is
+right on unseen (test) models at each viewpoint.
+
+For every test model of class c and viewpoint x the classifier outputs label o; a model gives
+P(o | c, x) and P(correct) = P(c | c, x). Reported: the mean log-likelihood of the actual labels,
+the Brier score of correctness, the AUC of P(correct) for separating right from wrong, the mean
+predicted P(correct) against the actual accuracy.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import rankdata
+
+from rapomdp.awareness.observation import ObservationModel
+from rapomdp.io import atomic_path
+
+COLUMNS = ("model", "log_likelihood", "brier", "auc", "mean_p_correct", "accuracy")
+
+
+def roc_auc(scores: np.ndarray, positive: np.ndarray) -> float:
+    """Area under the ROC curve (Mann-Whitney, ties counted half); NaN with one class only."""
+    scores = np.asarray(scores, dtype=np.float64).reshape(-1)
+    positive = np.asarray(positive, dtype=bool).reshape(-1)
+    n_pos, n_neg = int(positive.sum()), int((~positive).sum())
+    if n_pos == 0 or n_neg == 0:
+        return float("nan")
+    ranks = rankdata(scores)
+    return float((ranks[positive].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
+
+
+def awareness_quality(model: ObservationModel, true_labels: np.ndarray,
+                      predicted: np.ndarray) -> dict[str, float]:
+    """Quality of ``model`` on test outcomes: true labels (M,), predicted labels (M, V)."""
+    true_labels = np.asarray(true_labels)
+    predicted = np.asarray(predicted)
+    p = model.probabilities
+    if predicted.shape[1] != p.shape[0]:
+        raise ValueError(f"{predicted.shape[1]} viewpoints of outcomes, model has {p.shape[0]}")
+    x = np.broadcast_to(np.arange(p.shape[0])[None], predicted.shape)
+    t = np.broadcast_to(true_labels[:, None], predicted.shape)
+    p_observed = p[x, t, predicted]
+    p_correct = p[x, t, t]
+    correct = predicted == t
+    return {
+        "log_likelihood": float(np.mean(np.log(np.maximum(p_observed, 1e-300)))),
+        "brier": float(np.mean((p_correct - correct) ** 2)),
+        "auc": roc_auc(p_correct, correct),
+        "mean_p_correct": float(p_correct.mean()),
+        "accuracy": float(correct.mean()),
+    }
+
+
+def quality_table(models: dict[str, ObservationModel], true_labels: np.ndarray,
+                  predicted: np.ndarray) -> list[dict[str, float | str]]:
+    return [{"model": name, **awareness_quality(m, true_labels, predicted)}
+            for name, m in models.items()]
+
+
+def write_quality(rows: list[dict[str, float | str]], csv_path: Path, md_path: Path) -> None:
+    """The table as CSV and as a markdown table."""
+    with atomic_path(csv_path) as tmp, open(tmp, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(COLUMNS))
+        writer.writeheader()
+        writer.writerows(rows)
+    lines = ["| model | log-likelihood / obs. (higher better) | Brier (lower better) | AUC | "
+             "mean P(correct) | test accuracy |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['model']} | {r['log_likelihood']:.3f} | {r['brier']:.3f} | "
+                     f"{r['auc']:.3f} | {r['mean_p_correct']:.3f} | {r['accuracy']:.3f} |")
+    with atomic_path(md_path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")

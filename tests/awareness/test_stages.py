@@ -1,0 +1,103 @@
+"""The saliency, volume and observe stages end to end on a tiny two-class workspace."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from rapomdp.awareness.observation import load_observation_models
+from rapomdp.awareness.volume import SaliencyVolume
+from rapomdp.cli import app
+from rapomdp.config import config_from_dict
+from rapomdp.io import load_npz, read_json
+from rapomdp.pipeline import run_pipeline
+from rapomdp.workspace import Workspace
+
+TINY = {
+    "dataset": {"classes": ["bicycle", "teapot"]},
+    "camera": {"width": 64, "height": 48},
+    "render": {"views": 12},
+    "viewpoints": {"count": 10},
+    "train": {"width": 0.125, "epochs": 2, "batch_size": 16,
+              "preprocess": {"input_size_px": 32}},
+    "saliency": {"iterations": 5},
+    "volume": {"resolution": 12},
+}
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory):
+    import torch
+
+    from rapomdp.progress import set_progress
+    from rapomdp.recognition import stage
+
+    set_progress(False)
+    torch.set_num_threads(1)
+    previous, stage.threads = stage.threads, 1
+    config = config_from_dict(TINY)
+    ws = Workspace(tmp_path_factory.mktemp("ws"))
+    run_pipeline(config, ws, until="observe")
+    (ws.root / "tiny.yaml").write_text(config.to_yaml())
+    yield ws
+    stage.threads = previous
+
+
+def test_saliency_maps_cover_object_pixels_only(workspace):
+    maps = load_npz(workspace.root / "saliency" / "maps" / "bicycle" /
+                    f"{_volume_model(workspace, 'bicycle')}.npz")
+    depth = load_npz(workspace.root / "render" / "views" / "bicycle" /
+                     f"{_volume_model(workspace, 'bicycle')}.npz")["depth"]
+    saliency = maps["saliency"].astype(np.float32)
+    assert saliency.shape == depth.shape == (12, 48, 64)
+    assert np.all(saliency[depth == 0] == 0) and saliency.min() >= 0 and saliency.max() <= 1
+    assert maps["probability"].shape == (12,)
+    assert read_json(workspace.root / "saliency" / "saliency.json")["method"] == "mask"
+
+
+def test_one_volume_per_class_with_empty_voxels_marked(workspace):
+    for name in ("bicycle", "teapot"):
+        volume = SaliencyVolume.load(workspace.root / "volume" / f"{name}.npz")
+        assert max(volume.grid.shape) == 13  # resolution 12, padded by half a voxel
+        scored = ~np.isnan(volume.scores)
+        assert np.array_equal(scored, volume.counts > 0) and scored.any() and (~scored).any()
+        assert np.all((volume.scores[scored] >= 0) & (volume.scores[scored] <= 1))
+
+
+def test_observation_models_follow_the_planner_contract(workspace):
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
+    assert list(data["classes"]) == ["bicycle", "teapot"]
+    assert list(data["models"]) == ["ra", "ra_class", "classifier", "blackbox"]
+    for name in data["models"]:
+        p = data[name]
+        assert p.shape == (10, 2, 2) and np.allclose(p.sum(axis=2), 1) and np.all(p > 0)
+    assert data["scores"].shape == (2, 10)
+    assert data["scores"].min() >= 0 and data["scores"].max() <= 1
+    assert data["directions"].shape == (10, 3) and np.all(data["directions"][:, 2] >= 0)
+    models = load_observation_models(workspace.root / "observe" / "observation_models.npz")
+    assert set(models) == {"ra", "ra_class", "classifier", "blackbox"}
+    with open(workspace.root / "observe" / "quality.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [r["model"] for r in rows] == ["ra", "ra_class", "classifier", "blackbox"]
+    assert all(float(r["log_likelihood"]) <= 0 for r in rows)
+
+
+def test_fig1_is_written_and_a_wrong_class_is_named(workspace):
+    runner = CliRunner()
+    args = ["figure", "fig1", "-w", str(workspace.root), "-c", str(workspace.root / "tiny.yaml")]
+    result = runner.invoke(app, [*args, "--class", "teapot"])
+    assert result.exit_code == 0, result.output
+    assert (workspace.root / "figures" / "fig1_teapot.png").stat().st_size > 1000
+    assert (workspace.root / "figures" / "fig1_teapot.html").exists()
+    result = runner.invoke(app, [*args, "--class", "unicycle"])
+    assert result.exit_code == 2 and "class 'unicycle' is not in the dataset" in result.output
+
+
+def _volume_model(ws: Workspace, class_name: str) -> str:
+    from rapomdp.data.dataset import load_dataset
+
+    dataset = load_dataset(ws.root / "dataset")
+    return next(m.id for m in dataset.with_role("volume") if m.class_name == class_name)
