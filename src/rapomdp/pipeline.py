@@ -15,13 +15,13 @@ from rapomdp.awareness.stage import (
 from rapomdp.config import Config
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import run_render_stage
+from rapomdp.planning.stage import run_solve_stage
 from rapomdp.recognition.stage import (
     EVAL_SECTIONS,
     TRAIN_SECTIONS,
     run_classifier_eval_stage,
     run_train_stage,
 )
-from rapomdp.planning.stage import run_solve_stage
 from rapomdp.robot.stage import run_robot_stage
 from rapomdp.workspace import Stage, StageResult, Workspace
 
