@@ -101,3 +101,25 @@ def _volume_model(ws: Workspace, class_name: str) -> str:
 
     dataset = load_dataset(ws.root / "dataset")
     return next(m.id for m in dataset.with_role("volume") if m.class_name == class_name)
+
+
+def test_solve_stage_plans_on_the_observation_models_and_robot(workspace):
+    """The full chain: observe + robot -> one policy per observation model."""
+    from rapomdp.planning.policy import ActiveRecognitionPolicy
+
+    config = config_from_dict({**TINY, "solve": {"timeout_s": 2.0}})
+    results = run_pipeline(config, workspace, until="solve")
+    assert [r.name for r in results][-3:] == ["robot", "observe", "solve"]
+    summary = read_json(workspace.root / "solve" / "solve_summary.json")
+    models = load_npz(workspace.root / "observe" / "observation_models.npz")
+    assert set(summary) == {str(m) for m in models["models"]}
+    reachable = load_npz(workspace.root / "robot" / "robot.npz")["reachable"]
+    start = int(np.flatnonzero(reachable)[0])
+    for name, bounds in summary.items():
+        assert bounds["lower"] <= bounds["upper"] + 1e-9
+        # declaring at once is worth -lambda / 2 with two classes; a policy never does worse
+        assert bounds["lower"] >= -config.solve.wrong_declaration_cost_m / 2 - 1e-9
+        policy = ActiveRecognitionPolicy.load(workspace.root / "solve" / f"policy_{name}.npz")
+        action = policy.act(start, np.array([0.5, 0.5]))
+        if action.kind == "move":
+            assert reachable[action.target] and action.target != start
