@@ -18,10 +18,7 @@ import numpy as np
 import torch
 
 from rapomdp.awareness.saliency import MaskParams, PerturbationMask
-from rapomdp.config import load_config
-from rapomdp.data.training_views import load_training_views
-from rapomdp.recognition.stage import load_stage_classifier
-from rapomdp.workspace import Workspace
+from rapomdp.recognition.stage import load_workspace_classifier
 
 RESULTS = Path(__file__).parent / "results" / "mask_convergence.json"
 
@@ -33,11 +30,8 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    ws = Workspace(args.workspace)
-    config = load_config(ws.root / "config.yaml")
-    views = load_training_views(ws.require("render"), ws.require("dataset"))
+    config, views, classifier = load_workspace_classifier(args.workspace)
     dataset = views.dataset
-    classifier = load_stage_classifier(config, ws.require("train"), dataset.classes)
     model = next(m for m in dataset.with_role("volume") if m.class_name == args.class_name)
     depth, _ = views.load(model)
     prep = classifier.preprocess(depth)

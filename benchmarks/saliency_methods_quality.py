@@ -26,10 +26,8 @@ from rapomdp.awareness.stage import (
     saliency_maps,
 )
 from rapomdp.awareness.volume import object_grid, saliency_volume
-from rapomdp.config import load_config
-from rapomdp.data.training_views import load_training_views
 from rapomdp.progress import set_progress
-from rapomdp.recognition.stage import load_stage_classifier
+from rapomdp.recognition.stage import load_workspace_classifier
 from rapomdp.workspace import Workspace
 
 RESULTS = Path(__file__).parent / "results" / "saliency_methods_quality.json"
@@ -44,15 +42,13 @@ def main() -> None:
     args = parser.parse_args()
     set_progress(False)
     torch.set_num_threads(args.threads)
-    ws = Workspace(args.workspace)
-    config = load_config(ws.root / "config.yaml")
-    views = load_training_views(ws.require("render"), ws.require("dataset"))
+    config, views, classifier = load_workspace_classifier(args.workspace)
+    saliency_dir = Workspace(args.workspace).require("saliency")
     dataset = views.dataset
-    classifier = load_stage_classifier(config, ws.require("train"), dataset.classes)
     resolution = config.volume.resolution
     cache: dict[str, XrhoOutcomes] = {}
     results = {}
-    volumes = {n: class_volume(dataset, views, ws.require("saliency"), n, resolution)
+    volumes = {n: class_volume(dataset, views, saliency_dir, n, resolution)
                for n in dataset.classes}
     runs = [(config.saliency.method + " (workspace)", volumes, 0.0)]
     for method in args.methods:

@@ -19,10 +19,8 @@ from pathlib import Path
 import torch
 
 from rapomdp.awareness.stage import XrhoOutcomes, class_volume, observe, xrho_outcomes
-from rapomdp.config import load_config
-from rapomdp.data.training_views import load_training_views
 from rapomdp.progress import set_progress
-from rapomdp.recognition.stage import load_stage_classifier
+from rapomdp.recognition.stage import load_workspace_classifier
 from rapomdp.workspace import Workspace
 
 RESULTS = Path(__file__).parent / "results" / "volume_observe.json"
@@ -36,11 +34,9 @@ def main() -> None:
     args = parser.parse_args()
     set_progress(False)
     torch.set_num_threads(args.threads)
-    ws = Workspace(args.workspace)
-    config = load_config(ws.root / "config.yaml")
-    views = load_training_views(ws.require("render"), ws.require("dataset"))
+    config, views, classifier = load_workspace_classifier(args.workspace)
+    saliency_dir = Workspace(args.workspace).require("saliency")
     dataset = views.dataset
-    classifier = load_stage_classifier(config, ws.require("train"), dataset.classes)
     cache: dict[str, XrhoOutcomes] = {}
     start = time.perf_counter()
     for model in dataset.with_role("volume") + dataset.with_role("test"):
@@ -55,7 +51,7 @@ def main() -> None:
                "threads": args.threads, "resolutions": {}}
     for resolution in args.resolutions:
         start = time.perf_counter()
-        volumes = {name: class_volume(dataset, views, ws.require("saliency"), name, resolution)
+        volumes = {name: class_volume(dataset, views, saliency_dir, name, resolution)
                    for name in dataset.classes}
         volume_s = time.perf_counter() - start
         result = observe(config, dataset, classifier, volumes, cache)

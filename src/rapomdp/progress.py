@@ -25,9 +25,21 @@ def set_progress(enabled: bool) -> None:
     _enabled = enabled
 
 
-def enabled() -> bool:
-    """Whether progress bars are shown (for code that draws its own rich bar)."""
-    return _enabled
+def progress_bar(status: bool = False) -> Progress:
+    """The project's rich bar: description, bar, count, elapsed, remaining.
+
+    With ``status`` it also shows a ``status`` field (e.g. loss and accuracy) that the caller
+    updates with ``progress.update(task, status=...)``. Disabled when bars are off.
+    """
+    columns = [
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        *([TextColumn("{task.fields[status]}")] if status else []),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+    ]
+    return Progress(*columns, disable=not _enabled)
 
 
 def track(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:
@@ -37,14 +49,7 @@ def track(items: Iterable[T], description: str, total: int | None = None) -> Ite
         return
     if total is None and hasattr(items, "__len__"):
         total = len(items)  # type: ignore[arg-type]
-    columns = (
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-    )
-    with Progress(*columns, transient=False) as progress:
+    with progress_bar() as progress:
         task = progress.add_task(description, total=total)
         for item in items:
             yield item

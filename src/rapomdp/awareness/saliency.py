@@ -17,6 +17,7 @@ image's pixels.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,7 +51,7 @@ def gaussian_blur(images: torch.Tensor, sigma_px: float) -> torch.Tensor:
     return F.conv2d(out, kernel.view(1, 1, -1, 1))
 
 
-class Attribution:
+class Attribution(ABC):
     """A saliency method: ``attribute(inputs, target) -> (n, S, S)`` in [0, 1]."""
 
     name = "attribution"
@@ -58,8 +59,9 @@ class Attribution:
     def __init__(self, network: nn.Module) -> None:
         self.network = network.eval()
 
+    @abstractmethod
     def attribute(self, inputs: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        raise NotImplementedError
+        """Saliency maps (n, S, S) in [0, 1] of ``inputs`` (n, 1, S, S) for class ``target``."""
 
     @staticmethod
     def _prepare(inputs: torch.Tensor | np.ndarray, target: torch.Tensor | np.ndarray | int,
@@ -189,8 +191,9 @@ class PerturbationMask(Attribution):
 class _CaptumMethod(Attribution):
     """Shared plumbing for captum methods: |attribution| summed over channels, scaled to [0, 1]."""
 
+    @abstractmethod
     def _run(self, x: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-        raise NotImplementedError
+        """captum's raw attribution of ``x`` for targets ``t``."""
 
     def attribute(self, inputs: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         x, t = self._prepare(inputs, target, self._device())

@@ -17,10 +17,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from rapomdp.config import Config
+from rapomdp.config import Config, load_config
 from rapomdp.data.renderer import DepthRenderer
 from rapomdp.data.splits import class_seed
-from rapomdp.data.training_views import load_training_views, model_poses, render_depth
+from rapomdp.data.training_views import (
+    TrainingViews,
+    load_training_views,
+    model_poses,
+    render_depth,
+)
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, write_json_atomic
 from rapomdp.progress import track
@@ -38,7 +43,7 @@ from rapomdp.recognition.training import (
     train_classifier,
     validation_mask,
 )
-from rapomdp.workspace import StageError, stable_hash
+from rapomdp.workspace import StageError, Workspace, stable_hash
 
 TRAIN_SECTIONS = ("seed", "dataset", "camera", "render", "train")
 EVAL_SECTIONS = ("seed", "camera", "render", "viewpoints")
@@ -55,6 +60,19 @@ def _finite(value: float) -> float | None:
 def train_config_hash(config: Config) -> str:
     """The hash a checkpoint carries: every configuration section that shapes the classifier."""
     return stable_hash({s: config.section(s) for s in TRAIN_SECTIONS})
+
+
+def load_workspace_classifier(root: str | Path) -> tuple[Config, TrainingViews, Classifier]:
+    """A trained workspace's configuration, training views and checked classifier.
+
+    For scripts and notebooks that work on a workspace after ``rapomdp train``.
+    """
+    ws = Workspace(root)
+    config_path = ws.root / "config.yaml"
+    config = load_config(config_path if config_path.exists() else None)
+    views = load_training_views(ws.require("render"), ws.require("dataset"))
+    classifier = load_stage_classifier(config, ws.require("train"), views.dataset.classes)
+    return config, views, classifier
 
 
 def load_stage_classifier(config: Config, train_dir: Path, classes: list[str]) -> Classifier:

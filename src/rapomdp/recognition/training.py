@@ -15,20 +15,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import torch
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
 from torch import nn
 
 from rapomdp.config import AugmentConfig, NoiseConfig, PreprocessConfig, TrainConfig
 from rapomdp.data.noise import apply_sensor_noise
 from rapomdp.data.training_views import TrainingViews
-from rapomdp.progress import enabled as progress_enabled
+from rapomdp.progress import progress_bar
 from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
 from rapomdp.recognition.preprocess import PreprocessParams, preprocess
@@ -134,18 +126,6 @@ def evaluate_inputs(
     return loss / len(labels), correct / len(labels)
 
 
-def _progress() -> Progress:
-    return Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[status]}"),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        disable=not progress_enabled(),
-    )
-
-
 def train_classifier(
     train: LabelledViews,
     val: LabelledViews,
@@ -169,7 +149,7 @@ def train_classifier(
     noise = noise or NoiseConfig()
     history = History()
     batches = -(-len(train) // cfg.batch_size)
-    with _progress() as bar:
+    with progress_bar(status=True) as bar:
         task = bar.add_task("train", total=cfg.epochs * batches, status="")
         for epoch in range(1, cfg.epochs + 1):
             start_s = time.perf_counter()
