@@ -121,3 +121,10 @@ def test_quality_prefers_the_model_that_knows_when_it_is_right():
     assert good["auc"] > 0.7 and good["brier"] < flat["brier"]
     assert good["log_likelihood"] > flat["log_likelihood"]
     assert good["accuracy"] == pytest.approx(correct.mean())
+
+
+def test_isotonic_calibration_pools_adjacent_violators_exactly():
+    calibration = calibrate_correctness(np.array([0.1, 0.2, 0.3, 0.4]),
+                                        np.array([True, False, True, True]), "isotonic")
+    np.testing.assert_allclose(calibration.knots_y, [0.5, 1.0])
+    np.testing.assert_allclose(calibration.knots_x, [0.15, 0.35])

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import isotonic_regression
 
 from rapomdp.io import load_npz
 
@@ -148,24 +149,6 @@ def calibrate_per_class(scores: np.ndarray, correct: np.ndarray, classes: np.nda
     return ClassScoreCalibration(w[:count].copy(), float(w[count]))
 
 
-def _pool_adjacent_violators(y: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Non-decreasing block means of ``y`` (already ordered) and each block's size."""
-    means: list[float] = []
-    weights: list[float] = []
-    sizes: list[int] = []
-    for value, w in zip(y.tolist(), weight.tolist(), strict=True):
-        means.append(value)
-        weights.append(w)
-        sizes.append(1)
-        while len(means) > 1 and means[-2] > means[-1]:
-            w_sum = weights[-2] + weights[-1]
-            means[-2] = (means[-2] * weights[-2] + means[-1] * weights[-1]) / w_sum
-            weights[-2] = w_sum
-            sizes[-2] += sizes[-1]
-            del means[-1], weights[-1], sizes[-1]
-    return np.asarray(means), np.asarray(sizes)
-
-
 def calibrate_correctness(scores: np.ndarray, correct: np.ndarray,
                           method: str = "logistic") -> ScoreCalibration:
     """Fit P(correct | score) on (score, classifier right?) pairs; monotone by construction."""
@@ -182,9 +165,9 @@ def calibrate_correctness(scores: np.ndarray, correct: np.ndarray,
         keys, start = np.unique(s[order], return_index=True)
         sums = np.add.reduceat(y[order], start)
         counts = np.diff(np.r_[start, s.size]).astype(np.float64)
-        means, sizes = _pool_adjacent_violators(sums / counts, counts)
-        ends = np.cumsum(sizes)
-        begins = ends - sizes
+        fit = isotonic_regression(sums / counts, weights=counts, increasing=True)
+        begins, ends = fit.blocks[:-1], fit.blocks[1:]
+        means = fit.x[begins]
         block_x = np.array([np.average(keys[b:e], weights=counts[b:e])
                             for b, e in zip(begins, ends, strict=True)])
         return ScoreCalibration("isotonic", knots_x=block_x, knots_y=means)
