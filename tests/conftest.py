@@ -1,15 +1,23 @@
-"""Shared fixtures: progress bars off, a tiny configuration, a tiny built workspace."""
+"""Shared fixtures: progress bars off and one thread everywhere, a tiny configuration."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
+import torch
 
 from rapomdp.config import Config, config_from_dict
 from rapomdp.progress import set_progress
 
 set_progress(False)
+
+
+@pytest.fixture(autouse=True)
+def _quiet_single_thread() -> None:
+    """No progress bars and one PyTorch thread in every test (the machine has 2 shared cores)."""
+    set_progress(False)
+    torch.set_num_threads(1)
 
 
 def tiny_config(**overrides: object) -> Config:

@@ -1,26 +1,16 @@
-"""Shared fixtures: one thread, no progress bars, small procedural models rendered directly."""
+"""Shared fixtures: small procedural models rendered directly."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
 from rapomdp.data.meshes import normalise_mesh
 from rapomdp.data.procedural import generate_model
 from rapomdp.data.renderer import DepthRenderer
 from rapomdp.geometry.camera import look_at_many, xtion_intrinsics
-from rapomdp.progress import set_progress
 
 RADIUS_M = 0.2
-
-
-@pytest.fixture(autouse=True)
-def _quiet_single_thread():
-    set_progress(False)
-    torch.set_num_threads(1)
-    yield
-    set_progress(True)
 
 
 @pytest.fixture(scope="session")
