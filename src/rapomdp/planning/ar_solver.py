@@ -279,17 +279,20 @@ class ActiveRecognitionSolver:
             new_up = np.maximum(dec[:, None], (q_up[:, None, :] - self.cost[None]).max(axis=2))
             old_up = self.upper_values(B)
             up = np.minimum(old_up, new_up)
-            for k in np.flatnonzero(np.any(new_up < old_up - 1e-10, axis=1)):
-                self._add_point(B[k], up[k])
+            improved = np.any(new_up < old_up - 1e-10, axis=1)
+            if improved.any():
+                self._add_points(B[improved], up[improved])
             info.update(up=up_u, q_up=q_up)
         return np.maximum(old_low, best), info
 
-    def _add_point(self, b: np.ndarray, values: np.ndarray) -> None:
-        support = b > 0
-        self.up_points = np.vstack([self.up_points, b[None]])
-        self.up_inv = np.vstack([self.up_inv, np.where(support, 1.0 / np.where(support, b, 1), 0)])
-        self.up_off = np.vstack([self.up_off, np.where(support, 0.0, np.inf)[None]])
-        self.up_values = np.vstack([self.up_values, values[None]])
+    def _add_points(self, beliefs: np.ndarray, values: np.ndarray) -> None:
+        """Append upper-bound points (k, C) with their values per viewpoint (k, V), at once."""
+        support = beliefs > 0
+        inverse = np.where(support, 1.0 / np.where(support, beliefs, 1.0), 0.0)
+        self.up_points = np.vstack([self.up_points, beliefs])
+        self.up_inv = np.vstack([self.up_inv, inverse])
+        self.up_off = np.vstack([self.up_off, np.where(support, 0.0, np.inf)])
+        self.up_values = np.vstack([self.up_values, values])
 
     # -- sampling ------------------------------------------------------------------------
     def _trajectory(self, eps: float, max_depth: int) -> None:
@@ -500,7 +503,7 @@ class ActiveRecognitionSolver:
         # the policy file's sawtooth carries the reported upper bound at the start
         up0 = self.upper_values(b0[None])[0]
         if np.any(up0 < self._sawtooth(b0[None])[0] - 1e-12):
-            self._add_point(b0, up0)
+            self._add_points(b0[None], np.asarray(up0)[None])
         self.prune()
         final = history[-1]
         return SolveResult(
