@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from rapomdp.geometry.viewsphere import (
+    azimuth_zenith,
     fibonacci_directions,
     geodesic_distance_matrix,
     k_nearest,
@@ -70,3 +71,10 @@ def test_bad_counts_are_refused() -> None:
         fibonacci_directions(0)
     with pytest.raises(ValueError, match="radius must be positive"):
         viewpoints(10, 0.0)
+
+
+def test_azimuth_zenith_of_known_directions() -> None:
+    azimuth, zenith = azimuth_zenith(np.array([[0, 0, 1.0], [1.0, 0, 0], [0, -1.0, 0],
+                                               [0.5, 0.5, np.sqrt(0.5)]]))
+    np.testing.assert_allclose(zenith, [0, np.pi / 2, np.pi / 2, np.pi / 4], atol=1e-12)
+    np.testing.assert_allclose(azimuth[1:], [0, -np.pi / 2, np.pi / 4], atol=1e-12)

@@ -15,6 +15,7 @@ import numpy as np  # noqa: E402
 
 from rapomdp.awareness.observation import ScoreCalibration  # noqa: E402
 from rapomdp.awareness.volume import SaliencyVolume  # noqa: E402
+from rapomdp.geometry.viewsphere import azimuth_zenith
 from rapomdp.io import atomic_path  # noqa: E402
 
 CMAP = "inferno"
@@ -108,8 +109,8 @@ def fig1(depth_m: np.ndarray, saliency: np.ndarray, volume: SaliencyVolume,
     ax.set_axis_off()
     _volume_axes(fig.add_subplot(1, 4, 3, projection="3d"), volume, "(c) 3D saliency volume")
     ax = fig.add_subplot(1, 4, 4, projection="polar")
-    azimuth = np.arctan2(directions[:, 1], directions[:, 0])
-    zenith = np.degrees(np.arccos(np.clip(directions[:, 2], -1, 1)))
+    azimuth, zenith = azimuth_zenith(directions)
+    zenith = np.degrees(zenith)
     points = ax.scatter(azimuth, zenith, c=scores, cmap=CMAP, vmin=0, vmax=1, s=30)
     ax.set(title="(d) viewpoint scores (Eq. 6)", ylim=(0, 90))
     fig.colorbar(points, ax=ax, fraction=0.046, label="normalised score")

@@ -28,6 +28,17 @@ def fibonacci_directions(count: int, hemisphere: bool = False) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
+def azimuth_zenith(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Azimuth about +Z from +X and angle from the zenith, radians, of unit directions (n, 3).
+
+    The coordinates the hemisphere figures plot (polar: azimuth, zenith angle).
+    """
+    directions = np.asarray(directions, dtype=np.float64)
+    azimuth = np.arctan2(directions[:, 1], directions[:, 0])
+    zenith = np.arccos(np.clip(directions[:, 2], -1.0, 1.0))
+    return azimuth, zenith
+
+
 def viewpoints(
     count: int,
     radius_m: float,

@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from rapomdp.geometry.viewsphere import azimuth_zenith
 from rapomdp.io import atomic_path  # noqa: E402
 
 
@@ -61,8 +62,8 @@ def hemisphere_figure(directions: np.ndarray, values: Sequence[np.ndarray],
 
     ``directions`` (V, 3) are unit vectors from the centroid to the viewpoints.
     """
-    azimuth = np.arctan2(directions[:, 1], directions[:, 0])
-    zenith_deg = np.degrees(np.arccos(np.clip(directions[:, 2], -1.0, 1.0)))
+    azimuth, zenith = azimuth_zenith(directions)
+    zenith_deg = np.degrees(zenith)
     fig, axes = plt.subplots(1, len(values), subplot_kw={"projection": "polar"},
                              figsize=(4.6 * len(values), 4.4))
     for ax, value, title in zip(np.atleast_1d(axes), values, titles, strict=True):
