@@ -1,0 +1,160 @@
+"""The episode simulator: a test model, a start viewpoint and a method, closed in a loop.
+
+At each step the method either moves — the test model is rendered at the new viewpoint with the
+configured sensor noise, the recogniser classifies the image and the method updates its belief —
+or declares a class and the episode ends. Nothing here reads the ground truth: an
+:class:`Episode` holds what the robot did and saw; :func:`score` alone compares it with the true
+class.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from rapomdp.config import NoiseConfig
+from rapomdp.data.renderer import DepthRenderer
+from rapomdp.data.training_views import render_depth
+from rapomdp.planning.policy import ARAction
+
+
+class Recogniser(Protocol):
+    """Anything that maps depth images (n, H, W) in metres to class probabilities (n, C)."""
+
+    def predict(self, depth_images: np.ndarray) -> np.ndarray: ...
+
+
+class Policy(Protocol):
+    """A method of the closed loop. ``recogniser`` names the recogniser whose output it reads
+    ("cnn" or "vptree"); the simulator calls ``reset`` once, then ``observe`` after every image
+    and ``act`` after every ``observe``; ``belief`` is the method's current class distribution."""
+
+    name: str
+    recogniser: str
+
+    def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None: ...
+
+    def observe(self, viewpoint: int, output: np.ndarray) -> None: ...
+
+    @property
+    def belief(self) -> np.ndarray: ...
+
+    def act(self, viewpoint: int) -> ARAction: ...
+
+
+@dataclass(frozen=True)
+class Motion:
+    """What moving costs: E_M (V, V) of Eq. 3, geodesic distances (V, V) and reachability (V,).
+
+    A move to an unreachable viewpoint, or to the current one, is refused."""
+
+    energy: np.ndarray
+    distance_m: np.ndarray
+    reachable: np.ndarray
+
+    @property
+    def viewpoints(self) -> int:
+        return int(self.reachable.size)
+
+    def check_move(self, source: int, target: int) -> None:
+        if not 0 <= target < self.viewpoints:
+            raise ValueError(f"move to viewpoint {target}: not in [0, {self.viewpoints})")
+        if not self.reachable[target]:
+            raise ValueError(f"move to viewpoint {target}: the arm cannot reach it")
+        if target == source:
+            raise ValueError(f"move to viewpoint {target}: the camera is already there")
+
+
+@dataclass
+class Scene:
+    """A test model at the workspace centre, seen from the test viewpoints ``poses`` (V, 4, 4)."""
+
+    renderer: DepthRenderer
+    poses: np.ndarray
+    noise: NoiseConfig
+
+    def look(self, viewpoint: int, rng: np.random.Generator) -> np.ndarray:
+        """The sensor's depth image (H, W) in metres from ``viewpoint``."""
+        return render_depth(self.renderer, self.poses[viewpoint : viewpoint + 1], self.noise,
+                            rng)[0]
+
+
+@dataclass(frozen=True)
+class Episode:
+    """What happened, step by step: image t was taken at ``viewpoints[t]`` (t = 0 is the start),
+    the recogniser returned ``outputs[t]`` (C,) and the method's belief became ``beliefs[t]``;
+    move t (t ≥ 1) cost ``move_energy[t - 1]`` and ``move_distance_m[t - 1]``. The method then
+    declared ``declared``; ``exhausted`` marks an episode stopped by the step budget."""
+
+    viewpoints: np.ndarray  # (T + 1,)
+    outputs: np.ndarray  # (T + 1, C)
+    beliefs: np.ndarray  # (T + 1, C)
+    move_energy: np.ndarray  # (T,)
+    move_distance_m: np.ndarray  # (T,)
+    declared: int
+    exhausted: bool
+
+    @property
+    def moves(self) -> int:
+        return int(self.move_energy.size)
+
+    @property
+    def actions(self) -> list[ARAction]:
+        """The actions taken: each move, then the declaration."""
+        moves = [ARAction("move", int(v)) for v in self.viewpoints[1:]]
+        return [*moves, ARAction("declare", self.declared)]
+
+
+def run_episode(scene: Scene, recogniser: Recogniser, policy: Policy, motion: Motion,
+                start_viewpoint: int, max_moves: int, rng: np.random.Generator) -> Episode:
+    """One closed-loop episode from ``start_viewpoint``; after ``max_moves`` moves the method
+    must declare its belief's most likely class (the step budget)."""
+    if not motion.reachable[start_viewpoint]:
+        raise ValueError(f"start viewpoint {start_viewpoint} is not reachable")
+    policy.reset(start_viewpoint, rng)
+    viewpoint = start_viewpoint
+    views, outputs, beliefs, energy, distance = [], [], [], [], []
+    exhausted = False
+    while True:
+        output = np.asarray(recogniser.predict(scene.look(viewpoint, rng)[None])[0],
+                            dtype=np.float64)
+        policy.observe(viewpoint, output)
+        views.append(viewpoint)
+        outputs.append(output)
+        beliefs.append(np.array(policy.belief, dtype=np.float64))
+        action = policy.act(viewpoint)
+        if not action.is_declare and len(energy) >= max_moves:
+            exhausted = True
+            action = ARAction("declare", int(np.argmax(beliefs[-1])))
+        if action.is_declare:
+            break
+        motion.check_move(viewpoint, action.target)
+        energy.append(float(motion.energy[viewpoint, action.target]))
+        distance.append(float(motion.distance_m[viewpoint, action.target]))
+        viewpoint = action.target
+    return Episode(np.array(views), np.stack(outputs), np.stack(beliefs), np.array(energy),
+                   np.array(distance), int(action.target), exhausted)
+
+
+@dataclass(frozen=True)
+class EpisodeScore:
+    """The paper's Table 1 quantities for one episode."""
+
+    correct: bool
+    belief: float  # final belief in the true class
+    moves: int
+    distance_m: float
+    energy: float
+
+
+def score(episode: Episode, true_class: int) -> EpisodeScore:
+    """The only place the ground truth is read."""
+    return EpisodeScore(
+        correct=episode.declared == true_class,
+        belief=float(episode.beliefs[-1, true_class]),
+        moves=episode.moves,
+        distance_m=float(episode.move_distance_m.sum()),
+        energy=float(episode.move_energy.sum()),
+    )

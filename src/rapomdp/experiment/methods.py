@@ -1,0 +1,136 @@
+"""The methods compared in the paper's Table 1 (Sec. 5.2), each a :class:`Policy`.
+
+- :class:`StaticPolicy`: one view, the recogniser's most likely class.
+- :class:`RandomWalkPolicy`: a random walk over the nearest reachable viewpoints, never
+  revisiting one; stops when its belief is confident enough or its move budget is spent.
+- :class:`POMDPPolicy`: a solved active-recognition policy with its observation model (the
+  Classifier, RA-POMDP and VP-tree methods differ only in the recogniser and the model).
+
+A user's own method is any object with the same five members (``name``, ``recogniser``,
+``reset``, ``observe``, ``belief``, ``act``); see :class:`rapomdp.experiment.episode.Policy`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rapomdp.geometry.viewsphere import k_nearest
+from rapomdp.planning.momdp import update_beliefs
+from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
+
+
+class BayesBelief:
+    """A class distribution updated by Eq. 5 with an observation model P (V, C, C): the
+    recogniser's most likely class is the observation."""
+
+    def __init__(self, observation_model: np.ndarray) -> None:
+        self.observation_model = np.asarray(observation_model, dtype=np.float64)
+        self.belief = self.uniform()
+
+    def uniform(self) -> np.ndarray:
+        c = self.observation_model.shape[1]
+        return np.full(c, 1.0 / c)
+
+    def reset(self) -> None:
+        self.belief = self.uniform()
+
+    def update(self, viewpoint: int, output: np.ndarray) -> None:
+        label = int(np.argmax(output))
+        self.belief = update_beliefs(self.observation_model, self.belief, viewpoint, label)
+
+
+class StaticPolicy:
+    """Passive recognition: classify the start view and declare; the belief is the recogniser's
+    output itself (a passive classifier has no other)."""
+
+    def __init__(self, name: str = "Static", recogniser: str = "cnn") -> None:
+        self.name, self.recogniser = name, recogniser
+        self._belief = np.empty(0)
+
+    def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
+        self._belief = np.empty(0)
+
+    def observe(self, viewpoint: int, output: np.ndarray) -> None:
+        self._belief = np.asarray(output, dtype=np.float64) / float(np.sum(output))
+
+    @property
+    def belief(self) -> np.ndarray:
+        return self._belief
+
+    def act(self, viewpoint: int) -> ARAction:
+        return ARAction("declare", int(np.argmax(self._belief)))
+
+
+class RandomWalkPolicy:
+    """A random walk among the ``neighbours`` nearest reachable viewpoints, never revisiting one.
+
+    The belief is updated with ``observation_model`` (Eq. 5). Stop rule: declare the most likely
+    class once the belief's maximum reaches ``belief_threshold``, after ``max_moves`` moves, or
+    when every neighbour has been visited.
+    """
+
+    def __init__(self, observation_model: np.ndarray, distance_m: np.ndarray,
+                 reachable: np.ndarray, neighbours: int = 8, belief_threshold: float = 0.9,
+                 max_moves: int = 10, name: str = "Random", recogniser: str = "cnn") -> None:
+        if not 0.0 < belief_threshold <= 1.0:
+            raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
+        if max_moves < 0:
+            raise ValueError(f"max_moves must be non-negative, got {max_moves}")
+        self.name, self.recogniser = name, recogniser
+        self.neighbours = k_nearest(distance_m, neighbours, allowed=reachable)
+        self.belief_threshold, self.max_moves = float(belief_threshold), int(max_moves)
+        self._bayes = BayesBelief(observation_model)
+        self._visited: set[int] = set()
+        self._rng = np.random.default_rng()
+
+    def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
+        self._bayes.reset()
+        self._visited = set()
+        self._rng = rng
+
+    def observe(self, viewpoint: int, output: np.ndarray) -> None:
+        self._visited.add(viewpoint)
+        self._bayes.update(viewpoint, output)
+
+    @property
+    def belief(self) -> np.ndarray:
+        return self._bayes.belief
+
+    def act(self, viewpoint: int) -> ARAction:
+        belief = self._bayes.belief
+        declare = ARAction("declare", int(np.argmax(belief)))
+        if belief.max() >= self.belief_threshold or len(self._visited) > self.max_moves:
+            return declare
+        candidates = [int(j) for j in self.neighbours[viewpoint]
+                      if j >= 0 and int(j) not in self._visited]
+        if not candidates:
+            return declare
+        return ARAction("move", candidates[int(self._rng.integers(len(candidates)))])
+
+
+class POMDPPolicy:
+    """A solved active-recognition policy acting on the belief of its own observation model."""
+
+    def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
+                 name: str, recogniser: str = "cnn") -> None:
+        if observation_model.shape[0] != policy.n_viewpoints or \
+                observation_model.shape[1] != policy.n_classes:
+            raise ValueError(
+                f"{name}: the policy covers {policy.n_viewpoints} viewpoints and "
+                f"{policy.n_classes} classes, the observation model {observation_model.shape}")
+        self.name, self.recogniser = name, recogniser
+        self.policy = policy
+        self._bayes = BayesBelief(observation_model)
+
+    def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
+        self._bayes.reset()
+
+    def observe(self, viewpoint: int, output: np.ndarray) -> None:
+        self._bayes.update(viewpoint, output)
+
+    @property
+    def belief(self) -> np.ndarray:
+        return self._bayes.belief
+
+    def act(self, viewpoint: int) -> ARAction:
+        return self.policy.act(viewpoint, self._bayes.belief)
