@@ -106,9 +106,13 @@ def run(
     until: Annotated[
         str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
     ] = None,
+    workers: WorkersOption = None,
 ) -> None:
-    """Run every stage in order, skipping those whose inputs are unchanged."""
+    """Run every stage in order, skipping those whose inputs are unchanged; prints Table 1."""
+    _set_workers(workers)
     _run(config, workspace, until, list(force or []))
+    if until is None:
+        _print_table1(workspace)
 
 
 @dataset_app.callback()
@@ -310,6 +314,42 @@ def solve(workspace: WorkspaceOption, config: ConfigOption = None,
         console.print(
             f"  {name:<11} value in [{bounds['lower']:.4f}, {bounds['upper']:.4f}] after "
             f"{bounds['seconds']:.1f} s, {bounds['vectors']} vectors", highlight=False)
+
+
+WorkersOption = Annotated[
+    int | None,
+    typer.Option(help="Processes running episodes (default: 2, or 1 on a single core); "
+                      "the results do not depend on it."),
+]
+
+
+def _print_table1(workspace: Path) -> None:
+    table = Path(workspace) / "evaluate" / "table1.md"
+    if table.exists():
+        sys.stdout.write("\nTable 1 (closed-loop episodes on the test models):\n\n"
+                         + table.read_text())
+
+
+@app.command()
+def evaluate(workspace: WorkspaceOption, config: ConfigOption = None,
+             force: ForceOption = False, threads: ThreadsOption = None,
+             workers: WorkersOption = None) -> None:
+    """Closed-loop episodes of every method on every test model (paper Sec. 5.2).
+
+    Each test model starts from evaluate.starts_per_model seeded reachable viewpoints; every
+    method (evaluate.methods) runs one episode from each. Prints Table 1 and writes
+    W/evaluate/: table1.md|csv, per_class.md|csv, episodes.npz|csv, fig3.png, trajectories.png.
+    """
+    _set_threads(threads)
+    _set_workers(workers)
+    _run(config, workspace, "evaluate", ["evaluate"] if force else [])
+    _print_table1(workspace)
+
+
+def _set_workers(workers: int | None) -> None:
+    from rapomdp.experiment import evaluation
+
+    evaluation.workers = workers
 
 
 @app.command("config")

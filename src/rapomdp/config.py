@@ -13,6 +13,7 @@ from typing import Any, Literal
 import yaml
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
+from rapomdp.experiment.config import EvaluateConfig
 from rapomdp.robot.config import RobotConfig
 from rapomdp.section import Section
 
@@ -207,6 +208,7 @@ class Config(Section):
     observe: ObserveConfig = ObserveConfig()
     robot: RobotConfig = RobotConfig()
     solve: SolveConfig = SolveConfig()
+    evaluate: EvaluateConfig = EvaluateConfig()
 
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""

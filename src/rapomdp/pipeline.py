@@ -15,6 +15,7 @@ from rapomdp.awareness.stage import (
 from rapomdp.config import Config
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import run_render_stage
+from rapomdp.experiment.evaluation import EVALUATE_SECTIONS, run_evaluate_stage
 from rapomdp.planning.stage import run_solve_stage
 from rapomdp.recognition.stage import (
     EVAL_SECTIONS,
@@ -87,6 +88,13 @@ STAGES: list[Stage] = [
         sections=("solve",),
         inputs=("observe", "robot"),
         description="one active-recognition POMDP policy per observation model",
+    ),
+    Stage(
+        name="evaluate",
+        run=run_evaluate_stage,
+        sections=EVALUATE_SECTIONS,
+        inputs=("dataset", "train", "observe", "robot", "solve"),
+        description="closed-loop episodes of every method on the test models: Table 1, Fig. 3",
     ),
 ]
 

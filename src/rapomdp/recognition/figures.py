@@ -15,7 +15,8 @@ from rapomdp.geometry.viewsphere import azimuth_zenith
 from rapomdp.io import atomic_path  # noqa: E402
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def save_png(fig: plt.Figure, path: Path) -> Path:
+    """Write a matplotlib figure as PNG atomically and close it."""
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=120, bbox_inches="tight")
     plt.close(fig)
@@ -33,7 +34,7 @@ def training_curves(rows: Sequence[dict[str, float]], path: Path) -> Path:
     ax_acc.plot(epoch, [r["val_accuracy"] for r in rows], label="validation (held-out views)")
     ax_acc.set(xlabel="epoch", ylabel="accuracy", ylim=(0, 1), title="accuracy")
     ax_acc.legend(loc="lower right", fontsize=8)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def confusion_figure(confusion: np.ndarray, classes: Sequence[str], title: str,
@@ -53,7 +54,7 @@ def confusion_figure(confusion: np.ndarray, classes: Sequence[str], title: str,
             ax.text(j, i, f"{rates[i, j]:.2f}".lstrip("0"), ha="center", va="center", fontsize=6,
                     color="white" if rates[i, j] > 0.5 else "black")
     fig.colorbar(image, ax=ax, fraction=0.046, label="fraction of the true class")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def hemisphere_figure(directions: np.ndarray, values: Sequence[np.ndarray],
@@ -75,4 +76,4 @@ def hemisphere_figure(directions: np.ndarray, values: Sequence[np.ndarray],
         fig.colorbar(points, ax=ax, fraction=0.046, pad=0.1)
     fig.suptitle(suptitle + "\n(seen from above; radius = angle from the zenith; "
                  "0° azimuth = +x, the models' long side)", fontsize=9, y=1.04)
-    return _save(fig, path)
+    return save_png(fig, path)

@@ -1,0 +1,366 @@
+"""The closed-loop evaluation (paper Sec. 5.2) and its pipeline stage ``evaluate``.
+
+Every test model x ``starts_per_model`` seeded reachable start viewpoints x every method runs
+one :func:`~rapomdp.experiment.episode.run_episode`; test models are spread over worker
+processes (each episode has its own seeded generator, so the result does not depend on the
+number of workers). Writes into the stage folder:
+
+- ``episodes.npz``: one row per episode (``method``, ``class_index``, ``model``, ``start``,
+  ``declared``, ``exhausted`` and the scores ``correct``, ``belief``, ``moves``, ``distance_m``,
+  ``energy``) and the steps of all episodes concatenated (``step_viewpoints``, ``step_outputs``,
+  ``step_beliefs``; episode i is rows ``offsets[i]:offsets[i + 1]``); ``classes``, ``methods``;
+- ``episodes.csv`` (one row per episode), ``table1.md|csv``, ``per_class.md|csv``;
+- ``fig3.png`` (belief in the true class against step), ``trajectories.png``;
+- ``evaluate.json``: counts, timing, images per second of the episode loop.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rapomdp.config import Config
+from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
+from rapomdp.data.renderer import DepthRenderer
+from rapomdp.data.splits import class_seed
+from rapomdp.data.training_views import model_poses
+from rapomdp.experiment.config import METHOD_NAMES
+from rapomdp.experiment.episode import (
+    Episode,
+    Motion,
+    Policy,
+    Recogniser,
+    Scene,
+    run_episode,
+    score,
+)
+from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
+from rapomdp.geometry.camera import xtion_intrinsics
+from rapomdp.io import load_npz
+from rapomdp.planning.policy import ActiveRecognitionPolicy
+from rapomdp.progress import progress_bar
+from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
+from rapomdp.robot.stage import load_robot
+from rapomdp.workspace import StageError
+
+EVALUATE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "evaluate")
+OBSERVATION_FILE = "observation_models.npz"
+VPTREE_RECOGNISER = "vptree"
+
+
+def start_viewpoints(seed: int, model: ModelEntry, reachable: np.ndarray,
+                     count: int) -> np.ndarray:
+    """``count`` distinct reachable start viewpoints of a test model (seeded by its file)."""
+    candidates = np.flatnonzero(reachable)
+    if count > candidates.size:
+        raise StageError(f"evaluate.starts_per_model is {count} but only {candidates.size} "
+                         "viewpoints are reachable")
+    rng = class_seed(seed, f"evaluate/start/{model.file}")
+    return np.sort(rng.choice(candidates, size=count, replace=False))
+
+
+def episode_rng(seed: int, model: ModelEntry, start: int, method: str) -> np.random.Generator:
+    """The generator of one episode (sensor noise, random moves): independent of scheduling,
+    and of the model's class (seeded by its file), which only the scorer may read."""
+    return class_seed(seed, f"evaluate/{model.file}/{start}/{method}")
+
+
+def _observation_models(inputs: dict[str, Path]) -> dict[str, np.ndarray]:
+    data = load_npz(inputs["observe"] / OBSERVATION_FILE)
+    models = {str(name): data[str(name)] for name in data["models"]}
+    if "vptree" in inputs:
+        models.update({"vptree": load_npz(inputs["vptree"] / "observation_model.npz")["vptree"]})
+    return models
+
+
+@dataclass
+class ClosedLoop:
+    """Everything an episode needs, loaded once per process from the stage folders."""
+
+    config: Config
+    dataset: Dataset
+    recognisers: dict[str, Recogniser]
+    methods: dict[str, Policy]
+    motion: Motion
+
+    @classmethod
+    def load(cls, config: Config, inputs: dict[str, Path]) -> ClosedLoop:
+        dataset = load_dataset(inputs["dataset"])
+        robot = load_robot(inputs["robot"])
+        motion = Motion(robot["energy"], robot["distance_m"], robot["reachable"].astype(bool))
+        observation = _observation_models(inputs)
+        cfg = config.evaluate
+        methods: dict[str, Policy] = {}
+        for key in cfg.methods:
+            recogniser = VPTREE_RECOGNISER if key == "vptree" else "cnn"
+            if key == "static":
+                methods[key] = StaticPolicy(METHOD_NAMES[key])
+            elif key == "random":
+                name = cfg.random.observation_model
+                if name not in observation:
+                    raise StageError(f"evaluate.random.observation_model is '{name}'; the "
+                                     f"workspace has {', '.join(observation)}")
+                methods[key] = RandomWalkPolicy(
+                    observation[name], motion.distance_m, motion.reachable,
+                    cfg.random.neighbours, cfg.random.belief_threshold, cfg.random.max_moves,
+                    METHOD_NAMES[key])
+            else:
+                path = inputs["solve"] / f"policy_{key}.npz"
+                if not path.exists() or key not in observation:
+                    raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
+                                     f"add '{key}' to solve.models")
+                methods[key] = POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
+                                           METHOD_NAMES[key], recogniser)
+        recognisers: dict[str, Recogniser] = {}
+        if any(m.recogniser == "cnn" for m in methods.values()):
+            recognisers["cnn"] = load_stage_classifier(config, inputs["train"], dataset.classes)
+        if any(m.recogniser == VPTREE_RECOGNISER for m in methods.values()):
+            from rapomdp.recognition.vptree_stage import load_workspace_vptree
+
+            recognisers[VPTREE_RECOGNISER] = load_workspace_vptree(inputs["vptree"])
+        return cls(config, dataset, recognisers, methods, motion)
+
+    def scene(self, model: ModelEntry) -> Scene:
+        cfg = self.config
+        intrinsics = xtion_intrinsics(cfg.camera.width, cfg.camera.height)
+        poses = model_poses(model, cfg.viewpoints.count, cfg.viewpoints.radius_m,
+                            hemisphere=True)
+        return Scene(DepthRenderer(self.dataset.mesh(model), intrinsics), poses,
+                     cfg.render.noise)
+
+    def run_model(self, model: ModelEntry) -> list[EpisodeRecord]:
+        """Every start x method episode of one test model."""
+        scene = self.scene(model)
+        starts = start_viewpoints(self.config.seed, model, self.motion.reachable,
+                                  self.config.evaluate.starts_per_model)
+        records = []
+        for start in starts:
+            for key, method in self.methods.items():
+                rng = episode_rng(self.config.seed, model, int(start), key)
+                began = time.process_time()
+                episode = run_episode(scene, self.recognisers[method.recogniser], method,
+                                      self.motion, int(start), self.config.evaluate.max_moves,
+                                      rng)
+                records.append(EpisodeRecord(key, model.file, int(start), episode,
+                                             time.process_time() - began))
+        return records
+
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    """One episode as run: method key, test model (its file in the dataset), start viewpoint."""
+
+    method: str
+    model: str
+    start: int
+    episode: Episode
+    cpu_seconds: float
+
+
+_LOOP: dict[str, ClosedLoop] = {}
+
+#: Episode processes for this process's evaluate stage; the CLI's --workers sets it (None:
+#: :func:`default_workers`). Not part of the configuration: it cannot change the results.
+workers: int | None = None
+
+
+def _worker_init() -> None:
+    import torch
+
+    from rapomdp.progress import set_progress
+    from rapomdp.recognition import stage
+
+    set_progress(False)
+    torch.set_num_threads(1)
+    stage.threads = 1
+
+
+def _run_model_task(config_json: str, inputs: dict[str, str],
+                    model_file: str) -> list[EpisodeRecord]:
+    """A worker's task: load the closed loop once per process, run one test model."""
+    key = config_json + repr(sorted(inputs.items()))
+    if key not in _LOOP:
+        _LOOP.clear()
+        _LOOP[key] = ClosedLoop.load(Config.model_validate_json(config_json),
+                                     {k: Path(v) for k, v in inputs.items()})
+    loop = _LOOP[key]
+    model = next(m for m in loop.dataset.with_role("test") if m.file == model_file)
+    return loop.run_model(model)
+
+
+def default_workers() -> int:
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, min(2, cores or 1))
+
+
+def run_episodes(config: Config, inputs: dict[str, Path],
+                 processes: int | None = None) -> tuple[list[EpisodeRecord], Dataset]:
+    """Every test model x start x method, over ``workers`` processes; records in a fixed order
+    (test models as listed, then start, then method)."""
+    dataset = load_dataset(inputs["dataset"])
+    models = dataset.with_role("test")
+    count = min(processes or workers or default_workers(), len(models))
+    results: dict[int, list[EpisodeRecord]] = {}
+    with progress_bar() as progress:
+        task = progress.add_task("evaluate: test models", total=len(models))
+        if count <= 1:
+            loop = ClosedLoop.load(config, inputs)
+            for i, model in enumerate(models):
+                results[i] = loop.run_model(model)
+                progress.advance(task)
+        else:
+            config_json = config.model_dump_json()
+            paths = {k: str(v) for k, v in inputs.items()}
+            with ProcessPoolExecutor(count, mp_context=get_context("spawn"),
+                                     initializer=_worker_init) as pool:
+                futures = {pool.submit(_run_model_task, config_json, paths, m.file): i
+                           for i, m in enumerate(models)}
+                for future in as_completed(futures):
+                    results[futures[future]] = future.result()
+                    progress.advance(task)
+    return [r for i in range(len(models)) for r in results[i]], dataset
+
+
+@dataclass
+class EpisodeTable:
+    """Episodes and their scores as arrays (one row per episode) plus the concatenated steps."""
+
+    classes: list[str]
+    methods: list[str]
+    method: np.ndarray
+    class_index: np.ndarray
+    model: np.ndarray
+    start: np.ndarray
+    declared: np.ndarray
+    exhausted: np.ndarray
+    correct: np.ndarray
+    belief: np.ndarray
+    moves: np.ndarray
+    distance_m: np.ndarray
+    energy: np.ndarray
+    offsets: np.ndarray
+    step_viewpoints: np.ndarray
+    step_outputs: np.ndarray
+    step_beliefs: np.ndarray
+    cpu_seconds: np.ndarray
+
+    @classmethod
+    def from_records(cls, records: Sequence[EpisodeRecord], dataset: Dataset,
+                     methods: Sequence[str]) -> EpisodeTable:
+        by_file = {m.file: m for m in dataset.with_role("test")}
+        truth = np.array([dataset.label(by_file[r.model]) for r in records])
+        scores = [score(r.episode, int(t)) for r, t in zip(records, truth, strict=True)]
+        lengths = np.array([r.episode.viewpoints.size for r in records])
+        return cls(
+            classes=list(dataset.classes),
+            methods=list(methods),
+            method=np.array([r.method for r in records]),
+            class_index=truth,
+            model=np.array([r.model for r in records]),
+            start=np.array([r.start for r in records]),
+            declared=np.array([r.episode.declared for r in records]),
+            exhausted=np.array([r.episode.exhausted for r in records]),
+            correct=np.array([s.correct for s in scores]),
+            belief=np.array([s.belief for s in scores]),
+            moves=np.array([s.moves for s in scores]),
+            distance_m=np.array([s.distance_m for s in scores]),
+            energy=np.array([s.energy for s in scores]),
+            offsets=np.concatenate([[0], np.cumsum(lengths)]),
+            step_viewpoints=np.concatenate([r.episode.viewpoints for r in records]),
+            step_outputs=np.concatenate([r.episode.outputs for r in records]),
+            step_beliefs=np.concatenate([r.episode.beliefs for r in records]),
+            cpu_seconds=np.array([r.cpu_seconds for r in records]),
+        )
+
+    def arrays(self) -> dict[str, Any]:
+        out = {k: v for k, v in self.__dict__.items() if isinstance(v, np.ndarray)}
+        return {**out, "classes": np.array(self.classes), "methods": np.array(self.methods)}
+
+    @classmethod
+    def load(cls, path: str | Path) -> EpisodeTable:
+        data = load_npz(path)
+        fields = {k: data[k] for k in cls.__dataclass_fields__ if k not in ("classes", "methods")}
+        return cls(classes=[str(c) for c in data["classes"]],
+                   methods=[str(m) for m in data["methods"]], **fields)
+
+    def beliefs_in_true_class(self, episode: int) -> np.ndarray:
+        """Belief in the true class after each image of one episode."""
+        rows = slice(self.offsets[episode], self.offsets[episode + 1])
+        return self.step_beliefs[rows, self.class_index[episode]]
+
+    def viewpoints_of(self, episode: int) -> np.ndarray:
+        return self.step_viewpoints[self.offsets[episode]:self.offsets[episode + 1]]
+
+
+def figure_class(config: Config, classes: Sequence[str]) -> str:
+    """The configured figure class, or the first class when the dataset has no such class."""
+    wanted = config.evaluate.figure_class
+    return wanted if wanted in classes else classes[0]
+
+
+def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """Run every episode, score them, write Table 1, the per-class table and the figures."""
+    from rapomdp.experiment import figures
+    from rapomdp.experiment.metrics import (
+        per_class,
+        per_class_markdown,
+        rows_csv,
+        table1,
+        table1_markdown,
+    )
+    from rapomdp.io import save_npz, write_json_atomic, write_text_atomic
+
+    began = time.perf_counter()
+    records, dataset = run_episodes(config, inputs)
+    episodes_s = time.perf_counter() - began
+    methods = list(config.evaluate.methods)
+    table = EpisodeTable.from_records(records, dataset, methods)
+    save_npz(out / "episodes.npz", compressed=True, **table.arrays())
+    rows = table1(table, methods)
+    classes_rows = per_class(table, methods)
+    write_text_atomic(out / "table1.md", table1_markdown(rows))
+    write_text_atomic(out / "table1.csv", rows_csv(rows))
+    write_text_atomic(out / "per_class.md", per_class_markdown(classes_rows, methods))
+    write_text_atomic(out / "per_class.csv", rows_csv([r for _, r in classes_rows],
+                                                      [name for name, _ in classes_rows]))
+    write_text_atomic(out / "episodes.csv", _episodes_csv(table))
+    shown = figure_class(config, dataset.classes)
+    robot = load_robot(inputs["robot"])
+    figures.fig3(table, methods, shown, out / "fig3.png")
+    figures.trajectories(table, methods, shown, robot["directions"],
+                         robot["reachable"].astype(bool), out / "trajectories.png")
+    images = int(table.step_viewpoints.size)
+    cpu = float(table.cpu_seconds.sum())
+    write_json_atomic(out / "evaluate.json", {
+        "methods": [METHOD_NAMES[m] for m in methods],
+        "method_keys": methods,
+        "classes": dataset.classes,
+        "figure_class": shown,
+        "episodes": int(table.method.size),
+        "images": images,
+        "images_per_s": images / cpu if cpu > 0 else None,
+        "workers": min(workers or default_workers(), len(dataset.with_role("test"))),
+        "seconds": {"episodes_wall": episodes_s, "episodes_cpu": cpu,
+                    "total": time.perf_counter() - began},
+    })
+
+
+def _episodes_csv(table: EpisodeTable) -> str:
+    lines = ["method,class,model,start,declared,correct,belief,moves,distance_m,energy,"
+             "exhausted,viewpoints"]
+    for i in range(table.method.size):
+        views = " ".join(str(v) for v in table.viewpoints_of(i))
+        lines.append(
+            f"{table.method[i]},{table.classes[table.class_index[i]]},{table.model[i]},"
+            f"{table.start[i]},{table.classes[table.declared[i]]},{int(table.correct[i])},"
+            f"{table.belief[i]:.6g},{table.moves[i]},{table.distance_m[i]:.6g},"
+            f"{table.energy[i]:.6g},{int(table.exhausted[i])},{views}")
+    return "\n".join(lines) + "\n"
