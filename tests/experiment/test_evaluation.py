@@ -124,3 +124,21 @@ def evaluation_stage():
     from rapomdp.pipeline import get_stage
 
     return get_stage("evaluate")
+
+
+def test_cli_prints_table1_from_the_cached_stage(workspace, tmp_path) -> None:
+    from typer.testing import CliRunner
+
+    from rapomdp.cli import app
+
+    ws, config = workspace
+    path = tmp_path / "tiny.yaml"
+    path.write_text(config.to_yaml())
+    result = CliRunner().invoke(app, ["evaluate", "-w", str(ws.root), "-c", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "evaluate   cached" in result.output
+    assert "| RA-POMDP |" in result.output and "Table 1" in result.output
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("evaluate: {methods: [static, oracle]}\n")
+    result = CliRunner().invoke(app, ["evaluate", "-w", str(ws.root), "-c", str(bad)])
+    assert result.exit_code == 2 and "unknown method(s) ['oracle']" in result.output
