@@ -15,6 +15,7 @@ from rapomdp.awareness.stage import (
 from rapomdp.config import Config
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import run_render_stage
+from rapomdp.experiment.report import REPORT_INPUTS, REPORT_SECTIONS, run_report_stage
 from rapomdp.planning.stage import run_solve_stage
 from rapomdp.recognition.stage import (
     EVAL_SECTIONS,
@@ -87,6 +88,15 @@ STAGES: list[Stage] = [
         sections=("solve",),
         inputs=("observe", "robot"),
         description="one active-recognition POMDP policy per observation model",
+    ),
+    # The report reads the evaluate stage (Table 1, Fig. 3), which comes after solve: keep
+    # "report" the last stage when "evaluate" is added before it.
+    Stage(
+        name="report",
+        run=run_report_stage,
+        sections=REPORT_SECTIONS,
+        inputs=REPORT_INPUTS,
+        description="markdown + HTML report: Table 1, Figs. 1-3, classifier, robot, solver",
     ),
 ]
 
