@@ -352,6 +352,21 @@ def _set_workers(workers: int | None) -> None:
     evaluation.workers = workers
 
 
+@app.command()
+def report(workspace: WorkspaceOption, config: ConfigOption = None,
+           threads: ThreadsOption = None) -> None:
+    """Write W/report/report.html and report.md (and their figures) from the stages' results.
+
+    The report is always rebuilt (it is cheap): it also shows optional artefacts that are not
+    among its inputs (Fig. 2 from `rapomdp figure fig2`, the VP-tree baseline).
+    """
+    _set_threads(threads)
+    _run(config, workspace, "report", ["report"])
+    folder = Path(workspace) / "report"
+    for name in ("report.html", "report.md"):
+        sys.stdout.write(f"{folder / name}\n")
+
+
 @app.command("config")
 def show_config(config: ConfigOption = None) -> None:
     """Print the resolved configuration as YAML (the default when no file is given)."""

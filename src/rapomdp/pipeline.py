@@ -16,6 +16,7 @@ from rapomdp.config import Config
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import run_render_stage
 from rapomdp.experiment.evaluation import EVALUATE_SECTIONS, run_evaluate_stage
+from rapomdp.experiment.report import REPORT_INPUTS, REPORT_SECTIONS, run_report_stage
 from rapomdp.planning.stage import run_solve_stage
 from rapomdp.recognition.stage import (
     EVAL_SECTIONS,
@@ -95,6 +96,13 @@ STAGES: list[Stage] = [
         sections=EVALUATE_SECTIONS,
         inputs=("dataset", "train", "observe", "robot", "solve"),
         description="closed-loop episodes of every method on the test models: Table 1, Fig. 3",
+    ),
+    Stage(
+        name="report",
+        run=run_report_stage,
+        sections=REPORT_SECTIONS,
+        inputs=REPORT_INPUTS,
+        description="markdown + HTML report: Table 1, Figs. 1-3, classifier, robot, solver",
     ),
 ]
 

@@ -18,9 +18,10 @@ from rapomdp.workspace import StageError, StageResult, Workspace
 FIGURES_DIR = "figures"
 
 
-def write_fig1(ws: Workspace, class_name: str | None = None,
-               view: int | None = None) -> tuple[Path, Path]:
-    """Fig. 1 of ``class_name`` (default: the first class) from workspace ``ws``."""
+def write_fig1(ws: Workspace, class_name: str | None = None, view: int | None = None,
+               out_dir: Path | None = None) -> tuple[Path, Path]:
+    """Fig. 1 of ``class_name`` (default: the first class) from workspace ``ws``, written as
+    ``fig1_<class>.png|html`` into ``out_dir`` (default ``W/figures``)."""
     views = load_training_views(ws.require("render"), ws.require("dataset"))
     dataset = views.dataset
     class_name = class_name or dataset.classes[0]
@@ -37,7 +38,7 @@ def write_fig1(ws: Workspace, class_name: str | None = None,
     volume = SaliencyVolume.load(ws.require("volume") / f"{class_name}.npz")
     observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
     c = dataset.classes.index(class_name)
-    out = ws.root / FIGURES_DIR
+    out = Path(out_dir) if out_dir is not None else ws.root / FIGURES_DIR
     return fig1(depth[view], maps[view], volume, observe["directions"], observe["scores"][c],
                 class_name, out / f"fig1_{class_name}.png", out / f"fig1_{class_name}.html")
 

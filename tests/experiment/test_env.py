@@ -1,0 +1,213 @@
+"""The gymnasium environment on a tiny real workspace (procedural dataset + Panda robot stage)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from rapomdp.config import Config
+from rapomdp.data.dataset import load_dataset
+from rapomdp.data.renderer import DepthRenderer
+from rapomdp.data.training_views import model_poses
+from rapomdp.experiment.env import ActiveRecognitionEnv
+from rapomdp.experiment.episode import Motion, Scene
+from rapomdp.geometry.camera import xtion_intrinsics
+from rapomdp.pipeline import run_pipeline
+from rapomdp.robot.stage import load_robot
+from rapomdp.workspace import StageError, Workspace
+from tests.conftest import tiny_config
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> tuple[Workspace, Config]:
+    """Dataset and robot stages of the tiny configuration (40x30 camera, 16 viewpoints)."""
+    config = tiny_config(solve={"wrong_declaration_cost_m": 1.5})
+    ws = Workspace(tmp_path_factory.mktemp("ws"))
+    run_pipeline(config, ws, until="dataset")
+    run_pipeline(config, ws, until="robot")
+    (ws.root / "config.yaml").write_text(config.to_yaml())
+    return ws, config
+
+
+@pytest.fixture
+def env(tiny: tuple[Workspace, Config]) -> ActiveRecognitionEnv:
+    return ActiveRecognitionEnv.from_workspace(tiny[0].root, max_moves=3, seed=7)
+
+
+def _first_valid_move(env: ActiveRecognitionEnv, mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask[: env.viewpoints])[0])
+
+
+def test_from_workspace_builds_the_test_models_and_the_robot_motion(tiny, env) -> None:
+    ws, config = tiny
+    dataset = load_dataset(ws.require("dataset"))
+    robot = load_robot(ws.require("robot"))
+    tests = dataset.with_role("test")
+    assert len(env.scenes) == len(tests) == 3
+    assert env.true_classes == [dataset.label(m) for m in tests]
+    assert env.class_names == ["cup", "mug", "bicycle"]
+    assert env.lambda_ == 1.5
+    assert env.action_space.n == 16 + 3
+    assert env.observation_space["depth"].shape == (30, 40)
+    assert env.observation_space["viewpoint"].n == 16
+    np.testing.assert_array_equal(env.motion.reachable, robot["reachable"].astype(bool))
+    # moves to or from unreachable viewpoints keep E_M = inf (and are invalid)
+    off_diagonal = ~np.eye(16, dtype=bool)
+    to_unreachable = off_diagonal & ~env.motion.reachable[None, :]
+    assert np.all(np.isinf(env.motion.energy[to_unreachable]))
+    assert np.all(np.isfinite(env.motion.energy[np.ix_(env.motion.reachable,
+                                                       env.motion.reachable)]))
+
+
+def test_check_env_passes(tiny) -> None:
+    base = ActiveRecognitionEnv.from_workspace(tiny[0].root, seed=7)
+    # check_env samples actions blindly and an invalid move raises by design: with every
+    # viewpoint reachable only a move to the current one is invalid, and the seeded action
+    # space (the run is deterministic) samples valid actions.
+    motion = Motion(base.motion.distance_m, base.motion.distance_m, np.ones(16, dtype=bool))
+    env = ActiveRecognitionEnv(base.scenes, base.true_classes, base.class_names, motion, 2.0,
+                               max_moves=5, seed=7)
+    env.action_space.seed(0)
+    check_env(env, skip_render_check=True)
+
+
+def test_seeded_reset_is_reproducible_and_draws_a_reachable_start(env) -> None:
+    first, info_a = env.reset(seed=11)
+    second, info_b = env.reset(seed=11)
+    np.testing.assert_array_equal(first["depth"], second["depth"])
+    assert first["viewpoint"] == second["viewpoint"] == info_a["viewpoint"]
+    assert env.motion.reachable[first["viewpoint"]]
+    assert first["depth"].dtype == np.float32 and first["depth"].shape == (30, 40)
+    assert info_a["moves"] == 0 and info_a["energy"] == 0.0 and info_a["distance_m"] == 0.0
+    starts = {env.reset(seed=s)[0]["viewpoint"] for s in range(20)}
+    assert len(starts) > 1 and all(env.motion.reachable[v] for v in starts)
+
+
+def test_depth_is_the_scene_render_at_the_viewpoint(tiny, env) -> None:
+    ws, config = tiny
+    dataset = load_dataset(ws.require("dataset"))
+    model = dataset.with_role("test")[1]
+    start = int(np.flatnonzero(env.motion.reachable)[2])
+    obs, _ = env.reset(seed=0, options={"model": 1, "start": start})
+    scene = env.scenes[1]
+    np.testing.assert_array_equal(obs["depth"], scene.look(start, np.random.default_rng(5)))
+    renderer = DepthRenderer(dataset.mesh(model), xtion_intrinsics(40, 30))
+    poses = model_poses(model, 16, config.viewpoints.radius_m, hemisphere=True)
+    expected = renderer.render(poses[start])
+    np.testing.assert_array_equal(obs["depth"], expected)
+    assert (expected > 0).any()
+
+
+def test_a_move_costs_the_energy_and_renders_the_target(env) -> None:
+    obs, info = env.reset(seed=3, options={"model": 0})
+    v = obs["viewpoint"]
+    j = _first_valid_move(env, info["action_mask"])
+    obs2, reward, terminated, truncated, info2 = env.step(j)
+    assert reward == -env.motion.energy[v, j] and reward < 0
+    assert not terminated and not truncated
+    assert obs2["viewpoint"] == info2["viewpoint"] == j
+    np.testing.assert_array_equal(obs2["depth"], env.scenes[0].look(j, np.random.default_rng()))
+    assert info2["moves"] == 1
+    assert info2["energy"] == pytest.approx(env.motion.energy[v, j])
+    assert info2["distance_m"] == pytest.approx(env.motion.distance_m[v, j])
+    assert "true_class" not in info2 and "correct" not in info2
+
+
+def test_right_declaration_gives_zero_and_a_wrong_one_minus_lambda(env) -> None:
+    truth = env.true_classes[2]
+    obs, _ = env.reset(seed=0, options={"model": 2})
+    obs2, reward, terminated, truncated, info = env.step(env.viewpoints + truth)
+    assert (reward, terminated, truncated) == (0.0, True, False)
+    assert info["declared"] == truth and info["correct"] is True and info["true_class"] == truth
+    np.testing.assert_array_equal(obs2["depth"], obs["depth"])
+    assert not info["action_mask"].any()
+    with pytest.raises(RuntimeError, match="episode is over"):
+        env.step(env.viewpoints + truth)
+    env.reset(seed=0, options={"model": 2})
+    wrong = (truth + 1) % env.classes
+    _, reward, terminated, _, info = env.step(env.viewpoints + wrong)
+    assert reward == -1.5 and terminated and info["correct"] is False
+    assert info["declared"] == wrong and info["true_class"] == truth
+
+
+def test_invalid_moves_raise_with_their_reason(env) -> None:
+    unreachable = int(np.flatnonzero(~env.motion.reachable)[0])
+    obs, _ = env.reset(seed=0)
+    with pytest.raises(ValueError, match=f"viewpoint {unreachable}: the arm cannot reach it"):
+        env.step(unreachable)
+    with pytest.raises(ValueError, match="the camera is already there"):
+        env.step(obs["viewpoint"])
+    with pytest.raises(ValueError, match=r"action 19 is not in \[0, 19\)"):
+        env.step(19)
+    with pytest.raises(ValueError, match="action -1"):
+        env.step(-1)
+
+
+def test_action_mask_excludes_unreachable_and_current_viewpoints(env) -> None:
+    obs, info = env.reset(seed=4)
+    mask = info["action_mask"]
+    expected = np.concatenate([env.motion.reachable, np.ones(3, dtype=bool)])
+    expected[obs["viewpoint"]] = False
+    np.testing.assert_array_equal(mask, expected)
+    for action in np.flatnonzero(~mask):  # every masked action is refused
+        with pytest.raises(ValueError):
+            env.step(int(action))
+
+
+def test_truncated_after_max_moves(env) -> None:
+    obs, info = env.reset(seed=1)
+    total = 0.0
+    for move in range(1, 4):
+        obs, reward, terminated, truncated, info = env.step(
+            _first_valid_move(env, info["action_mask"]))
+        total -= reward
+        assert not terminated and truncated == (move == 3)
+    assert info["moves"] == 3 and info["energy"] == pytest.approx(total)
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(env.viewpoints)
+
+
+def test_reset_options_are_validated(env) -> None:
+    unreachable = int(np.flatnonzero(~env.motion.reachable)[0])
+    with pytest.raises(ValueError, match="start viewpoint .* is not reachable"):
+        env.reset(options={"start": unreachable})
+    with pytest.raises(ValueError, match=r"model 3 is not a scene index in \[0, 3\)"):
+        env.reset(options={"model": 3})
+    with pytest.raises(ValueError, match=r"start viewpoint 16 is not in \[0, 16\)"):
+        env.reset(options={"start": 16})
+    with pytest.raises(ValueError, match="unknown option"):
+        env.reset(options={"class": 0})
+
+
+def test_noise_draws_from_the_env_rng(tiny) -> None:
+    ws, config = tiny
+    base = ActiveRecognitionEnv.from_workspace(ws.root, seed=0)
+    noisy = config.render.noise.model_copy(update={"enabled": True})
+    scenes = [Scene(s.renderer, s.poses, noisy) for s in base.scenes]
+    env = ActiveRecognitionEnv(scenes, base.true_classes, base.class_names, base.motion, 2.0)
+    a, _ = env.reset(seed=5, options={"model": 0})
+    b, _ = env.reset(seed=5, options={"model": 0})
+    c, _ = env.reset(seed=6, options={"model": 0, "start": a["viewpoint"]})
+    np.testing.assert_array_equal(a["depth"], b["depth"])
+    assert not np.array_equal(a["depth"], c["depth"])
+
+
+def test_constructor_rejects_inconsistent_inputs(env) -> None:
+    motion = Motion(env.motion.energy[:4, :4], env.motion.distance_m[:4, :4],
+                    env.motion.reachable[:4])
+    with pytest.raises(ValueError, match="16 viewpoint poses, the motion 4"):
+        ActiveRecognitionEnv(env.scenes, env.true_classes, env.class_names, motion, 1.0)
+    with pytest.raises(ValueError, match=r"true classes \[5\]"):
+        ActiveRecognitionEnv(env.scenes, [0, 1, 5], env.class_names, env.motion, 1.0)
+
+
+def test_from_workspace_needs_the_robot_stage(tmp_path: Path) -> None:
+    config = tiny_config()
+    ws = Workspace(tmp_path / "ws")
+    run_pipeline(config, ws, until="dataset")
+    (ws.root / "config.yaml").write_text(config.to_yaml())
+    with pytest.raises(StageError, match="stage 'robot' has not been run"):
+        ActiveRecognitionEnv.from_workspace(ws.root)

@@ -1,0 +1,227 @@
+"""The report stage on a workspace whose stages (but the dataset) are synthetic."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import pytest  # noqa: E402
+from typer.testing import CliRunner  # noqa: E402
+
+from rapomdp import cli  # noqa: E402
+from rapomdp.cli import app  # noqa: E402
+from rapomdp.config import Config  # noqa: E402
+from rapomdp.experiment import report as report_module  # noqa: E402
+from rapomdp.experiment.report import (  # noqa: E402
+    REPORT_INPUTS,
+    Paragraph,
+    Table,
+    parse_markdown,
+    run_report_stage,
+    table_html,
+    write_report,
+)
+from rapomdp.io import write_json_atomic  # noqa: E402
+from rapomdp.pipeline import get_stage, run_pipeline  # noqa: E402
+from rapomdp.workspace import Stage, StageError, Workspace  # noqa: E402
+from tests.conftest import tiny_config  # noqa: E402
+
+TABLE1 = """| Approach | Accuracy | Belief | # steps | Distance | Cost |
+|---|---:|---:|---:|---:|---:|
+| Static | 0.360 | 0.344 | — | — | — |
+| RA-POMDP | 1.000 | 0.771 | 4.688 | 0.814 | 6.498 |
+"""
+PER_CLASS = """| class | Static | RA-POMDP |
+|---|---|---|
+| cup | 0.2 | 1.0 |
+| bicycle | 0.4 | 1.0 |
+"""
+QUALITY = """| model | log-likelihood / obs. (higher better) | Brier (lower better) |
+|---|---|---|
+| ra | -0.412 | 0.131 |
+| classifier | -0.533 | 0.170 |
+"""
+
+
+def _png(path: Path) -> None:
+    fig, ax = plt.subplots(figsize=(1, 1))
+    ax.plot([0, 1], [1, 0])
+    fig.savefig(path, dpi=20)
+    plt.close(fig)
+
+
+def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ...]):
+    def run(config: Config, inputs: dict[str, Path], out: Path) -> None:
+        for name, text in texts.items():
+            (out / name).write_text(text)
+        for name, data in jsons.items():
+            write_json_atomic(out / name, data)
+        for name in pngs:
+            _png(out / name)
+
+    return run
+
+
+EVALUATE = {"episodes": 30, "images": 171, "images_per_s": 412.5,
+            "methods": ["Static", "Random", "Classifier", "RA-POMDP"],
+            "figure_class": "bicycle", "seconds": {"render": 0.4, "total": 2.5}}
+SYNTHETIC = {
+    "train": _writer({}, {"metrics.json": {}}, ("training.png",)),
+    "classifier_eval": _writer({}, {"metrics.json": {
+        "xrho": {"images": 48, "accuracy": 0.6458, "chance": 0.3333},
+        "sphere": {"images": 18, "accuracy": 0.7222, "chance": 0.3333}}},
+        ("confusion_xrho.png", "accuracy_hemisphere.png")),
+    "observe": _writer({"quality.md": QUALITY}, {}, ("calibration.png",)),
+    "robot": _writer({}, {"robot.json": {
+        "viewpoints": 16, "reachable": 9, "reachable_fraction": 0.5625, "ik_seconds": 1.25,
+        "manipulability": {"min": 0.02, "median": 0.08, "max": 0.11}}}, ("robot.png",)),
+    "solve": _writer({}, {"solve_summary.json": {
+        "ra": {"lower": -3.21, "upper": -3.2, "seconds": 1.5, "vectors": 40},
+        "classifier": {"lower": -4.0, "upper": -3.99, "seconds": 2.0, "vectors": 31}}}, ()),
+    "evaluate": _writer({"table1.md": TABLE1, "per_class.md": PER_CLASS},
+                        {"evaluate.json": EVALUATE}, ("fig3.png", "trajectories.png")),
+}
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory: pytest.TempPathFactory) -> tuple[Workspace, Config]:
+    """A real tiny dataset stage and synthetic train ... evaluate stages."""
+    config = tiny_config()
+    ws = Workspace(tmp_path_factory.mktemp("ws"))
+    run_pipeline(config, ws, until="dataset")
+    for name, run in SYNTHETIC.items():
+        ws.run(Stage(name, run), config)
+    (ws.root / "config.yaml").write_text(config.to_yaml())
+    return ws, config
+
+
+def _inputs(ws: Workspace) -> dict[str, Path]:
+    return {name: ws.require(name) for name in REPORT_INPUTS}
+
+
+def _fake_fig1(calls: list[tuple[str, Path]]):
+    def fig1(ws: Workspace, class_name: str, out_dir: Path) -> tuple[Path, Path]:
+        calls.append((class_name, out_dir))
+        _png(out_dir / f"fig1_{class_name}.png")
+        (out_dir / f"fig1_{class_name}.html").write_text("<html></html>")
+        return out_dir / f"fig1_{class_name}.png", out_dir / f"fig1_{class_name}.html"
+
+    return fig1
+
+
+def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) -> None:
+    ws, config = synthetic
+    out = tmp_path / "report"
+    calls: list[tuple[str, Path]] = []
+    page, md = write_report(config, _inputs(ws), out, fig1=_fake_fig1(calls))
+    assert (page, md) == (out / "report.html", out / "report.md")
+    assert calls == [("bicycle", out)]  # the evaluate stage's figure class
+    text, html = md.read_text(), page.read_text()
+    for row in ("| Static | 0.360 | 0.344 | — | — | — |",
+                "| RA-POMDP | 1.000 | 0.771 | 4.688 | 0.814 | 6.498 |",
+                "| bicycle | 0.4 | 1.0 |", "| ra | -0.412 | 0.131 |"):
+        assert row in text
+    assert "<td>RA-POMDP</td><td>1.000</td><td>0.771</td>" in html
+    assert "30 episodes" in text and "171 depth images" in text and "412.5 images/s" in text
+    assert "| test viewpoints X_rho | 48 | 0.646 | 0.333 |" in text
+    assert "| ra | -3.2100 | -3.2000 | 1.5 | 40 |" in text
+    assert "9/16 viewpoints reachable (56 %)" in text
+    assert f"seed {config.seed}" in text and "Configuration hash" in text
+    # every image the report links lies in its folder, as a PNG
+    links = re.findall(r"\]\(([^)]+)\)", text)
+    sources = re.findall(r'<img src="([^"]+)"', html)
+    assert sorted(links) == sorted(sources)
+    assert set(links) == {"fig3.png", "trajectories.png", "fig1_bicycle.png", "calibration.png",
+                          "confusion_xrho.png", "accuracy_hemisphere.png", "training.png",
+                          "robot.png"}
+    for name in links:
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # one <table> per markdown table: Table 1, per class, quality, provenance, classifier, solver
+    assert html.count("<table>") == len(re.findall(r"^\|---", text, flags=re.M)) == 6
+    # optional inputs that are absent are named with the command that makes them
+    assert "Fig. 2: one class" not in text
+    assert "figures/fig2.png (not found) — made by `rapomdp figure fig2 -w" in text
+    assert "vptree/vptree.json not found" in text
+    assert 'class="missing"' in html
+
+
+def test_optional_inputs_are_shown_when_present(synthetic, tmp_path: Path) -> None:
+    ws, config = synthetic
+    (ws.root / "figures").mkdir(exist_ok=True)
+    _png(ws.root / "figures" / "fig2.png")
+    (ws.root / "vptree").mkdir(exist_ok=True)
+    write_json_atomic(ws.root / "vptree" / "vptree.json", {"accuracy_test_xrho": 0.4167})
+    try:
+        _, md = write_report(config, _inputs(ws), tmp_path / "r", fig1=_fake_fig1([]))
+    finally:
+        (ws.root / "figures" / "fig2.png").unlink()
+        (ws.root / "vptree" / "vptree.json").unlink()
+    text = md.read_text()
+    assert "![Fig. 2: one class" in text and (tmp_path / "r" / "fig2.png").exists()
+    assert "over X_rho: 0.417." in text and "vptree.json not found" not in text
+
+
+def test_missing_files_and_fig1_failures_become_lines(synthetic, tmp_path: Path) -> None:
+    ws, config = synthetic
+    inputs = _inputs(ws)
+    broken = tmp_path / "evaluate"
+    broken.mkdir()
+    (broken / "table1.md").write_text(TABLE1)
+    inputs["evaluate"] = broken
+    # the real Fig. 1 needs the render, saliency and volume stages, absent here
+    _, md = write_report(config, inputs, tmp_path / "r")
+    text = md.read_text()
+    assert "| Static | 0.360 |" in text
+    assert "evaluate.json (not found) — made by `rapomdp evaluate -w" in text
+    assert "fig3.png (not found)" in text and "per_class.md (not found)" in text
+    assert "Fig. 1 for class bicycle could not be made" in text
+    assert "stage 'render' has not been run" in text
+    assert "figure fig1 -w" in text
+
+
+def test_a_missing_required_stage_is_named(synthetic, tmp_path: Path) -> None:
+    ws, config = synthetic
+    inputs = _inputs(ws)
+    del inputs["solve"]
+    with pytest.raises(StageError, match="report: needs the stage.s. solve"):
+        run_report_stage(config, inputs, tmp_path / "r")
+    inputs["solve"] = tmp_path / "nowhere"
+    with pytest.raises(StageError, match="solve"):
+        write_report(config, inputs, tmp_path / "r")
+
+
+def test_report_stage_runs_in_the_pipeline_and_the_cli(synthetic, monkeypatch) -> None:
+    ws, config = synthetic
+    monkeypatch.setattr(report_module, "write_fig1", _fake_fig1([]))
+
+    def only_the_report(config: Config, workspace: Workspace, until: str, force, on_result):
+        # the synthetic stages are not the real ones: run the report stage alone
+        assert (until, force) == ("report", ["report"])
+        return [workspace.run(get_stage("report"), config, force=True)]
+
+    monkeypatch.setattr(cli, "run_pipeline", only_the_report)
+    result = CliRunner().invoke(app, ["report", "-w", str(ws.root), "-c",
+                                      str(ws.root / "config.yaml")])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.split() == [str(ws.root / "report" / "report.html"),
+                                     str(ws.root / "report" / "report.md")]
+    assert "report" in ws.manifest()["stages"]
+    assert "| RA-POMDP | 1.000 |" in (ws.root / "report" / "report.md").read_text()
+
+
+def test_markdown_tables_parse_and_convert() -> None:
+    blocks = parse_markdown("# Title\n\nSome text\nmore.\n\n| a | b \\| c |\n|:--|--:|\n"
+                            "| 1 | <2> |\n| 3 |\n\ntail")
+    assert blocks[1] == Paragraph("Some text more.")
+    table = blocks[2]
+    assert table == Table(["a", "b | c"], [["1", "<2>"], ["3", ""]])
+    assert blocks[3] == Paragraph("tail")
+    assert table_html(table) == ("<table>\n<thead><tr><th>a</th><th>b | c</th></tr></thead>\n"
+                                 "<tbody><tr><td>1</td><td>&lt;2&gt;</td></tr>"
+                                 "<tr><td>3</td><td></td></tr></tbody>\n</table>")
+    # a pipe line without a delimiter row is text, not a table
+    assert parse_markdown("| not | a table |") == [Paragraph("| not | a table |")]
