@@ -18,9 +18,9 @@ import numpy as np
 import torch
 
 from rapomdp.config import load_config
-from rapomdp.experiment import evaluation
 from rapomdp.experiment.episode import run_episode
 from rapomdp.experiment.evaluation import ClosedLoop, episode_rng, start_viewpoints
+from rapomdp.parallel import default_workers
 from rapomdp.recognition import stage
 from rapomdp.workspace import Workspace
 
@@ -86,7 +86,7 @@ def main() -> None:
                                       episode_rng(config.seed, model, int(start), key))
                 cpu += time.process_time() - t0
                 images += episode.viewpoints.size
-    lines.append(f"whole episodes (every method, {evaluation.default_workers()} would run in "
+    lines.append(f"whole episodes (every method, {default_workers()} would run in "
                  f"parallel): {images} images in {cpu:.1f} s CPU = {images / cpu:.1f} "
                  "steps/s on one core")
     text = "\n".join(lines)

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 import torch
 
+from rapomdp import parallel
 from rapomdp.config import Config, config_from_dict
 from rapomdp.progress import set_progress
 
@@ -15,9 +16,11 @@ set_progress(False)
 
 @pytest.fixture(autouse=True)
 def _quiet_single_thread() -> None:
-    """No progress bars and one PyTorch thread in every test (the machine has 2 shared cores)."""
+    """No progress bars, one PyTorch thread and no worker processes in every test (the machine
+    has 2 shared cores; the tests that check parallel runs ask for processes explicitly)."""
     set_progress(False)
     torch.set_num_threads(1)
+    parallel.workers = 1
 
 
 def tiny_config(**overrides: object) -> Config:

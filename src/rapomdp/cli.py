@@ -318,8 +318,8 @@ def solve(workspace: WorkspaceOption, config: ConfigOption = None,
 
 WorkersOption = Annotated[
     int | None,
-    typer.Option(help="Processes running episodes (default: 2, or 1 on a single core); "
-                      "the results do not depend on it."),
+    typer.Option(help="Processes for saliency maps and episodes (default: 2, or 1 on a "
+                      "single core); the results do not depend on it."),
 ]
 
 
@@ -347,9 +347,9 @@ def evaluate(workspace: WorkspaceOption, config: ConfigOption = None,
 
 
 def _set_workers(workers: int | None) -> None:
-    from rapomdp.experiment import evaluation
+    from rapomdp import parallel
 
-    evaluation.workers = workers
+    parallel.workers = workers
 
 
 @app.command()

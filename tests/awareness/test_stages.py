@@ -123,3 +123,22 @@ def test_solve_stage_plans_on_the_observation_models_and_robot(workspace):
         action = policy.act(start, np.array([0.5, 0.5]))
         if action.kind == "move":
             assert reachable[action.target] and action.target != start
+
+
+def test_saliency_maps_do_not_depend_on_the_number_of_processes(workspace, tmp_path):
+    from rapomdp import parallel
+    from rapomdp.awareness.stage import run_saliency_stage
+
+    config = config_from_dict(TINY)
+    inputs = {name: workspace.require(name) for name in ("dataset", "render", "train")}
+    parallel.workers = 2
+    try:
+        run_saliency_stage(config, inputs, tmp_path)
+    finally:
+        parallel.workers = 1
+    for name in ("bicycle", "teapot"):
+        model = _volume_model(workspace, name)
+        serial = load_npz(workspace.root / "saliency" / "maps" / name / f"{model}.npz")
+        spread = load_npz(tmp_path / "maps" / name / f"{model}.npz")
+        assert np.array_equal(serial["saliency"], spread["saliency"])
+    assert read_json(tmp_path / "saliency.json")["processes"] == 2

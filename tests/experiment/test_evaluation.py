@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from rapomdp import parallel
 from rapomdp.config import config_from_dict
 from rapomdp.experiment import evaluation
 from rapomdp.experiment.evaluation import ClosedLoop, EpisodeTable, start_viewpoints
@@ -40,13 +41,13 @@ def workspace(tmp_path_factory):
     set_progress(False)
     torch.set_num_threads(1)
     previous, stage.threads = stage.threads, 1
-    evaluation.workers = 1
+    parallel.workers = 1
     config = config_from_dict(TINY)
     ws = Workspace(tmp_path_factory.mktemp("ws"))
     run_pipeline(config, ws)
     yield ws, config
     stage.threads = previous
-    evaluation.workers = None
+    parallel.workers = None
 
 
 def _inputs(ws: Workspace) -> dict:

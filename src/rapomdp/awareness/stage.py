@@ -48,6 +48,7 @@ from rapomdp.data.training_views import load_training_views, model_poses, render
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
+from rapomdp.parallel import run_tasks, worker_count
 from rapomdp.progress import track
 from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.preprocess import input_to_image
@@ -87,31 +88,47 @@ def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, metho
     return {"saliency": maps, "probability": probability, "perturbed_probability": perturbed}
 
 
-def run_saliency_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
-    """2D saliency maps of every class's volume model over the training viewsphere."""
-    views = load_training_views(inputs["render"], inputs["dataset"])
+def _saliency_task(config_json: str, render_dir: str, dataset_dir: str, train_dir: str,
+                   out: str, model_file: str) -> tuple[int, float]:
+    """One volume model's saliency maps, written to ``out``; returns (views, seconds)."""
+    config = Config.model_validate_json(config_json)
+    views = load_training_views(Path(render_dir), Path(dataset_dir))
     dataset = views.dataset
-    classifier = load_stage_classifier(config, inputs["train"], dataset.classes)
+    model = next(m for m in dataset.models if m.file == model_file)
+    classifier = load_stage_classifier(config, Path(train_dir), dataset.classes)
     cfg = config.saliency
-    total_views, seconds = 0, 0.0
-    for model in track(dataset.with_role("volume"), f"saliency ({cfg.method}): volume models"):
-        depth, _ = views.load(model)
-        start = time.perf_counter()
-        seed = int(class_seed(config.seed, f"saliency/{model.id}").integers(2**31))
-        result = saliency_maps(classifier, depth, dataset.label(model), cfg.method, cfg, seed,
-                               cfg.batch_size)
-        seconds += time.perf_counter() - start
-        total_views += depth.shape[0]
-        save_npz(out / "maps" / model.class_name / f"{model.id}.npz", compressed=True,
-                 saliency=result["saliency"].astype(np.float16),
-                 probability=result["probability"],
-                 perturbed_probability=result["perturbed_probability"])
+    depth, _ = views.load(model)
+    start = time.perf_counter()
+    seed = int(class_seed(config.seed, f"saliency/{model.id}").integers(2**31))
+    result = saliency_maps(classifier, depth, dataset.label(model), cfg.method, cfg, seed,
+                           cfg.batch_size)
+    seconds = time.perf_counter() - start
+    save_npz(Path(out) / "maps" / model.class_name / f"{model.id}.npz", compressed=True,
+             saliency=result["saliency"].astype(np.float16),
+             probability=result["probability"],
+             perturbed_probability=result["perturbed_probability"])
+    return depth.shape[0], seconds
+
+
+def run_saliency_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """2D saliency maps of every class's volume model over the training viewsphere, one model
+    per task over worker processes (each model has its own seed: the maps do not depend on
+    the number of processes)."""
+    dataset = load_dataset(inputs["dataset"])
+    cfg = config.saliency
+    tasks = [(config.model_dump_json(), str(inputs["render"]), str(inputs["dataset"]),
+              str(inputs["train"]), str(out), m.file) for m in dataset.with_role("volume")]
+    done = run_tasks(_saliency_task, tasks, worker_count(),
+                     f"saliency ({cfg.method}): volume models")
+    total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
+    classifier = load_stage_classifier(config, inputs["train"], dataset.classes)
     write_json_atomic(out / "saliency.json", {
         "method": cfg.method, "config": cfg.model_dump(mode="json"),
         "input_size_px": classifier.preprocessing.input_size_px,
         "views": total_views, "seconds": seconds,
         "maps_per_s": total_views / seconds if seconds > 0 else None,
         "threads": torch.get_num_threads(),
+        "processes": min(worker_count(), len(tasks)),
     })
 
 

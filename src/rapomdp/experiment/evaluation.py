@@ -16,12 +16,9 @@ number of workers). Writes into the stage folder:
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -45,8 +42,8 @@ from rapomdp.experiment.episode import (
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.io import load_npz
+from rapomdp.parallel import run_tasks, worker_count
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.progress import progress_bar
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
 from rapomdp.robot.stage import load_robot
 from rapomdp.workspace import StageError
@@ -167,21 +164,6 @@ class EpisodeRecord:
 
 _LOOP: dict[str, ClosedLoop] = {}
 
-#: Episode processes for this process's evaluate stage; the CLI's --workers sets it (None:
-#: :func:`default_workers`). Not part of the configuration: it cannot change the results.
-workers: int | None = None
-
-
-def _worker_init() -> None:
-    import torch
-
-    from rapomdp.progress import set_progress
-    from rapomdp.recognition import stage
-
-    set_progress(False)
-    torch.set_num_threads(1)
-    stage.threads = 1
-
 
 def _run_model_task(config_json: str, inputs: dict[str, str],
                     model_file: str) -> list[EpisodeRecord]:
@@ -196,37 +178,24 @@ def _run_model_task(config_json: str, inputs: dict[str, str],
     return loop.run_model(model)
 
 
-def default_workers() -> int:
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return max(1, min(2, cores or 1))
-
-
 def run_episodes(config: Config, inputs: dict[str, Path],
                  processes: int | None = None) -> tuple[list[EpisodeRecord], Dataset]:
-    """Every test model x start x method, over ``workers`` processes; records in a fixed order
+    """Every test model x start x method, over ``processes`` (default: the configured worker
+    count) processes; records in a fixed order
     (test models as listed, then start, then method)."""
     dataset = load_dataset(inputs["dataset"])
     models = dataset.with_role("test")
-    count = min(processes or workers or default_workers(), len(models))
-    results: dict[int, list[EpisodeRecord]] = {}
-    with progress_bar() as progress:
-        task = progress.add_task("evaluate: test models", total=len(models))
-        if count <= 1:
-            loop = ClosedLoop.load(config, inputs)
-            for i, model in enumerate(models):
-                results[i] = loop.run_model(model)
-                progress.advance(task)
-        else:
-            config_json = config.model_dump_json()
-            paths = {k: str(v) for k, v in inputs.items()}
-            with ProcessPoolExecutor(count, mp_context=get_context("spawn"),
-                                     initializer=_worker_init) as pool:
-                futures = {pool.submit(_run_model_task, config_json, paths, m.file): i
-                           for i, m in enumerate(models)}
-                for future in as_completed(futures):
-                    results[futures[future]] = future.result()
-                    progress.advance(task)
-    return [r for i in range(len(models)) for r in results[i]], dataset
+    count = processes or worker_count()
+    if count <= 1:
+        loop = ClosedLoop.load(config, inputs)
+        per_model = run_tasks(loop.run_model, [(m,) for m in models], 1,
+                              "evaluate: test models")
+    else:
+        config_json = config.model_dump_json()
+        paths = {k: str(v) for k, v in inputs.items()}
+        per_model = run_tasks(_run_model_task, [(config_json, paths, m.file) for m in models],
+                              count, "evaluate: test models")
+    return [r for records in per_model for r in records], dataset
 
 
 @dataclass
@@ -347,7 +316,7 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> No
         "episodes": int(table.method.size),
         "images": images,
         "images_per_s": images / cpu if cpu > 0 else None,
-        "workers": min(workers or default_workers(), len(dataset.with_role("test"))),
+        "workers": min(worker_count(), len(dataset.with_role("test"))),
         "seconds": {"episodes_wall": episodes_s, "episodes_cpu": cpu,
                     "total": time.perf_counter() - began},
     })
