@@ -22,6 +22,7 @@ from rapomdp.recognition.stage import (
     run_classifier_eval_stage,
     run_train_stage,
 )
+from rapomdp.recognition.vptree_stage import VPTREE_SECTIONS, run_vptree_stage
 from rapomdp.robot.stage import run_robot_stage
 from rapomdp.workspace import Stage, StageResult, Workspace
 
@@ -80,6 +81,13 @@ STAGES: list[Stage] = [
         sections=OBSERVE_SECTIONS,
         inputs=("dataset", "train", "volume"),
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
+    ),
+    Stage(
+        name="vptree",
+        run=run_vptree_stage,
+        sections=VPTREE_SECTIONS,
+        inputs=("dataset", "render"),
+        description="VP-tree baseline: vocabulary-tree classifier, its confusion P(o | class, x)",
     ),
     Stage(
         name="solve",
