@@ -208,7 +208,9 @@ class SolveConfig(Section):
     precision: float = Field(1e-3, gt=0, description="stop when upper - lower is below this")
     timeout_s: float = Field(20.0, gt=0, description="CPU seconds per observation model")
     models: list[str] | None = Field(
-        None, description="observation models to solve (default: every one the observe stage made)")
+        ["ra", "classifier", "vptree"],
+        description="observation models to solve (the closed-loop evaluation's three); others: "
+        "ra_class, blackbox; null: every model the observe and vptree stages made")
 
 
 class Config(Section):

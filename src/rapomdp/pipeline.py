@@ -93,7 +93,7 @@ STAGES: list[Stage] = [
         name="solve",
         run=run_solve_stage,
         sections=("solve",),
-        inputs=("observe", "robot"),
+        inputs=("observe", "vptree", "robot"),
         description="one active-recognition POMDP policy per observation model",
     ),
 ]
