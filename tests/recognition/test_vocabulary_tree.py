@@ -6,7 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
+from rapomdp.cli import app
 from rapomdp.data.meshes import normalise_mesh
 from rapomdp.data.procedural.classes import generate_model
 from rapomdp.data.renderer import DepthRenderer
@@ -206,3 +208,12 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     # row is (1 + a) / (1 + 3a) on the label seen and a / (1 + 3a) elsewhere
     a = config.vptree.pseudo_count
     np.testing.assert_allclose(p.max(axis=2), (1 + a) / (1 + 3 * a))
+    # the command line: cached now, and it prints the accuracy
+    config_path = tmp_path / "tiny.yaml"
+    config_path.write_text(config.to_yaml())
+    result = CliRunner().invoke(app, ["vptree", "-w", str(workspace.root), "-c",
+                                      str(config_path)])
+    assert result.exit_code == 0, result.output
+    assert "vptree" in result.output and "cached" in result.output
+    shown = f"test models at X_rho: {summary['accuracy_test_xrho']:.1%}"
+    assert shown in " ".join(result.output.split())

@@ -276,7 +276,13 @@ class VocabularyTreeClassifier:
         labels = np.asarray(labels, dtype=np.int64)
         if labels.shape != (depth.shape[0],):
             raise ValueError(f"{depth.shape[0]} images but labels of shape {labels.shape}")
-        descriptors, image = depth_descriptors(depth, fx_px, fy_px, params)
+        # in chunks of images: the gather's temporaries for all 4200 default images at once
+        # would take ~1 GB
+        parts = [depth_descriptors(depth[i : i + 512], fx_px, fy_px, params)
+                 for i in range(0, depth.shape[0], 512)]
+        descriptors = np.concatenate([d for d, _ in parts])
+        image = np.concatenate([j + i for (_, j), i in zip(parts, range(0, depth.shape[0], 512),
+                                                            strict=True)])
         if descriptors.shape[0] == 0:
             raise ValueError("the training images hold no object pixels")
         rng = np.random.default_rng(seed)

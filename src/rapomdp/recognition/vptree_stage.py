@@ -50,9 +50,11 @@ def fit_vptree(config: Config, views: TrainingViews) -> VocabularyTreeClassifier
         images, _ = views.load(model)
         depth.append(images)
         labels.append(np.full(images.shape[0], dataset.label(model)))
+    images = np.concatenate(depth)
+    del depth  # one copy of the training images in memory, not two
     cfg = config.vptree
     return VocabularyTreeClassifier.fit(
-        np.concatenate(depth), np.concatenate(labels), dataset.classes, views.intrinsics.fx,
+        images, np.concatenate(labels), dataset.classes, views.intrinsics.fx,
         views.intrinsics.fy, descriptor_params(cfg), config.seed, branching=cfg.branching,
         levels=cfg.levels, max_fit_descriptors=cfg.max_fit_descriptors, top_k=cfg.top_k)
 
