@@ -172,22 +172,17 @@ class VocabularyTree:
         self.centres = np.vstack(blocks).astype(np.float32)
         return self
 
-    def quantise(self, descriptors: np.ndarray, chunk: int = 32768) -> np.ndarray:
+    def quantise(self, descriptors: np.ndarray) -> np.ndarray:
         """Leaf ids (N,) in [0, leaves): descend by the nearest child centre at each level."""
         if self.centres is None:
             raise ValueError("the vocabulary tree has not been fitted")
         x = np.asarray(descriptors, dtype=np.float32)
         if x.ndim != 2 or x.shape[1] != self.centres.shape[1]:
             raise ValueError(f"descriptors must be (N, {self.centres.shape[1]}), got {x.shape}")
-        out = np.empty(x.shape[0], dtype=np.int64)
-        for start in range(0, x.shape[0], chunk):
-            part = x[start : start + chunk]
-            node = np.zeros(part.shape[0], dtype=np.int64)
-            for level in range(1, self.levels + 1):
-                node = node * self.branching + _nearest(part, self._level(level), node,
-                                                        self.branching)
-            out[start : start + chunk] = node
-        return out
+        node = np.zeros(x.shape[0], dtype=np.int64)
+        for level in range(1, self.levels + 1):
+            node = node * self.branching + _nearest(x, self._level(level), node, self.branching)
+        return node
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         if self.centres is None:
@@ -214,12 +209,18 @@ class VocabularyTree:
         return cls.from_arrays(arrays, path)
 
 
-def _nearest(x: np.ndarray, centres: np.ndarray, node: np.ndarray, k: int) -> np.ndarray:
-    """Index (N,) in [0, k) of the nearest of each row's ``k`` child centres of ``node``."""
-    children = centres.reshape(-1, k, centres.shape[1])[node]  # (N, k, D)
-    distance = np.einsum("nkd,nkd->nk", children, children) - 2 * np.einsum(
-        "nd,nkd->nk", x, children)
-    return distance.argmin(axis=1)
+def _nearest(x: np.ndarray, centres: np.ndarray, node: np.ndarray, k: int,
+             chunk: int = 32768) -> np.ndarray:
+    """Index (N,) in [0, k) of the nearest of each row's ``k`` child centres of ``node``
+    (``chunk`` rows at a time: the gathered centres take N k D floats)."""
+    grouped = centres.reshape(-1, k, centres.shape[1])
+    out = np.empty(x.shape[0], dtype=np.int64)
+    for start in range(0, x.shape[0], chunk):
+        children = grouped[node[start : start + chunk]]  # (n, k, D)
+        distance = np.einsum("nkd,nkd->nk", children, children) - 2 * np.einsum(
+            "nd,nkd->nk", x[start : start + chunk], children)
+        out[start : start + chunk] = distance.argmin(axis=1)
+    return out
 
 
 def _check_format(arrays: dict[str, np.ndarray], path: str | Path, expected: str,
