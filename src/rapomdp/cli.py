@@ -228,6 +228,23 @@ def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: Forc
         sys.stdout.write(table.read_text())
 
 
+@app.command()
+def vptree(workspace: WorkspaceOption, config: ConfigOption = None,
+           force: ForceOption = False) -> None:
+    """The VP-tree baseline: vocabulary-tree classifier and its per-viewpoint confusion."""
+    _run(config, workspace, "vptree", ["vptree"] if force else [])
+    summary = Path(workspace) / "vptree" / "vptree.json"
+    if summary.exists():
+        from rapomdp.io import read_json
+
+        data = read_json(summary)
+        test = data["accuracy_test_xrho"]
+        shown = "n/a (no test models)" if test is None else f"{test:.1%}"
+        console.print(f"  VP-tree single-view accuracy, test models at X_rho: {shown} "
+                      f"(volume models {data['accuracy_volume_xrho']:.1%}, chance "
+                      f"{data['chance']:.1%})", highlight=False)
+
+
 figure_app = typer.Typer(help="Figures of recognition self-awareness (paper Figs. 1 and 2).")
 app.add_typer(figure_app, name="figure")
 

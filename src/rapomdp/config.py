@@ -182,6 +182,24 @@ class ObserveConfig(Section):
         1.0, ge=0, description="RA / black-box: pseudo-count per (class, label) of the confusion")
 
 
+class VPTreeConfig(Section):
+    """The VP-tree baseline (Atanasov et al. 2014): a vocabulary tree over local depth patches
+    and its per-viewpoint confusion (see docs/recognition.md, "VP-tree baseline")."""
+
+    branching: int = Field(10, ge=2, le=64, description="children per tree node (k-means k)")
+    levels: int = Field(3, ge=1, le=6, description="tree depth; branching**levels leaves")
+    patch_size_m: float = Field(
+        0.08, gt=0, description="side of a descriptor's patch on the surface, in metres")
+    patch_samples: int = Field(5, ge=2, le=15, description="depth samples per patch side")
+    stride_px: int = Field(4, ge=1, description="keypoint grid spacing in image pixels")
+    max_fit_descriptors: int = Field(
+        100_000, ge=100, description="descriptors (random subsample) the k-means are fitted on")
+    top_k: int = Field(
+        1, ge=1, description="best-matching training views voting (1: the best match's class)")
+    pseudo_count: float = Field(
+        0.1, gt=0, description="pseudo-count per (viewpoint, class, label) of the confusion")
+
+
 class SolveConfig(Section):
     """The active-recognition POMDP built from the workspace, and its solver."""
 
@@ -191,7 +209,9 @@ class SolveConfig(Section):
     precision: float = Field(1e-3, gt=0, description="stop when upper - lower is below this")
     timeout_s: float = Field(20.0, gt=0, description="CPU seconds per observation model")
     models: list[str] | None = Field(
-        None, description="observation models to solve (default: every one the observe stage made)")
+        ["ra", "classifier", "vptree"],
+        description="observation models to solve (the closed-loop evaluation's three); others: "
+        "ra_class, blackbox; null: every model the observe and vptree stages made")
 
 
 class Config(Section):
@@ -207,6 +227,7 @@ class Config(Section):
     volume: VolumeConfig = VolumeConfig()
     observe: ObserveConfig = ObserveConfig()
     robot: RobotConfig = RobotConfig()
+    vptree: VPTreeConfig = VPTreeConfig()
     solve: SolveConfig = SolveConfig()
     evaluate: EvaluateConfig = EvaluateConfig()
 

@@ -24,6 +24,7 @@ from rapomdp.recognition.stage import (
     run_classifier_eval_stage,
     run_train_stage,
 )
+from rapomdp.recognition.vptree_stage import VPTREE_SECTIONS, run_vptree_stage
 from rapomdp.robot.stage import run_robot_stage
 from rapomdp.workspace import Stage, StageResult, Workspace
 
@@ -84,10 +85,17 @@ STAGES: list[Stage] = [
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
     Stage(
+        name="vptree",
+        run=run_vptree_stage,
+        sections=VPTREE_SECTIONS,
+        inputs=("dataset", "render"),
+        description="VP-tree baseline: vocabulary-tree classifier, its confusion P(o | class, x)",
+    ),
+    Stage(
         name="solve",
         run=run_solve_stage,
         sections=("solve",),
-        inputs=("observe", "robot"),
+        inputs=("observe", "vptree", "robot"),
         description="one active-recognition POMDP policy per observation model",
     ),
     Stage(

@@ -25,6 +25,7 @@ TINY = {
               "preprocess": {"input_size_px": 32}},
     "saliency": {"iterations": 5},
     "volume": {"resolution": 12},
+    "vptree": {"branching": 4, "levels": 2},
 }
 
 
@@ -104,15 +105,14 @@ def _volume_model(ws: Workspace, class_name: str) -> str:
 
 
 def test_solve_stage_plans_on_the_observation_models_and_robot(workspace):
-    """The full chain: observe + robot -> one policy per observation model."""
+    """The full chain: observe + vptree + robot -> one policy per observation model asked for."""
     from rapomdp.planning.policy import ActiveRecognitionPolicy
 
     config = config_from_dict({**TINY, "solve": {"timeout_s": 2.0}})
     results = run_pipeline(config, workspace, until="solve")
-    assert [r.name for r in results][-3:] == ["robot", "observe", "solve"]
+    assert [r.name for r in results][-4:] == ["robot", "observe", "vptree", "solve"]
     summary = read_json(workspace.root / "solve" / "solve_summary.json")
-    models = load_npz(workspace.root / "observe" / "observation_models.npz")
-    assert set(summary) == {str(m) for m in models["models"]}
+    assert set(summary) == {"ra", "classifier", "vptree"}  # the default solve.models
     reachable = load_npz(workspace.root / "robot" / "robot.npz")["reachable"]
     start = int(np.flatnonzero(reachable)[0])
     for name, bounds in summary.items():

@@ -32,6 +32,11 @@ def _write_observe(config, inputs, out: Path) -> None:  # noqa: ANN001
              classifier=_observation_model(1))
 
 
+def _write_vptree(config, inputs, out: Path) -> None:  # noqa: ANN001
+    save_npz(out / "observation_model.npz", classes=np.array(["cup", "mug", "bottle"]),
+             vptree=_observation_model(2))
+
+
 def _write_robot(config, inputs, out: Path) -> None:  # noqa: ANN001
     distance = geodesic_distance_matrix(viewpoints(V, 0.6, hemisphere=True), 0.6)
     reachable = np.ones(V, dtype=bool)
@@ -49,6 +54,7 @@ def workspace(tmp_path: Path) -> Workspace:
     ws = Workspace(tmp_path / "ws")
     cfg = config_from_dict({})
     ws.run(Stage("observe", _write_observe), cfg)
+    ws.run(Stage("vptree", _write_vptree), cfg)
     ws.run(Stage("robot", _write_robot), cfg)
     return ws
 
@@ -58,9 +64,10 @@ def test_solve_stage_writes_one_policy_per_model(workspace: Workspace, tmp_path:
     out = tmp_path / "solve"
     out.mkdir()
     run_solve_stage(cfg, {"observe": workspace.stage_dir("observe"),
+                          "vptree": workspace.stage_dir("vptree"),
                           "robot": workspace.stage_dir("robot")}, out)
     summary = read_json(out / "solve_summary.json")
-    assert set(summary) == {"ra", "classifier"}
+    assert set(summary) == {"ra", "classifier", "vptree"}  # the default solve.models
     for name, bounds in summary.items():
         assert bounds["lower"] <= bounds["upper"] + 1e-9
         # declaring at once costs lambda (C - 1) / C; the policy can only do better
@@ -77,21 +84,38 @@ def test_solve_stage_writes_one_policy_per_model(workspace: Workspace, tmp_path:
 
 
 def test_solve_stage_errors_name_the_model_and_the_mismatch(workspace: Workspace) -> None:
+    observe, robot, vptree = (workspace.stage_dir(n) for n in ("observe", "robot", "vptree"))
     cfg = config_from_dict({"solve": {"models": ["ra", "blackbox"]}})
-    with pytest.raises(StageError, match="solve.models names blackbox; the observe stage made "
-                                         "ra, classifier"):
-        workspace_problem(cfg, workspace.stage_dir("observe"), workspace.stage_dir("robot"), "ra")
-    save_npz(workspace.stage_dir("robot") / "robot.npz", energy=np.zeros((4, 4)),
+    with pytest.raises(StageError, match="solve.models names blackbox; the workspace offers "
+                                         "ra, classifier, vptree$"):
+        workspace_problem(cfg, observe, robot, "ra", vptree)
+    with pytest.raises(StageError, match="names vptree; the workspace offers ra, classifier "
+                                         r"\(the vptree stage makes 'vptree'"):
+        workspace_problem(config_from_dict({}), observe, robot, "ra")
+    everything = config_from_dict({"solve": {"models": None}})
+    assert workspace_problem(everything, observe, robot, "vptree", vptree).class_names == [
+        "cup", "mug", "bottle"]
+    save_npz(vptree / "observation_model.npz", classes=np.array(["cup", "bottle", "mug"]),
+             vptree=_observation_model(2))
+    with pytest.raises(StageError, match=r"observation_model\.npz: the VP-tree's classes "
+                                         r"\['cup', 'bottle', 'mug'\] differ"):
+        workspace_problem(everything, observe, robot, "ra", vptree)
+    save_npz(vptree / "observation_model.npz", classes=np.array(["cup", "mug", "bottle"]),
+             vptree=_observation_model(2)[:4])
+    with pytest.raises(StageError, match="the VP-tree model covers 4 viewpoints, the observe "
+                                         "stage's 10"):
+        workspace_problem(everything, observe, robot, "ra", vptree)
+    save_npz(robot / "robot.npz", energy=np.zeros((4, 4)),
              reachable=np.ones(4, dtype=bool), distance_m=np.zeros((4, 4)))
     with pytest.raises(StageError, match="covers 10 viewpoints, the robot stage 4"):
-        workspace_problem(config_from_dict({}), workspace.stage_dir("observe"),
-                          workspace.stage_dir("robot"), "ra")
+        workspace_problem(everything, observe, robot, "ra")
 
 
 def test_workspace_problem_uses_the_robot_and_solve_section(workspace: Workspace) -> None:
     cfg = config_from_dict({"solve": {"wrong_declaration_cost_m": 4.0}})
     problem = workspace_problem(cfg, workspace.stage_dir("observe"),
-                                workspace.stage_dir("robot"), "classifier")
+                                workspace.stage_dir("robot"), "classifier",
+                                workspace.stage_dir("vptree"))
     assert problem.lambda_ == 4.0
     assert problem.class_names == ["cup", "mug", "bottle"]
     assert UNREACHABLE not in problem.targets
@@ -105,6 +129,9 @@ def test_export_workspace_problem(workspace: Workspace, tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert f"{V} viewpoints x {C} classes" in result.output
     assert out.read_text().lstrip().startswith("<?xml")
+    vptree = CliRunner().invoke(pomdp_app, ["export", "--workspace", str(workspace.root),
+                                            "--model", "vptree", "--out", str(out)])
+    assert vptree.exit_code == 0, vptree.output
     missing = CliRunner().invoke(pomdp_app, ["export", "--workspace", str(tmp_path / "none"),
                                              "--out", str(out)])
     assert missing.exit_code == 2

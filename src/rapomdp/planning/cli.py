@@ -127,7 +127,8 @@ def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
 
     ws = Workspace(root)
     config = load_config(root / "config.yaml") if (root / "config.yaml").exists() else Config()
-    return workspace_problem(config, ws.require("observe"), ws.require("robot"), model)
+    vptree = ws.require("vptree") if "vptree" in ws.manifest()["stages"] else None
+    return workspace_problem(config, ws.require("observe"), ws.require("robot"), model, vptree)
 
 
 @pomdp_app.command("export")

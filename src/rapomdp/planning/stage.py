@@ -1,7 +1,8 @@
 """The ``solve`` stage: one active-recognition policy per observation model of the workspace.
 
 Reads ``W/observe/observation_models.npz`` (``models``: the names; per name an array (V, C, C) =
-P(o | class, viewpoint); ``classes``) and ``W/robot/robot.npz`` (``energy`` (V, V) E_M,
+P(o | class, viewpoint); ``classes``), ``W/vptree/observation_model.npz`` (``vptree`` (V, C, C),
+``classes``: the VP-tree baseline's model) and ``W/robot/robot.npz`` (``energy`` (V, V) E_M,
 ``reachable`` (V,), ``distance_m``). Writes ``policy_<model>.npz`` and ``solve_summary.json``.
 
 Moves to or from an unreachable viewpoint are not actions (the robot stage gives them +inf);
@@ -22,24 +23,48 @@ from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.workspace import StageError
 
 OBSERVATION_FILE = "observation_models.npz"
+VPTREE_FILE = "observation_model.npz"
 ROBOT_FILE = "robot.npz"
 
 
 def workspace_arrays(
-    config: Config, observe_dir: Path, robot_dir: Path
+    config: Config, observe_dir: Path, robot_dir: Path, vptree_dir: Path | None = None
 ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[str]]:
-    """The observation models to solve, E_M (finite), the reachable mask and the class names."""
+    """The observation models to solve, E_M (finite), the reachable mask and the class names.
+
+    The models on offer: the observe stage's, plus ``vptree`` from the vptree stage when
+    ``vptree_dir`` is given (its classes and viewpoints must match the observe stage's).
+    """
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     robot = load_npz(Path(robot_dir) / ROBOT_FILE)
-    available = [str(name) for name in observe["models"]]
+    classes = [str(c) for c in observe["classes"]]
+    offered = {str(name): observe[str(name)] for name in observe["models"]}
+    if vptree_dir is not None:
+        path = Path(vptree_dir) / VPTREE_FILE
+        vptree = load_npz(path)
+        if "vptree" not in vptree or "classes" not in vptree:
+            raise StageError(f"{path}: expected arrays 'vptree' and 'classes'")
+        theirs = [str(c) for c in vptree["classes"]]
+        if theirs != classes:
+            raise StageError(f"{path}: the VP-tree's classes {theirs} differ from the observe "
+                             f"stage's {classes}: run both on the same dataset")
+        first = next(iter(offered.values()), None)
+        if first is not None and vptree["vptree"].shape[0] != first.shape[0]:
+            raise StageError(
+                f"{path}: the VP-tree model covers {vptree['vptree'].shape[0]} viewpoints, the "
+                f"observe stage's {first.shape[0]}: run both with the same viewpoints.count")
+        offered["vptree"] = vptree["vptree"]
+    available = list(offered)
     wanted = config.solve.models if config.solve.models is not None else available
     unknown = [name for name in wanted if name not in available]
     if unknown:
+        hint = (" (the vptree stage makes 'vptree': run `rapomdp vptree`)"
+                if "vptree" in unknown and vptree_dir is None else "")
         raise StageError(
-            f"solve.models names {', '.join(unknown)}; the observe stage made "
-            f"{', '.join(available)}"
+            f"solve.models names {', '.join(unknown)}; the workspace offers "
+            f"{', '.join(available)}{hint}"
         )
-    models = {name: observe[name] for name in wanted}
+    models = {name: offered[name] for name in wanted}
     reachable = robot["reachable"].astype(bool)
     for name, array in models.items():
         if array.shape[0] != reachable.size:
@@ -48,7 +73,7 @@ def workspace_arrays(
                 f"stage {reachable.size}: run both with the same viewpoints.count"
             )
     energy = np.where(np.isfinite(robot["energy"]), robot["energy"], robot["distance_m"])
-    return models, energy, reachable, [str(c) for c in observe["classes"]]
+    return models, energy, reachable, classes
 
 
 def start_viewpoint(reachable: np.ndarray) -> int:
@@ -56,10 +81,11 @@ def start_viewpoint(reachable: np.ndarray) -> int:
     return int(np.flatnonzero(reachable)[0])
 
 
-def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path,
-                      model: str) -> ActiveRecognitionProblem:
+def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path, model: str,
+                      vptree_dir: Path | None = None) -> ActiveRecognitionProblem:
     """One observation model's MOMDP, as the solve stage builds it (for export)."""
-    models, energy, reachable, classes = workspace_arrays(config, observe_dir, robot_dir)
+    models, energy, reachable, classes = workspace_arrays(config, observe_dir, robot_dir,
+                                                          vptree_dir)
     if model not in models:
         raise StageError(f"no observation model '{model}'; available: {', '.join(models)}")
     return build_active_recognition_problem(
@@ -71,7 +97,7 @@ def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path,
 def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
     """Solve the workspace's active-recognition problem once per observation model."""
     models, energy, reachable, classes = workspace_arrays(config, inputs["observe"],
-                                                         inputs["robot"])
+                                                         inputs["robot"], inputs.get("vptree"))
     solve_workspace_problems(
         models, energy, reachable, out,
         lambda_=config.solve.wrong_declaration_cost_m,

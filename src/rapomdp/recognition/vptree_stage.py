@@ -1,0 +1,116 @@
+"""The ``vptree`` pipeline stage: the VP-tree baseline's classifier and observation model.
+
+Fits a :class:`~rapomdp.recognition.vocabulary_tree.VocabularyTreeClassifier` on the train
+models' training-viewsphere renders, classifies every class's volume model(s) at the test
+viewpoints X_rho and counts the per-viewpoint confusion P(o | class, x) with pseudo-counts (the
+same construction as the CNN's "Classifier" model), and records its single-view accuracy on the
+test models at X_rho.
+
+``W/vptree/``: ``vocabulary_tree.npz`` (the classifier), ``observation_model.npz`` with
+``vptree`` (V, C, C) and ``classes``, and ``vptree.json`` (classes, train_images,
+descriptors_fit, leaves, accuracy_test_xrho, accuracy_volume_xrho, seconds).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rapomdp.awareness.observation import ClassifierObservationModel
+from rapomdp.awareness.stage import xrho_renders
+from rapomdp.config import Config, VPTreeConfig
+from rapomdp.data.dataset import Dataset, ModelEntry
+from rapomdp.data.training_views import TrainingViews, load_training_views
+from rapomdp.io import save_npz, write_json_atomic
+from rapomdp.progress import track
+from rapomdp.recognition.vocabulary_tree import DescriptorParams, VocabularyTreeClassifier
+from rapomdp.workspace import StageError
+
+VPTREE_SECTIONS = ("seed", "camera", "render", "viewpoints", "vptree")
+CLASSIFIER_FILE = "vocabulary_tree.npz"
+OBSERVATION_FILE = "observation_model.npz"
+SUMMARY_FILE = "vptree.json"
+MODEL_NAME = "vptree"
+
+
+def descriptor_params(cfg: VPTreeConfig) -> DescriptorParams:
+    return DescriptorParams(cfg.patch_size_m, cfg.patch_samples, cfg.stride_px)
+
+
+def fit_vptree(config: Config, views: TrainingViews) -> VocabularyTreeClassifier:
+    """The VP-tree classifier fitted on the train models' training-viewsphere renders."""
+    dataset = views.dataset
+    train = dataset.with_role("train")
+    if not train:
+        raise StageError(f"{dataset.root}: the dataset has no train models")
+    depth, labels = [], []
+    for model in track(train, "vptree: loading training views"):
+        images, _ = views.load(model)
+        depth.append(images)
+        labels.append(np.full(images.shape[0], dataset.label(model)))
+    images = np.concatenate(depth)
+    del depth  # one copy of the training images in memory, not two
+    cfg = config.vptree
+    return VocabularyTreeClassifier.fit(
+        images, np.concatenate(labels), dataset.classes, views.intrinsics.fx,
+        views.intrinsics.fy, descriptor_params(cfg), config.seed, branching=cfg.branching,
+        levels=cfg.levels, max_fit_descriptors=cfg.max_fit_descriptors, top_k=cfg.top_k)
+
+
+def xrho_predictions(classifier: VocabularyTreeClassifier, dataset: Dataset,
+                     models: list[ModelEntry], config: Config, purpose: str,
+                     description: str) -> tuple[np.ndarray, np.ndarray]:
+    """True labels (M,) and the VP-tree's labels (M, V) of models rendered at X_rho."""
+    labels, predicted = [], []
+    for model in track(models, description):
+        _, sensed, _ = xrho_renders(dataset, model, config, purpose)
+        predicted.append(classifier.predict(sensed).argmax(axis=1))
+        labels.append(dataset.label(model))
+    return np.array(labels, dtype=np.int64), np.stack(predicted)
+
+
+def run_vptree_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """Fit the VP-tree, count its per-viewpoint confusion on the volume models at X_rho."""
+    seconds: dict[str, float] = {}
+    start = time.perf_counter()
+    views = load_training_views(inputs["render"], inputs["dataset"])
+    dataset = views.dataset
+    classifier = fit_vptree(config, views)
+    seconds["fit"] = time.perf_counter() - start
+    step = time.perf_counter()
+    volume_labels, volume_pred = xrho_predictions(
+        classifier, dataset, dataset.with_role("volume"), config, "observe/volume",
+        "vptree: volume models at X_rho")
+    model = ClassifierObservationModel(volume_labels, volume_pred, dataset.classes,
+                                       config.vptree.pseudo_count)
+    seconds["observation_model"] = time.perf_counter() - step
+    step = time.perf_counter()
+    test_models = dataset.with_role("test")
+    test_accuracy = None
+    if test_models:
+        test_labels, test_pred = xrho_predictions(
+            classifier, dataset, test_models, config, "classifier_eval",
+            "vptree: test models at X_rho")
+        test_accuracy = float((test_pred == test_labels[:, None]).mean())
+    seconds["test"] = time.perf_counter() - step
+    classifier.save(out / CLASSIFIER_FILE)
+    save_npz(out / OBSERVATION_FILE, **{MODEL_NAME: model.probabilities},
+             classes=np.array(dataset.classes))
+    seconds["total"] = time.perf_counter() - start
+    write_json_atomic(out / SUMMARY_FILE, {
+        "classes": dataset.classes,
+        "train_images": int(classifier.labels.size),
+        "descriptors_fit": classifier.fit_descriptors,
+        "leaves": classifier.tree.leaves,
+        "accuracy_test_xrho": test_accuracy,
+        "accuracy_volume_xrho": float((volume_pred == volume_labels[:, None]).mean()),
+        "chance": 1.0 / len(dataset.classes),
+        "seconds": seconds,
+    })
+
+
+def load_workspace_vptree(stage_dir: str | Path) -> VocabularyTreeClassifier:
+    """The vptree stage's classifier (``W/vptree/vocabulary_tree.npz``)."""
+    return VocabularyTreeClassifier.load(Path(stage_dir) / CLASSIFIER_FILE)
