@@ -36,10 +36,8 @@ def main() -> None:
     stage.threads = 1
     ws = Workspace(args.workspace)
     config = load_config(ws.root / "config.yaml")
-    inputs = {name: ws.require(name) for name in ("dataset", "train", "observe", "robot",
-                                                    "solve")}
-    if (ws.root / "vptree").exists():
-        inputs["vptree"] = ws.require("vptree")
+    inputs = {name: ws.require(name) for name in ("dataset", "train", "observe", "vptree",
+                                                    "robot", "solve")}
     loop = ClosedLoop.load(config, inputs)
     cnn = loop.recognisers["cnn"]
     pomdp = next(m for k, m in loop.methods.items() if k not in ("static", "random"))

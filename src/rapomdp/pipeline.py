@@ -102,7 +102,7 @@ STAGES: list[Stage] = [
         name="evaluate",
         run=run_evaluate_stage,
         sections=EVALUATE_SECTIONS,
-        inputs=("dataset", "train", "observe", "robot", "solve"),
+        inputs=("dataset", "train", "observe", "vptree", "robot", "solve"),
         description="closed-loop episodes of every method on the test models: Table 1, Fig. 3",
     ),
     Stage(

@@ -15,7 +15,7 @@ from rapomdp.io import read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
 
-METHODS = ["static", "random", "classifier", "ra"]
+METHODS = ["static", "random", "vptree", "classifier", "ra"]
 TINY = {
     "seed": 5,
     "dataset": {"classes": ["cup", "bicycle", "teapot"]},
@@ -26,7 +26,8 @@ TINY = {
               "preprocess": {"input_size_px": 32}},
     "saliency": {"iterations": 5},
     "volume": {"resolution": 12},
-    "solve": {"timeout_s": 2.0, "models": ["ra", "classifier"]},
+    "vptree": {"branching": 4, "levels": 2},
+    "solve": {"timeout_s": 2.0},
     "evaluate": {"methods": METHODS, "starts_per_model": 3, "max_moves": 6},
 }
 
@@ -51,7 +52,8 @@ def workspace(tmp_path_factory):
 
 
 def _inputs(ws: Workspace) -> dict:
-    return {name: ws.require(name) for name in ("dataset", "train", "observe", "robot", "solve")}
+    return {name: ws.require(name) for name in ("dataset", "train", "observe", "vptree", "robot",
+                                              "solve")}
 
 
 def test_table1_has_every_method_and_consistent_episodes(workspace) -> None:
@@ -62,7 +64,7 @@ def test_table1_has_every_method_and_consistent_episodes(workspace) -> None:
     assert table.method.size == 3 * 3 * len(METHODS)  # classes x starts x methods
     lines = (out / "table1.md").read_text().strip().splitlines()
     assert [line.split("|")[1].strip() for line in lines[2:]] == [
-        "Static", "Random", "Classifier", "RA-POMDP"]
+        "Static", "Random", "VP-tree", "Classifier", "RA-POMDP"]
     robot = np.load(ws.require("robot") / "robot.npz")
     for i in range(table.method.size):
         views = table.viewpoints_of(i)
