@@ -160,19 +160,36 @@ def test_random_walk_stop_rules(motion: Motion) -> None:
         RandomWalkPolicy(informative, motion.distance_m, motion.reachable, belief_threshold=0)
 
 
-def test_pomdp_method_acts_as_its_policy_on_its_own_belief(motion: Motion) -> None:
+@pytest.fixture(scope="module")
+def solved() -> tuple[np.ndarray, object]:
+    distance = geodesic_distance_matrix(viewpoints(V, 0.6, hemisphere=True), 0.6)
+    reachable = np.ones(V, dtype=bool)
+    reachable[[5, 6]] = False
     P = _confusion(1)
-    energy = np.where(np.isfinite(motion.energy), motion.energy, motion.distance_m)
-    problem = build_active_recognition_problem(P, energy, motion.reachable, lambda_=3.0)
-    policy = solve_active_recognition(problem, precision=1e-2, timeout=3.0).policy
-    method = POMDPPolicy(policy, P, "RA-POMDP")
-    labels = np.random.default_rng(2).integers(0, C, size=V)
-    episode = run_episode(ViewScene(), TableRecogniser(labels), method, motion, 0, 30,
-                          np.random.default_rng(0))
-    belief = np.full(C, 1 / C)
-    for t, view in enumerate(episode.viewpoints):
-        belief = update_beliefs(P, belief, view, labels[view])
-        assert np.allclose(episode.beliefs[t], belief)
-        assert episode.actions[t] == policy.act(int(view), belief)
+    problem = build_active_recognition_problem(P, distance + 0.1, reachable, lambda_=6.0)
+    return P, solve_active_recognition(problem, precision=1e-2, timeout=3.0).policy
+
+
+@pytest.mark.parametrize("revisit", [True, False])
+def test_pomdp_method_acts_as_its_policy_on_its_own_belief(motion: Motion, solved,
+                                                           revisit: bool) -> None:
+    P, policy = solved
+    method = POMDPPolicy(policy, P, "RA-POMDP", revisit=revisit)
+    revisits = 0
+    for seed in range(6):
+        labels = np.random.default_rng(seed).integers(0, C, size=V)
+        episode = run_episode(ViewScene(), TableRecogniser(labels), method, motion, 0, 30,
+                              np.random.default_rng(0))
+        belief = np.full(C, 1 / C)
+        visited = np.zeros(V, dtype=bool)
+        for t, view in enumerate(episode.viewpoints):
+            belief = update_beliefs(P, belief, view, labels[view])
+            visited[view] = True
+            assert np.allclose(episode.beliefs[t], belief)
+            expected = policy.act(int(view), belief, None if revisit else visited)
+            assert episode.actions[t] == expected
+        revisits += episode.viewpoints.size - np.unique(episode.viewpoints).size
+    if not revisit:
+        assert revisits == 0
     with pytest.raises(ValueError, match="observation model"):
         POMDPPolicy(policy, P[:5], "bad")

@@ -40,6 +40,9 @@ class EvaluateConfig(Section):
         5, ge=1, description="start viewpoints per test model, drawn (seeded) among reachable")
     max_moves: int = Field(
         30, ge=0, description="step budget: after this many moves a method must declare")
+    revisit: bool = Field(
+        False, description="let the POMDP methods move back to a viewpoint they have seen "
+        "(the noiseless sensor would show the same image, counted as new evidence)")
     random: RandomWalkConfig = RandomWalkConfig()
     figure_class: str = Field("bicycle", description="the class of Fig. 3 and the trajectories "
                               "(the first class when the dataset has no such class)")

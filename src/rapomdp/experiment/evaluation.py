@@ -115,7 +115,7 @@ class ClosedLoop:
                     raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
                                      f"add '{key}' to solve.models")
                 methods[key] = POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
-                                           METHOD_NAMES[key], recogniser)
+                                           METHOD_NAMES[key], recogniser, cfg.revisit)
         recognisers: dict[str, Recogniser] = {}
         if any(m.recogniser == "cnn" for m in methods.values()):
             recognisers["cnn"] = load_stage_classifier(config, inputs["train"], dataset.classes)

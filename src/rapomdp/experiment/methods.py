@@ -109,23 +109,32 @@ class RandomWalkPolicy:
 
 
 class POMDPPolicy:
-    """A solved active-recognition policy acting on the belief of its own observation model."""
+    """A solved active-recognition policy acting on the belief of its own observation model.
+
+    With ``revisit`` False (the default) it never moves back to a viewpoint it has seen: the
+    POMDP treats images from one viewpoint as independent draws, but a noiseless sensor sees
+    the same image again, which would count one piece of evidence twice. It then follows the
+    best plan whose first move goes somewhere new (or declares).
+    """
 
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
-                 name: str, recogniser: str = "cnn") -> None:
+                 name: str, recogniser: str = "cnn", revisit: bool = False) -> None:
         if observation_model.shape[0] != policy.n_viewpoints or \
                 observation_model.shape[1] != policy.n_classes:
             raise ValueError(
                 f"{name}: the policy covers {policy.n_viewpoints} viewpoints and "
                 f"{policy.n_classes} classes, the observation model {observation_model.shape}")
-        self.name, self.recogniser = name, recogniser
+        self.name, self.recogniser, self.revisit = name, recogniser, revisit
         self.policy = policy
         self._bayes = BayesBelief(observation_model)
+        self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
     def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
         self._bayes.reset()
+        self._visited[:] = False
 
     def observe(self, viewpoint: int, output: np.ndarray) -> None:
+        self._visited[viewpoint] = True
         self._bayes.update(viewpoint, output)
 
     @property
@@ -133,4 +142,5 @@ class POMDPPolicy:
         return self._bayes.belief
 
     def act(self, viewpoint: int) -> ARAction:
-        return self.policy.act(viewpoint, self._bayes.belief)
+        return self.policy.act(viewpoint, self._bayes.belief,
+                               None if self.revisit else self._visited)

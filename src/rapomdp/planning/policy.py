@@ -125,13 +125,19 @@ class ActiveRecognitionPolicy:
             best = max(best, float(self._moves(viewpoint, b).max()))
         return best
 
-    def act(self, viewpoint: int, belief: np.ndarray) -> ARAction:
-        """The action of the best plan at (viewpoint, belief); ties go to declaring."""
+    def act(self, viewpoint: int, belief: np.ndarray,
+            forbidden: np.ndarray | None = None) -> ARAction:
+        """The action of the best plan at (viewpoint, belief); ties go to declaring.
+
+        ``forbidden`` (V,) bool removes plans that start by moving to those viewpoints (e.g.
+        ones already visited, when the sensor would only see the same image again)."""
         b = np.asarray(belief, dtype=np.float64)
         dv = declare_values(b, self.lambda_)
         k = int(np.argmax(dv))
         if len(self.targets):
             moves = self._moves(viewpoint, b)
+            if forbidden is not None:
+                moves = np.where(np.asarray(forbidden, dtype=bool)[self.targets], -np.inf, moves)
             m = int(np.argmax(moves))
             if moves[m] > dv[k] + 1e-12:
                 return ARAction("move", int(self.targets[m]))
