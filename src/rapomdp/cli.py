@@ -245,6 +245,8 @@ def vptree(workspace: WorkspaceOption, config: ConfigOption = None,
                       f"{data['chance']:.1%})", highlight=False)
 
 
+FIG2_TARGET = "bicycle"
+FIG2_AGAINST = ("teapot", "eyeglasses", "motorbike")
 figure_app = typer.Typer(help="Figures of recognition self-awareness (paper Figs. 1 and 2).")
 app.add_typer(figure_app, name="figure")
 
@@ -276,9 +278,9 @@ def figure_fig1(
 def figure_fig2(
     workspace: WorkspaceOption,
     config: ConfigOption = None,
-    target: Annotated[str, typer.Option(help="The class whose volume is shown.")] = "bicycle",
+    target: Annotated[str, typer.Option(help="The class whose volume is shown.")] = FIG2_TARGET,
     against: Annotated[str, typer.Option(help="Comma-separated opponents, one two-class "
-                                               "problem each.")] = "teapot,eyeglasses,motorbike",
+                                               "problem each.")] = ",".join(FIG2_AGAINST),
     epochs: Annotated[int | None, typer.Option(help="Training epochs of the two-class "
                                                     "classifiers (default: the config's).")]
     = None,
@@ -371,13 +373,26 @@ def _set_workers(workers: int | None) -> None:
 
 @app.command()
 def report(workspace: WorkspaceOption, config: ConfigOption = None,
-           threads: ThreadsOption = None) -> None:
+           threads: ThreadsOption = None,
+           fig2: Annotated[bool, typer.Option(
+               "--fig2", help="Make Fig. 2 first, as `rapomdp figure fig2` with its defaults "
+                              "(trains three two-class classifiers: minutes).")] = False,
+           workers: WorkersOption = None) -> None:
     """Write W/report/report.html and report.md (and their figures) from the stages' results.
 
     The report is always rebuilt (it is cheap): it also shows optional artefacts that are not
-    among its inputs (Fig. 2 from `rapomdp figure fig2`, the VP-tree baseline).
+    among its inputs (Fig. 2 from `rapomdp figure fig2` or --fig2).
     """
     _set_threads(threads)
+    _set_workers(workers)
+    if fig2:
+        def make_fig2() -> tuple[Path, Path]:
+            from rapomdp.awareness.report import write_fig2
+
+            return write_fig2(load_config(config), Workspace(workspace), FIG2_TARGET,
+                              list(FIG2_AGAINST), None, on_result=_report)
+
+        _guard(make_fig2)
     _run(config, workspace, "report", ["report"])
     folder = Path(workspace) / "report"
     for name in ("report.html", "report.md"):
