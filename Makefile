@@ -23,6 +23,7 @@ install: $(STAMP)
 
 # Every stage on the embedded dataset, then Table 1; the report is W/report/report.html.
 demo: $(STAMP)
+	$(VENV)/bin/rapomdp dataset --workspace $(DEMO_WORKSPACE)
 	$(VENV)/bin/rapomdp dataset preview --workspace $(DEMO_WORKSPACE) --out $(DEMO_WORKSPACE)/contact_sheet.png
 	$(VENV)/bin/rapomdp run --workspace $(DEMO_WORKSPACE)
 
