@@ -37,6 +37,19 @@ def tiny_config(**overrides: object) -> Config:
     return config_from_dict(data)
 
 
+#: The smallest settings under which every stage, from rendering to the closed loop, still
+#: produces meaningful artefacts (a few seconds per stage).
+TINY_PIPELINE: dict = {
+    "camera": {"width": 64, "height": 48},
+    "render": {"views": 12},
+    "train": {"width": 0.125, "epochs": 2, "batch_size": 16,
+              "preprocess": {"input_size_px": 32}},
+    "saliency": {"iterations": 5},
+    "volume": {"resolution": 12},
+    "vptree": {"branching": 4, "levels": 2},
+}
+
+
 @pytest.fixture
 def config() -> Config:
     return tiny_config()

@@ -15,18 +15,10 @@ from rapomdp.config import config_from_dict
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
+from tests.conftest import TINY_PIPELINE
 
-TINY = {
-    "dataset": {"classes": ["bicycle", "teapot"]},
-    "camera": {"width": 64, "height": 48},
-    "render": {"views": 12},
-    "viewpoints": {"count": 10},
-    "train": {"width": 0.125, "epochs": 2, "batch_size": 16,
-              "preprocess": {"input_size_px": 32}},
-    "saliency": {"iterations": 5},
-    "volume": {"resolution": 12},
-    "vptree": {"branching": 4, "levels": 2},
-}
+TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"]},
+        "viewpoints": {"count": 10}}
 
 
 @pytest.fixture(scope="module")

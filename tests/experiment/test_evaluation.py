@@ -14,19 +14,14 @@ from rapomdp.experiment.evaluation import ClosedLoop, EpisodeTable, start_viewpo
 from rapomdp.io import read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
+from tests.conftest import TINY_PIPELINE
 
 METHODS = ["static", "random", "vptree", "classifier", "ra"]
 TINY = {
+    **TINY_PIPELINE,
     "seed": 5,
     "dataset": {"classes": ["cup", "bicycle", "teapot"]},
-    "camera": {"width": 64, "height": 48},
-    "render": {"views": 12},
     "viewpoints": {"count": 16},
-    "train": {"width": 0.125, "epochs": 2, "batch_size": 16,
-              "preprocess": {"input_size_px": 32}},
-    "saliency": {"iterations": 5},
-    "volume": {"resolution": 12},
-    "vptree": {"branching": 4, "levels": 2},
     "solve": {"timeout_s": 2.0},
     "evaluate": {"methods": METHODS, "starts_per_model": 3, "max_moves": 6},
 }

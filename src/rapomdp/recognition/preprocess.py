@@ -56,7 +56,8 @@ class Preprocessed:
     reference_depth_m: np.ndarray
 
 
-def _as_batch(depth_m: np.ndarray) -> np.ndarray:
+def as_depth_batch(depth_m: np.ndarray) -> np.ndarray:
+    """Depth images as a float32 batch (n, H, W); one image (H, W) becomes a batch of one."""
     depth = np.asarray(depth_m, dtype=np.float32)
     if depth.ndim == 2:
         depth = depth[None]
@@ -78,7 +79,7 @@ def crop_boxes(
     ``shift`` (n, 2) moves a box by that fraction of its size; ``scale`` (n,) multiplies its
     size (augmentation). An image without object pixels gets the whole image as its box.
     """
-    depth = _as_batch(depth_m)
+    depth = as_depth_batch(depth_m)
     n, h, w = depth.shape
     valid = depth > 0
     rows, cols = valid.any(axis=2), valid.any(axis=1)
@@ -147,7 +148,7 @@ def preprocess(
     ``fx_px``, ``fy_px`` are the camera's focal lengths at the images' resolution; ``shift`` and
     ``scale`` are the training augmentation (see :func:`crop_boxes`).
     """
-    depth = _as_batch(depth_m)
+    depth = as_depth_batch(depth_m)
     n, h, w = depth.shape
     boxes, reference = crop_boxes(depth, fx_px, fy_px, params, shift, scale)
     ref = torch.from_numpy(np.where(np.isnan(reference), 0.0, reference).astype(np.float32))

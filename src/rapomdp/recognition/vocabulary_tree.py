@@ -34,6 +34,7 @@ import scipy.sparse as sp
 from sklearn.cluster import KMeans
 
 from rapomdp.io import ArtefactError, load_npz, save_npz
+from rapomdp.recognition.preprocess import as_depth_batch
 
 TREE_FORMAT = "rapomdp-vocabulary-tree/1"
 CLASSIFIER_FORMAT = "rapomdp-vptree-classifier/1"
@@ -61,15 +62,6 @@ class DescriptorParams:
         return asdict(self)
 
 
-def _as_batch(depth_m: np.ndarray) -> np.ndarray:
-    depth = np.asarray(depth_m, dtype=np.float32)
-    if depth.ndim == 2:
-        depth = depth[None]
-    if depth.ndim != 3:
-        raise ValueError(f"depth images must be (n, H, W) or (H, W), got shape {depth.shape}")
-    return depth
-
-
 def depth_descriptors(
     depth_m: np.ndarray, fx_px: float, fy_px: float, params: DescriptorParams
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -79,7 +71,7 @@ def depth_descriptors(
     image each came from. Keypoints: every ``stride_px``-th pixel (both axes) that is on the
     object. The centre sample (always 0) is left out. An empty image contributes nothing.
     """
-    depth = _as_batch(depth_m)
+    depth = as_depth_batch(depth_m)
     n, h, w = depth.shape
     half = (params.samples - 1) / 2
     grid = (np.arange(params.samples) - half) / half * (params.patch_size_m / 2)  # metres
@@ -273,7 +265,7 @@ class VocabularyTreeClassifier:
             top_k: int = 1) -> VocabularyTreeClassifier:
         """Fit the tree on a random subsample of at most ``max_fit_descriptors`` descriptors
         (k-means time grows with it, the vocabulary hardly improves), then index every image."""
-        depth = _as_batch(depth_images)
+        depth = as_depth_batch(depth_images)
         labels = np.asarray(labels, dtype=np.int64)
         if labels.shape != (depth.shape[0],):
             raise ValueError(f"{depth.shape[0]} images but labels of shape {labels.shape}")
@@ -298,7 +290,7 @@ class VocabularyTreeClassifier:
 
     def histograms(self, depth_images: np.ndarray) -> np.ndarray:
         """TF-IDF leaf histograms (n, leaves) of depth images, L2-normalised, dense."""
-        depth = _as_batch(depth_images)
+        depth = as_depth_batch(depth_images)
         descriptors, image = depth_descriptors(depth, self.fx_px, self.fy_px, self.params)
         leaves = self.tree.leaves
         counts = np.bincount(image * leaves + self.tree.quantise(descriptors),
@@ -314,7 +306,7 @@ class VocabularyTreeClassifier:
         and normalised (``top_k = 1``: one-hot on the best match's class). An image without
         object pixels, or matching nothing, gets the uniform row.
         """
-        depth = _as_batch(depth_images)
+        depth = as_depth_batch(depth_images)
         c = len(self.classes)
         out = np.full((depth.shape[0], c), 1.0 / c, dtype=np.float32)
         k = min(self.top_k, self.labels.size)
