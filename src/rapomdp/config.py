@@ -207,7 +207,12 @@ class SolveConfig(Section):
         2.0, gt=0, description="lambda (Eq. 1): a wrong declaration's cost, in metres of E_M")
     discount: float = Field(0.95, gt=0, lt=1)
     precision: float = Field(1e-3, gt=0, description="stop when upper - lower is below this")
-    timeout_s: float = Field(20.0, gt=0, description="CPU seconds per observation model")
+    iterations: int | None = Field(
+        25, ge=1, description="solver iterations per observation model: the budget that makes "
+        "a run reproducible (None: until precision or timeout_s)")
+    timeout_s: float = Field(
+        120.0, gt=0, description="CPU seconds per observation model at most; a solve stopped "
+        "by it depends on the machine's speed (solve_summary.json: timed_out)")
     models: list[str] | None = Field(
         ["ra", "classifier", "vptree"],
         description="observation models to solve (the closed-loop evaluation's three); others: "

@@ -163,3 +163,27 @@ def test_solve_workspace_problems_writes_one_policy_per_model(tmp_path):
     assert summary["ra"]["lower"] >= -5.0
     policy = ActiveRecognitionPolicy.load(paths["classifier"])
     assert policy.act(0, np.array([0.5, 0.5])).kind == "declare"
+
+
+def test_an_iteration_budget_makes_solves_reproducible_in_any_process(tmp_path):
+    from rapomdp.planning.momdp import benchmark_problem
+
+    problem = benchmark_problem(24, 6, seed=4)
+    models = {"a": problem.observation_model, "b": problem.observation_model[::-1].copy()}
+    runs = []
+    for name, workers in (("one", 1), ("again", 1), ("two", 2)):
+        out = tmp_path / name
+        out.mkdir()
+        solve_workspace_problems(models, problem.move_energy, None, out, timeout=60,
+                                 max_iterations=6, workers=workers)
+        runs.append(out)
+    summary = json.loads((runs[0] / "solve_summary.json").read_text())
+    assert {row["iterations"] for row in summary.values()} == {6}
+    assert not any(row["timed_out"] for row in summary.values())
+    for name in models:
+        first = ActiveRecognitionPolicy.load(runs[0] / f"policy_{name}.npz")
+        for other in runs[1:]:
+            again = ActiveRecognitionPolicy.load(other / f"policy_{name}.npz")
+            assert np.array_equal(first.betas, again.betas)
+            assert np.array_equal(first.targets, again.targets)
+            assert np.array_equal(first.upper_values, again.upper_values)

@@ -18,6 +18,7 @@ import numpy as np
 
 from rapomdp.config import Config
 from rapomdp.io import load_npz
+from rapomdp.parallel import worker_count
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.workspace import StageError
@@ -105,6 +106,8 @@ def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
         start_viewpoint=start_viewpoint(reachable),
         precision=config.solve.precision,
         timeout=config.solve.timeout_s,
+        max_iterations=config.solve.iterations,
+        workers=worker_count(),
         allow_stay=False,
         class_names=classes,
     )

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.io import write_text_atomic
+from rapomdp.parallel import run_tasks
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.sarsop import ProgressCallback
@@ -37,6 +38,32 @@ def load_problem_arrays(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     return arrays
 
 
+def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | None,
+               out: Path, name: str, lambda_: float, discount: float, start_viewpoint: int,
+               precision: float, timeout: float, max_iterations: int | None, allow_stay: bool,
+               class_names: list[str] | None,
+               callback: ProgressCallback | None = None) -> dict[str, float | int | bool]:
+    """Solve one observation model's MOMDP and write its policy; returns its summary row."""
+    problem: ActiveRecognitionProblem = build_active_recognition_problem(
+        P, move_energy, reachable, lambda_, discount, start_viewpoint,
+        allow_stay=allow_stay, class_names=class_names,
+    )
+    result = solve_active_recognition(problem, precision, timeout, callback,
+                                      max_iterations=max_iterations)
+    result.policy.save(out / f"policy_{name}.npz")  # type: ignore[attr-defined]
+    return {
+        "lower": result.lower,
+        "upper": result.upper,
+        "seconds": result.elapsed,
+        "iterations": result.iterations,
+        "converged": result.converged,
+        # the CPU-time limit, not the iteration count, stopped it: not reproducible
+        "timed_out": bool(not result.converged and (max_iterations is None
+                                                    or result.iterations < max_iterations)),
+        "vectors": int(len(result.policy.targets)),  # type: ignore[attr-defined]
+    }
+
+
 def solve_workspace_problems(
     observation_models: Mapping[str, np.ndarray],
     move_energy: np.ndarray,
@@ -50,29 +77,26 @@ def solve_workspace_problems(
     allow_stay: bool = False,
     class_names: list[str] | None = None,
     callback: ProgressCallback | None = None,
+    max_iterations: int | None = None,
+    workers: int = 1,
 ) -> dict[str, Path]:
     """Solve one active-recognition MOMDP per observation model; returns name → policy path.
 
-    Writes ``out_dir/policy_<name>.npz`` (atomically) and ``out_dir/solve_summary.json`` with
-    the bounds reached, the time and the policy size of each.
+    Each solve stops at ``precision``, after ``max_iterations`` iterations (reproducible) or
+    after ``timeout`` CPU seconds (not), whichever comes first; models are solved over
+    ``workers`` processes. Writes ``out_dir/policy_<name>.npz`` (atomically) and
+    ``out_dir/solve_summary.json`` with the bounds reached, the time and the policy size.
     """
     out = Path(out_dir)
-    paths: dict[str, Path] = {}
-    summary: dict[str, dict[str, float | int | bool]] = {}
-    for name, P in observation_models.items():
-        problem: ActiveRecognitionProblem = build_active_recognition_problem(
-            P, move_energy, reachable, lambda_, discount, start_viewpoint,
-            allow_stay=allow_stay, class_names=class_names,
-        )
-        result = solve_active_recognition(problem, precision, timeout, callback)
-        paths[name] = result.policy.save(out / f"policy_{name}.npz")  # type: ignore[attr-defined]
-        summary[name] = {
-            "lower": result.lower,
-            "upper": result.upper,
-            "seconds": result.elapsed,
-            "iterations": result.iterations,
-            "converged": result.converged,
-            "vectors": int(len(result.policy.targets)),  # type: ignore[attr-defined]
-        }
+    names = list(observation_models)
+    common = (lambda_, discount, start_viewpoint, precision, timeout, max_iterations, allow_stay,
+              class_names)
+    if workers > 1 and callback is None:
+        rows = run_tasks(_solve_one, [(observation_models[n], move_energy, reachable, out, n,
+                                       *common) for n in names], workers, "solve: models")
+    else:
+        rows = [_solve_one(observation_models[n], move_energy, reachable, out, n, *common,
+                           callback) for n in names]
+    summary = dict(zip(names, rows, strict=True))
     write_text_atomic(out / "solve_summary.json", json.dumps(summary, indent=2) + "\n")
-    return paths
+    return {name: out / f"policy_{name}.npz" for name in names}
