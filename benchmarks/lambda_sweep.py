@@ -62,7 +62,9 @@ def main() -> None:
                         help="wrong-declaration costs λ (m of movement energy)")
     parser.add_argument("--models", nargs="+", default=["ra", "classifier"],
                         help="observation models of the workspace to solve")
-    parser.add_argument("--timeout", type=float, default=10.0, help="CPU seconds per solve")
+    parser.add_argument("--iterations", type=int, default=None,
+                        help="solver iterations per model (default: solve.iterations of the "
+                        "workspace's config)")
     parser.add_argument("--starts", type=int, default=None,
                         help="start viewpoints per test model (default: evaluate.starts_per_"
                         "model of the workspace's config)")
@@ -100,9 +102,11 @@ def main() -> None:
     loop = ClosedLoop.load(config, inputs)
     tests = loop.dataset.with_role("test")
     discount, precision = config.solve.discount, config.solve.precision
+    iterations = args.iterations or config.solve.iterations
     out(f"test models: {len(tests)}, starts per model: {config.evaluate.starts_per_model}, "
         f"step budget: {config.evaluate.max_moves}, discount: {discount}, precision: "
-        f"{precision}, solve timeout: {args.timeout:g} CPU s, start viewpoint: {v0}, "
+        f"{precision}, solver iterations: {iterations}, revisits: {config.evaluate.revisit}, "
+        f"start viewpoint: {v0}, "
         f"config λ: {config.solve.wrong_declaration_cost_m:g} m")
     out()
 
@@ -115,9 +119,11 @@ def main() -> None:
             problem = build_active_recognition_problem(
                 observe[key], energy, reachable, lam, discount, v0, allow_stay=False,
                 class_names=classes)
-            result = solve_active_recognition(problem, precision, args.timeout)
+            result = solve_active_recognition(problem, precision, config.solve.timeout_s,
+                                              max_iterations=iterations)
             methods[key] = POMDPPolicy(result.policy, observe[key],  # type: ignore[arg-type]
-                                       METHOD_NAMES.get(key, key))
+                                       METHOD_NAMES.get(key, key),
+                                       revisit=config.evaluate.revisit)
             bounds[key] = (f"bounds [{result.lower:.4f}, {result.upper:.4f}] "
                            f"({result.elapsed:.1f} s, {result.iterations} it, "
                            f"{'converged' if result.converged else 'not converged'})")
