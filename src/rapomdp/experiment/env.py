@@ -24,10 +24,7 @@ from gymnasium import spaces
 
 from rapomdp.config import load_config
 from rapomdp.data.dataset import load_dataset
-from rapomdp.data.renderer import DepthRenderer
-from rapomdp.data.training_views import model_poses
 from rapomdp.experiment.episode import Motion, Scene
-from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.robot.stage import load_robot
 from rapomdp.workspace import StageError, Workspace
 
@@ -130,12 +127,9 @@ class ActiveRecognitionEnv(gymnasium.Env):
             raise StageError(f"{ws.require('robot')}: robot.npz covers "
                              f"{robot['reachable'].size} viewpoints, {config_path} "
                              f"viewpoints.count is {vp.count}")
-        intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
         models = dataset.with_role("test")
-        scenes = [Scene(DepthRenderer(dataset.mesh(m), intrinsics),
-                        model_poses(m, vp.count, vp.radius_m, hemisphere=True),
-                        config.render.noise) for m in models]
-        motion = Motion(robot["energy"], robot["distance_m"], robot["reachable"].astype(bool))
+        scenes = [Scene.of_model(config, dataset, m) for m in models]
+        motion = Motion.from_robot(robot)
         return cls(scenes, [dataset.label(m) for m in models], dataset.classes, motion,
                    config.solve.wrong_declaration_cost_m, max_moves=max_moves, seed=seed)
 

@@ -14,9 +14,11 @@ from typing import Protocol
 
 import numpy as np
 
-from rapomdp.config import NoiseConfig
+from rapomdp.config import Config, NoiseConfig
+from rapomdp.data.dataset import Dataset, ModelEntry
 from rapomdp.data.renderer import DepthRenderer
-from rapomdp.data.training_views import render_depth
+from rapomdp.data.training_views import model_poses, render_depth
+from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.planning.policy import ARAction
 
 
@@ -54,6 +56,11 @@ class Motion:
     distance_m: np.ndarray
     reachable: np.ndarray
 
+    @classmethod
+    def from_robot(cls, robot: dict[str, np.ndarray]) -> Motion:
+        """From the robot stage's arrays (``rapomdp.robot.stage.load_robot``)."""
+        return cls(robot["energy"], robot["distance_m"], robot["reachable"].astype(bool))
+
     @property
     def viewpoints(self) -> int:
         return int(self.reachable.size)
@@ -74,6 +81,16 @@ class Scene:
     renderer: DepthRenderer
     poses: np.ndarray
     noise: NoiseConfig
+
+    @classmethod
+    def of_model(cls, config: Config, dataset: Dataset, model: ModelEntry) -> Scene:
+        """A dataset model seen from X_rho (``config.viewpoints``) by the configured camera,
+        with the configured sensor noise (``config.render.noise``)."""
+        intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
+        vp = config.viewpoints
+        return cls(DepthRenderer(dataset.mesh(model), intrinsics),
+                   model_poses(model, vp.count, vp.radius_m, hemisphere=True),
+                   config.render.noise)
 
     def look(self, viewpoint: int, rng: np.random.Generator) -> np.ndarray:
         """The sensor's depth image (H, W) in metres from ``viewpoint``."""

@@ -26,9 +26,7 @@ import numpy as np
 
 from rapomdp.config import Config
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
-from rapomdp.data.renderer import DepthRenderer
 from rapomdp.data.splits import class_seed
-from rapomdp.data.training_views import model_poses
 from rapomdp.experiment.config import METHOD_NAMES
 from rapomdp.experiment.episode import (
     Episode,
@@ -40,7 +38,6 @@ from rapomdp.experiment.episode import (
     score,
 )
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
-from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.io import load_npz
 from rapomdp.parallel import run_tasks, worker_count
 from rapomdp.planning.policy import ActiveRecognitionPolicy
@@ -92,7 +89,7 @@ class ClosedLoop:
     def load(cls, config: Config, inputs: dict[str, Path]) -> ClosedLoop:
         dataset = load_dataset(inputs["dataset"])
         robot = load_robot(inputs["robot"])
-        motion = Motion(robot["energy"], robot["distance_m"], robot["reachable"].astype(bool))
+        motion = Motion.from_robot(robot)
         observation = _observation_models(inputs)
         cfg = config.evaluate
         methods: dict[str, Policy] = {}
@@ -126,12 +123,7 @@ class ClosedLoop:
         return cls(config, dataset, recognisers, methods, motion)
 
     def scene(self, model: ModelEntry) -> Scene:
-        cfg = self.config
-        intrinsics = xtion_intrinsics(cfg.camera.width, cfg.camera.height)
-        poses = model_poses(model, cfg.viewpoints.count, cfg.viewpoints.radius_m,
-                            hemisphere=True)
-        return Scene(DepthRenderer(self.dataset.mesh(model), intrinsics), poses,
-                     cfg.render.noise)
+        return Scene.of_model(self.config, self.dataset, model)
 
     def run_model(self, model: ModelEntry) -> list[EpisodeRecord]:
         """Every start x method episode of one test model."""
