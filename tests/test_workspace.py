@@ -85,7 +85,8 @@ def test_missing_inputs_are_named(workspace_dir: Path) -> None:
     stage = Stage("render", lambda c, i, o: None, inputs=("dataset",))
     with pytest.raises(StageError, match="needs stage 'dataset', which has not run"):
         ws.run(stage, Config())
-    with pytest.raises(StageError, match="stage 'dataset' has not been run here"):
+    with pytest.raises(StageError, match="stage 'dataset' has not been run here; run `rapomdp "
+                                         "run --workspace .* --until dataset` first"):
         ws.require("dataset")
 
 

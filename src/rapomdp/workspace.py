@@ -92,7 +92,7 @@ class Workspace:
         if record is None or not path.is_dir():
             raise StageError(
                 f"{self.root}: stage '{name}' has not been run here; "
-                f"run `rapomdp {name} --workspace {self.root}` first"
+                f"run `rapomdp run --workspace {self.root} --until {name}` first"
             )
         return path
 
