@@ -57,3 +57,22 @@ def test_robot_command_reports_reachability(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert "/16 viewpoints reachable" in result.output
     assert (tmp_path / "ws" / "robot" / "robot.npz").exists()
+
+
+def test_console_script_exits_with_the_commands_status_and_no_teardown_noise(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    config = tmp_path / "tiny.yaml"
+    config.write_text(tiny_config().to_yaml())
+    run = [sys.executable, "-m", "rapomdp.cli", "robot", "-w", str(tmp_path / "ws"),
+           "-c", str(config)]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(run, capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "leaked" not in done.stderr and "viewpoints reachable" in done.stderr
+    assert (tmp_path / "ws" / "robot" / "robot.npz").exists()
+    bad = subprocess.run(run[:-1] + [str(tmp_path / "missing.yaml")], capture_output=True,
+                         text=True, env=env, timeout=300)
+    assert bad.returncode == 2 and "missing.yaml: cannot read" in bad.stderr

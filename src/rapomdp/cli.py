@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -424,7 +425,27 @@ def status(workspace: WorkspaceOption) -> None:
 
 
 def main() -> None:
-    app()
+    """The console script: the app, then a quiet exit.
+
+    roboticstoolbox's nanobind extension (spatialgeometry) reports the scene objects still alive
+    at interpreter shutdown as dozens of "leaked instance" lines once PyTorch is loaded too:
+    harmless, but they would bury Table 1. After a command that loaded it, everything is
+    written (atomically) and flushed, so the process ends without the interpreter's teardown.
+    """
+    try:
+        app()
+        code = 0
+    except SystemExit as exc:
+        if exc.code is None or isinstance(exc.code, int):
+            code = exc.code or 0
+        else:
+            sys.stderr.write(f"{exc.code}\n")
+            code = 1
+    if "roboticstoolbox" in sys.modules:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
 
 
 if __name__ == "__main__":
