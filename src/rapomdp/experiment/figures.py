@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -16,8 +17,11 @@ from rapomdp.experiment.config import METHOD_NAMES  # noqa: E402
 from rapomdp.geometry.viewsphere import azimuth_zenith  # noqa: E402
 from rapomdp.recognition.figures import save_png  # noqa: E402
 
+if TYPE_CHECKING:
+    from rapomdp.experiment.evaluation import EpisodeTable
 
-def belief_curves(table, methods: Sequence[str], class_index: int | None  # noqa: ANN001
+
+def belief_curves(table: EpisodeTable, methods: Sequence[str], class_index: int | None
                   ) -> dict[str, np.ndarray]:
     """Mean belief in the true class after each image (index 0: the start view), per method.
 
@@ -39,7 +43,7 @@ def belief_curves(table, methods: Sequence[str], class_index: int | None  # noqa
     return curves
 
 
-def fig3(table, methods: Sequence[str], class_name: str, path: Path) -> Path:  # noqa: ANN001
+def fig3(table: EpisodeTable, methods: Sequence[str], class_name: str, path: Path) -> Path:
     """Fig. 3: belief in the true class against step for ``class_name`` and over all classes."""
     c = table.classes.index(class_name)
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
@@ -57,7 +61,7 @@ def fig3(table, methods: Sequence[str], class_name: str, path: Path) -> Path:  #
     return save_png(fig, path)
 
 
-def trajectories(table, methods: Sequence[str], class_name: str,  # noqa: ANN001
+def trajectories(table: EpisodeTable, methods: Sequence[str], class_name: str,
                  directions: np.ndarray, reachable: np.ndarray, path: Path) -> Path:
     """Each method's episodes on ``class_name`` drawn on the hemisphere, seen from above:
     start (circle), moves (line), last view (green if the declaration was right, red if not)."""

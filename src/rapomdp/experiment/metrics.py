@@ -13,11 +13,15 @@ import csv
 import io
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
 
 from rapomdp.experiment.config import METHOD_NAMES
+
+if TYPE_CHECKING:
+    from rapomdp.experiment.evaluation import EpisodeTable
 
 Z95 = float(stats.norm.ppf(0.975))
 QUANTITIES = ("belief", "moves", "distance_m", "energy")
@@ -77,7 +81,7 @@ def summarise(correct: np.ndarray, belief: np.ndarray, moves: np.ndarray,
                          {k: v[1] for k, v in stats_.items()}, int(np.sum(exhausted)))
 
 
-def table1(table, methods: Sequence[str]) -> list[MethodSummary]:  # noqa: ANN001 - EpisodeTable
+def table1(table: EpisodeTable, methods: Sequence[str]) -> list[MethodSummary]:
     """Table 1: one row per method over every episode."""
     rows = []
     for key in methods:
@@ -88,7 +92,7 @@ def table1(table, methods: Sequence[str]) -> list[MethodSummary]:  # noqa: ANN00
     return rows
 
 
-def per_class(table, methods: Sequence[str]) -> list[tuple[str, MethodSummary]]:  # noqa: ANN001
+def per_class(table: EpisodeTable, methods: Sequence[str]) -> list[tuple[str, MethodSummary]]:
     """(class name, row) for every class and method."""
     out = []
     for c, name in enumerate(table.classes):
