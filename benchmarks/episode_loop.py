@@ -18,8 +18,7 @@ import numpy as np
 import torch
 
 from rapomdp.config import load_config
-from rapomdp.experiment.episode import run_episode
-from rapomdp.experiment.evaluation import ClosedLoop, episode_rng, start_viewpoints
+from rapomdp.experiment.evaluation import ClosedLoop
 from rapomdp.parallel import default_workers
 from rapomdp.recognition import stage
 from rapomdp.workspace import Workspace
@@ -72,18 +71,9 @@ def main() -> None:
         lines.append(f"  {name:<20} {1e3 * seconds / n:7.2f} ms")
     step = sum(v for k, v in parts.items() if "VP-tree" not in k) / n
     lines.append(f"  one CNN step         {1e3 * step:7.2f} ms = {1 / step:6.1f} steps/s")
-    images, cpu = 0, 0.0
-    for model in loop.dataset.with_role("test"):
-        scene = loop.scene(model)
-        for start in start_viewpoints(config.seed, model, loop.motion.reachable,
-                                      config.evaluate.starts_per_model):
-            for key, method in loop.methods.items():
-                t0 = time.process_time()
-                episode = run_episode(scene, loop.recognisers[method.recogniser], method,
-                                      loop.motion, int(start), config.evaluate.max_moves,
-                                      episode_rng(config.seed, model, int(start), key))
-                cpu += time.process_time() - t0
-                images += episode.viewpoints.size
+    records = [r for model in loop.dataset.with_role("test") for r in loop.run_model(model)]
+    images = sum(r.episode.viewpoints.size for r in records)
+    cpu = sum(r.cpu_seconds for r in records)
     lines.append(f"whole episodes (every method, {default_workers()} would run in "
                  f"parallel): {images} images in {cpu:.1f} s CPU = {images / cpu:.1f} "
                  "steps/s on one core")

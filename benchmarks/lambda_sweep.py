@@ -21,7 +21,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from rapomdp.config import load_config
@@ -29,15 +28,13 @@ from rapomdp.experiment.config import METHOD_NAMES
 from rapomdp.experiment.evaluation import ClosedLoop, EpisodeRecord, EpisodeTable
 from rapomdp.experiment.methods import POMDPPolicy, StaticPolicy
 from rapomdp.experiment.metrics import table1, table1_markdown
-from rapomdp.io import load_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
-from rapomdp.planning.stage import start_viewpoint
+from rapomdp.planning.stage import start_viewpoint, workspace_arrays
 from rapomdp.recognition import stage
-from rapomdp.robot.stage import load_robot
 
 RESULTS = Path(__file__).parent / "results" / "lambda_sweep.txt"
-STAGES = ("dataset", "train", "observe", "robot", "solve")
+STAGES = ("dataset", "train", "observe", "vptree", "robot", "solve")
 
 
 class Report:
@@ -86,16 +83,10 @@ def main() -> None:
     if missing:
         parser.error(f"{root} lacks the stage folder(s) {', '.join(missing)}")
 
-    observe = load_npz(root / "observe" / "observation_models.npz")
-    available = [str(name) for name in observe["models"]]
-    unknown = [m for m in args.models if m not in available]
-    if unknown:
-        parser.error(f"no observation model {', '.join(unknown)}; the workspace has "
-                     f"{', '.join(available)}")
-    classes = [str(c) for c in observe["classes"]]
-    robot = load_robot(root / "robot")
-    reachable = robot["reachable"].astype(bool)
-    energy = np.where(np.isfinite(robot["energy"]), robot["energy"], robot["distance_m"])
+    config.solve.models = list(args.models)
+    # the solve stage's arrays: the named models, E_M made finite, reachability
+    observe, energy, reachable, classes = workspace_arrays(config, root / "observe",
+                                                           root / "robot", root / "vptree")
     v0 = start_viewpoint(reachable)
 
     began = time.perf_counter()

@@ -41,12 +41,12 @@ from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPoli
 from rapomdp.io import load_npz
 from rapomdp.parallel import run_tasks, worker_count
 from rapomdp.planning.policy import ActiveRecognitionPolicy
+from rapomdp.planning.stage import offered_observation_models
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
 from rapomdp.robot.stage import load_robot
 from rapomdp.workspace import StageError
 
 EVALUATE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "evaluate")
-OBSERVATION_FILE = "observation_models.npz"
 VPTREE_RECOGNISER = "vptree"
 
 
@@ -67,14 +67,6 @@ def episode_rng(seed: int, model: ModelEntry, start: int, method: str) -> np.ran
     return class_seed(seed, f"evaluate/{model.file}/{start}/{method}")
 
 
-def _observation_models(inputs: dict[str, Path]) -> dict[str, np.ndarray]:
-    data = load_npz(inputs["observe"] / OBSERVATION_FILE)
-    models = {str(name): data[str(name)] for name in data["models"]}
-    if "vptree" in inputs:
-        models.update({"vptree": load_npz(inputs["vptree"] / "observation_model.npz")["vptree"]})
-    return models
-
-
 @dataclass
 class ClosedLoop:
     """Everything an episode needs, loaded once per process from the stage folders."""
@@ -90,7 +82,7 @@ class ClosedLoop:
         dataset = load_dataset(inputs["dataset"])
         robot = load_robot(inputs["robot"])
         motion = Motion.from_robot(robot)
-        observation = _observation_models(inputs)
+        observation, _ = offered_observation_models(inputs["observe"], inputs.get("vptree"))
         cfg = config.evaluate
         methods: dict[str, Policy] = {}
         for key in cfg.methods:

@@ -28,6 +28,7 @@ from typing import Any
 from rapomdp.awareness.report import FIGURES_DIR, write_fig1
 from rapomdp.config import Config
 from rapomdp.data.dataset import load_dataset
+from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
 from rapomdp.io import ArtefactError, atomic_path, read_json, write_text_atomic
 from rapomdp.robot.stage import describe
 from rapomdp.workspace import StageError, Workspace, read_stage_record, stable_hash
@@ -270,17 +271,10 @@ def _fmt(value: Any, digits: int = 3) -> str:
 
 def figure_class(evaluation: dict[str, Any] | None, config: Config,
                  classes: Sequence[str]) -> str:
-    """The class of Figs. 1 and 3: the evaluate stage's, else the configuration's
-    ``evaluate.figure_class``, else "bicycle" when in the dataset, else the first class."""
-    candidates = [
-        (evaluation or {}).get("figure_class"),
-        getattr(getattr(config, "evaluate", None), "figure_class", None),
-        "bicycle",
-    ]
-    for name in candidates:
-        if isinstance(name, str) and name in classes:
-            return name
-    return classes[0]
+    """The class of Figs. 1 and 3: the one the evaluate stage drew, else the configuration's
+    (:func:`rapomdp.experiment.evaluation.figure_class`)."""
+    drawn = (evaluation or {}).get("figure_class")
+    return drawn if drawn in classes else evaluation_figure_class(config, classes)
 
 
 def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> None:

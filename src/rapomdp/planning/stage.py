@@ -28,16 +28,14 @@ VPTREE_FILE = "observation_model.npz"
 ROBOT_FILE = "robot.npz"
 
 
-def workspace_arrays(
-    config: Config, observe_dir: Path, robot_dir: Path, vptree_dir: Path | None = None
-) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[str]]:
-    """The observation models to solve, E_M (finite), the reachable mask and the class names.
+def offered_observation_models(observe_dir: Path, vptree_dir: Path | None = None
+                               ) -> tuple[dict[str, np.ndarray], list[str]]:
+    """Every observation model a workspace offers, by name, and the class names.
 
-    The models on offer: the observe stage's, plus ``vptree`` from the vptree stage when
-    ``vptree_dir`` is given (its classes and viewpoints must match the observe stage's).
+    The observe stage's models, plus ``vptree`` from the vptree stage when ``vptree_dir`` is
+    given (its classes and viewpoints must match the observe stage's).
     """
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
-    robot = load_npz(Path(robot_dir) / ROBOT_FILE)
     classes = [str(c) for c in observe["classes"]]
     offered = {str(name): observe[str(name)] for name in observe["models"]}
     if vptree_dir is not None:
@@ -55,6 +53,17 @@ def workspace_arrays(
                 f"{path}: the VP-tree model covers {vptree['vptree'].shape[0]} viewpoints, the "
                 f"observe stage's {first.shape[0]}: run both with the same viewpoints.count")
         offered["vptree"] = vptree["vptree"]
+    return offered, classes
+
+
+def workspace_arrays(
+    config: Config, observe_dir: Path, robot_dir: Path, vptree_dir: Path | None = None
+) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[str]]:
+    """The observation models to solve (``solve.models`` among those offered, see
+    :func:`offered_observation_models`), E_M (finite), the reachable mask and the class names.
+    """
+    offered, classes = offered_observation_models(observe_dir, vptree_dir)
+    robot = load_npz(Path(robot_dir) / ROBOT_FILE)
     available = list(offered)
     wanted = config.solve.models if config.solve.models is not None else available
     unknown = [name for name in wanted if name not in available]
