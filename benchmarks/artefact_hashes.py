@@ -1,0 +1,116 @@
+"""Hash every artefact of the tiny end-to-end pipeline (the evaluate tests' configuration).
+
+Run on two trees (before and after a refactoring) with the same seed and compare the printed
+digests: a structural change must leave every artefact's content unchanged. ``.npz`` archives are
+hashed array by array (a zip member's timestamp is not content); JSON records drop the fields
+that measure wall time; PNG files are hashed as decoded pixels.
+
+    PYTHONPATH=src python benchmarks/artefact_hashes.py [--out hashes.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+#: tests/experiment/test_evaluation.py's TINY (TINY_PIPELINE plus its overrides).
+TINY: dict = {
+    "seed": 5,
+    "camera": {"width": 64, "height": 48},
+    "render": {"views": 12},
+    "train": {"width": 0.125, "epochs": 2, "batch_size": 16, "preprocess": {"input_size_px": 32}},
+    "saliency": {"iterations": 5},
+    "volume": {"resolution": 12},
+    "vptree": {"branching": 4, "levels": 2},
+    "dataset": {"classes": ["cup", "bicycle", "teapot"]},
+    "viewpoints": {"count": 16},
+    "solve": {"timeout_s": 2.0},
+    "evaluate": {"methods": ["static", "random", "vptree", "classifier", "ra"],
+                 "starts_per_model": 3, "max_moves": 6},
+}
+#: Record fields that measure time or name the machine, not the result.
+TIMING_KEYS = {"seconds", "finished", "wall_s", "elapsed_s", "time_s", "seconds_per_episode",
+               "train_seconds", "images_per_second", "timed_out"}
+#: Files whose text holds wall time (stage.json records, the report that quotes them).
+SKIP = {"manifest.json"}
+
+
+def _scrub(value: object) -> object:
+    if isinstance(value, dict):
+        return {k: _scrub(v) for k, v in value.items()
+                if k not in TIMING_KEYS and "second" not in k and not k.endswith("_s")}
+    if isinstance(value, list):
+        return [_scrub(v) for v in value]
+    return value
+
+
+#: Text that measures time, names the folder or is a random element id (plotly's div).
+VOLATILE = [
+    (re.compile(r"^.*\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d.*$", re.M), "TIME-ROW"),
+    (re.compile(r"[\d.]+ (s|images/s)\b"), "N s"),
+    (re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}"), "UUID"),
+]
+
+
+def _text(path: Path, workspace: Path) -> str:
+    text = path.read_text().replace(str(workspace), "WS")
+    if path.suffix == ".csv":
+        rows = [line.split(",") for line in text.splitlines()]
+        keep = [i for i, name in enumerate(rows[0]) if "second" not in name] if rows else []
+        return "\n".join(",".join(row[i] for i in keep if i < len(row)) for row in rows)
+    for pattern, replacement in VOLATILE:
+        text = pattern.sub(replacement, text)
+    return text
+
+
+def digest(path: Path, workspace: Path) -> str:
+    h = hashlib.sha256()
+    if path.suffix == ".npz":
+        with np.load(path, allow_pickle=False) as data:
+            for name in sorted(n for n in data.files if "second" not in n):
+                array = data[name]
+                h.update(f"{name}{array.dtype}{array.shape}".encode())
+                h.update(np.ascontiguousarray(array).tobytes())
+    elif path.suffix == ".json":
+        h.update(json.dumps(_scrub(json.loads(path.read_text())), sort_keys=True).encode())
+    elif path.suffix == ".png":
+        import matplotlib.image
+
+        h.update(np.ascontiguousarray(matplotlib.image.imread(path)).tobytes())
+    elif path.suffix in {".md", ".html", ".csv", ".txt", ".yaml"}:
+        h.update(_text(path, workspace).encode())
+    else:
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, help="write {file: digest} here as JSON")
+    parser.add_argument("--workspace", type=Path, help="keep the workspace here")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        ws = args.workspace or Path(tmp) / "ws"
+        config = Path(tmp) / "tiny.yaml"
+        config.write_text(yaml.safe_dump(TINY))
+        subprocess.run([sys.executable, "-m", "rapomdp.cli", "run", "-w", str(ws), "-c",
+                        str(config), "--workers", "1"], check=True, stdout=subprocess.DEVNULL)
+        hashes = {str(p.relative_to(ws)): digest(p, ws) for p in sorted(ws.rglob("*"))
+                  if p.is_file() and p.name not in SKIP}
+    for name, value in hashes.items():
+        print(f"{value}  {name}")
+    if args.out:
+        args.out.write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n")
+
+
+if __name__ == "__main__":
+    main()
