@@ -6,6 +6,8 @@ hashed array by array (a zip member's timestamp is not content); JSON records dr
 that measure wall time; PNG files are hashed as decoded pixels.
 
     PYTHONPATH=src python benchmarks/artefact_hashes.py [--out hashes.json]
+    PYTHONPATH=src python benchmarks/artefact_hashes.py \
+        --compare benchmarks/results/artefact_hashes_main.json
 """
 
 from __future__ import annotations
@@ -57,6 +59,8 @@ def _scrub(value: object) -> object:
 VOLATILE = [
     (re.compile(r"^.*\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d.*$", re.M), "TIME-ROW"),
     (re.compile(r"[\d.]+ (s|images/s)\b"), "N s"),
+    # one-decimal table cells are the report's seconds columns (stage records, solver table)
+    (re.compile(r"(\| |<td>)\d+\.\d( \||</td>)"), r"\1N\2"),
     (re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}"), "UUID"),
 ]
 
@@ -97,6 +101,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write {file: digest} here as JSON")
     parser.add_argument("--workspace", type=Path, help="keep the workspace here")
+    parser.add_argument("--compare", type=Path,
+                        help="a --out file of another tree: print every difference, exit 1 if any")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         ws = args.workspace or Path(tmp) / "ws"
@@ -110,6 +116,14 @@ def main() -> None:
         print(f"{value}  {name}")
     if args.out:
         args.out.write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n")
+    if args.compare:
+        before = json.loads(args.compare.read_text())
+        differ = sorted(n for n in before.keys() | hashes.keys()
+                        if before.get(n) != hashes.get(n))
+        for name in differ:
+            print(f"DIFFERS  {name}: {before.get(name, 'absent')} -> {hashes.get(name, 'absent')}")
+        print(f"{len(hashes)} artefacts, {len(differ)} differ from {args.compare}")
+        sys.exit(1 if differ else 0)
 
 
 if __name__ == "__main__":

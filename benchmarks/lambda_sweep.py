@@ -23,8 +23,7 @@ from pathlib import Path
 
 import torch
 
-from rapomdp.config import load_config
-from rapomdp.experiment.config import METHOD_NAMES
+from rapomdp.config import METHOD_NAMES, load_config
 from rapomdp.experiment.evaluation import ClosedLoop, EpisodeRecord, EpisodeTable
 from rapomdp.experiment.methods import POMDPPolicy, StaticPolicy
 from rapomdp.experiment.metrics import table1, table1_markdown

@@ -79,7 +79,7 @@ def main() -> None:
     correct = test_pred == test_labels[:, None]
 
     # single-image latency, as inside a closed-loop step (one image per call)
-    from rapomdp.awareness.stage import xrho_renders
+    from rapomdp.data.test_views import xrho_renders
 
     _, sensed, _ = xrho_renders(dataset, dataset.with_role("test")[0], config,
                                 "classifier_eval")

@@ -2,7 +2,8 @@
 
 Units: metres and degrees at this surface (``*_m``, ``*_deg``); the code converts to radians.
 Each top-level section belongs to the stages that read it, and a stage's cache key hashes only
-the sections it reads.
+the sections it reads. Every section is defined here, in a module that imports no stage code, so
+that reading a configuration loads no arm, network or solver.
 """
 
 from __future__ import annotations
@@ -11,10 +12,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
-from rapomdp.experiment.config import EvaluateConfig
-from rapomdp.robot.config import RobotConfig
 from rapomdp.section import Section
 
 
@@ -184,6 +183,72 @@ class ObserveConfig(Section):
         1.0, ge=0, description="RA / black-box: pseudo-count per (class, label) of the confusion")
 
 
+Vector3 = tuple[float, float, float]
+
+
+class EnergyConfig(Section):
+    """Movement energy E_M(x, x') = geodesic length + kappa * penalty(man(q')) [+ joint term].
+
+    The penalty is 0 at the most manipulable reachable viewpoint and grows as man(q') falls
+    toward a singularity (man = 0); see docs/robot.md for why this departs from Eq. 3.
+    """
+
+    kappa_m: float = Field(0.1, ge=0, description="weight of the singularity penalty, metres")
+    penalty: Literal["inverse", "log", "linear"] = Field(
+        "inverse",
+        description="inverse: m_ref/m - 1; log: -ln(m/m_ref); linear: 1 - m/m_ref "
+        "(m_ref = best manipulability over the reachable viewpoints)",
+    )
+    joint_weight_m_per_rad: float = Field(
+        0.0, ge=0, description="weight of the joint-space distance |q' - q| (0 = off)"
+    )
+
+
+class RobotConfig(Section):
+    """A Franka Emika Panda (roboticstoolbox's URDF model) with a depth camera on its flange.
+
+    The world frame is the object's: Z up, floor z = 0, the object centred at x = y = 0. The
+    test viewpoints lie on the hemisphere of radius ``viewpoints.radius_m`` around ``centroid_m``.
+    """
+
+    base_xyz_m: Vector3 = Field(
+        (-0.4, 0.0, 0.2),
+        description="the arm's base (panda_link0) in the world frame: 0.4 m behind the object, "
+        "on a 0.2 m riser",
+    )
+    base_yaw_deg: float = Field(0.0, description="the base's rotation about world Z")
+    centroid_m: Vector3 = Field(
+        (0.0, 0.0, 0.2), description="the object's centroid in the world frame (sphere centre)"
+    )
+    camera_mount_xyz_m: Vector3 = Field(
+        (0.0, 0.065, 0.045),
+        description="camera centre in the flange (panda_link8) frame",
+    )
+    camera_mount_rpy_deg: Vector3 = Field(
+        (0.0, 0.0, 0.0),
+        description="camera frame (optical axis = z) relative to the flange, roll-pitch-yaw",
+    )
+    roll_samples: int = Field(
+        8, ge=1, le=360, description="rolls about the optical axis searched per viewpoint"
+    )
+    restarts: int = Field(4, ge=1, le=100, description="IK starting configurations per roll")
+    iterations: int = Field(40, ge=1, le=1000, description="Levenberg-Marquardt steps per try")
+    position_tolerance_m: float = Field(0.001, gt=0, description="FK check: camera position")
+    angle_tolerance_deg: float = Field(0.5, gt=0, description="FK check: camera orientation")
+    floor_clearance_m: float | None = Field(
+        0.05,
+        description="the arm's skeleton (segments between link frames, from panda_link1 on) "
+        "must stay this high above the floor; null disables the check",
+    )
+    object_clearance_m: float | None = Field(
+        0.25,
+        gt=0,
+        description="the arm must stay this far from the centroid (object bounding sphere plus "
+        "a link radius); null disables the check",
+    )
+    energy: EnergyConfig = EnergyConfig()
+
+
 class VPTreeConfig(Section):
     """The VP-tree baseline (Atanasov et al. 2014): a vocabulary tree over local depth patches
     and its per-viewpoint confusion (see docs/recognition.md, "VP-tree baseline")."""
@@ -219,6 +284,61 @@ class SolveConfig(Section):
         ["ra", "classifier", "vptree"],
         description="observation models to solve (the closed-loop evaluation's three); others: "
         "ra_class, blackbox; null: every model the observe and vptree stages made")
+
+
+#: Display names of the methods (the paper's Table 1 rows, then extra observation models).
+METHOD_NAMES = {
+    "static": "Static",
+    "random": "Random",
+    "vptree": "VP-tree",
+    "classifier": "Classifier",
+    "ra": "RA-POMDP",
+    "ra_class": "RA-POMDP (per-class)",
+    "blackbox": "Black-box POMDP",
+}
+
+
+class RandomWalkConfig(Section):
+    """The Random method: a walk among the nearest reachable viewpoints, never revisiting."""
+
+    neighbours: int = Field(8, ge=1, description="candidates: the k nearest reachable viewpoints")
+    belief_threshold: float = Field(
+        0.9, gt=0, le=1, description="stop rule: declare once max belief reaches this")
+    max_moves: int = Field(10, ge=0, description="stop rule: declare after this many moves")
+    observation_model: str = Field(
+        "classifier", description="observation model of its belief update (an observe model)")
+
+
+class EvaluateConfig(Section):
+    """The closed-loop evaluation (paper Sec. 5.2): every test model x start x method."""
+
+    methods: list[str] = Field(
+        ["static", "random", "vptree", "classifier", "ra"],
+        description="static, random, or an observation model solved by the solve stage "
+        "(vptree, classifier, ra, ra_class, blackbox)")
+    starts_per_model: int = Field(
+        5, ge=1, description="start viewpoints per test model, drawn (seeded) among reachable")
+    max_moves: int = Field(
+        30, ge=0, description="step budget: after this many moves a method must declare")
+    revisit: bool = Field(
+        False, description="let the POMDP methods move back to a viewpoint they have seen "
+        "(the noiseless sensor would show the same image, counted as new evidence)")
+    random: RandomWalkConfig = RandomWalkConfig()
+    figure_class: str = Field("bicycle", description="the class of Fig. 3 and the trajectories "
+                              "(the first class when the dataset has no such class)")
+
+    @field_validator("methods")
+    @classmethod
+    def _known(cls, methods: list[str]) -> list[str]:
+        unknown = [m for m in methods if m not in METHOD_NAMES]
+        if unknown:
+            raise ValueError(f"unknown method(s) {unknown}; methods are: "
+                             f"{', '.join(METHOD_NAMES)}")
+        if len(set(methods)) != len(methods):
+            raise ValueError("a method is listed twice")
+        if not methods:
+            raise ValueError("list at least one method")
+        return methods
 
 
 class Config(Section):

@@ -11,9 +11,10 @@ from gymnasium.utils.env_checker import check_env
 from rapomdp.config import Config
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.renderer import DepthRenderer
+from rapomdp.data.test_views import TestViews
 from rapomdp.data.training_views import model_poses
 from rapomdp.experiment.env import ActiveRecognitionEnv
-from rapomdp.experiment.episode import Motion, Scene
+from rapomdp.experiment.episode import Motion
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.pipeline import run_pipeline
 from rapomdp.robot.stage import load_robot
@@ -186,7 +187,7 @@ def test_noise_draws_from_the_env_rng(tiny) -> None:
     ws, config = tiny
     base = ActiveRecognitionEnv.from_workspace(ws.root, seed=0)
     noisy = config.render.noise.model_copy(update={"enabled": True})
-    scenes = [Scene(s.renderer, s.poses, noisy) for s in base.scenes]
+    scenes = [TestViews(s.renderer, s.poses, noisy) for s in base.scenes]
     env = ActiveRecognitionEnv(scenes, base.true_classes, base.class_names, base.motion, 2.0)
     a, _ = env.reset(seed=5, options={"model": 0})
     b, _ = env.reset(seed=5, options={"model": 0})

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import isotonic_regression
 
 from rapomdp.io import load_npz
+from rapomdp.recognition.evaluation import viewpoint_confusion
 
 PROBABILITY_FLOOR = 1e-3
 """RA's correct-label probability is kept in [floor, 1 - floor]: no observation is impossible."""
@@ -218,17 +219,8 @@ class ClassifierObservationModel(ObservationModel):
 
     def __init__(self, true_labels: np.ndarray, predicted: np.ndarray, classes: Sequence[str],
                  pseudo_count: float) -> None:
-        true_labels = np.asarray(true_labels)  # (M,)
-        predicted = np.asarray(predicted)  # (M, V)
-        if pseudo_count <= 0:
-            raise ValueError(f"the pseudo-count must be positive, got {pseudo_count}")
-        c, views = len(classes), predicted.shape[1]
-        counts = np.zeros((views, c, c))
-        x = np.broadcast_to(np.arange(views)[None], predicted.shape)
-        t = np.broadcast_to(true_labels[:, None], predicted.shape)
-        np.add.at(counts, (x, t, predicted), 1.0)
-        counts += pseudo_count
-        super().__init__(counts / counts.sum(axis=2, keepdims=True), classes)
+        super().__init__(viewpoint_confusion(true_labels, predicted, len(classes), pseudo_count),
+                         classes)
 
 
 class BlackBoxObservationModel(ObservationModel):

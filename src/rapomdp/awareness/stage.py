@@ -42,9 +42,9 @@ from rapomdp.awareness.visibility import visibility_from_depth
 from rapomdp.awareness.volume import SaliencyVolume, object_grid, saliency_volume
 from rapomdp.config import Config
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
-from rapomdp.data.renderer import DepthRenderer
 from rapomdp.data.splits import class_seed
-from rapomdp.data.training_views import load_training_views, model_poses, render_depth
+from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
+from rapomdp.data.training_views import load_training_views
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
@@ -175,20 +175,6 @@ def run_volume_stage(config: Config, inputs: dict[str, Path], out: Path) -> None
     })
 
 
-def xrho_renders(dataset: Dataset, model: ModelEntry, config: Config,
-                 purpose: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Clean depth, sensor depth (noise when enabled) and poses of a model at X_rho."""
-    vp = config.viewpoints
-    renderer = DepthRenderer(dataset.mesh(model), xtion_intrinsics(config.camera.width,
-                                                                   config.camera.height))
-    poses = model_poses(model, vp.count, vp.radius_m, hemisphere=True)
-    clean = renderer.render(poses)
-    if not config.render.noise.enabled:
-        return clean, clean, poses
-    rng = class_seed(config.seed, f"{purpose}/{model.class_name}/{model.id}")
-    return clean, render_depth(renderer, poses, config.render.noise, rng), poses
-
-
 @dataclass
 class XrhoOutcomes:
     """A model's renders at X_rho and the classifier's labels there (reusable across volumes)."""
@@ -246,7 +232,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         volume = volumes[class_name]
         per_model = []
         for model in (m for m in dataset.with_role("volume") if m.class_name == class_name):
-            seen = outcomes(model, "observe/volume")
+            seen = outcomes(model, VOLUME_STREAM)
             vis = visibility_from_depth(seen.clean, seen.poses, intrinsics, volume.grid)
             per_model.append(viewpoint_scores(vis, volume.flat_scores()))
             vol_pred.append(seen.predicted)
@@ -273,7 +259,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     models_s = time.perf_counter() - start
     test_models = dataset.with_role("test")
     test_labels = np.array([dataset.label(m) for m in test_models])
-    test_pred = np.stack([outcomes(m, "classifier_eval").predicted
+    test_pred = np.stack([outcomes(m, TEST_STREAM).predicted
                           for m in track(test_models, "observe: test models at X_rho")])
     rows = quality_table(models, test_labels, test_pred)
     return Observation(models, raw, scores, calibration, labels, predicted, test_labels,

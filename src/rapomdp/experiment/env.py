@@ -4,8 +4,9 @@ One episode: a test model stands at the workspace centre and the camera starts a
 test viewpoint. Each step either moves the camera (action ``j < V``: to viewpoint ``j``; reward
 ``-E_M[v, j]``, the next depth image is rendered) or declares a class (action ``V + k``: class
 ``k``; the episode terminates with reward 0 when right, ``-lambda`` when wrong). The rendering,
-the sensor noise and the costs are those of :mod:`rapomdp.experiment.episode` (:class:`Scene`,
-:class:`Motion`), so an agent here sees what the methods of Table 1 see.
+the sensor noise and the costs are those of the episode simulator
+(:class:`~rapomdp.data.test_views.TestViews`, :class:`~rapomdp.experiment.episode.Motion`), so an
+agent here sees what the methods of Table 1 see.
 
 An invalid move (out of range, to an unreachable viewpoint, or to the current one) raises
 ``ValueError``; ``info["action_mask"]`` (V + C,) tells the valid actions so that a learned policy
@@ -24,7 +25,8 @@ from gymnasium import spaces
 
 from rapomdp.config import load_config
 from rapomdp.data.dataset import load_dataset
-from rapomdp.experiment.episode import Motion, Scene
+from rapomdp.data.test_views import TestViews
+from rapomdp.experiment.episode import Motion
 from rapomdp.robot.stage import load_robot
 from rapomdp.workspace import StageError, Workspace
 
@@ -43,7 +45,7 @@ class ActiveRecognitionEnv(gymnasium.Env):
 
     metadata: dict[str, Any] = {"render_modes": []}
 
-    def __init__(self, scenes: Sequence[Scene], true_classes: Sequence[int],
+    def __init__(self, scenes: Sequence[TestViews], true_classes: Sequence[int],
                  class_names: Sequence[str], motion: Motion, lambda_: float,
                  max_moves: int = 30, seed: int | None = None) -> None:
         if not scenes:
@@ -128,7 +130,7 @@ class ActiveRecognitionEnv(gymnasium.Env):
                              f"{robot['reachable'].size} viewpoints, {config_path} "
                              f"viewpoints.count is {vp.count}")
         models = dataset.with_role("test")
-        scenes = [Scene.of_model(config, dataset, m) for m in models]
+        scenes = [TestViews.of_model(config, dataset, m) for m in models]
         motion = Motion.from_robot(robot)
         return cls(scenes, [dataset.label(m) for m in models], dataset.classes, motion,
                    config.solve.wrong_declaration_cost_m, max_moves=max_moves, seed=seed)

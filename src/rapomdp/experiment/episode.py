@@ -14,11 +14,7 @@ from typing import Protocol
 
 import numpy as np
 
-from rapomdp.config import Config, NoiseConfig
-from rapomdp.data.dataset import Dataset, ModelEntry
-from rapomdp.data.renderer import DepthRenderer
-from rapomdp.data.training_views import model_poses, render_depth
-from rapomdp.geometry.camera import xtion_intrinsics
+from rapomdp.data.test_views import TestViews
 from rapomdp.planning.policy import ARAction
 
 
@@ -74,30 +70,6 @@ class Motion:
             raise ValueError(f"move to viewpoint {target}: the camera is already there")
 
 
-@dataclass
-class Scene:
-    """A test model at the workspace centre, seen from the test viewpoints ``poses`` (V, 4, 4)."""
-
-    renderer: DepthRenderer
-    poses: np.ndarray
-    noise: NoiseConfig
-
-    @classmethod
-    def of_model(cls, config: Config, dataset: Dataset, model: ModelEntry) -> Scene:
-        """A dataset model seen from X_rho (``config.viewpoints``) by the configured camera,
-        with the configured sensor noise (``config.render.noise``)."""
-        intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
-        vp = config.viewpoints
-        return cls(DepthRenderer(dataset.mesh(model), intrinsics),
-                   model_poses(model, vp.count, vp.radius_m, hemisphere=True),
-                   config.render.noise)
-
-    def look(self, viewpoint: int, rng: np.random.Generator) -> np.ndarray:
-        """The sensor's depth image (H, W) in metres from ``viewpoint``."""
-        return render_depth(self.renderer, self.poses[viewpoint : viewpoint + 1], self.noise,
-                            rng)[0]
-
-
 @dataclass(frozen=True)
 class Episode:
     """What happened, step by step: image t was taken at ``viewpoints[t]`` (t = 0 is the start),
@@ -124,7 +96,7 @@ class Episode:
         return [*moves, ARAction("declare", self.declared)]
 
 
-def run_episode(scene: Scene, recogniser: Recogniser, policy: Policy, motion: Motion,
+def run_episode(scene: TestViews, recogniser: Recogniser, policy: Policy, motion: Motion,
                 start_viewpoint: int, max_moves: int, rng: np.random.Generator) -> Episode:
     """One closed-loop episode from ``start_viewpoint``; after ``max_moves`` moves the method
     must declare its belief's most likely class (the step budget)."""

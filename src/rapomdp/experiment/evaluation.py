@@ -24,16 +24,15 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.config import Config
+from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.splits import class_seed
-from rapomdp.experiment.config import METHOD_NAMES
+from rapomdp.data.test_views import TestViews
 from rapomdp.experiment.episode import (
     Episode,
     Motion,
     Policy,
     Recogniser,
-    Scene,
     run_episode,
     score,
 )
@@ -114,8 +113,8 @@ class ClosedLoop:
             recognisers[VPTREE_RECOGNISER] = load_workspace_vptree(inputs["vptree"])
         return cls(config, dataset, recognisers, methods, motion)
 
-    def scene(self, model: ModelEntry) -> Scene:
-        return Scene.of_model(self.config, self.dataset, model)
+    def scene(self, model: ModelEntry) -> TestViews:
+        return TestViews.of_model(self.config, self.dataset, model)
 
     def run_model(self, model: ModelEntry) -> list[EpisodeRecord]:
         """Every start x method episode of one test model."""

@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rapomdp.experiment.config import METHOD_NAMES  # noqa: E402
+from rapomdp.config import METHOD_NAMES  # noqa: E402
 from rapomdp.geometry.viewsphere import azimuth_zenith  # noqa: E402
 from rapomdp.recognition.figures import save_png  # noqa: E402
 

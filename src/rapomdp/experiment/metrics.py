@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import stats
 
-from rapomdp.experiment.config import METHOD_NAMES
+from rapomdp.config import METHOD_NAMES
 
 if TYPE_CHECKING:
     from rapomdp.experiment.evaluation import EpisodeTable

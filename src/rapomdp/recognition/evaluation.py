@@ -17,6 +17,26 @@ import numpy as np
 from rapomdp.io import atomic_path
 
 
+def viewpoint_confusion(true_labels: np.ndarray, predicted: np.ndarray, classes: int,
+                        pseudo_count: float) -> np.ndarray:
+    """A classifier's empirical confusion per viewpoint, with pseudo-counts: (V, C, C) with
+    P(o | c, x) = (n(c, x, o) + a) / (n(c, x) + C a), from labels (M,) and predictions (M, V).
+
+    The "Classifier" observation model of the CNN and the VP-tree baseline's are both this.
+    """
+    true_labels = np.asarray(true_labels)  # (M,)
+    predicted = np.asarray(predicted)  # (M, V)
+    if pseudo_count <= 0:
+        raise ValueError(f"the pseudo-count must be positive, got {pseudo_count}")
+    views = predicted.shape[1]
+    counts = np.zeros((views, classes, classes))
+    x = np.broadcast_to(np.arange(views)[None], predicted.shape)
+    t = np.broadcast_to(true_labels[:, None], predicted.shape)
+    np.add.at(counts, (x, t, predicted), 1.0)
+    counts += pseudo_count
+    return counts / counts.sum(axis=2, keepdims=True)
+
+
 @dataclass
 class SingleViewResult:
     """Probabilities (models, views, C) of test models with labels (models,)."""

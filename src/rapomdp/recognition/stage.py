@@ -18,14 +18,9 @@ import numpy as np
 import torch
 
 from rapomdp.config import Config, load_config
-from rapomdp.data.renderer import DepthRenderer
 from rapomdp.data.splits import class_seed
-from rapomdp.data.training_views import (
-    TrainingViews,
-    load_training_views,
-    model_poses,
-    render_depth,
-)
+from rapomdp.data.test_views import TEST_STREAM, TestViews, test_view_rng
+from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, write_json_atomic
 from rapomdp.progress import track
@@ -139,10 +134,9 @@ def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path
     vp = config.viewpoints
     xrho, sphere = [], []
     for model in track(test_models, "classifier: test models"):
-        renderer = DepthRenderer(dataset.mesh(model), views.intrinsics)
-        poses = model_poses(model, vp.count, vp.radius_m, hemisphere=True)
-        rng = class_seed(config.seed, f"classifier_eval/{model.class_name}/{model.id}")
-        xrho.append(classifier.predict(render_depth(renderer, poses, config.render.noise, rng)))
+        sensed = TestViews.of_model(config, dataset, model).sensed(
+            test_view_rng(config.seed, TEST_STREAM, model))
+        xrho.append(classifier.predict(sensed))
         sphere.append(classifier.predict(views.load(model)[0]))
     results = [
         SingleViewResult("xrho", dataset.classes, np.stack(xrho), labels),

@@ -18,13 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.observation import ClassifierObservationModel
-from rapomdp.awareness.stage import xrho_renders
 from rapomdp.config import Config, VPTreeConfig
 from rapomdp.data.dataset import Dataset, ModelEntry
+from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.io import save_npz, write_json_atomic
 from rapomdp.progress import track
+from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.recognition.vocabulary_tree import DescriptorParams, VocabularyTreeClassifier
 from rapomdp.workspace import StageError
 
@@ -81,22 +81,22 @@ def run_vptree_stage(config: Config, inputs: dict[str, Path], out: Path) -> None
     seconds["fit"] = time.perf_counter() - start
     step = time.perf_counter()
     volume_labels, volume_pred = xrho_predictions(
-        classifier, dataset, dataset.with_role("volume"), config, "observe/volume",
+        classifier, dataset, dataset.with_role("volume"), config, VOLUME_STREAM,
         "vptree: volume models at X_rho")
-    model = ClassifierObservationModel(volume_labels, volume_pred, dataset.classes,
-                                       config.vptree.pseudo_count)
+    confusion = viewpoint_confusion(volume_labels, volume_pred, len(dataset.classes),
+                                    config.vptree.pseudo_count)
     seconds["observation_model"] = time.perf_counter() - step
     step = time.perf_counter()
     test_models = dataset.with_role("test")
     test_accuracy = None
     if test_models:
         test_labels, test_pred = xrho_predictions(
-            classifier, dataset, test_models, config, "classifier_eval",
+            classifier, dataset, test_models, config, TEST_STREAM,
             "vptree: test models at X_rho")
         test_accuracy = float((test_pred == test_labels[:, None]).mean())
     seconds["test"] = time.perf_counter() - step
     classifier.save(out / CLASSIFIER_FILE)
-    save_npz(out / OBSERVATION_FILE, **{MODEL_NAME: model.probabilities},
+    save_npz(out / OBSERVATION_FILE, **{MODEL_NAME: confusion},
              classes=np.array(dataset.classes))
     seconds["total"] = time.perf_counter() - start
     write_json_atomic(out / SUMMARY_FILE, {

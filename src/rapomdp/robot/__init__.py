@@ -4,21 +4,18 @@
 roboticstoolbox's Panda (forward kinematics, Jacobian, manipulability, ``ik_LM``); ``ik`` solves
 every viewpoint with a free roll about the optical axis; ``energy`` builds the movement energy
 E_M (Eq. 3); ``stage`` is the pipeline stage (``run_robot_stage``, ``solve_robot``,
-``load_robot``) and is imported from ``rapomdp.robot.stage`` (it needs ``rapomdp.config``, which
-imports this package's ``config``).
+``load_robot``). The ``robot`` configuration section (``RobotConfig``, ``EnergyConfig``) lives in
+``rapomdp.config`` with every other section.
 """
 
 from rapomdp.robot.arm import CameraArm, manipulability_from_jacobians
-from rapomdp.robot.config import EnergyConfig, RobotConfig
 from rapomdp.robot.energy import joint_distance_matrix, movement_energy, singularity_penalty
 from rapomdp.robot.ik import IKSettings, ViewpointSolutions, camera_targets, solve_viewpoints
 from rapomdp.robot.scene import Scene
 
 __all__ = [
     "CameraArm",
-    "EnergyConfig",
     "IKSettings",
-    "RobotConfig",
     "Scene",
     "ViewpointSolutions",
     "camera_targets",

@@ -25,7 +25,7 @@ SOLVER_TOLERANCE = 1e-10
 
 @dataclass(frozen=True)
 class IKSettings:
-    """How hard to search; see :class:`~rapomdp.robot.config.RobotConfig`."""
+    """How hard to search; see :class:`~rapomdp.config.RobotConfig`."""
 
     roll_samples: int = 8
     restarts: int = 4

@@ -60,7 +60,7 @@ class Scene:
 
     @classmethod
     def from_config(cls, robot: object) -> Scene:
-        """The scene of a :class:`~rapomdp.robot.config.RobotConfig`."""
+        """The scene of a :class:`~rapomdp.config.RobotConfig`."""
         base = transform(robot.base_xyz_m, (0.0, 0.0, np.radians(robot.base_yaw_deg)))
         mount = transform(robot.camera_mount_xyz_m, np.radians(robot.camera_mount_rpy_deg))
         return cls(base, np.asarray(robot.centroid_m, dtype=np.float64), mount)
