@@ -18,9 +18,8 @@ import numpy as np
 import torch
 
 from rapomdp.config import load_config
+from rapomdp.context import default_workers
 from rapomdp.experiment.evaluation import ClosedLoop
-from rapomdp.parallel import default_workers
-from rapomdp.recognition import stage
 from rapomdp.workspace import Workspace
 
 RESULTS = Path(__file__).parent / "results" / "episode_loop.txt"
@@ -32,12 +31,11 @@ def main() -> None:
     parser.add_argument("--views", type=int, default=24, help="viewpoints timed per test model")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    stage.threads = 1
     ws = Workspace(args.workspace)
     config = load_config(ws.root / "config.yaml")
     inputs = {name: ws.require(name) for name in ("dataset", "train", "observe", "vptree",
                                                     "robot", "solve")}
-    loop = ClosedLoop.load(config, inputs)
+    loop = ClosedLoop.load(config, inputs, threads=1)
     cnn = loop.recognisers["cnn"]
     pomdp = next(m for k, m in loop.methods.items() if k not in ("static", "random"))
     rng = np.random.default_rng(0)

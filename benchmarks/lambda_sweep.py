@@ -24,13 +24,13 @@ from pathlib import Path
 import torch
 
 from rapomdp.config import METHOD_NAMES, load_config
-from rapomdp.experiment.evaluation import ClosedLoop, EpisodeRecord, EpisodeTable
+from rapomdp.experiment.episode_table import EpisodeRecord, EpisodeTable
+from rapomdp.experiment.evaluation import ClosedLoop
 from rapomdp.experiment.methods import POMDPPolicy, StaticPolicy
 from rapomdp.experiment.metrics import table1, table1_markdown
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint, workspace_arrays
-from rapomdp.recognition import stage
 
 RESULTS = Path(__file__).parent / "results" / "lambda_sweep.txt"
 STAGES = ("dataset", "train", "observe", "vptree", "robot", "solve")
@@ -66,7 +66,6 @@ def main() -> None:
                         "model of the workspace's config)")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    stage.threads = 1
     out = Report()
     out("command: " + shlex.join([Path(sys.executable).name, *sys.argv]))
     out(f"workspace: {args.workspace.resolve()}")
@@ -89,7 +88,7 @@ def main() -> None:
     v0 = start_viewpoint(reachable)
 
     began = time.perf_counter()
-    loop = ClosedLoop.load(config, inputs)
+    loop = ClosedLoop.load(config, inputs, threads=1)
     tests = loop.dataset.with_role("test")
     discount, precision = config.solve.discount, config.solve.precision
     iterations = args.iterations or config.solve.iterations

@@ -17,7 +17,6 @@ import time
 import numpy as np
 
 from rapomdp.config import Config
-from rapomdp.progress import set_progress
 from rapomdp.robot.arm import CameraArm
 from rapomdp.robot.ik import solve_viewpoints
 from rapomdp.robot.scene import Scene
@@ -31,7 +30,7 @@ def _solve(config: Config, repeats: int = 1):
     times, result = [], None
     for _ in range(repeats):
         start = time.perf_counter()
-        result = solve_viewpoints(arm, eyes, settings)
+        result = solve_viewpoints(arm, eyes, settings, progress=False)
         times.append(time.perf_counter() - start)
     return result, np.array(times)
 
@@ -41,7 +40,6 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--placements", action="store_true")
     args = parser.parse_args()
-    set_progress(False)
 
     start = time.perf_counter()
     import roboticstoolbox  # noqa: F401  (timed: the first import is slow)

@@ -26,7 +26,6 @@ from rapomdp.awareness.stage import (
     saliency_maps,
 )
 from rapomdp.awareness.volume import object_grid, saliency_volume
-from rapomdp.progress import set_progress
 from rapomdp.recognition.stage import load_workspace_classifier
 from rapomdp.workspace import Workspace
 
@@ -40,7 +39,6 @@ def main() -> None:
                         default=["gradient", "smoothgrad", "gradcam", "integrated_gradients"])
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args()
-    set_progress(False)
     torch.set_num_threads(args.threads)
     config, views, classifier = load_workspace_classifier(args.workspace)
     saliency_dir = Workspace(args.workspace).require("saliency")
@@ -63,7 +61,7 @@ def main() -> None:
             built[model.class_name] = saliency_volume(depth, poses, maps, views.intrinsics, grid)
         runs.append((method, built, time.perf_counter() - start))
     for name, vols, seconds in runs:
-        result = observe(config, dataset, classifier, vols, cache)
+        result = observe(config, dataset, classifier, vols, cache, progress=False)
         rows = {row["model"]: row for row in result.quality}
         results[name] = {"saliency_and_volumes_s": seconds, "slope": result.calibration.slope,
                          "quality": rows,

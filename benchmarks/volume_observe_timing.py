@@ -19,7 +19,6 @@ from pathlib import Path
 import torch
 
 from rapomdp.awareness.stage import XrhoOutcomes, class_volume, observe, xrho_outcomes
-from rapomdp.progress import set_progress
 from rapomdp.recognition.stage import load_workspace_classifier
 from rapomdp.workspace import Workspace
 
@@ -32,7 +31,6 @@ def main() -> None:
     parser.add_argument("--resolutions", type=int, nargs="+", default=[16, 25, 40, 60, 80])
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args()
-    set_progress(False)
     torch.set_num_threads(args.threads)
     config, views, classifier = load_workspace_classifier(args.workspace)
     saliency_dir = Workspace(args.workspace).require("saliency")
@@ -54,7 +52,7 @@ def main() -> None:
         volumes = {name: class_volume(dataset, views, saliency_dir, name, resolution)
                    for name in dataset.classes}
         volume_s = time.perf_counter() - start
-        result = observe(config, dataset, classifier, volumes, cache)
+        result = observe(config, dataset, classifier, volumes, cache, progress=False)
         rows = {row["model"]: row for row in result.quality}
         ra = rows["ra"]
         results["resolutions"][resolution] = {

@@ -22,8 +22,8 @@ import numpy as np
 import yaml
 
 from rapomdp.config import Config, config_from_dict
+from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM
 from rapomdp.data.training_views import load_training_views
-from rapomdp.progress import set_progress
 from rapomdp.recognition.vptree_stage import fit_vptree, xrho_predictions
 
 RESULTS = Path(__file__).parent / "results" / "vptree_baseline.txt"
@@ -55,7 +55,6 @@ def main() -> None:
     parser.add_argument("--top-k", type=int)
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args()
-    set_progress(False)
     ws = args.workspace
     config = workspace_config(ws)
     for name in ("patch_size_m", "stride_px", "branching", "levels", "top_k"):
@@ -64,17 +63,17 @@ def main() -> None:
 
     start = time.perf_counter()
     views = load_training_views(ws / "render", ws / "dataset")
-    classifier = fit_vptree(config, views)
+    classifier = fit_vptree(config, views, progress=False)
     fit_s = time.perf_counter() - start
     dataset = views.dataset
 
     start = time.perf_counter()
     vol_labels, vol_pred = xrho_predictions(classifier, dataset, dataset.with_role("volume"),
-                                            config, "observe/volume", "volume")
+                                            config, VOLUME_STREAM, "volume", False)
     volume_s = time.perf_counter() - start
     start = time.perf_counter()
     test_labels, test_pred = xrho_predictions(classifier, dataset, dataset.with_role("test"),
-                                              config, "classifier_eval", "test")
+                                              config, TEST_STREAM, "test", False)
     test_s = time.perf_counter() - start
     correct = test_pred == test_labels[:, None]
 

@@ -1,4 +1,4 @@
-"""Shared fixtures: progress bars off and one thread everywhere, a tiny configuration."""
+"""Shared fixtures: a quiet single-threaded run context, one PyTorch thread, tiny configs."""
 
 from __future__ import annotations
 
@@ -7,20 +7,18 @@ from pathlib import Path
 import pytest
 import torch
 
-from rapomdp import parallel
 from rapomdp.config import Config, config_from_dict
-from rapomdp.progress import set_progress
+from rapomdp.context import QUIET, RunContext
 
-set_progress(False)
+#: The context of every test's stages: no progress bars, one thread, no worker processes (the
+#: machine has 2 shared cores; the tests that check parallel runs ask for processes explicitly).
+TEST_CONTEXT: RunContext = QUIET
 
 
 @pytest.fixture(autouse=True)
-def _quiet_single_thread() -> None:
-    """No progress bars, one PyTorch thread and no worker processes in every test (the machine
-    has 2 shared cores; the tests that check parallel runs ask for processes explicitly)."""
-    set_progress(False)
+def _single_torch_thread() -> None:
+    """One PyTorch thread in every test, whatever an earlier test's classifier set."""
     torch.set_num_threads(1)
-    parallel.workers = 1
 
 
 def tiny_config(**overrides: object) -> Config:

@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from rapomdp.config import Config, ConfigError, load_config
+from rapomdp.context import RunContext
 from rapomdp.data.layouts import DatasetLayoutError
 from rapomdp.data.meshes import MeshLoadError
 from rapomdp.data.splits import TooFewModelsError
@@ -86,12 +87,13 @@ def _save_config(config: Config, workspace: Workspace) -> None:
 
 
 def _run(config_path: Path | None, workspace: Path, until: str | None,
-         force: list[str]) -> None:
+         force: list[str], context: RunContext | None = None) -> None:
     def action() -> None:
         config = load_config(config_path)
         ws = Workspace(workspace)
         _save_config(config, ws)
-        run_pipeline(config, ws, until=until, force=force, on_result=_report)
+        run_pipeline(config, ws, until=until, force=force, on_result=_report,
+                     context=context or RunContext())
 
     _guard(action)
 
@@ -108,10 +110,10 @@ def run(
         str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
     ] = None,
     workers: WorkersOption = None,
+    threads: ThreadsOption = None,
 ) -> None:
     """Run every stage in order, skipping those whose inputs are unchanged; prints Table 1."""
-    _set_workers(workers)
-    _run(config, workspace, until, list(force or []))
+    _run(config, workspace, until, list(force or []), _context(threads, workers))
     if until is None:
         _print_table1(workspace)
 
@@ -172,26 +174,24 @@ ThreadsOption = Annotated[
 ]
 
 
-def _set_threads(threads: int | None) -> None:
-    from rapomdp.recognition import stage
-
-    stage.threads = threads
+def _context(threads: int | None = None, workers: int | None = None) -> RunContext:
+    """The run context of the CLI's ``--threads`` and ``--workers`` (progress bars on)."""
+    return RunContext(workers=workers, threads=threads)
 
 
 @app.command()
 def train(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
           threads: ThreadsOption = None) -> None:
     """Train the depth classifier on the training renders (and build what it needs)."""
-    _set_threads(threads)
-    _run(config, workspace, "train", ["train"] if force else [])
+    _run(config, workspace, "train", ["train"] if force else [], _context(threads))
 
 
 @app.command("evaluate-classifier")
 def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
                         force: ForceOption = False, threads: ThreadsOption = None) -> None:
     """Single-view accuracy on the test models: per class, confusion, per viewpoint."""
-    _set_threads(threads)
-    _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [])
+    _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [],
+         _context(threads))
     metrics = Path(workspace) / "classifier_eval" / "metrics.json"
     if metrics.exists():
         from rapomdp.io import read_json
@@ -206,24 +206,21 @@ def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
 def saliency(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
              threads: ThreadsOption = None) -> None:
     """2D saliency maps of each class's volume model (method: config saliency.method)."""
-    _set_threads(threads)
-    _run(config, workspace, "saliency", ["saliency"] if force else [])
+    _run(config, workspace, "saliency", ["saliency"] if force else [], _context(threads))
 
 
 @app.command()
 def volume(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
            threads: ThreadsOption = None) -> None:
     """The 3D dense saliency volume of every class (and the stages it needs)."""
-    _set_threads(threads)
-    _run(config, workspace, "volume", ["volume"] if force else [])
+    _run(config, workspace, "volume", ["volume"] if force else [], _context(threads))
 
 
 @app.command()
 def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
             threads: ThreadsOption = None) -> None:
     """Observation models P(o | class, viewpoint) and the self-awareness quality table."""
-    _set_threads(threads)
-    _run(config, workspace, "observe", ["observe"] if force else [])
+    _run(config, workspace, "observe", ["observe"] if force else [], _context(threads))
     table = Path(workspace) / "observe" / "quality.md"
     if table.exists():
         sys.stdout.write(table.read_text())
@@ -263,8 +260,7 @@ def figure_fig1(
     threads: ThreadsOption = None,
 ) -> None:
     """Fig. 1: depth, 2D saliency, 3D volume and viewpoint scores of one class (PNG + HTML)."""
-    _set_threads(threads)
-    _run(config, workspace, "observe", [])
+    _run(config, workspace, "observe", [], _context(threads))
 
     def action() -> tuple[Path, Path]:
         from rapomdp.awareness.report import write_fig1
@@ -291,14 +287,12 @@ def figure_fig2(
 
     Each two-class problem trains its own classifier in W/fig2/<target>-vs-<other>.
     """
-    _set_threads(threads)
-
     def action() -> tuple[Path, Path]:
-        from rapomdp.awareness.report import write_fig2
+        from rapomdp.pipeline import write_fig2
 
         return write_fig2(load_config(config), Workspace(workspace), target,
                           [a.strip() for a in against.split(",") if a.strip()], epochs,
-                          on_result=_report)
+                          on_result=_report, context=_context(threads))
 
     png, html = _guard(action)
     console.print(f"[green]✓[/] Fig. 2 written to {png} and {html}")
@@ -360,16 +354,9 @@ def evaluate(workspace: WorkspaceOption, config: ConfigOption = None,
     method (evaluate.methods) runs one episode from each. Prints Table 1 and writes
     W/evaluate/: table1.md|csv, per_class.md|csv, episodes.npz|csv, fig3.png, trajectories.png.
     """
-    _set_threads(threads)
-    _set_workers(workers)
-    _run(config, workspace, "evaluate", ["evaluate"] if force else [])
+    _run(config, workspace, "evaluate", ["evaluate"] if force else [],
+         _context(threads, workers))
     _print_table1(workspace)
-
-
-def _set_workers(workers: int | None) -> None:
-    from rapomdp import parallel
-
-    parallel.workers = workers
 
 
 @app.command()
@@ -384,17 +371,16 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
     The report is always rebuilt (it is cheap): it also shows optional artefacts that are not
     among its inputs (Fig. 2 from `rapomdp figure fig2` or --fig2).
     """
-    _set_threads(threads)
-    _set_workers(workers)
+    context = _context(threads, workers)
     if fig2:
         def make_fig2() -> tuple[Path, Path]:
-            from rapomdp.awareness.report import write_fig2
+            from rapomdp.pipeline import write_fig2
 
             return write_fig2(load_config(config), Workspace(workspace), FIG2_TARGET,
-                              list(FIG2_AGAINST), None, on_result=_report)
+                              list(FIG2_AGAINST), None, on_result=_report, context=context)
 
         _guard(make_fig2)
-    _run(config, workspace, "report", ["report"])
+    _run(config, workspace, "report", ["report"], context)
     folder = Path(workspace) / "report"
     for name in ("report.html", "report.md"):
         sys.stdout.write(f"{folder / name}\n")

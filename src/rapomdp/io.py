@@ -1,12 +1,14 @@
-"""Safe, atomic artefact I/O: every file appears whole or not at all, and nothing is unpickled."""
+"""Safe, atomic artefact I/O (every file appears whole or not at all, nothing is unpickled) and
+the content hashes that key cached stages."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import tempfile
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -96,3 +98,18 @@ def load_npz(path: str | Path) -> dict[str, np.ndarray]:
         raise ArtefactError(f"{path}: not found") from exc
     except ValueError as exc:
         raise ArtefactError(f"{path}: not a plain .npz archive ({exc})") from exc
+
+
+def stable_hash(obj: Any) -> str:
+    """SHA-256 of an object's canonical JSON."""
+    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def fingerprint_files(paths: Sequence[Path]) -> str:
+    """Hash of files' paths, sizes and modification times (as make does; cheap on big data)."""
+    entries = []
+    for path in sorted(paths):
+        stat = path.stat()
+        entries.append([str(path), stat.st_size, stat.st_mtime_ns])
+    return stable_hash(entries)

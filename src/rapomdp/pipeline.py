@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
 
+from rapomdp.awareness.figures import fig2
+from rapomdp.awareness.report import FIGURES_DIR
 from rapomdp.awareness.stage import (
     OBSERVE_SECTIONS,
     SALIENCY_SECTIONS,
@@ -12,9 +15,11 @@ from rapomdp.awareness.stage import (
     run_saliency_stage,
     run_volume_stage,
 )
+from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.config import Config
+from rapomdp.context import RunContext
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
-from rapomdp.data.training_views import run_render_stage
+from rapomdp.data.training_views import load_training_views, run_render_stage
 from rapomdp.experiment.evaluation import EVALUATE_SECTIONS, run_evaluate_stage
 from rapomdp.experiment.report import REPORT_INPUTS, REPORT_SECTIONS, run_report_stage
 from rapomdp.planning.stage import run_solve_stage
@@ -26,7 +31,7 @@ from rapomdp.recognition.stage import (
 )
 from rapomdp.recognition.vptree_stage import VPTREE_SECTIONS, run_vptree_stage
 from rapomdp.robot.stage import run_robot_stage
-from rapomdp.workspace import Stage, StageResult, Workspace
+from rapomdp.workspace import Stage, StageError, StageResult, Workspace
 
 STAGES: list[Stage] = [
     Stage(
@@ -140,6 +145,7 @@ def run_pipeline(
     until: str | None = None,
     force: Iterable[str] = (),
     on_result: Callable[[StageResult], None] | None = None,
+    context: RunContext = RunContext(),
 ) -> list[StageResult]:
     """Run every stage (or those ``until`` needs) in order, skipping current ones."""
     force = set(force)
@@ -149,8 +155,36 @@ def run_pipeline(
     stages = STAGES if until is None else stages_up_to(until)
     results = []
     for stage in stages:
-        result = workspace.run(stage, config, force=stage.name in force)
+        result = workspace.run(stage, config, force=stage.name in force, context=context)
         results.append(result)
         if on_result is not None:
             on_result(result)
     return results
+
+
+def write_fig2(config: Config, ws: Workspace, target: str, against: Sequence[str],
+               epochs: int | None = None,
+               on_result: Callable[[StageResult], None] | None = None,
+               context: RunContext = RunContext()) -> tuple[Path, Path]:
+    """Fig. 2: ``target``'s volume in one two-class problem per opponent (each with its own
+    classifier, in ``W/fig2/<target>-vs-<other>``) and in the all-class problem (``W``)."""
+    volumes, titles = [], []
+    for other in against:
+        if other == target:
+            raise StageError(f"fig2: the opponent '{other}' is the target class itself")
+        pair = config.model_copy(deep=True)
+        pair.dataset.classes = [target, other]
+        if epochs is not None:
+            pair.train.epochs = epochs
+        sub = Workspace(ws.root / "fig2" / f"{target}-vs-{other}")
+        run_pipeline(pair, sub, until="volume", on_result=on_result, context=context)
+        volumes.append(SaliencyVolume.load(sub.require("volume") / f"{target}.npz"))
+        titles.append(f"{target} vs {other}")
+    run_pipeline(config, ws, until="volume", on_result=on_result, context=context)
+    classes = load_training_views(ws.require("render"), ws.require("dataset")).dataset.classes
+    if target not in classes:
+        raise StageError(f"class '{target}' is not in the workspace's dataset")
+    volumes.append(SaliencyVolume.load(ws.require("volume") / f"{target}.npz"))
+    titles.append(f"all {len(classes)} classes")
+    out = ws.root / FIGURES_DIR
+    return fig2(volumes, titles, target, out / "fig2.png", out / "fig2.html")

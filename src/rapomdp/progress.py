@@ -1,4 +1,5 @@
-"""Progress bars for long work (rich), quiet when asked."""
+"""Progress bars for long work (rich); each call says whether bars are on (the run context's
+``progress``), so nothing here is process-wide state."""
 
 from __future__ import annotations
 
@@ -16,20 +17,12 @@ from rich.progress import (
 
 T = TypeVar("T")
 
-_enabled = True
 
-
-def set_progress(enabled: bool) -> None:
-    """Turn progress bars on or off for this process (tests and libraries turn them off)."""
-    global _enabled
-    _enabled = enabled
-
-
-def progress_bar(status: bool = False) -> Progress:
+def progress_bar(enabled: bool = True, status: bool = False) -> Progress:
     """The project's rich bar: description, bar, count, elapsed, remaining.
 
     With ``status`` it also shows a ``status`` field (e.g. loss and accuracy) that the caller
-    updates with ``progress.update(task, status=...)``. Disabled when bars are off.
+    updates with ``progress.update(task, status=...)``. Invisible unless ``enabled``.
     """
     columns = [
         TextColumn("[bold]{task.description}"),
@@ -39,17 +32,19 @@ def progress_bar(status: bool = False) -> Progress:
         TimeElapsedColumn(),
         TimeRemainingColumn(),
     ]
-    return Progress(*columns, disable=not _enabled)
+    return Progress(*columns, disable=not enabled)
 
 
-def track(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:
-    """Iterate over ``items`` with a progress bar showing count, elapsed and remaining time."""
-    if not _enabled:
+def track(items: Iterable[T], description: str, enabled: bool = True,
+          total: int | None = None) -> Iterator[T]:
+    """Iterate over ``items`` with a progress bar showing count, elapsed and remaining time
+    (just the items unless ``enabled``)."""
+    if not enabled:
         yield from items
         return
     if total is None and hasattr(items, "__len__"):
         total = len(items)  # type: ignore[arg-type]
-    with progress_bar() as progress:
+    with progress_bar(enabled) as progress:
         task = progress.add_task(description, total=total)
         for item in items:
             yield item

@@ -9,8 +9,6 @@ finished, so an interrupted or failed run leaves the earlier artefacts intact.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 import shutil
 import time
@@ -20,7 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from rapomdp.config import Config
-from rapomdp.io import ArtefactError, read_json, write_json_atomic
+from rapomdp.context import RunContext
+from rapomdp.io import ArtefactError, read_json, stable_hash, write_json_atomic
 
 MANIFEST = "manifest.json"
 STAGE_RECORD = "stage.json"
@@ -35,7 +34,7 @@ class Stage:
     """One pipeline stage: reads ``inputs`` (earlier stages) and writes its own folder."""
 
     name: str
-    run: Callable[[Config, dict[str, Path], Path], None]
+    run: Callable[[Config, dict[str, Path], Path, RunContext], None]
     sections: Sequence[str] = ()
     inputs: Sequence[str] = ()
     version: str = "1"
@@ -50,21 +49,6 @@ class StageResult:
     cached: bool
     seconds: float
     files: list[str] = field(default_factory=list)
-
-
-def stable_hash(obj: Any) -> str:
-    """SHA-256 of an object's canonical JSON."""
-    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def fingerprint_files(paths: Sequence[Path]) -> str:
-    """Hash of files' paths, sizes and modification times (as make does; cheap on big data)."""
-    entries = []
-    for path in sorted(paths):
-        stat = path.stat()
-        entries.append([str(path), stat.st_size, stat.st_mtime_ns])
-    return stable_hash(entries)
 
 
 class Workspace:
@@ -121,8 +105,10 @@ class Workspace:
             and record["key"] == self.key_of(stage, config)
         )
 
-    def run(self, stage: Stage, config: Config, force: bool = False) -> StageResult:
-        """Run ``stage`` unless its cached output is current (or ``force``)."""
+    def run(self, stage: Stage, config: Config, force: bool = False,
+            context: RunContext = RunContext()) -> StageResult:
+        """Run ``stage`` unless its cached output is current (or ``force``), with ``context``'s
+        workers, threads and progress bars."""
         self.root.mkdir(parents=True, exist_ok=True)
         key = self.key_of(stage, config)
         if not force and self.is_current(stage, config):
@@ -135,7 +121,7 @@ class Workspace:
         tmp.mkdir()
         start = time.perf_counter()
         try:
-            stage.run(config, inputs, tmp)
+            stage.run(config, inputs, tmp, context)
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise

@@ -12,10 +12,11 @@ from rapomdp.awareness.observation import load_observation_models
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.cli import app
 from rapomdp.config import config_from_dict
+from rapomdp.context import RunContext
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import TINY_PIPELINE
+from tests.conftest import TEST_CONTEXT, TINY_PIPELINE
 
 TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"]},
         "viewpoints": {"count": 10}}
@@ -23,20 +24,11 @@ TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"]},
 
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
-    import torch
-
-    from rapomdp.progress import set_progress
-    from rapomdp.recognition import stage
-
-    set_progress(False)
-    torch.set_num_threads(1)
-    previous, stage.threads = stage.threads, 1
     config = config_from_dict(TINY)
     ws = Workspace(tmp_path_factory.mktemp("ws"))
-    run_pipeline(config, ws, until="observe")
+    run_pipeline(config, ws, until="observe", context=TEST_CONTEXT)
     (ws.root / "tiny.yaml").write_text(config.to_yaml())
-    yield ws
-    stage.threads = previous
+    return ws
 
 
 def test_saliency_maps_cover_object_pixels_only(workspace):
@@ -101,7 +93,7 @@ def test_solve_stage_plans_on_the_observation_models_and_robot(workspace):
     from rapomdp.planning.policy import ActiveRecognitionPolicy
 
     config = config_from_dict({**TINY, "solve": {"timeout_s": 2.0}})
-    results = run_pipeline(config, workspace, until="solve")
+    results = run_pipeline(config, workspace, until="solve", context=TEST_CONTEXT)
     assert [r.name for r in results][-4:] == ["robot", "observe", "vptree", "solve"]
     summary = read_json(workspace.root / "solve" / "solve_summary.json")
     assert set(summary) == {"ra", "classifier", "vptree"}  # the default solve.models
@@ -118,16 +110,11 @@ def test_solve_stage_plans_on_the_observation_models_and_robot(workspace):
 
 
 def test_saliency_maps_do_not_depend_on_the_number_of_processes(workspace, tmp_path):
-    from rapomdp import parallel
     from rapomdp.awareness.stage import run_saliency_stage
 
     config = config_from_dict(TINY)
     inputs = {name: workspace.require(name) for name in ("dataset", "render", "train")}
-    parallel.workers = 2
-    try:
-        run_saliency_stage(config, inputs, tmp_path)
-    finally:
-        parallel.workers = 1
+    run_saliency_stage(config, inputs, tmp_path, RunContext(workers=2, progress=False))
     for name in ("bicycle", "teapot"):
         model = _volume_model(workspace, name)
         serial = load_npz(workspace.root / "saliency" / "maps" / name / f"{model}.npz")

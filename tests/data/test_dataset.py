@@ -11,6 +11,7 @@ from rapomdp.data.meshes import MeshLoadError, bounding_sphere_radius
 from rapomdp.data.splits import TooFewModelsError
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
+from tests.conftest import TEST_CONTEXT
 
 
 def _folder_dataset(root: Path, per_class: dict[str, int]) -> None:
@@ -31,17 +32,17 @@ def test_folder_dataset_normalised_split_and_cached_on_file_changes(tmp_path: Pa
     _folder_dataset(root, {"box": 5, "crate": 6})
     ws = Workspace(tmp_path / "ws")
     cfg = _cfg(root)
-    run_pipeline(cfg, ws, until="dataset")
+    run_pipeline(cfg, ws, until="dataset", context=TEST_CONTEXT)
     data = load_dataset(ws.stage_dir("dataset"))
     assert data.classes == ["box", "crate"] and len(data.models) == 10
     assert {m.role for m in data.models} == {"train", "volume", "test"}
     for model in data.models:
         assert bounding_sphere_radius(data.mesh(model).vertices) == pytest.approx(0.2)
         assert model.source.endswith(".stl")
-    assert run_pipeline(cfg, ws, until="dataset")[0].cached
+    assert run_pipeline(cfg, ws, until="dataset", context=TEST_CONTEXT)[0].cached
     # touching a mesh file changes the stage's key
     (root / "box" / "m0.stl").write_bytes((root / "box" / "m1.stl").read_bytes())
-    assert not run_pipeline(cfg, ws, until="dataset")[0].cached
+    assert not run_pipeline(cfg, ws, until="dataset", context=TEST_CONTEXT)[0].cached
 
 
 def test_folder_dataset_errors_name_the_problem(tmp_path: Path) -> None:
@@ -49,15 +50,16 @@ def test_folder_dataset_errors_name_the_problem(tmp_path: Path) -> None:
     _folder_dataset(root, {"box": 5, "tiny": 2})
     ws = Workspace(tmp_path / "ws")
     with pytest.raises(TooFewModelsError, match="class 'tiny' has 2 model"):
-        run_pipeline(_cfg(root), ws, until="dataset")
+        run_pipeline(_cfg(root), ws, until="dataset", context=TEST_CONTEXT)
     with pytest.warns(UserWarning, match="'tiny'.*dropped"):
-        run_pipeline(_cfg(root, too_few_models="drop"), ws, until="dataset")
+        run_pipeline(_cfg(root, too_few_models="drop"), ws, until="dataset", context=TEST_CONTEXT)
     assert load_dataset(ws.stage_dir("dataset")).classes == ["box"]
     with pytest.raises(DatasetLayoutError, match="class folder\\(s\\) not found: sofa"):
-        run_pipeline(_cfg(root, classes=["box", "sofa"]), ws, until="dataset")
+        run_pipeline(_cfg(root, classes=["box", "sofa"]), ws, until="dataset", context=TEST_CONTEXT)
     (root / "box" / "m3.stl").write_text("solid broken\nthis is not stl\n")
     with pytest.raises(MeshLoadError, match="m3.stl"):
-        run_pipeline(_cfg(root, classes=["box"]), Workspace(tmp_path / "ws2"), until="dataset")
+        run_pipeline(_cfg(root, classes=["box"]), Workspace(tmp_path / "ws2"), until="dataset",
+                     context=TEST_CONTEXT)
     # the failures left the earlier dataset in place
     assert json.loads((ws.stage_dir("dataset") / "dataset.json").read_text())["classes"] == ["box"]
 
@@ -65,4 +67,4 @@ def test_folder_dataset_errors_name_the_problem(tmp_path: Path) -> None:
 def test_unknown_procedural_class_is_named(tmp_path: Path) -> None:
     cfg = config_from_dict({"dataset": {"classes": ["cup", "lamp"]}})
     with pytest.raises(DatasetLayoutError, match="unknown procedural class\\(es\\) lamp"):
-        run_pipeline(cfg, Workspace(tmp_path / "ws"), until="dataset")
+        run_pipeline(cfg, Workspace(tmp_path / "ws"), until="dataset", context=TEST_CONTEXT)

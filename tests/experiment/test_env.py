@@ -19,7 +19,7 @@ from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.pipeline import run_pipeline
 from rapomdp.robot.stage import load_robot
 from rapomdp.workspace import StageError, Workspace
-from tests.conftest import tiny_config
+from tests.conftest import TEST_CONTEXT, tiny_config
 
 
 @pytest.fixture(scope="module")
@@ -27,8 +27,8 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> tuple[Workspace, Config]:
     """Dataset and robot stages of the tiny configuration (40x30 camera, 16 viewpoints)."""
     config = tiny_config(solve={"wrong_declaration_cost_m": 1.5})
     ws = Workspace(tmp_path_factory.mktemp("ws"))
-    run_pipeline(config, ws, until="dataset")
-    run_pipeline(config, ws, until="robot")
+    run_pipeline(config, ws, until="dataset", context=TEST_CONTEXT)
+    run_pipeline(config, ws, until="robot", context=TEST_CONTEXT)
     (ws.root / "config.yaml").write_text(config.to_yaml())
     return ws, config
 
@@ -208,7 +208,7 @@ def test_constructor_rejects_inconsistent_inputs(env) -> None:
 def test_from_workspace_needs_the_robot_stage(tmp_path: Path) -> None:
     config = tiny_config()
     ws = Workspace(tmp_path / "ws")
-    run_pipeline(config, ws, until="dataset")
+    run_pipeline(config, ws, until="dataset", context=TEST_CONTEXT)
     (ws.root / "config.yaml").write_text(config.to_yaml())
     with pytest.raises(StageError, match="stage 'robot' has not been run"):
         ActiveRecognitionEnv.from_workspace(ws.root)

@@ -7,14 +7,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from rapomdp import parallel
 from rapomdp.config import config_from_dict
+from rapomdp.context import RunContext
 from rapomdp.experiment import evaluation
-from rapomdp.experiment.evaluation import ClosedLoop, EpisodeTable, start_viewpoints
+from rapomdp.experiment.episode_table import EpisodeTable
+from rapomdp.experiment.evaluation import ClosedLoop, start_viewpoints
 from rapomdp.io import read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import TINY_PIPELINE
+from tests.conftest import TEST_CONTEXT, TINY_PIPELINE
 
 METHODS = ["static", "random", "vptree", "classifier", "ra"]
 TINY = {
@@ -29,21 +30,10 @@ TINY = {
 
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
-    import torch
-
-    from rapomdp.progress import set_progress
-    from rapomdp.recognition import stage
-
-    set_progress(False)
-    torch.set_num_threads(1)
-    previous, stage.threads = stage.threads, 1
-    parallel.workers = 1
     config = config_from_dict(TINY)
     ws = Workspace(tmp_path_factory.mktemp("ws"))
-    run_pipeline(config, ws)
-    yield ws, config
-    stage.threads = previous
-    parallel.workers = None
+    run_pipeline(config, ws, context=TEST_CONTEXT)
+    return ws, config
 
 
 def _inputs(ws: Workspace) -> dict:
@@ -109,12 +99,13 @@ def test_actions_do_not_depend_on_the_label(workspace) -> None:
 def test_same_seed_same_table_and_workers_do_not_matter(workspace, tmp_path) -> None:
     ws, config = workspace
     first = (ws.require("evaluate") / "table1.md").read_text()
-    records, dataset = evaluation.run_episodes(config, _inputs(ws), processes=2)
+    records, dataset = evaluation.run_episodes(config, _inputs(ws),
+                                             RunContext(workers=2, progress=False))
     again = EpisodeTable.from_records(records, dataset, METHODS)
     saved = EpisodeTable.load(ws.require("evaluate") / "episodes.npz")
     assert np.array_equal(again.step_viewpoints, saved.step_viewpoints)
     assert np.array_equal(again.correct, saved.correct)
-    ws.run(evaluation_stage(), config, force=True)
+    ws.run(evaluation_stage(), config, force=True, context=TEST_CONTEXT)
     assert (ws.require("evaluate") / "table1.md").read_text() == first
 
 

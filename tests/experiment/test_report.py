@@ -15,6 +15,7 @@ from typer.testing import CliRunner  # noqa: E402
 from rapomdp import cli  # noqa: E402
 from rapomdp.cli import app  # noqa: E402
 from rapomdp.config import Config  # noqa: E402
+from rapomdp.context import RunContext
 from rapomdp.experiment import report as report_module  # noqa: E402
 from rapomdp.experiment.report import (  # noqa: E402
     REPORT_INPUTS,
@@ -28,7 +29,7 @@ from rapomdp.experiment.report import (  # noqa: E402
 from rapomdp.io import write_json_atomic  # noqa: E402
 from rapomdp.pipeline import get_stage, run_pipeline  # noqa: E402
 from rapomdp.workspace import Stage, StageError, Workspace  # noqa: E402
-from tests.conftest import tiny_config  # noqa: E402
+from tests.conftest import TEST_CONTEXT, tiny_config  # noqa: E402
 
 TABLE1 = """| Approach | Accuracy | Belief | # steps | Distance | Cost |
 |---|---:|---:|---:|---:|---:|
@@ -55,7 +56,7 @@ def _png(path: Path) -> None:
 
 
 def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ...]):
-    def run(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    def run(config: Config, inputs: dict[str, Path], out: Path, context: RunContext) -> None:
         for name, text in texts.items():
             (out / name).write_text(text)
         for name, data in jsons.items():
@@ -92,9 +93,9 @@ def synthetic(tmp_path_factory: pytest.TempPathFactory) -> tuple[Workspace, Conf
     """A real tiny dataset stage and synthetic train ... evaluate stages."""
     config = tiny_config()
     ws = Workspace(tmp_path_factory.mktemp("ws"))
-    run_pipeline(config, ws, until="dataset")
+    run_pipeline(config, ws, until="dataset", context=TEST_CONTEXT)
     for name, run in SYNTHETIC.items():
-        ws.run(Stage(name, run), config)
+        ws.run(Stage(name, run), config, context=TEST_CONTEXT)
     (ws.root / "config.yaml").write_text(config.to_yaml())
     return ws, config
 
@@ -188,7 +189,7 @@ def test_a_missing_required_stage_is_named(synthetic, tmp_path: Path) -> None:
     inputs = _inputs(ws)
     del inputs["solve"]
     with pytest.raises(StageError, match="report: needs the stage.s. solve"):
-        run_report_stage(config, inputs, tmp_path / "r")
+        run_report_stage(config, inputs, tmp_path / "r", TEST_CONTEXT)
     inputs["solve"] = tmp_path / "nowhere"
     with pytest.raises(StageError, match="solve"):
         write_report(config, inputs, tmp_path / "r")
@@ -198,10 +199,11 @@ def test_report_stage_runs_in_the_pipeline_and_the_cli(synthetic, monkeypatch) -
     ws, config = synthetic
     monkeypatch.setattr(report_module, "write_fig1", _fake_fig1([]))
 
-    def only_the_report(config: Config, workspace: Workspace, until: str, force, on_result):
+    def only_the_report(config: Config, workspace: Workspace, until: str, force, on_result,
+                        context):
         # the synthetic stages are not the real ones: run the report stage alone
         assert (until, force) == ("report", ["report"])
-        return [workspace.run(get_stage("report"), config, force=True)]
+        return [workspace.run(get_stage("report"), config, force=True, context=context)]
 
     monkeypatch.setattr(cli, "run_pipeline", only_the_report)
     result = CliRunner().invoke(app, ["report", "-w", str(ws.root), "-c",

@@ -13,6 +13,7 @@ from rapomdp.planning.cli import pomdp_app
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import run_solve_stage, workspace_problem
 from rapomdp.workspace import Stage, StageError, Workspace
+from tests.conftest import TEST_CONTEXT
 
 V, C = 10, 3
 UNREACHABLE = 6
@@ -26,18 +27,18 @@ def _observation_model(seed: int) -> np.ndarray:
     return P
 
 
-def _write_observe(config, inputs, out: Path) -> None:  # noqa: ANN001
+def _write_observe(config, inputs, out: Path, context) -> None:  # noqa: ANN001
     save_npz(out / "observation_models.npz", models=np.array(["ra", "classifier"]),
              classes=np.array(["cup", "mug", "bottle"]), ra=_observation_model(0),
              classifier=_observation_model(1))
 
 
-def _write_vptree(config, inputs, out: Path) -> None:  # noqa: ANN001
+def _write_vptree(config, inputs, out: Path, context) -> None:  # noqa: ANN001
     save_npz(out / "observation_model.npz", classes=np.array(["cup", "mug", "bottle"]),
              vptree=_observation_model(2))
 
 
-def _write_robot(config, inputs, out: Path) -> None:  # noqa: ANN001
+def _write_robot(config, inputs, out: Path, context) -> None:  # noqa: ANN001
     distance = geodesic_distance_matrix(viewpoints(V, 0.6, hemisphere=True), 0.6)
     reachable = np.ones(V, dtype=bool)
     reachable[UNREACHABLE] = False
@@ -53,9 +54,9 @@ def _write_robot(config, inputs, out: Path) -> None:  # noqa: ANN001
 def workspace(tmp_path: Path) -> Workspace:
     ws = Workspace(tmp_path / "ws")
     cfg = config_from_dict({})
-    ws.run(Stage("observe", _write_observe), cfg)
-    ws.run(Stage("vptree", _write_vptree), cfg)
-    ws.run(Stage("robot", _write_robot), cfg)
+    ws.run(Stage("observe", _write_observe), cfg, context=TEST_CONTEXT)
+    ws.run(Stage("vptree", _write_vptree), cfg, context=TEST_CONTEXT)
+    ws.run(Stage("robot", _write_robot), cfg, context=TEST_CONTEXT)
     return ws
 
 
@@ -65,7 +66,7 @@ def test_solve_stage_writes_one_policy_per_model(workspace: Workspace, tmp_path:
     out.mkdir()
     run_solve_stage(cfg, {"observe": workspace.stage_dir("observe"),
                           "vptree": workspace.stage_dir("vptree"),
-                          "robot": workspace.stage_dir("robot")}, out)
+                          "robot": workspace.stage_dir("robot")}, out, TEST_CONTEXT)
     summary = read_json(out / "solve_summary.json")
     assert set(summary) == {"ra", "classifier", "vptree"}  # the default solve.models
     for name, bounds in summary.items():

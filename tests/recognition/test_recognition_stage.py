@@ -17,6 +17,7 @@ from rapomdp.pipeline import run_pipeline
 from rapomdp.recognition.classifier import META_FILE, CheckpointMismatchError
 from rapomdp.recognition.stage import load_stage_classifier, train_config_hash
 from rapomdp.workspace import Workspace
+from tests.conftest import TEST_CONTEXT
 
 TINY = {
     "dataset": {"classes": ["cup", "bottle", "chair"]},
@@ -30,12 +31,9 @@ TINY = {
 
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
-    from rapomdp.progress import set_progress
-
-    set_progress(False)
     root = tmp_path_factory.mktemp("ws")
     config = config_from_dict(TINY)
-    run_pipeline(config, Workspace(root), until="classifier_eval")
+    run_pipeline(config, Workspace(root), until="classifier_eval", context=TEST_CONTEXT)
     (root / "tiny.yaml").write_text(yaml.safe_dump(TINY))
     return root, config
 

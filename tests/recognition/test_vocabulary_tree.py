@@ -24,7 +24,7 @@ from rapomdp.recognition.vocabulary_tree import (
 )
 from rapomdp.recognition.vptree_stage import load_workspace_vptree
 from rapomdp.workspace import Workspace
-from tests.conftest import tiny_config
+from tests.conftest import TEST_CONTEXT, tiny_config
 
 PARAMS = DescriptorParams(patch_size_m=0.06, samples=5, stride_px=4)
 
@@ -188,7 +188,7 @@ def test_save_load_round_trip_and_bad_files(fitted: VocabularyTreeClassifier,
 def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> None:
     config = tiny_config(vptree={"branching": 4, "levels": 2})
     workspace = Workspace(tmp_path / "ws")
-    results = run_pipeline(config, workspace, until="vptree")
+    results = run_pipeline(config, workspace, until="vptree", context=TEST_CONTEXT)
     assert [r.name for r in results] == ["dataset", "render", "vptree"]
     stage = workspace.root / "vptree"
     model = load_npz(stage / "observation_model.npz")

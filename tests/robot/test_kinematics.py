@@ -128,7 +128,7 @@ def test_transform_round_trip() -> None:
 
 def test_a_turned_base_still_reaches_its_targets() -> None:
     """The base pose is applied everywhere: the arm turned 90 deg about Z, placed to match."""
-    from rapomdp.robot.config import RobotConfig
+    from rapomdp.config import RobotConfig
 
     scene = Scene.from_config(RobotConfig(base_xyz_m=(0.0, -0.4, 0.2), base_yaw_deg=90.0))
     turned = CameraArm(scene)

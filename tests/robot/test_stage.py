@@ -22,11 +22,12 @@ from rapomdp.robot.stage import (
     solve_robot,
 )
 from rapomdp.workspace import StageError
+from tests.conftest import TEST_CONTEXT
 
 
 def test_stage_writes_arrays_summary_and_figure(tmp_path: Path) -> None:
     config = Config(viewpoints={"count": 24})
-    run_robot_stage(config, {}, tmp_path)
+    run_robot_stage(config, {}, tmp_path, TEST_CONTEXT)
     arrays = load_robot(tmp_path)
     n = 24
     assert arrays["reachable"].shape == (n,) and arrays["reachable"].dtype == bool
@@ -110,11 +111,12 @@ def test_stage_in_a_workspace_is_cached_and_survives_a_failed_rerun(tmp_path: Pa
     stage = Stage(name="robot", run=run_robot_stage, sections=("seed", "viewpoints", "robot"))
     workspace = Workspace(tmp_path)
     config = Config(viewpoints={"count": 16})
-    first = workspace.run(stage, config)
+    first = workspace.run(stage, config, context=TEST_CONTEXT)
     assert not first.cached and ROBOT_ARRAYS in first.files
-    assert workspace.run(stage, config).cached
+    assert workspace.run(stage, config, context=TEST_CONTEXT).cached
     before = (tmp_path / "robot" / ROBOT_ARRAYS).read_bytes()
     with pytest.raises(UnreachableError):
-        workspace.run(stage, Config(viewpoints={"count": 16}, robot={"base_xyz_m": (5, 0, 0)}))
+        workspace.run(stage, Config(viewpoints={"count": 16}, robot={"base_xyz_m": (5, 0, 0)}),
+                      context=TEST_CONTEXT)
     assert (tmp_path / "robot" / ROBOT_ARRAYS).read_bytes() == before
     assert load_robot(tmp_path / "robot")["reachable"].shape == (16,)

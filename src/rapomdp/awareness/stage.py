@@ -41,6 +41,7 @@ from rapomdp.awareness.scores import normalise_scores, viewpoint_scores
 from rapomdp.awareness.visibility import visibility_from_depth
 from rapomdp.awareness.volume import SaliencyVolume, object_grid, saliency_volume
 from rapomdp.config import Config
+from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
@@ -48,7 +49,7 @@ from rapomdp.data.training_views import load_training_views
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
-from rapomdp.parallel import run_tasks, worker_count
+from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
 from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.preprocess import input_to_image
@@ -89,13 +90,13 @@ def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, metho
 
 
 def _saliency_task(config_json: str, render_dir: str, dataset_dir: str, train_dir: str,
-                   out: str, model_file: str) -> tuple[int, float]:
+                   out: str, model_file: str, threads: int | None) -> tuple[int, float]:
     """One volume model's saliency maps, written to ``out``; returns (views, seconds)."""
     config = Config.model_validate_json(config_json)
     views = load_training_views(Path(render_dir), Path(dataset_dir))
     dataset = views.dataset
     model = next(m for m in dataset.models if m.file == model_file)
-    classifier = load_stage_classifier(config, Path(train_dir), dataset.classes)
+    classifier = load_stage_classifier(config, Path(train_dir), dataset.classes, threads)
     cfg = config.saliency
     depth, _ = views.load(model)
     start = time.perf_counter()
@@ -110,25 +111,30 @@ def _saliency_task(config_json: str, render_dir: str, dataset_dir: str, train_di
     return depth.shape[0], seconds
 
 
-def run_saliency_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_saliency_stage(config: Config, inputs: dict[str, Path], out: Path,
+                       context: RunContext) -> None:
     """2D saliency maps of every class's volume model over the training viewsphere, one model
     per task over worker processes (each model has its own seed: the maps do not depend on
     the number of processes)."""
     dataset = load_dataset(inputs["dataset"])
     cfg = config.saliency
+    workers = context.worker_count
+    task_threads = context.in_worker().threads if workers > 1 else context.threads
     tasks = [(config.model_dump_json(), str(inputs["render"]), str(inputs["dataset"]),
-              str(inputs["train"]), str(out), m.file) for m in dataset.with_role("volume")]
-    done = run_tasks(_saliency_task, tasks, worker_count(),
-                     f"saliency ({cfg.method}): volume models")
+              str(inputs["train"]), str(out), m.file, task_threads)
+             for m in dataset.with_role("volume")]
+    done = run_tasks(_saliency_task, tasks, workers, f"saliency ({cfg.method}): volume models",
+                     context.progress)
     total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
-    classifier = load_stage_classifier(config, inputs["train"], dataset.classes)
+    classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
+                                       context.threads)
     write_json_atomic(out / "saliency.json", {
         "method": cfg.method, "config": cfg.model_dump(mode="json"),
         "input_size_px": classifier.preprocessing.input_size_px,
         "views": total_views, "seconds": seconds,
         "maps_per_s": total_views / seconds if seconds > 0 else None,
         "threads": torch.get_num_threads(),
-        "processes": min(worker_count(), len(tasks)),
+        "processes": min(workers, len(tasks)),
     })
 
 
@@ -156,13 +162,14 @@ def class_volume(dataset: Dataset, views, saliency_dir: Path, class_name: str,  
                            views.intrinsics, grid)
 
 
-def run_volume_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_volume_stage(config: Config, inputs: dict[str, Path], out: Path,
+                     context: RunContext) -> None:
     """One 3D dense saliency volume per class (voxel median of back-projected saliency)."""
     views = load_training_views(inputs["render"], inputs["dataset"])
     dataset = views.dataset
     start = time.perf_counter()
     info = {}
-    for class_name in track(dataset.classes, "volume: classes"):
+    for class_name in track(dataset.classes, "volume: classes", context.progress):
         volume = class_volume(dataset, views, inputs["saliency"], class_name,
                               config.volume.resolution)
         volume.save(out / f"{class_name}.npz")
@@ -208,7 +215,7 @@ class Observation:
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
             volumes: dict[str, SaliencyVolume],
-            cache: dict[str, XrhoOutcomes] | None = None) -> Observation:
+            cache: dict[str, XrhoOutcomes] | None = None, progress: bool = True) -> Observation:
     """Viewpoint scores, observation models and their quality on the test models.
 
     ``cache`` ("class/model id" -> :class:`XrhoOutcomes`) lets callers that try several volumes (the
@@ -228,7 +235,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
 
     raw = np.zeros((len(classes), config.viewpoints.count))
     vol_labels, vol_pred = [], []
-    for c, class_name in enumerate(track(classes, "observe: volume models at X_rho")):
+    for c, class_name in enumerate(track(classes, "observe: volume models at X_rho", progress)):
         volume = volumes[class_name]
         per_model = []
         for model in (m for m in dataset.with_role("volume") if m.class_name == class_name):
@@ -260,22 +267,24 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     test_models = dataset.with_role("test")
     test_labels = np.array([dataset.label(m) for m in test_models])
     test_pred = np.stack([outcomes(m, TEST_STREAM).predicted
-                          for m in track(test_models, "observe: test models at X_rho")])
+                          for m in track(test_models, "observe: test models at X_rho", progress)])
     rows = quality_table(models, test_labels, test_pred)
     return Observation(models, raw, scores, calibration, labels, predicted, test_labels,
                        test_pred, rows, {"scores_s": scores_s, "observation_models_s": models_s,
                                          "total_s": time.perf_counter() - start})
 
 
-def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path,
+                      context: RunContext) -> None:
     """Viewpoint scores, the RA / Classifier / black-box observation models and their quality."""
     from rapomdp.awareness.figures import calibration_figure
 
     dataset = load_dataset(inputs["dataset"])
-    classifier = load_stage_classifier(config, inputs["train"], dataset.classes)
+    classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
+                                       context.threads)
     volumes = {name: SaliencyVolume.load(inputs["volume"] / f"{name}.npz")
                for name in dataset.classes}
-    result = observe(config, dataset, classifier, volumes)
+    result = observe(config, dataset, classifier, volumes, progress=context.progress)
     write_quality(result.quality, out / "quality.csv", out / "quality.md")
     directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
     save_npz(out / OBSERVATION_FILE,

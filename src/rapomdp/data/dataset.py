@@ -15,13 +15,20 @@ import numpy as np
 import trimesh
 
 from rapomdp.config import Config
+from rapomdp.context import RunContext
 from rapomdp.data.layouts import LAYOUT_UP_AXIS, DatasetLayoutError, discover_models
 from rapomdp.data.meshes import MeshLoadError, centroid, load_mesh, normalise_mesh
 from rapomdp.data.procedural import PROCEDURAL_CLASSES, generate_model
 from rapomdp.data.splits import ROLES, split_models
-from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
+from rapomdp.io import (
+    fingerprint_files,
+    load_npz,
+    read_json,
+    save_npz,
+    stable_hash,
+    write_json_atomic,
+)
 from rapomdp.progress import track
-from rapomdp.workspace import fingerprint_files, stable_hash
 
 DATASET_FILE = "dataset.json"
 PROCEDURAL_VERSION = "1"
@@ -106,7 +113,8 @@ def _write_mesh(out: Path, rel: str, mesh: trimesh.Trimesh) -> None:
              faces=np.asarray(mesh.faces, dtype=np.int32))
 
 
-def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path,
+                      context: RunContext) -> None:
     """Build the dataset: pick, split, load, normalise and store every model."""
     cfg = config.dataset
     counts = cfg.split.model_dump()
@@ -135,7 +143,7 @@ def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path) -> Non
     jobs = [(c, role, item) for c, roles in split.items() for role in ROLES for item in roles[role]]
     models: list[ModelEntry] = []
     used_ids: set[tuple[str, str]] = set()
-    for class_name, role, item in track(jobs, "dataset: normalising meshes"):
+    for class_name, role, item in track(jobs, "dataset: normalising meshes", context.progress):
         if isinstance(item, int):
             mesh, source = generate_model(class_name, config.seed, item), f"procedural:{item}"
             model_id = f"{class_name}_{item:03d}"

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.config import Config, NoiseConfig
+from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.noise import apply_sensor_noise
 from rapomdp.data.renderer import DepthRenderer, incidence_angles
@@ -47,12 +48,13 @@ def render_depth(
     return apply_sensor_noise(depth, angles, noise, rng or np.random.default_rng())
 
 
-def run_render_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_render_stage(config: Config, inputs: dict[str, Path], out: Path,
+                     context: RunContext) -> None:
     """Render every model of the dataset from the training viewsphere."""
     dataset = load_dataset(inputs["dataset"])
     intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
     cfg = config.render
-    for model in track(dataset.models, "render: training viewsphere"):
+    for model in track(dataset.models, "render: training viewsphere", context.progress):
         renderer = DepthRenderer(dataset.mesh(model), intrinsics)
         poses = model_poses(model, cfg.views, cfg.radius_m, hemisphere=False)
         rng = class_seed(config.seed, f"render/{model.class_name}/{model.id}")

@@ -20,25 +20,29 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from rapomdp.config import METHOD_NAMES, Config
+from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import TestViews
 from rapomdp.experiment.episode import (
-    Episode,
     Motion,
     Policy,
     Recogniser,
     run_episode,
-    score,
+)
+from rapomdp.experiment.episode_table import (
+    EPISODES_CSV,
+    EPISODES_FILE,
+    EpisodeRecord,
+    EpisodeTable,
+    episodes_csv,
 )
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
-from rapomdp.io import load_npz
-from rapomdp.parallel import run_tasks, worker_count
+from rapomdp.parallel import run_tasks
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import offered_observation_models
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
@@ -77,7 +81,9 @@ class ClosedLoop:
     motion: Motion
 
     @classmethod
-    def load(cls, config: Config, inputs: dict[str, Path]) -> ClosedLoop:
+    def load(cls, config: Config, inputs: dict[str, Path],
+             threads: int | None = None) -> ClosedLoop:
+        """The closed loop of a workspace's stage folders; the CNN uses ``threads`` threads."""
         dataset = load_dataset(inputs["dataset"])
         robot = load_robot(inputs["robot"])
         motion = Motion.from_robot(robot)
@@ -106,7 +112,8 @@ class ClosedLoop:
                                            METHOD_NAMES[key], recogniser, cfg.revisit)
         recognisers: dict[str, Recogniser] = {}
         if any(m.recogniser == "cnn" for m in methods.values()):
-            recognisers["cnn"] = load_stage_classifier(config, inputs["train"], dataset.classes)
+            recognisers["cnn"] = load_stage_classifier(config, inputs["train"], dataset.classes,
+                                                       threads)
         if any(m.recogniser == VPTREE_RECOGNISER for m in methods.values()):
             from rapomdp.recognition.vptree_stage import load_workspace_vptree
 
@@ -134,122 +141,37 @@ class ClosedLoop:
         return records
 
 
-@dataclass(frozen=True)
-class EpisodeRecord:
-    """One episode as run: method key, test model (its file in the dataset), start viewpoint."""
-
-    method: str
-    model: str
-    start: int
-    episode: Episode
-    cpu_seconds: float
-
-
-_LOOP: dict[str, ClosedLoop] = {}
-
-
-def _run_model_task(config_json: str, inputs: dict[str, str],
-                    model_file: str) -> list[EpisodeRecord]:
-    """A worker's task: load the closed loop once per process, run one test model."""
-    key = config_json + repr(sorted(inputs.items()))
-    if key not in _LOOP:
-        _LOOP.clear()
-        _LOOP[key] = ClosedLoop.load(Config.model_validate_json(config_json),
-                                     {k: Path(v) for k, v in inputs.items()})
-    loop = _LOOP[key]
-    model = next(m for m in loop.dataset.with_role("test") if m.file == model_file)
-    return loop.run_model(model)
+def _run_models_task(config_json: str, inputs: dict[str, str],
+                     model_files: list[str]) -> list[list[EpisodeRecord]]:
+    """A worker's task: load the closed loop once, run each of its test models."""
+    loop = ClosedLoop.load(Config.model_validate_json(config_json),
+                           {k: Path(v) for k, v in inputs.items()}, threads=1)
+    by_file = {m.file: m for m in loop.dataset.with_role("test")}
+    return [loop.run_model(by_file[name]) for name in model_files]
 
 
 def run_episodes(config: Config, inputs: dict[str, Path],
-                 processes: int | None = None) -> tuple[list[EpisodeRecord], Dataset]:
-    """Every test model x start x method, over ``processes`` (default: the configured worker
-    count) processes; records in a fixed order
-    (test models as listed, then start, then method)."""
+                 context: RunContext = RunContext()) -> tuple[list[EpisodeRecord], Dataset]:
+    """Every test model x start x method, over ``context``'s worker processes (each loads the
+    closed loop once and runs a contiguous share of the test models); records in a fixed order
+    (test models as listed, then start, then method), whatever the number of workers."""
     dataset = load_dataset(inputs["dataset"])
     models = dataset.with_role("test")
-    count = processes or worker_count()
+    count = min(context.worker_count, len(models))
     if count <= 1:
-        loop = ClosedLoop.load(config, inputs)
+        loop = ClosedLoop.load(config, inputs, context.threads)
         per_model = run_tasks(loop.run_model, [(m,) for m in models], 1,
-                              "evaluate: test models")
+                              "evaluate: test models", context.progress)
     else:
         config_json = config.model_dump_json()
         paths = {k: str(v) for k, v in inputs.items()}
-        per_model = run_tasks(_run_model_task, [(config_json, paths, m.file) for m in models],
-                              count, "evaluate: test models")
+        shares = [[models[i].file for i in share]
+                  for share in np.array_split(np.arange(len(models)), count)]
+        per_share = run_tasks(_run_models_task, [(config_json, paths, share) for share in shares],
+                              count, f"evaluate: test models ({count} shares)",
+                              context.progress)
+        per_model = [records for share in per_share for records in share]
     return [r for records in per_model for r in records], dataset
-
-
-@dataclass
-class EpisodeTable:
-    """Episodes and their scores as arrays (one row per episode) plus the concatenated steps."""
-
-    classes: list[str]
-    methods: list[str]
-    method: np.ndarray
-    class_index: np.ndarray
-    model: np.ndarray
-    start: np.ndarray
-    declared: np.ndarray
-    exhausted: np.ndarray
-    correct: np.ndarray
-    belief: np.ndarray
-    moves: np.ndarray
-    distance_m: np.ndarray
-    energy: np.ndarray
-    offsets: np.ndarray
-    step_viewpoints: np.ndarray
-    step_outputs: np.ndarray
-    step_beliefs: np.ndarray
-    cpu_seconds: np.ndarray
-
-    @classmethod
-    def from_records(cls, records: Sequence[EpisodeRecord], dataset: Dataset,
-                     methods: Sequence[str]) -> EpisodeTable:
-        by_file = {m.file: m for m in dataset.with_role("test")}
-        truth = np.array([dataset.label(by_file[r.model]) for r in records])
-        scores = [score(r.episode, int(t)) for r, t in zip(records, truth, strict=True)]
-        lengths = np.array([r.episode.viewpoints.size for r in records])
-        return cls(
-            classes=list(dataset.classes),
-            methods=list(methods),
-            method=np.array([r.method for r in records]),
-            class_index=truth,
-            model=np.array([r.model for r in records]),
-            start=np.array([r.start for r in records]),
-            declared=np.array([r.episode.declared for r in records]),
-            exhausted=np.array([r.episode.exhausted for r in records]),
-            correct=np.array([s.correct for s in scores]),
-            belief=np.array([s.belief for s in scores]),
-            moves=np.array([s.moves for s in scores]),
-            distance_m=np.array([s.distance_m for s in scores]),
-            energy=np.array([s.energy for s in scores]),
-            offsets=np.concatenate([[0], np.cumsum(lengths)]),
-            step_viewpoints=np.concatenate([r.episode.viewpoints for r in records]),
-            step_outputs=np.concatenate([r.episode.outputs for r in records]),
-            step_beliefs=np.concatenate([r.episode.beliefs for r in records]),
-            cpu_seconds=np.array([r.cpu_seconds for r in records]),
-        )
-
-    def arrays(self) -> dict[str, Any]:
-        out = {k: v for k, v in self.__dict__.items() if isinstance(v, np.ndarray)}
-        return {**out, "classes": np.array(self.classes), "methods": np.array(self.methods)}
-
-    @classmethod
-    def load(cls, path: str | Path) -> EpisodeTable:
-        data = load_npz(path)
-        fields = {k: data[k] for k in cls.__dataclass_fields__ if k not in ("classes", "methods")}
-        return cls(classes=[str(c) for c in data["classes"]],
-                   methods=[str(m) for m in data["methods"]], **fields)
-
-    def beliefs_in_true_class(self, episode: int) -> np.ndarray:
-        """Belief in the true class after each image of one episode."""
-        rows = slice(self.offsets[episode], self.offsets[episode + 1])
-        return self.step_beliefs[rows, self.class_index[episode]]
-
-    def viewpoints_of(self, episode: int) -> np.ndarray:
-        return self.step_viewpoints[self.offsets[episode]:self.offsets[episode + 1]]
 
 
 def figure_class(config: Config, classes: Sequence[str]) -> str:
@@ -258,7 +180,8 @@ def figure_class(config: Config, classes: Sequence[str]) -> str:
     return wanted if wanted in classes else classes[0]
 
 
-def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
+                       context: RunContext) -> None:
     """Run every episode, score them, write Table 1, the per-class table and the figures."""
     from rapomdp.experiment import figures
     from rapomdp.experiment.metrics import (
@@ -271,11 +194,11 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> No
     from rapomdp.io import save_npz, write_json_atomic, write_text_atomic
 
     began = time.perf_counter()
-    records, dataset = run_episodes(config, inputs)
+    records, dataset = run_episodes(config, inputs, context)
     episodes_s = time.perf_counter() - began
     methods = list(config.evaluate.methods)
     table = EpisodeTable.from_records(records, dataset, methods)
-    save_npz(out / "episodes.npz", compressed=True, **table.arrays())
+    save_npz(out / EPISODES_FILE, compressed=True, **table.arrays())
     rows = table1(table, methods)
     classes_rows = per_class(table, methods)
     write_text_atomic(out / "table1.md", table1_markdown(rows))
@@ -283,7 +206,7 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> No
     write_text_atomic(out / "per_class.md", per_class_markdown(classes_rows, methods))
     write_text_atomic(out / "per_class.csv", rows_csv([r for _, r in classes_rows],
                                                       [name for name, _ in classes_rows]))
-    write_text_atomic(out / "episodes.csv", _episodes_csv(table))
+    write_text_atomic(out / EPISODES_CSV, episodes_csv(table))
     shown = figure_class(config, dataset.classes)
     robot = load_robot(inputs["robot"])
     figures.fig3(table, methods, shown, out / "fig3.png")
@@ -299,20 +222,7 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> No
         "episodes": int(table.method.size),
         "images": images,
         "images_per_s": images / cpu if cpu > 0 else None,
-        "workers": min(worker_count(), len(dataset.with_role("test"))),
+        "workers": min(context.worker_count, len(dataset.with_role("test"))),
         "seconds": {"episodes_wall": episodes_s, "episodes_cpu": cpu,
                     "total": time.perf_counter() - began},
     })
-
-
-def _episodes_csv(table: EpisodeTable) -> str:
-    lines = ["method,class,model,start,declared,correct,belief,moves,distance_m,energy,"
-             "exhausted,viewpoints"]
-    for i in range(table.method.size):
-        views = " ".join(str(v) for v in table.viewpoints_of(i))
-        lines.append(
-            f"{table.method[i]},{table.classes[table.class_index[i]]},{table.model[i]},"
-            f"{table.start[i]},{table.classes[table.declared[i]]},{int(table.correct[i])},"
-            f"{table.belief[i]:.6g},{table.moves[i]},{table.distance_m[i]:.6g},"
-            f"{table.energy[i]:.6g},{int(table.exhausted[i])},{views}")
-    return "\n".join(lines) + "\n"

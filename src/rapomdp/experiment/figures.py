@@ -18,7 +18,7 @@ from rapomdp.geometry.viewsphere import azimuth_zenith  # noqa: E402
 from rapomdp.recognition.figures import save_png  # noqa: E402
 
 if TYPE_CHECKING:
-    from rapomdp.experiment.evaluation import EpisodeTable
+    from rapomdp.experiment.episode_table import EpisodeTable
 
 
 def belief_curves(table: EpisodeTable, methods: Sequence[str], class_index: int | None

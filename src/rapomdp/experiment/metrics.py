@@ -21,7 +21,7 @@ from scipy import stats
 from rapomdp.config import METHOD_NAMES
 
 if TYPE_CHECKING:
-    from rapomdp.experiment.evaluation import EpisodeTable
+    from rapomdp.experiment.episode_table import EpisodeTable
 
 Z95 = float(stats.norm.ppf(0.975))
 QUANTITIES = ("belief", "moves", "distance_m", "energy")

@@ -27,11 +27,12 @@ from typing import Any
 
 from rapomdp.awareness.report import FIGURES_DIR, write_fig1
 from rapomdp.config import Config
+from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
-from rapomdp.io import ArtefactError, atomic_path, read_json, write_text_atomic
+from rapomdp.io import ArtefactError, atomic_path, read_json, stable_hash, write_text_atomic
 from rapomdp.robot.stage import describe
-from rapomdp.workspace import StageError, Workspace, read_stage_record, stable_hash
+from rapomdp.workspace import StageError, Workspace, read_stage_record
 
 REPORT_SECTIONS = ("seed",)
 REPORT_INPUTS = ("dataset", "train", "classifier_eval", "observe", "robot", "solve", "evaluate")
@@ -436,6 +437,8 @@ def write_report(config: Config, inputs: dict[str, Path], out: Path,
     return page, md
 
 
-def run_report_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_report_stage(config: Config, inputs: dict[str, Path], out: Path,
+                     context: RunContext) -> None:
     """The pipeline stage: the report of the workspace the inputs belong to."""
+    del context  # one process, no long loops
     write_report(config, inputs, out)

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.config import Config
+from rapomdp.context import RunContext
 from rapomdp.io import load_npz
-from rapomdp.parallel import worker_count
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.workspace import StageError
@@ -104,7 +104,8 @@ def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path, model:
     )
 
 
-def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path,
+                    context: RunContext) -> None:
     """Solve the workspace's active-recognition problem once per observation model."""
     models, energy, reachable, classes = workspace_arrays(config, inputs["observe"],
                                                          inputs["robot"], inputs.get("vptree"))
@@ -116,7 +117,7 @@ def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
         precision=config.solve.precision,
         timeout=config.solve.timeout_s,
         max_iterations=config.solve.iterations,
-        workers=worker_count(),
+        workers=context.worker_count,
         allow_stay=False,
         class_names=classes,
     )

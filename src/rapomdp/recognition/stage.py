@@ -18,11 +18,12 @@ import numpy as np
 import torch
 
 from rapomdp.config import Config, load_config
+from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import TEST_STREAM, TestViews, test_view_rng
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
-from rapomdp.io import atomic_path, save_npz, write_json_atomic
+from rapomdp.io import atomic_path, save_npz, stable_hash, write_json_atomic
 from rapomdp.progress import track
 from rapomdp.recognition.classifier import (
     WEIGHTS_FILE,
@@ -38,14 +39,10 @@ from rapomdp.recognition.training import (
     train_classifier,
     validation_mask,
 )
-from rapomdp.workspace import StageError, Workspace, stable_hash
+from rapomdp.workspace import StageError, Workspace
 
 TRAIN_SECTIONS = ("seed", "dataset", "camera", "render", "train")
 EVAL_SECTIONS = ("seed", "camera", "render", "viewpoints")
-
-# Threads for this process's stages; the CLI's --threads sets it (None: default_threads()).
-threads: int | None = None
-
 
 def _finite(value: float) -> float | None:
     """JSON has no NaN: no validation views gives null."""
@@ -57,7 +54,8 @@ def train_config_hash(config: Config) -> str:
     return stable_hash({s: config.section(s) for s in TRAIN_SECTIONS})
 
 
-def load_workspace_classifier(root: str | Path) -> tuple[Config, TrainingViews, Classifier]:
+def load_workspace_classifier(root: str | Path, threads: int | None = None,
+                              ) -> tuple[Config, TrainingViews, Classifier]:
     """A trained workspace's configuration, training views and checked classifier.
 
     For scripts and notebooks that work on a workspace after ``rapomdp train``.
@@ -66,14 +64,17 @@ def load_workspace_classifier(root: str | Path) -> tuple[Config, TrainingViews, 
     config_path = ws.root / "config.yaml"
     config = load_config(config_path if config_path.exists() else None)
     views = load_training_views(ws.require("render"), ws.require("dataset"))
-    classifier = load_stage_classifier(config, ws.require("train"), views.dataset.classes)
+    classifier = load_stage_classifier(config, ws.require("train"), views.dataset.classes,
+                                       threads)
     return config, views, classifier
 
 
-def load_stage_classifier(config: Config, train_dir: Path, classes: list[str]) -> Classifier:
+def load_stage_classifier(config: Config, train_dir: Path, classes: list[str],
+                          threads: int | None = None) -> Classifier:
     """The train stage's classifier, checked against this configuration and class list.
 
-    Sets PyTorch's thread count (the CLI's ``--threads``, else :func:`default_threads`).
+    Sets PyTorch's thread count to ``threads`` (the run context's; None:
+    :func:`default_threads`).
     """
     return Classifier.load(
         train_dir / WEIGHTS_FILE,
@@ -85,7 +86,8 @@ def load_stage_classifier(config: Config, train_dir: Path, classes: list[str]) -
     )
 
 
-def run_train_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_train_stage(config: Config, inputs: dict[str, Path], out: Path,
+                    context: RunContext) -> None:
     """Train the depth classifier on the train models' training-viewsphere renders."""
     views = load_training_views(inputs["render"], inputs["dataset"])
     classes = views.dataset.classes
@@ -94,11 +96,12 @@ def run_train_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
     data = collect_views(views, "train")
     held = validation_mask(data, config.train.validation_fraction,
                            class_seed(config.seed, "train/validation"))
-    device = configure_torch(config.train.device, threads)
+    device = configure_torch(config.train.device, context.threads)
     start = time.perf_counter()
     classifier, history = train_classifier(
         data.subset(~held), data.subset(held), classes, config.train,
         views.intrinsics.fx, views.intrinsics.fy, config.seed, device, config.render.noise,
+        progress=context.progress,
     )
     wall_s = time.perf_counter() - start
     train_images = int((~held).sum()) * config.train.epochs
@@ -124,16 +127,18 @@ def run_train_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
     write_json_atomic(out / "metrics.json", metrics)
 
 
-def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path,
+                              context: RunContext) -> None:
     """Single-view accuracy of the trained classifier on the test models."""
     views = load_training_views(inputs["render"], inputs["dataset"])
     dataset = views.dataset
-    classifier = load_stage_classifier(config, inputs["train"], dataset.classes)
+    classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
+                                       context.threads)
     test_models = dataset.with_role("test")
     labels = np.array([dataset.label(m) for m in test_models], dtype=np.int64)
     vp = config.viewpoints
     xrho, sphere = [], []
-    for model in track(test_models, "classifier: test models"):
+    for model in track(test_models, "classifier: test models", context.progress):
         sensed = TestViews.of_model(config, dataset, model).sensed(
             test_view_rng(config.seed, TEST_STREAM, model))
         xrho.append(classifier.predict(sensed))

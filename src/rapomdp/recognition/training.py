@@ -136,8 +136,10 @@ def train_classifier(
     seed: int,
     device: torch.device,
     noise: NoiseConfig | None = None,
+    progress: bool = True,
 ) -> tuple[Classifier, History]:
-    """Train a DepthAlexNet on ``train``; report ``val`` after every epoch."""
+    """Train a DepthAlexNet on ``train``; report ``val`` after every epoch (on a progress bar
+    when ``progress``)."""
     params = preprocess_params(cfg.preprocess)
     spec = NetworkSpec(len(classes), params.input_size_px, cfg.width, cfg.dropout)
     torch.manual_seed(seed)
@@ -149,7 +151,7 @@ def train_classifier(
     noise = noise or NoiseConfig()
     history = History()
     batches = -(-len(train) // cfg.batch_size)
-    with progress_bar(status=True) as bar:
+    with progress_bar(progress, status=True) as bar:
         task = bar.add_task("train", total=cfg.epochs * batches, status="")
         for epoch in range(1, cfg.epochs + 1):
             start_s = time.perf_counter()

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.config import Config, VPTreeConfig
+from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry
 from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
 from rapomdp.data.training_views import TrainingViews, load_training_views
@@ -39,14 +40,15 @@ def descriptor_params(cfg: VPTreeConfig) -> DescriptorParams:
     return DescriptorParams(cfg.patch_size_m, cfg.patch_samples, cfg.stride_px)
 
 
-def fit_vptree(config: Config, views: TrainingViews) -> VocabularyTreeClassifier:
+def fit_vptree(config: Config, views: TrainingViews,
+               progress: bool = True) -> VocabularyTreeClassifier:
     """The VP-tree classifier fitted on the train models' training-viewsphere renders."""
     dataset = views.dataset
     train = dataset.with_role("train")
     if not train:
         raise StageError(f"{dataset.root}: the dataset has no train models")
     depth, labels = [], []
-    for model in track(train, "vptree: loading training views"):
+    for model in track(train, "vptree: loading training views", progress):
         images, _ = views.load(model)
         depth.append(images)
         labels.append(np.full(images.shape[0], dataset.label(model)))
@@ -61,28 +63,30 @@ def fit_vptree(config: Config, views: TrainingViews) -> VocabularyTreeClassifier
 
 def xrho_predictions(classifier: VocabularyTreeClassifier, dataset: Dataset,
                      models: list[ModelEntry], config: Config, purpose: str,
-                     description: str) -> tuple[np.ndarray, np.ndarray]:
+                     description: str, progress: bool = True,
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """True labels (M,) and the VP-tree's labels (M, V) of models rendered at X_rho."""
     labels, predicted = [], []
-    for model in track(models, description):
+    for model in track(models, description, progress):
         _, sensed, _ = xrho_renders(dataset, model, config, purpose)
         predicted.append(classifier.predict(sensed).argmax(axis=1))
         labels.append(dataset.label(model))
     return np.array(labels, dtype=np.int64), np.stack(predicted)
 
 
-def run_vptree_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_vptree_stage(config: Config, inputs: dict[str, Path], out: Path,
+                     context: RunContext) -> None:
     """Fit the VP-tree, count its per-viewpoint confusion on the volume models at X_rho."""
     seconds: dict[str, float] = {}
     start = time.perf_counter()
     views = load_training_views(inputs["render"], inputs["dataset"])
     dataset = views.dataset
-    classifier = fit_vptree(config, views)
+    classifier = fit_vptree(config, views, context.progress)
     seconds["fit"] = time.perf_counter() - start
     step = time.perf_counter()
     volume_labels, volume_pred = xrho_predictions(
         classifier, dataset, dataset.with_role("volume"), config, VOLUME_STREAM,
-        "vptree: volume models at X_rho")
+        "vptree: volume models at X_rho", context.progress)
     confusion = viewpoint_confusion(volume_labels, volume_pred, len(dataset.classes),
                                     config.vptree.pseudo_count)
     seconds["observation_model"] = time.perf_counter() - step
@@ -92,7 +96,7 @@ def run_vptree_stage(config: Config, inputs: dict[str, Path], out: Path) -> None
     if test_models:
         test_labels, test_pred = xrho_predictions(
             classifier, dataset, test_models, config, TEST_STREAM,
-            "vptree: test models at X_rho")
+            "vptree: test models at X_rho", context.progress)
         test_accuracy = float((test_pred == test_labels[:, None]).mean())
     seconds["test"] = time.perf_counter() - step
     classifier.save(out / CLASSIFIER_FILE)

@@ -101,7 +101,8 @@ def starting_configurations(arm: CameraArm, restarts: int, seed: int) -> np.ndar
 
 
 def solve_viewpoints(
-    arm: CameraArm, eyes_world: np.ndarray, settings: IKSettings | None = None
+    arm: CameraArm, eyes_world: np.ndarray, settings: IKSettings | None = None,
+    progress: bool = True,
 ) -> ViewpointSolutions:
     """Solve every viewpoint of ``eyes_world`` (n, 3); the camera looks at the scene centroid."""
     settings = settings or IKSettings()
@@ -118,7 +119,7 @@ def solve_viewpoints(
     target_out = np.full((n, 4, 4), np.nan)
     converged_count = np.zeros(n, dtype=np.int64)
     # the solver is per target (C++); keep the Python work per try minimal
-    for i in track(range(n), "robot: IK per viewpoint"):
+    for i in track(range(n), "robot: IK per viewpoint", progress):
         found_q, found_roll = [], []
         for r in np.flatnonzero(may_reach[i]):
             for q0 in starts:

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from rapomdp.config import Config
+from rapomdp.context import RunContext
 from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
 from rapomdp.io import ArtefactError, load_npz, save_npz, write_json_atomic
 from rapomdp.robot.arm import CameraArm
@@ -85,7 +86,7 @@ def ik_settings(config: Config) -> IKSettings:
     )
 
 
-def solve_robot(config: Config) -> RobotResult:
+def solve_robot(config: Config, progress: bool = True) -> RobotResult:
     """IK, manipulability, distances and movement energy for the configured X_rho.
 
     Raises :class:`UnreachableError`, naming the placement, when no viewpoint is reachable.
@@ -95,7 +96,7 @@ def solve_robot(config: Config) -> RobotResult:
     count, radius_m = config.viewpoints.count, config.viewpoints.radius_m
     eyes = scene.viewpoints_world(count, radius_m)
     start = time.perf_counter()
-    solutions = solve_viewpoints(arm, eyes, ik_settings(config))
+    solutions = solve_viewpoints(arm, eyes, ik_settings(config), progress)
     ik_seconds = time.perf_counter() - start
     reachable = solutions.reachable
     if not reachable.any():
@@ -180,10 +181,11 @@ def plot_result(result: RobotResult, config: Config, path: str | Path, arms: int
     )
 
 
-def run_robot_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+def run_robot_stage(config: Config, inputs: dict[str, Path], out: Path,
+                    context: RunContext) -> None:
     """The pipeline stage: writes robot.npz, robot.json and robot.png into ``out``."""
     del inputs  # the robot stage reads only the configuration
-    result = solve_robot(config)
+    result = solve_robot(config, context.progress)
     out = Path(out)
     save_npz(out / ROBOT_ARRAYS, **result.arrays())
     write_json_atomic(out / ROBOT_SUMMARY, result.summary)
