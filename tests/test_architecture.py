@@ -196,3 +196,33 @@ def test_the_configuration_loads_no_stage_code(statement: str) -> None:
     assert stage_modules == []
     for heavy in ("torch", "roboticstoolbox", "matplotlib", "trimesh"):
         assert heavy not in modules
+
+
+def _library_trees() -> Iterator[tuple[Path, ast.AST]]:
+    for path in sorted(SOURCE.rglob("*.py")):
+        yield path, ast.parse(path.read_text(), str(path))
+
+
+def test_no_module_rebinds_its_globals() -> None:
+    """Run settings travel in a RunContext: no ``global`` statement anywhere in the library."""
+    found = [f"{path.relative_to(SOURCE)}:{node.lineno}" for path, tree in _library_trees()
+             for node in ast.walk(tree) if isinstance(node, ast.Global)]
+    assert found == []
+
+
+def test_figures_use_the_object_api() -> None:
+    """No pyplot state and no backend switch (``matplotlib.use``) in the library: a notebook
+    user's backend stays theirs."""
+    found = []
+    for path, tree in _library_trees():
+        for node in ast.walk(tree):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [f"{node.module}.{a.name}" for a in node.names]
+                     if isinstance(node, ast.ImportFrom) else [])
+            if any(name.startswith("matplotlib.pyplot") for name in names):
+                found.append(f"{path.relative_to(SOURCE)}:{node.lineno} imports pyplot")
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and node.func.attr == "use" and isinstance(node.func.value, ast.Name)
+                    and node.func.value.id == "matplotlib"):
+                found.append(f"{path.relative_to(SOURCE)}:{node.lineno} calls matplotlib.use")
+    assert found == []

@@ -11,9 +11,12 @@ import zipfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def _default_file_mode() -> int:
@@ -113,3 +116,10 @@ def fingerprint_files(paths: Sequence[Path]) -> str:
         stat = path.stat()
         entries.append([str(path), stat.st_size, stat.st_mtime_ns])
     return stable_hash(entries)
+
+
+def save_png(figure: Figure, path: Path, dpi: int = 120) -> Path:
+    """Write a matplotlib figure as PNG atomically (tight bounding box)."""
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, format="png", dpi=dpi, bbox_inches="tight")
+    return path

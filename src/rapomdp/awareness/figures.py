@@ -7,25 +7,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from rapomdp.awareness.observation import ScoreCalibration  # noqa: E402
-from rapomdp.awareness.volume import SaliencyVolume  # noqa: E402
+from rapomdp.awareness.observation import ScoreCalibration
+from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.geometry.viewsphere import azimuth_zenith
-from rapomdp.io import atomic_path  # noqa: E402
+from rapomdp.io import atomic_path, save_png
 
 CMAP = "inferno"
-
-
-def _save(fig: plt.Figure, path: Path) -> Path:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return path
 
 
 def _save_html(fig, path: Path) -> Path:  # noqa: ANN001 - a plotly Figure
@@ -43,7 +33,8 @@ def calibration_figure(scores: np.ndarray, correct: np.ndarray, calibration: Sco
     count = np.bincount(which, minlength=bins)
     hits = np.bincount(which, weights=y, minlength=bins)
     centres = (edges[:-1] + edges[1:]) / 2
-    fig, ax = plt.subplots(figsize=(5, 3.6))
+    fig = Figure(figsize=(5, 3.6))
+    ax = fig.subplots()
     seen = count > 0
     ax.scatter(centres[seen], hits[seen] / count[seen], s=10 + 40 * count[seen] / count.max(),
                label="volume models: accuracy per score bin")
@@ -52,7 +43,7 @@ def calibration_figure(scores: np.ndarray, correct: np.ndarray, calibration: Sco
     ax.set(xlabel="normalised viewpoint saliency score (Eq. 6)", ylabel="P(classifier right)",
            ylim=(0, 1.02), title="score -> P(correct) calibration")
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def _voxels(volume: SaliencyVolume) -> tuple[np.ndarray, np.ndarray]:
@@ -97,7 +88,7 @@ def fig1(depth_m: np.ndarray, saliency: np.ndarray, volume: SaliencyVolume,
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
 
-    fig = plt.figure(figsize=(15, 3.8))
+    fig = Figure(figsize=(15, 3.8))
     ax = fig.add_subplot(1, 4, 1)
     shown = np.where(depth_m > 0, depth_m, np.nan)
     ax.imshow(shown, cmap="viridis_r")
@@ -114,7 +105,7 @@ def fig1(depth_m: np.ndarray, saliency: np.ndarray, volume: SaliencyVolume,
     points = ax.scatter(azimuth, zenith, c=scores, cmap=CMAP, vmin=0, vmax=1, s=30)
     ax.set(title="(d) viewpoint scores (Eq. 6)", ylim=(0, 90))
     fig.colorbar(points, ax=ax, fraction=0.046, label="normalised score")
-    _save(fig, png)
+    save_png(fig, png)
 
     page = make_subplots(rows=1, cols=4, specs=[[{"type": "heatmap"}, {"type": "heatmap"},
                                                  {"type": "scene"}, {"type": "scene"}]],
@@ -142,11 +133,11 @@ def fig2(volumes: Sequence[SaliencyVolume], titles: Sequence[str], class_name: s
     from plotly.subplots import make_subplots
 
     n = len(volumes)
-    fig = plt.figure(figsize=(4 * n, 4))
+    fig = Figure(figsize=(4 * n, 4))
     for i, (volume, title) in enumerate(zip(volumes, titles, strict=True)):
         _volume_axes(fig.add_subplot(1, n, i + 1, projection="3d"), volume, title)
     fig.suptitle(f"Fig. 2: saliency volume of {class_name} against different classes")
-    _save(fig, png)
+    save_png(fig, png)
     page = make_subplots(rows=1, cols=n, specs=[[{"type": "scene"}] * n],
                          subplot_titles=list(titles))
     for i, volume in enumerate(volumes):

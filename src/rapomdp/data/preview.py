@@ -4,16 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from rapomdp.data.dataset import Dataset  # noqa: E402
-from rapomdp.data.renderer import DepthRenderer  # noqa: E402
-from rapomdp.geometry.camera import Intrinsics, look_at  # noqa: E402
-from rapomdp.io import atomic_path  # noqa: E402
+from rapomdp.data.dataset import Dataset
+from rapomdp.data.renderer import DepthRenderer
+from rapomdp.geometry.camera import Intrinsics, look_at
+from rapomdp.io import atomic_path
 
 
 def preview_pose(centre: np.ndarray, radius_m: float, elevation_deg: float,
@@ -36,7 +33,8 @@ def contact_sheet(
     by_class = {c: [m for m in dataset.models if m.class_name == c] for c in dataset.classes}
     rows = len(by_class)
     cols = max(len(models) for models in by_class.values())
-    fig, axes = plt.subplots(rows, cols, figsize=(1.9 * cols, 1.55 * rows), squeeze=False)
+    fig = Figure(figsize=(1.9 * cols, 1.55 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False)
     for ax in axes.ravel():
         ax.axis("off")
     for r, (class_name, models) in enumerate(by_class.items()):
@@ -59,5 +57,4 @@ def contact_sheet(
     out_png = Path(out_png)
     with atomic_path(out_png) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
-    plt.close(fig)
     return out_png

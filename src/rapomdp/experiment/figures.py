@@ -8,14 +8,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from rapomdp.config import METHOD_NAMES  # noqa: E402
-from rapomdp.geometry.viewsphere import azimuth_zenith  # noqa: E402
-from rapomdp.recognition.figures import save_png  # noqa: E402
+from rapomdp.config import METHOD_NAMES
+from rapomdp.geometry.viewsphere import azimuth_zenith
+from rapomdp.io import save_png
 
 if TYPE_CHECKING:
     from rapomdp.experiment.episode_table import EpisodeTable
@@ -46,7 +44,8 @@ def belief_curves(table: EpisodeTable, methods: Sequence[str], class_index: int 
 def fig3(table: EpisodeTable, methods: Sequence[str], class_name: str, path: Path) -> Path:
     """Fig. 3: belief in the true class against step for ``class_name`` and over all classes."""
     c = table.classes.index(class_name)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    fig = Figure(figsize=(10, 3.8))
+    axes = fig.subplots(1, 2, sharey=True)
     for ax, which, title in ((axes[0], c, f"class {class_name}"),
                              (axes[1], None, f"mean over {len(table.classes)} classes")):
         for key, curve in belief_curves(table, methods, which).items():
@@ -68,9 +67,9 @@ def trajectories(table: EpisodeTable, methods: Sequence[str], class_name: str,
     c = table.classes.index(class_name)
     azimuth, zenith = azimuth_zenith(directions)
     zenith_deg = np.degrees(zenith)
-    fig, axes = plt.subplots(1, len(methods), subplot_kw={"projection": "polar"},
-                             figsize=(3.6 * len(methods), 4.0))
-    colours = plt.get_cmap("tab10")
+    fig = Figure(figsize=(3.6 * len(methods), 4.0))
+    axes = fig.subplots(1, len(methods), subplot_kw={"projection": "polar"})
+    colours = matplotlib.colormaps["tab10"]
     for ax, key in zip(np.atleast_1d(axes), methods, strict=True):
         ax.scatter(azimuth[reachable], zenith_deg[reachable], s=8, c="0.6", zorder=1)
         ax.scatter(azimuth[~reachable], zenith_deg[~reachable], s=10, c="0.8", marker="x",

@@ -5,28 +5,18 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
+from matplotlib.figure import Figure
 
 from rapomdp.geometry.viewsphere import azimuth_zenith
-from rapomdp.io import atomic_path  # noqa: E402
-
-
-def save_png(fig: plt.Figure, path: Path) -> Path:
-    """Write a matplotlib figure as PNG atomically and close it."""
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return path
+from rapomdp.io import save_png
 
 
 def training_curves(rows: Sequence[dict[str, float]], path: Path) -> Path:
     """Loss and accuracy per epoch, training and validation."""
     epoch = [r["epoch"] for r in rows]
-    fig, (ax_loss, ax_acc) = plt.subplots(1, 2, figsize=(9, 3.4))
+    fig = Figure(figsize=(9, 3.4))
+    ax_loss, ax_acc = fig.subplots(1, 2)
     ax_loss.plot(epoch, [r["train_loss"] for r in rows], label="train")
     ax_loss.plot(epoch, [r["val_loss"] for r in rows], label="validation")
     ax_loss.set(xlabel="epoch", ylabel="cross-entropy", title="loss")
@@ -44,7 +34,8 @@ def confusion_figure(confusion: np.ndarray, classes: Sequence[str], title: str,
     rates = counts / np.maximum(counts.sum(axis=1, keepdims=True), 1.0)
     n = len(classes)
     size = max(4.0, 0.42 * n + 1.5)
-    fig, ax = plt.subplots(figsize=(size + 1.0, size))
+    fig = Figure(figsize=(size + 1.0, size))
+    ax = fig.subplots()
     image = ax.imshow(rates, cmap="Blues", vmin=0.0, vmax=1.0)
     ax.set_xticks(range(n), classes, rotation=60, ha="right", fontsize=8)
     ax.set_yticks(range(n), classes, fontsize=8)
@@ -65,8 +56,8 @@ def hemisphere_figure(directions: np.ndarray, values: Sequence[np.ndarray],
     """
     azimuth, zenith = azimuth_zenith(directions)
     zenith_deg = np.degrees(zenith)
-    fig, axes = plt.subplots(1, len(values), subplot_kw={"projection": "polar"},
-                             figsize=(4.6 * len(values), 4.4))
+    fig = Figure(figsize=(4.6 * len(values), 4.4))
+    axes = fig.subplots(1, len(values), subplot_kw={"projection": "polar"})
     for ax, value, title in zip(np.atleast_1d(axes), values, titles, strict=True):
         points = ax.scatter(azimuth, zenith_deg, c=value, cmap="viridis", vmin=0.0, vmax=1.0,
                             s=60, edgecolors="k", linewidths=0.3)
