@@ -1,16 +1,27 @@
-"""Independent tasks over worker processes, one PyTorch thread each, with a progress bar.
+"""Independent tasks over worker processes, one PyTorch thread each, with a progress bar; or
+over a Dask cluster when a scheduler is named.
 
 On the small shared machines this project targets, two single-threaded processes use two cores
 far better than one process with two PyTorch threads (see docs/recognition.md). Workers are
 started with ``spawn`` (safe whatever threads the parent has started); each task must be a
-module-level function of picklable arguments, and results come back in task order.
+module-level function of picklable arguments, and results come back in task order. A worker
+watches its parent and ends with it, also when the parent is killed (SIGKILL).
+
+With :data:`scheduler` set (``--scheduler tcp://host:port`` or ``parallel.scheduler`` in the
+configuration) the same tasks are submitted to that ``dask.distributed`` scheduler instead:
+every task is seeded on its own, so the results are bit-identical to the local pool's. Tasks
+read and write the workspace, which the Dask workers must see at the same path (a shared
+file system). See docs/scale-out.md.
 """
 
 from __future__ import annotations
 
 import os
+import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 from typing import Any, TypeVar
 
@@ -24,6 +35,18 @@ R = TypeVar("R")
 #: every task is seeded on its own, so results do not depend on it.
 workers: int | None = None
 
+#: The Dask scheduler the stages' independent tasks go to (``tcp://host:port``); None: the
+#: local process pool. Set by the CLI's --scheduler or the configuration's parallel.scheduler;
+#: results do not depend on it.
+scheduler: str | None = None
+
+#: How often a worker process checks that its parent is alive, in seconds.
+PARENT_POLL_S = 0.5
+
+
+class WorkerError(RuntimeError):
+    """A worker process died, or the Dask cluster cannot be used (named)."""
+
 
 def default_workers() -> int:
     """Two processes where there are two or more usable cores, else one."""
@@ -36,21 +59,91 @@ def worker_count() -> int:
     return workers or default_workers()
 
 
-def _single_threaded_worker() -> None:
+def uses_cluster() -> bool:
+    """Whether tasks go to a Dask scheduler (so even one task leaves this process)."""
+    return scheduler is not None
+
+
+def _watch_parent(parent_pid: int) -> None:
+    """End this process as soon as ``parent_pid`` is no longer its parent (it died)."""
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    os._exit(70)
+
+
+def _single_threaded_worker(parent_pid: int | None = None) -> None:
     import torch
 
     from rapomdp.progress import set_progress
     from rapomdp.recognition import stage
 
+    if parent_pid is not None:
+        threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
+                         name="rapomdp-parent-watch").start()
     set_progress(False)
     torch.set_num_threads(1)
     stage.threads = 1
 
 
+_configured_pid: int | None = None
+
+
+def _dask_task(function: Callable[..., R], client_pid: int, task: tuple[Any, ...]) -> R:
+    """One task on a Dask worker; a worker process is set up as the local pool's are (one
+    PyTorch thread, no bars), a worker thread of the client's own process is left alone."""
+    global _configured_pid
+    if os.getpid() != client_pid and _configured_pid != os.getpid():
+        _single_threaded_worker(None)
+        _configured_pid = os.getpid()
+    return function(*task)
+
+
+def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
+                 description: str) -> list[R]:
+    try:
+        from distributed import Client
+        from distributed import as_completed as dask_completed
+        from distributed.scheduler import KilledWorker
+    except ImportError:
+        raise WorkerError(f"scheduler {scheduler}: dask.distributed is not installed "
+                          "(pip install 'rapomdp[dask]')") from None
+    try:
+        client = Client(scheduler, timeout="20s", set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise WorkerError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+    results: dict[int, R] = {}
+    with client, progress_bar() as progress:
+        bar = progress.add_task(f"{description} (dask)", total=len(tasks))
+        futures = [client.submit(_dask_task, function, os.getpid(), task, pure=False)
+                   for task in tasks]
+        index = {future.key: i for i, future in enumerate(futures)}
+        try:
+            for future in dask_completed(futures):
+                results[index[future.key]] = future.result()
+                progress.advance(bar)
+        except KilledWorker as exc:
+            raise WorkerError(f"{description}: Dask workers died running a task ({exc}); "
+                              "out of memory?") from None
+        finally:
+            client.cancel([f for f in futures if not f.done()])
+    return [results[i] for i in range(len(tasks))]
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Cancel what is queued and end the workers now (an interrupt must not wait for them)."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in list(getattr(pool, "_processes", {}).values()):
+        if process.is_alive():
+            process.terminate()
+
+
 def run_tasks(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]], workers: int,
               description: str) -> list[R]:
-    """``[function(*task) for task in tasks]``, over ``workers`` processes when more than one
-    (in this process otherwise), with a progress bar."""
+    """``[function(*task) for task in tasks]``, on the Dask :data:`scheduler` when one is set,
+    else over ``workers`` processes when more than one (in this process otherwise), with a
+    progress bar. A worker that dies raises :class:`WorkerError`."""
+    if scheduler is not None and tasks:
+        return _run_on_dask(function, tasks, description)
     workers = max(1, min(workers, len(tasks)))
     results: dict[int, R] = {}
     with progress_bar() as progress:
@@ -60,10 +153,19 @@ def run_tasks(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]], work
                 results[i] = function(*task)
                 progress.advance(bar)
         else:
-            with ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
-                                     initializer=_single_threaded_worker) as pool:
+            pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
+                                       initializer=_single_threaded_worker,
+                                       initargs=(os.getpid(),))
+            try:
                 futures = {pool.submit(function, *task): i for i, task in enumerate(tasks)}
                 for future in as_completed(futures):
                     results[futures[future]] = future.result()
                     progress.advance(bar)
+            except BrokenProcessPool:
+                raise WorkerError(f"{description}: a worker process died (killed, or out of "
+                                  "memory); nothing of this stage was kept") from None
+            except BaseException:
+                _stop_pool(pool)
+                raise
+            pool.shutdown(wait=True)
     return [results[i] for i in range(len(tasks))]

@@ -39,7 +39,7 @@ from rapomdp.experiment.episode import (
 )
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
 from rapomdp.io import load_npz
-from rapomdp.parallel import run_tasks, worker_count
+from rapomdp.parallel import run_tasks, uses_cluster, worker_count
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import offered_observation_models
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
@@ -170,7 +170,7 @@ def run_episodes(config: Config, inputs: dict[str, Path],
     dataset = load_dataset(inputs["dataset"])
     models = dataset.with_role("test")
     count = processes or worker_count()
-    if count <= 1:
+    if count <= 1 and not uses_cluster():
         loop = ClosedLoop.load(config, inputs)
         per_model = run_tasks(loop.run_model, [(m,) for m in models], 1,
                               "evaluate: test models")

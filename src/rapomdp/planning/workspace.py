@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.io import write_text_atomic
-from rapomdp.parallel import run_tasks
+from rapomdp.parallel import run_tasks, uses_cluster
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.sarsop import ProgressCallback
@@ -91,7 +91,7 @@ def solve_workspace_problems(
     names = list(observation_models)
     common = (lambda_, discount, start_viewpoint, precision, timeout, max_iterations, allow_stay,
               class_names)
-    if workers > 1 and callback is None:
+    if (workers > 1 or uses_cluster()) and callback is None:
         rows = run_tasks(_solve_one, [(observation_models[n], move_energy, reachable, out, n,
                                        *common) for n in names], workers, "solve: models")
     else:
