@@ -262,6 +262,16 @@ class Config(Section):
     evaluate: EvaluateConfig = EvaluateConfig()
     parallel: ParallelConfig = ParallelConfig()
 
+    @model_validator(mode="after")
+    def _cameras_outside_the_object(self) -> Config:
+        for name, radius in (("render.radius_m", self.render.radius_m),
+                             ("viewpoints.radius_m", self.viewpoints.radius_m)):
+            if radius <= self.dataset.radius_m:
+                raise ValueError(f"{name} ({radius}) must exceed dataset.radius_m "
+                                 f"({self.dataset.radius_m}): the camera would be inside the "
+                                 "object's bounding sphere")
+        return self
+
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""
         value = getattr(self, name)

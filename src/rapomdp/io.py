@@ -139,9 +139,19 @@ def read_json(path: str | Path) -> Any:
         raise ArtefactError(f"{path}: not valid JSON (nested too deeply)") from None
 
 
-#: A name that may become one path component: letters, digits and ``_ - . + ( ) , ' space``
-#: (no separator, no leading dot, no control character), at most 128 characters.
-_PLAIN_NAME = re.compile(r"[^\W_]|[^\W_][\w\-.+(),' ]{0,126}[\w\-+()]", re.UNICODE)
+#: A name that may become one path component on any common file system: no path separator,
+#: none of ``: * ? " < > |``, no control character, no leading dot, no leading or trailing
+#: space, no trailing dot; 1 to 128 characters.
+_BAD = '\\x00-\\x1f\\x7f/\\\\:*?"<>|'
+_PLAIN_NAME = re.compile(f"[^{_BAD}. ]|[^{_BAD}. ][^{_BAD}]{{0,126}}[^{_BAD}. ]")
+_UNSAFE_CHARACTER = re.compile(f"[{_BAD}]")
+
+
+def plain_name(text: str) -> str:
+    """``text`` made a plain name (:func:`check_plain_name`): unsafe characters become ``_``,
+    leading dots and spaces are dropped. For model ids taken from file names."""
+    name = _UNSAFE_CHARACTER.sub("_", text).lstrip(". ").rstrip(". ")[:128]
+    return name if _PLAIN_NAME.fullmatch(name) else "model"
 
 
 def check_plain_name(name: object, what: str, source: str | Path) -> str:
@@ -153,8 +163,8 @@ def check_plain_name(name: object, what: str, source: str | Path) -> str:
     if not isinstance(name, str) or not _PLAIN_NAME.fullmatch(name):
         shown = repr(name)[:80] if isinstance(name, str) else type(name).__name__
         raise ArtefactError(
-            f"{source}: {what} {shown} is not a plain name (letters, digits, space and "
-            "_ - . + ( ) , ' only; no path separator, no leading dot; at most 128 characters)")
+            f"{source}: {what} {shown} is not a plain name (no / \\ : * ? \" < > | or control "
+            "character, no leading dot, 1 to 128 characters): names are data, not paths")
     return name
 
 
