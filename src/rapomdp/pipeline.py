@@ -195,8 +195,7 @@ def resolve_config(workspace: Workspace, config_path: str | Path | None = None,
         stale = {name: why for name, why in stale.items() if name not in before}
     if config_path is not None and stale and not reconfigure:
         raise ReconfigureError(
-            f"{config_path} differs from {workspace.config_path}, which the artefacts of "
-            f"{len(stale)} stage(s) were made with; they would be redone:\n"
-            f"{format_staleness(stale)}\n"
-            f"Pass --reconfigure to accept, or drop -c to keep the workspace's configuration.")
+            f"{config_path} differs from {workspace.config_path}, the configuration the "
+            f"artefacts were made with: pass --reconfigure to redo {len(stale)} stage(s), or "
+            f"drop -c to keep the workspace's configuration:\n{format_staleness(stale)}")
     return config, stale
