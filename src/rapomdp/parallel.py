@@ -17,6 +17,7 @@ file system). See docs/scale-out.md.
 from __future__ import annotations
 
 import os
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -72,17 +73,21 @@ def _watch_parent(parent_pid: int) -> None:
 
 
 def _single_threaded_worker(parent_pid: int | None = None) -> None:
-    import torch
-
-    from rapomdp.progress import set_progress
-    from rapomdp.recognition import stage
-
+    """A worker's set-up: watch the parent, no bars, one PyTorch thread (through
+    ``RAPOMDP_THREADS``, so the recognition stage is imported only by tasks that need it)."""
     if parent_pid is not None:
         threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
                          name="rapomdp-parent-watch").start()
+    import torch
+
+    from rapomdp.progress import set_progress
+
     set_progress(False)
+    os.environ["RAPOMDP_THREADS"] = "1"
     torch.set_num_threads(1)
-    stage.threads = 1
+    stage = sys.modules.get("rapomdp.recognition.stage")
+    if stage is not None:
+        stage.threads = 1  # type: ignore[attr-defined]
 
 
 _configured_pid: int | None = None
@@ -118,7 +123,7 @@ def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
                    for task in tasks]
         index = {future.key: i for i, future in enumerate(futures)}
         try:
-            for future in dask_completed(futures):
+            for future in dask_completed(futures, loop=client.loop):
                 results[index[future.key]] = future.result()
                 progress.advance(bar)
         except KilledWorker as exc:

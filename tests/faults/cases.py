@@ -387,7 +387,7 @@ def failed_swap(root: Path) -> Outcome:
       "--force train")
 def checkpoint_hint(root: Path) -> Outcome:
     from rapomdp.geometry.camera import xtion_intrinsics
-    from rapomdp.recognition.classifier import Classifier, CheckpointError
+    from rapomdp.recognition.classifier import CheckpointError, Classifier
     from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
     from rapomdp.recognition.preprocess import PreprocessParams
 
