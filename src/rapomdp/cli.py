@@ -5,20 +5,35 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, TypeVar
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
-from rapomdp.config import Config, ConfigError, load_config
+from rapomdp.config import (
+    Config,
+    ConfigError,
+    apply_overrides,
+    config_from_dict,
+    read_config_data,
+)
 from rapomdp.context import RunContext
 from rapomdp.data.layouts import DatasetLayoutError
 from rapomdp.data.meshes import MeshLoadError
 from rapomdp.data.splits import TooFewModelsError
-from rapomdp.io import ArtefactError, atomic_path
-from rapomdp.pipeline import STAGE_NAMES, STAGES, run_pipeline
+from rapomdp.io import ArtefactError, describe_os_error
+from rapomdp.parallel import WorkerError
+from rapomdp.pipeline import (
+    STAGE_NAMES,
+    STAGES,
+    format_staleness,
+    resolve_config,
+    run_pipeline,
+)
 from rapomdp.planning.cli import pomdp_app
 from rapomdp.recognition.classifier import CheckpointError
 from rapomdp.workspace import StageError, StageResult, Workspace
@@ -50,17 +65,43 @@ USER_ERRORS = (
     TooFewModelsError,
     ArtefactError,
     CheckpointError,
+    WorkerError,
 )
 T = TypeVar("T")
 
 ConfigOption = Annotated[
     Path | None,
-    typer.Option("--config", "-c", help="YAML configuration (default: the embedded default)."),
+    typer.Option("--config", "-c", help="YAML configuration of a new workspace, or a new one "
+                 "for this workspace (with --reconfigure). Default: the workspace's "
+                 "config.yaml, else the embedded default."),
+]
+ReconfigureOption = Annotated[
+    bool,
+    typer.Option("--reconfigure", help="Accept a -c file that changes the configuration the "
+                 "workspace's artefacts were made with (the stages it invalidates are redone)."),
+]
+OverridesArgument = Annotated[
+    list[str] | None,
+    typer.Argument(metavar="[KEY=VALUE]...", show_default=False,
+                   help="Overrides of the configuration, e.g. train.epochs=5 "
+                        "dataset.classes=[cup,mug] (YAML values, validated like the file)."),
 ]
 WorkspaceOption = Annotated[
     Path, typer.Option("--workspace", "-w", help="Workspace folder for the artefacts.")
 ]
+SchedulerOption = Annotated[
+    str | None,
+    typer.Option(help="A dask.distributed scheduler (tcp://host:port) for the independent "
+                      "tasks (saliency, solve, evaluate); default: parallel.scheduler of the "
+                      "configuration, else the local process pool. Same results either way."),
+]
 ForceOption = Annotated[bool, typer.Option("--force", help="Redo the stage even if cached.")]
+
+
+def _fail(message: str) -> typer.Exit:
+    """Print one error line (markup in the message shown as is); the exit to raise."""
+    console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
+    return typer.Exit(2)
 
 
 def _guard(action: Callable[[], T]) -> T:
@@ -68,11 +109,11 @@ def _guard(action: Callable[[], T]) -> T:
     try:
         return action()
     except USER_ERRORS as exc:
-        console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
-        raise typer.Exit(2) from None
+        raise _fail(str(exc)) from None
+    except OSError as exc:  # a read-only folder, a full disk: the file and the cause
+        raise _fail(f"{describe_os_error(exc)}; the earlier artefacts are intact") from None
     except KeyError as exc:
-        console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False, soft_wrap=True)
-        raise typer.Exit(2) from None
+        raise _fail(str(exc.args[0])) from None
 
 
 def _report(result: StageResult) -> None:
@@ -80,20 +121,28 @@ def _report(result: StageResult) -> None:
     console.print(f"[green]✓[/] {result.name:<10} {state}  ({len(result.files)} files)")
 
 
-def _save_config(config: Config, workspace: Workspace) -> None:
-    workspace.root.mkdir(parents=True, exist_ok=True)
-    with atomic_path(workspace.root / "config.yaml") as tmp:
-        tmp.write_text(config.to_yaml())
+def _resolve(config_path: Path | None, workspace: Path, overrides: list[str] | None,
+             reconfigure: bool) -> Config:
+    """The workspace's configuration for this command (see :func:`resolve_config`); the
+    recorded stages it will redo are listed first."""
+    config, stale = resolve_config(Workspace(workspace), config_path, overrides or (),
+                                   reconfigure)
+    if stale:
+        console.print(f"[yellow]configuration changed[/]: {len(stale)} stage(s) will be redone "
+                      f"when run:\n{format_staleness(stale)}", highlight=False, markup=True)
+    return config
 
 
 def _run(config_path: Path | None, workspace: Path, until: str | None,
-         force: list[str], context: RunContext | None = None) -> None:
+         force: list[str], context: RunContext | None = None,
+         overrides: list[str] | None = None, reconfigure: bool = False) -> None:
     def action() -> None:
-        config = load_config(config_path)
-        ws = Workspace(workspace)
-        _save_config(config, ws)
-        run_pipeline(config, ws, until=until, force=force, on_result=_report,
-                     context=context or RunContext())
+        config = _resolve(config_path, workspace, overrides, reconfigure)
+        run_context = context or RunContext()
+        if run_context.scheduler is None and config.parallel.scheduler is not None:
+            run_context = replace(run_context, scheduler=config.parallel.scheduler)
+        run_pipeline(config, Workspace(workspace), until=until, force=force, on_result=_report,
+                     context=run_context)
 
     _guard(action)
 
@@ -110,10 +159,18 @@ def run(
         str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
     ] = None,
     workers: WorkersOption = None,
+    reconfigure: ReconfigureOption = False,
+    scheduler: SchedulerOption = None,
+    overrides: OverridesArgument = None,
     threads: ThreadsOption = None,
 ) -> None:
-    """Run every stage in order, skipping those whose inputs are unchanged; prints Table 1."""
-    _run(config, workspace, until, list(force or []), _context(threads, workers))
+    """Run every stage in order, skipping those whose inputs are unchanged; prints Table 1.
+
+    The workspace keeps its configuration (W/config.yaml): `rapomdp run -w W` reruns what
+    changed, `rapomdp run -w W train.epochs=5` changes one value.
+    """
+    _run(config, workspace, until, list(force or []), _context(threads, workers, scheduler),
+         overrides, reconfigure)
     if until is None:
         _print_table1(workspace)
 
@@ -124,6 +181,7 @@ def dataset(
     workspace: Annotated[Path | None, typer.Option("--workspace", "-w")] = None,
     config: ConfigOption = None,
     force: ForceOption = False,
+    reconfigure: ReconfigureOption = False,
 ) -> None:
     """Build the dataset stage: load or generate meshes, normalise them, split each class."""
     if ctx.invoked_subcommand is not None:
@@ -131,7 +189,7 @@ def dataset(
     if workspace is None:
         console.print("[bold red]error:[/] --workspace is required")
         raise typer.Exit(2)
-    _run(config, workspace, "dataset", ["dataset"] if force else [])
+    _run(config, workspace, "dataset", ["dataset"] if force else [], None, None, reconfigure)
 
 
 @dataset_app.command("preview")
@@ -163,9 +221,10 @@ def dataset_preview(
 
 @app.command()
 def render(workspace: WorkspaceOption, config: ConfigOption = None,
-           force: ForceOption = False) -> None:
+           force: ForceOption = False, reconfigure: ReconfigureOption = False,
+           overrides: OverridesArgument = None) -> None:
     """Render every model's depth images over the training viewsphere (and build the dataset)."""
-    _run(config, workspace, "render", ["render"] if force else [])
+    _run(config, workspace, "render", ["render"] if force else [], None, overrides, reconfigure)
 
 
 ThreadsOption = Annotated[
@@ -174,24 +233,30 @@ ThreadsOption = Annotated[
 ]
 
 
-def _context(threads: int | None = None, workers: int | None = None) -> RunContext:
-    """The run context of the CLI's ``--threads`` and ``--workers`` (progress bars on)."""
-    return RunContext(workers=workers, threads=threads)
+def _context(threads: int | None = None, workers: int | None = None,
+             scheduler: str | None = None) -> RunContext:
+    """The run context of the CLI's ``--threads``, ``--workers`` and ``--scheduler`` (progress
+    bars on; without ``--scheduler``, the configuration's ``parallel.scheduler`` applies)."""
+    return RunContext(workers=workers, threads=threads, scheduler=scheduler)
 
 
 @app.command()
 def train(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+          reconfigure: ReconfigureOption = False, overrides: OverridesArgument = None,
           threads: ThreadsOption = None) -> None:
     """Train the depth classifier on the training renders (and build what it needs)."""
-    _run(config, workspace, "train", ["train"] if force else [], _context(threads))
+    _run(config, workspace, "train", ["train"] if force else [], _context(threads), overrides,
+         reconfigure)
 
 
 @app.command("evaluate-classifier")
 def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
-                        force: ForceOption = False, threads: ThreadsOption = None) -> None:
+                        force: ForceOption = False, reconfigure: ReconfigureOption = False,
+                        overrides: OverridesArgument = None,
+                        threads: ThreadsOption = None) -> None:
     """Single-view accuracy on the test models: per class, confusion, per viewpoint."""
     _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [],
-         _context(threads))
+         _context(threads), overrides, reconfigure)
     metrics = Path(workspace) / "classifier_eval" / "metrics.json"
     if metrics.exists():
         from rapomdp.io import read_json
@@ -204,23 +269,29 @@ def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
 
 @app.command()
 def saliency(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
-             threads: ThreadsOption = None) -> None:
+             reconfigure: ReconfigureOption = False, overrides: OverridesArgument = None,
+             threads: ThreadsOption = None, scheduler: SchedulerOption = None) -> None:
     """2D saliency maps of each class's volume model (method: config saliency.method)."""
-    _run(config, workspace, "saliency", ["saliency"] if force else [], _context(threads))
+    _run(config, workspace, "saliency", ["saliency"] if force else [],
+         _context(threads, scheduler=scheduler), overrides, reconfigure)
 
 
 @app.command()
 def volume(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+           reconfigure: ReconfigureOption = False, overrides: OverridesArgument = None,
            threads: ThreadsOption = None) -> None:
     """The 3D dense saliency volume of every class (and the stages it needs)."""
-    _run(config, workspace, "volume", ["volume"] if force else [], _context(threads))
+    _run(config, workspace, "volume", ["volume"] if force else [], _context(threads), overrides,
+         reconfigure)
 
 
 @app.command()
 def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+            reconfigure: ReconfigureOption = False, overrides: OverridesArgument = None,
             threads: ThreadsOption = None) -> None:
     """Observation models P(o | class, viewpoint) and the self-awareness quality table."""
-    _run(config, workspace, "observe", ["observe"] if force else [], _context(threads))
+    _run(config, workspace, "observe", ["observe"] if force else [], _context(threads),
+         overrides, reconfigure)
     table = Path(workspace) / "observe" / "quality.md"
     if table.exists():
         sys.stdout.write(table.read_text())
@@ -228,9 +299,10 @@ def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: Forc
 
 @app.command()
 def vptree(workspace: WorkspaceOption, config: ConfigOption = None,
-           force: ForceOption = False) -> None:
+           force: ForceOption = False, reconfigure: ReconfigureOption = False,
+           overrides: OverridesArgument = None) -> None:
     """The VP-tree baseline: vocabulary-tree classifier and its per-viewpoint confusion."""
-    _run(config, workspace, "vptree", ["vptree"] if force else [])
+    _run(config, workspace, "vptree", ["vptree"] if force else [], None, overrides, reconfigure)
     summary = Path(workspace) / "vptree" / "vptree.json"
     if summary.exists():
         from rapomdp.io import read_json
@@ -258,9 +330,11 @@ def figure_fig1(
     view: Annotated[int | None, typer.Option(help="Training view (default: most pixels).")]
     = None,
     threads: ThreadsOption = None,
+    reconfigure: ReconfigureOption = False,
+    overrides: OverridesArgument = None,
 ) -> None:
     """Fig. 1: depth, 2D saliency, 3D volume and viewpoint scores of one class (PNG + HTML)."""
-    _run(config, workspace, "observe", [], _context(threads))
+    _run(config, workspace, "observe", [], _context(threads), overrides, reconfigure)
 
     def action() -> tuple[Path, Path]:
         from rapomdp.awareness.report import write_fig1
@@ -282,6 +356,8 @@ def figure_fig2(
                                                     "classifiers (default: the config's).")]
     = None,
     threads: ThreadsOption = None,
+    reconfigure: ReconfigureOption = False,
+    overrides: OverridesArgument = None,
 ) -> None:
     """Fig. 2: the target's volume in two-class problems and in the all-class problem.
 
@@ -290,9 +366,11 @@ def figure_fig2(
     def action() -> tuple[Path, Path]:
         from rapomdp.pipeline import write_fig2
 
-        return write_fig2(load_config(config), Workspace(workspace), target,
-                          [a.strip() for a in against.split(",") if a.strip()], epochs,
-                          on_result=_report, context=_context(threads))
+        resolved = _resolve(config, workspace, overrides, reconfigure)
+        with Workspace(workspace).locked():
+            return write_fig2(resolved, Workspace(workspace), target,
+                              [a.strip() for a in against.split(",") if a.strip()], epochs,
+                              on_result=_report, context=_context(threads))
 
     png, html = _guard(action)
     console.print(f"[green]✓[/] Fig. 2 written to {png} and {html}")
@@ -300,9 +378,10 @@ def figure_fig2(
 
 @app.command()
 def robot(workspace: WorkspaceOption, config: ConfigOption = None,
-          force: ForceOption = False) -> None:
+          force: ForceOption = False, reconfigure: ReconfigureOption = False,
+          overrides: OverridesArgument = None) -> None:
     """Solve the Panda's IK at every test viewpoint: reachability, manipulability, energy."""
-    _run(config, workspace, "robot", ["robot"] if force else [])
+    _run(config, workspace, "robot", ["robot"] if force else [], None, overrides, reconfigure)
 
     def summary() -> str:
         from rapomdp.io import read_json
@@ -315,9 +394,11 @@ def robot(workspace: WorkspaceOption, config: ConfigOption = None,
 
 @app.command()
 def solve(workspace: WorkspaceOption, config: ConfigOption = None,
-          force: ForceOption = False) -> None:
+          force: ForceOption = False, reconfigure: ReconfigureOption = False,
+          overrides: OverridesArgument = None, scheduler: SchedulerOption = None) -> None:
     """Solve one active-recognition POMDP per observation model (policies as .npz)."""
-    _run(config, workspace, "solve", ["solve"] if force else [])
+    _run(config, workspace, "solve", ["solve"] if force else [], _context(scheduler=scheduler),
+         overrides, reconfigure)
 
     def summary() -> dict:
         from rapomdp.io import read_json
@@ -346,8 +427,9 @@ def _print_table1(workspace: Path) -> None:
 
 @app.command()
 def evaluate(workspace: WorkspaceOption, config: ConfigOption = None,
-             force: ForceOption = False, threads: ThreadsOption = None,
-             workers: WorkersOption = None) -> None:
+             force: ForceOption = False, reconfigure: ReconfigureOption = False,
+             overrides: OverridesArgument = None, threads: ThreadsOption = None,
+             workers: WorkersOption = None, scheduler: SchedulerOption = None) -> None:
     """Closed-loop episodes of every method on every test model (paper Sec. 5.2).
 
     Each test model starts from evaluate.starts_per_model seeded reachable viewpoints; every
@@ -355,7 +437,7 @@ def evaluate(workspace: WorkspaceOption, config: ConfigOption = None,
     W/evaluate/: table1.md|csv, per_class.md|csv, episodes.npz|csv, fig3.png, trajectories.png.
     """
     _run(config, workspace, "evaluate", ["evaluate"] if force else [],
-         _context(threads, workers))
+         _context(threads, workers, scheduler), overrides, reconfigure)
     _print_table1(workspace)
 
 
@@ -365,7 +447,8 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
            fig2: Annotated[bool, typer.Option(
                "--fig2", help="Make Fig. 2 first, as `rapomdp figure fig2` with its defaults "
                               "(trains three two-class classifiers: minutes).")] = False,
-           workers: WorkersOption = None) -> None:
+           workers: WorkersOption = None, reconfigure: ReconfigureOption = False,
+           overrides: OverridesArgument = None) -> None:
     """Write W/report/report.html and report.md (and their figures) from the stages' results.
 
     The report is always rebuilt (it is cheap): it also shows optional artefacts that are not
@@ -376,38 +459,70 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
         def make_fig2() -> tuple[Path, Path]:
             from rapomdp.pipeline import write_fig2
 
-            return write_fig2(load_config(config), Workspace(workspace), FIG2_TARGET,
-                              list(FIG2_AGAINST), None, on_result=_report, context=context)
+            resolved = _resolve(config, workspace, overrides, reconfigure)
+            with Workspace(workspace).locked():
+                return write_fig2(resolved, Workspace(workspace), FIG2_TARGET,
+                                  list(FIG2_AGAINST), None, on_result=_report, context=context)
 
         _guard(make_fig2)
-    _run(config, workspace, "report", ["report"], context)
+    _run(config, workspace, "report", ["report"], context, overrides, reconfigure)
     folder = Path(workspace) / "report"
     for name in ("report.html", "report.md"):
         sys.stdout.write(f"{folder / name}\n")
 
 
 @app.command("config")
-def show_config(config: ConfigOption = None) -> None:
-    """Print the resolved configuration as YAML (the default when no file is given)."""
-    resolved = _guard(lambda: load_config(config))
-    sys.stdout.write(resolved.to_yaml())
+def show_config(
+    config: ConfigOption = None,
+    workspace: Annotated[Path | None, typer.Option(
+        "--workspace", "-w", help="Show this workspace's configuration.")] = None,
+    overrides: OverridesArgument = None,
+) -> None:
+    """Print the resolved configuration as YAML: the file's, else the workspace's, else the
+    default, with any KEY=VALUE overrides; nothing is written."""
+
+    def action() -> Config:
+        if workspace is None:
+            data = read_config_data(config) if config is not None else {}
+            return config_from_dict(apply_overrides(data, overrides or ()), str(config))
+        return resolve_config(Workspace(workspace), config, overrides or (), True)[0]
+
+    sys.stdout.write(_guard(action).to_yaml())
 
 
 @app.command()
 def status(workspace: WorkspaceOption) -> None:
-    """Show which stages a workspace holds, and when they ran."""
-    manifest = _guard(lambda: Workspace(workspace).manifest())
+    """Show which stages a workspace holds, when they ran, and which are stale and why
+    (against W/config.yaml, the stages' code and their input files)."""
+
+    def action() -> tuple[dict, dict[str, list[str]], bool]:
+        ws = Workspace(workspace)
+        manifest = ws.manifest()
+        config = ws.recorded_config()
+        stale = ws.staleness(STAGES, config if config is not None else Config())
+        return manifest, stale, config is not None
+
+    manifest, stale, configured = _guard(action)
     table = Table(title=str(workspace))
-    for column in ("stage", "files", "seconds", "finished", "key"):
-        table.add_column(column)
+    for column in ("stage", "state", "files", "seconds", "finished", "key"):
+        table.add_column(column, overflow="fold")
     for stage in STAGES:
         record = manifest["stages"].get(stage.name)
         if record is None:
-            table.add_row(stage.name, "-", "-", "not run", "-")
-        else:
-            table.add_row(stage.name, str(len(record["files"])), str(record["seconds"]),
-                          record["finished"], record["key"][:12])
+            table.add_row(stage.name, "not run", "-", "-", "-", "-")
+            continue
+        state = ("[yellow]stale[/]: " + escape("; ".join(stale[stage.name]))
+                 if stage.name in stale else "[green]current[/]")
+        table.add_row(stage.name, state, str(len(record["files"])),
+                      escape(str(record.get("seconds", "-"))),
+                      escape(str(record.get("finished", "-"))), escape(record["key"][:12]))
     Console().print(table)
+    if not configured and manifest["stages"]:
+        console.print(f"note: {Path(workspace) / 'config.yaml'} is missing; staleness is "
+                      "judged against the default configuration", highlight=False)
+    if stale:
+        console.print(f"{len(stale)} stale stage(s): `rapomdp run -w {workspace}` redoes them",
+                      highlight=False)
 
 
 def main() -> None:

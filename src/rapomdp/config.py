@@ -8,12 +8,16 @@ that reading a configuration loads no arm, network or solver.
 
 from __future__ import annotations
 
+import copy
+import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
 
 import yaml
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
+from rapomdp.io import ArtefactError, check_plain_name, decode_text
 from rapomdp.section import Section
 
 
@@ -50,6 +54,16 @@ class DatasetConfig(Section):
     radius_m: float = Field(0.2, gt=0, description="bounding-sphere radius after normalisation")
     split: SplitConfig = SplitConfig()
     too_few_models: Literal["error", "drop"] = "error"
+
+    @field_validator("classes")
+    @classmethod
+    def _plain_class_names(cls, classes: list[str] | None) -> list[str] | None:
+        for name in classes or ():
+            try:
+                check_plain_name(name, "class", "dataset.classes")
+            except ArtefactError as exc:
+                raise ValueError(str(exc).removeprefix("dataset.classes: ")) from None
+        return classes
 
     @model_validator(mode="after")
     def _folder_needs_path(self) -> DatasetConfig:
@@ -341,10 +355,19 @@ class EvaluateConfig(Section):
         return methods
 
 
+class ParallelConfig(Section):
+    """Where the stages' independent tasks run; in no stage's key (results do not depend on it)."""
+
+    scheduler: str | None = Field(
+        None, pattern=r"^(tcp|tls|ws|wss|inproc|ucx)://\S+$",
+        description="a dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (null: the local "
+        "process pool); the workers must see the workspace at the same path")
+
+
 class Config(Section):
     """Everything a run needs; ``Config()`` is the embedded default."""
 
-    seed: int = 0
+    seed: int = Field(0, ge=0, lt=2**32, description="every stage's seed (NumPy, PyTorch)")
     dataset: DatasetConfig = DatasetConfig()
     camera: CameraConfig = CameraConfig()
     render: RenderConfig = RenderConfig()
@@ -357,6 +380,17 @@ class Config(Section):
     vptree: VPTreeConfig = VPTreeConfig()
     solve: SolveConfig = SolveConfig()
     evaluate: EvaluateConfig = EvaluateConfig()
+    parallel: ParallelConfig = ParallelConfig()
+
+    @model_validator(mode="after")
+    def _cameras_outside_the_object(self) -> Config:
+        for name, radius in (("render.radius_m", self.render.radius_m),
+                             ("viewpoints.radius_m", self.viewpoints.radius_m)):
+            if radius <= self.dataset.radius_m:
+                raise ValueError(f"{name} ({radius}) must exceed dataset.radius_m "
+                                 f"({self.dataset.radius_m}): the camera would be inside the "
+                                 "object's bounding sphere")
+        return self
 
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""
@@ -367,13 +401,87 @@ class Config(Section):
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
 
 
+#: Bounds of a configuration document: bytes, YAML aliases, and nodes once aliases are expanded
+#: (a "billion laughs" document is a few hundred bytes that expand to 10^9 nodes).
+MAX_CONFIG_BYTES = 1 << 20
+MAX_ALIASES = 32
+MAX_EXPANDED_NODES = 100_000
+
+
+class _BoundedLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing documents with many aliases or a huge expansion."""
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self.aliases = 0
+
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
+        if self.check_event(yaml.AliasEvent):
+            self.aliases += 1
+            if self.aliases > MAX_ALIASES:
+                raise yaml.YAMLError(f"more than {MAX_ALIASES} aliases (*name); write the "
+                                     "values out")
+        return super().compose_node(parent, index)
+
+
+def _expanded_size(node: yaml.Node, memo: dict[int, int]) -> int:
+    """Nodes in ``node`` with every alias expanded (memoised: linear in the document)."""
+    if id(node) in memo:
+        return memo[id(node)]
+    memo[id(node)] = 1  # a recursive alias counts once; the constructor handles the cycle
+    if isinstance(node, yaml.SequenceNode):
+        size = 1 + sum(_expanded_size(child, memo) for child in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        size = 1 + sum(_expanded_size(k, memo) + _expanded_size(v, memo) for k, v in node.value)
+    else:
+        size = 1
+    memo[id(node)] = min(size, MAX_EXPANDED_NODES + 1)
+    return memo[id(node)]
+
+
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """One line: where and what (PyYAML's own message spans several lines)."""
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or str(exc)
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+    return (where + " ".join(str(problem).split()))[:300]
+
+
+def parse_yaml(text: str, source: str) -> Any:
+    """A YAML document's data, bounded in aliases and expanded size (named ConfigError)."""
+    loader = _BoundedLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is not None and _expanded_size(node, {}) > MAX_EXPANDED_NODES:
+            raise yaml.YAMLError(f"more than {MAX_EXPANDED_NODES} values once aliases are "
+                                 "expanded")
+        return None if node is None else loader.construct_document(node)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{source}: not valid YAML ({_yaml_problem(exc)})") from None
+    except RecursionError:
+        raise ConfigError(f"{source}: not valid YAML (nested too deeply)") from None
+    finally:
+        loader.dispose()
+
+
+def _shown(value: Any) -> str:
+    """A bounded description of a wrong value for an error message (never a full repr)."""
+    if isinstance(value, dict | list | tuple | set):
+        return f" (got a {type(value).__name__} of {len(value)} items)"
+    if isinstance(value, str | bytes):
+        text = repr(value[:60]) + ("..." if len(value) > 60 else "")
+    else:
+        text = repr(value) if isinstance(value, int | float | bool | None) else type(value).__name__
+    return f" (got {text[:80]})"
+
+
 def _describe(error: dict[str, Any]) -> str:
     where = ".".join(str(part) for part in error["loc"]) or "(top level)"
     if error["type"] == "extra_forbidden":
         return f"{where}: unknown key"
-    got = error.get("input")
-    shown = "" if isinstance(got, dict) else f" (got {got!r})"
-    return f"{where}: {error['msg']}{shown}"
+    shown = _shown(error["input"]) if "input" in error else ""
+    message = error["msg"].removeprefix("Value error, ")
+    return f"{where}: {message[:300]}{shown}"
 
 
 def config_from_dict(data: dict[str, Any], source: str = "configuration") -> Config:
@@ -383,21 +491,64 @@ def config_from_dict(data: dict[str, Any], source: str = "configuration") -> Con
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
-        lines = "\n".join(f"  {_describe(e)}" for e in exc.errors())
+        lines = "\n".join(f"  {_describe(e)}" for e in exc.errors()[:20])
         raise ConfigError(f"{source}: invalid configuration\n{lines}") from None
+
+
+def read_config_data(path: str | Path) -> dict[str, Any]:
+    """The mapping a YAML configuration file holds (any common text encoding), unvalidated."""
+    path = Path(path)
+    try:
+        with path.open("rb") as handle:
+            raw = handle.read(MAX_CONFIG_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read ({exc.strerror})") from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(f"{path}: larger than {MAX_CONFIG_BYTES >> 20} MiB; not a "
+                          "configuration")
+    try:
+        text = decode_text(raw, path)
+    except ArtefactError as exc:
+        raise ConfigError(str(exc)) from None
+    data = parse_yaml(text, str(path))
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping of sections, got {type(data).__name__}")
+    return data
 
 
 def load_config(path: str | Path | None) -> Config:
     """Read a YAML configuration; ``None`` gives the default."""
     if path is None:
         return Config()
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML ({exc})") from None
-    return config_from_dict({} if data is None else data, str(path))
+    return config_from_dict(read_config_data(path), str(path))
+
+
+_OVERRIDE_KEY = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*")
+
+
+def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> dict[str, Any]:
+    """``data`` with command-line overrides ``section.key=value`` applied (a new mapping).
+
+    The value is read as YAML (``5``, ``0.5``, ``true``, ``null``, ``[cup, mug]``), so it is
+    typed as in the file and validated with it.
+    """
+    result = copy.deepcopy(data)
+    for item in overrides:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not _OVERRIDE_KEY.fullmatch(key):
+            raise ConfigError(f"override {item[:80]!r}: expected section.key=value "
+                              "(e.g. train.epochs=5)")
+        value = parse_yaml(text, f"override {key}") if text.strip() else None
+        parts = key.split(".")
+        node = result
+        for depth, part in enumerate(parts[:-1]):
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                raise ConfigError(f"override {key}: {'.'.join(parts[:depth + 1])} is a value, "
+                                  "not a section")
+            node = child
+        node[parts[-1]] = value
+    return result

@@ -21,11 +21,14 @@ def default_workers() -> int:
 class RunContext:
     """``workers``: processes of the stages that spread tasks (saliency, solve, evaluate; None:
     :func:`default_workers`); ``threads``: PyTorch threads (None: the classifier's default,
-    ``$RAPOMDP_THREADS`` or half the cores); ``progress``: rich progress bars on or off."""
+    ``$RAPOMDP_THREADS`` or half the cores); ``progress``: rich progress bars on or off;
+    ``scheduler``: a ``dask.distributed`` scheduler address the independent tasks go to (None:
+    the local process pool)."""
 
     workers: int | None = None
     threads: int | None = None
     progress: bool = True
+    scheduler: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("workers", "threads"):
@@ -38,9 +41,14 @@ class RunContext:
         """The processes a stage uses: ``workers`` when set, else :func:`default_workers`."""
         return self.workers or default_workers()
 
+    @property
+    def uses_cluster(self) -> bool:
+        """Whether tasks go to a Dask scheduler (so even one task leaves this process)."""
+        return self.scheduler is not None
+
     def in_worker(self) -> RunContext:
         """The context of a task inside a worker process: one thread, no bars of its own."""
-        return replace(self, workers=1, threads=1, progress=False)
+        return replace(self, workers=1, threads=1, progress=False, scheduler=None)
 
 
 #: One process, one thread, no progress bars: tests and quiet library use.

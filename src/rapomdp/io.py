@@ -3,9 +3,11 @@ the content hashes that key cached stages."""
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
+import re
 import tempfile
 import zipfile
 from collections.abc import Iterator, Sequence
@@ -64,14 +66,111 @@ def write_json_atomic(path: str | Path, obj: Any) -> None:
     write_bytes_atomic(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode())
 
 
-def read_json(path: str | Path) -> Any:
+#: Why an operating-system error happened, in words a user acts on (by errno).
+_OS_HINTS = {
+    errno.ENOSPC: "no space left on the device",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EROFS: "the file system is read-only",
+    errno.EACCES: "permission denied (a read-only folder?)",
+    errno.EPERM: "operation not permitted",
+    errno.ENOENT: "not found",
+    errno.EISDIR: "is a folder, not a file",
+    errno.ENOTDIR: "a part of the path is not a folder",
+}
+
+
+def describe_os_error(exc: OSError, path: str | Path | None = None) -> str:
+    """One line naming the file and the cause of an operating-system error."""
+    where = path if path is not None else (exc.filename or "(unknown file)")
+    reason = _OS_HINTS.get(exc.errno or -1) or exc.strerror or type(exc).__name__
+    if exc.filename2:
+        where = f"{where} -> {exc.filename2}"
+    return f"{where}: {reason}"
+
+
+def decode_text(data: bytes, source: str | Path) -> str:
+    """Text of a file in any common encoding: UTF-8 (with or without a byte-order mark), UTF-16
+    or UTF-32 with one, else Windows-1252 / Latin-1 (a comment written on an older system);
+    a named ArtefactError for binary data (NUL bytes).
+
+    A statistical guess (charset_normalizer) misreads short files such as a configuration, so
+    the single-byte fallbacks are fixed: every byte sequence decodes under Latin-1.
+    """
+    for bom, codec in ((b"\xef\xbb\xbf", "utf-8-sig"), (b"\xff\xfe\x00\x00", "utf-32"),
+                       (b"\x00\x00\xfe\xff", "utf-32"), (b"\xff\xfe", "utf-16"),
+                       (b"\xfe\xff", "utf-16")):
+        if data.startswith(bom):
+            try:
+                return data.decode(codec)
+            except UnicodeDecodeError:
+                raise ArtefactError(f"{source}: not valid {codec} text although it starts "
+                                    "with that byte-order mark") from None
+    if b"\x00" in data:
+        raise ArtefactError(f"{source}: binary data (NUL bytes), not a text file")
+    for codec in ("utf-8", "cp1252"):
+        try:
+            return data.decode(codec)
+        except UnicodeDecodeError:
+            pass
+    return data.decode("latin-1")
+
+
+def read_text(path: str | Path) -> str:
+    """A text file (configuration, OBJ, table) in any common encoding (:func:`decode_text`)."""
     path = Path(path)
     try:
-        return json.loads(path.read_text())
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ArtefactError(describe_os_error(exc, path)) from None
+    return decode_text(data, path)
+
+
+def read_json(path: str | Path) -> Any:
+    """A JSON file the project wrote (always UTF-8); named errors when it is not."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
     except FileNotFoundError as exc:
         raise ArtefactError(f"{path}: not found") from exc
+    except OSError as exc:
+        raise ArtefactError(describe_os_error(exc, path)) from None
+    except UnicodeDecodeError as exc:
+        raise ArtefactError(f"{path}: not valid JSON (byte {exc.start} is not UTF-8)") from None
+    try:
+        return json.loads(text)
     except json.JSONDecodeError as exc:
         raise ArtefactError(f"{path}: not valid JSON ({exc})") from exc
+    except RecursionError:
+        raise ArtefactError(f"{path}: not valid JSON (nested too deeply)") from None
+
+
+#: A name that may become one path component on any common file system: no path separator,
+#: none of ``: * ? " < > |``, no control character, no leading dot, no leading or trailing
+#: space, no trailing dot; 1 to 128 characters.
+_BAD = '\\x00-\\x1f\\x7f/\\\\:*?"<>|'
+_PLAIN_NAME = re.compile(f"[^{_BAD}. ]|[^{_BAD}. ][^{_BAD}]{{0,126}}[^{_BAD}. ]")
+_UNSAFE_CHARACTER = re.compile(f"[{_BAD}]")
+
+
+def plain_name(text: str) -> str:
+    """``text`` made a plain name (:func:`check_plain_name`): unsafe characters become ``_``,
+    leading dots and spaces are dropped. For model ids taken from file names."""
+    name = _UNSAFE_CHARACTER.sub("_", text).lstrip(". ").rstrip(". ")[:128]
+    return name if _PLAIN_NAME.fullmatch(name) else "model"
+
+
+def check_plain_name(name: object, what: str, source: str | Path) -> str:
+    """``name`` when it is safe as one file or folder name; else a named ArtefactError.
+
+    Class and model names are data, not paths: ``../../x``, ``a/b``, ``.hidden`` or a name
+    with a control character never reach the file system.
+    """
+    if not isinstance(name, str) or not _PLAIN_NAME.fullmatch(name):
+        shown = repr(name)[:80] if isinstance(name, str) else type(name).__name__
+        raise ArtefactError(
+            f"{source}: {what} {shown} is not a plain name (no / \\ : * ? \" < > | or control "
+            "character, no leading dot, 1 to 128 characters): names are data, not paths")
+    return name
 
 
 def save_npz(path: str | Path, compressed: bool = False, **arrays: np.ndarray) -> None:
@@ -101,6 +200,13 @@ def load_npz(path: str | Path) -> dict[str, np.ndarray]:
         raise ArtefactError(f"{path}: not found") from exc
     except ValueError as exc:
         raise ArtefactError(f"{path}: not a plain .npz archive ({exc})") from exc
+    except EOFError:
+        raise ArtefactError(f"{path}: empty file, not an .npz archive") from None
+    except OSError as exc:
+        raise ArtefactError(describe_os_error(exc, path)) from None
+    except Exception as exc:  # BadZipFile, zlib.error, a member cut short: a damaged archive
+        raise ArtefactError(f"{path}: damaged .npz archive ({type(exc).__name__}: "
+                            f"{str(exc)[:200]})") from None
 
 
 def stable_hash(obj: Any) -> str:

@@ -1,16 +1,30 @@
-"""Independent tasks over worker processes, one PyTorch thread each, with a progress bar.
+"""Independent tasks over worker processes, one PyTorch thread each, with a progress bar; or
+over a Dask cluster when a scheduler is named.
 
 On the small shared machines this project targets, two single-threaded processes use two cores
 far better than one process with two PyTorch threads (see docs/recognition.md). Workers are
 started with ``spawn`` (safe whatever threads the parent has started); each task must be a
-module-level function of picklable arguments, and results come back in task order. How many
-workers, and whether a bar shows, come from the caller's :class:`~rapomdp.context.RunContext`.
+module-level function of picklable arguments, and results come back in task order. A worker
+watches its parent and ends with it, also when the parent is killed (SIGKILL).
+
+How many workers, whether a bar shows and which scheduler come from the caller's
+:class:`~rapomdp.context.RunContext`. With a scheduler (``--scheduler tcp://host:port`` or
+``parallel.scheduler`` in the configuration) the same tasks are submitted to that
+``dask.distributed`` scheduler instead:
+every task is seeded on its own, so the results are bit-identical to the local pool's. Tasks
+read and write the workspace, which the Dask workers must see at the same path (a shared
+file system). See docs/scale-out.md.
 """
 
 from __future__ import annotations
 
+import functools
+import os
+import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 from typing import Any, TypeVar
 
@@ -19,29 +33,114 @@ from rapomdp.progress import progress_bar
 R = TypeVar("R")
 
 
-def _single_threaded_worker() -> None:
+#: How often a worker process checks that its parent is alive, in seconds.
+PARENT_POLL_S = 0.5
+
+
+class WorkerError(RuntimeError):
+    """A worker process died, or the Dask cluster cannot be used (named)."""
+
+
+def _watch_parent(parent_pid: int) -> None:
+    """End this process as soon as ``parent_pid`` is no longer its parent (it died)."""
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    os._exit(70)
+
+
+def _single_threaded_worker(parent_pid: int | None = None) -> None:
+    """A worker's set-up: watch the parent (when given), one PyTorch thread."""
+    if parent_pid is not None:
+        threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
+                         name="rapomdp-parent-watch").start()
     import torch
 
     torch.set_num_threads(1)
 
 
+@functools.cache
+def _set_up_dask_worker(pid: int) -> None:
+    """Set up a Dask worker process once (cached per process id)."""
+    _single_threaded_worker(None)
+
+
+def _dask_task(function: Callable[..., R], client_pid: int, task: tuple[Any, ...]) -> R:
+    """One task on a Dask worker; a worker process is set up as the local pool's are (one
+    PyTorch thread), a worker thread of the client's own process is left alone."""
+    if os.getpid() != client_pid:
+        _set_up_dask_worker(os.getpid())
+    return function(*task)
+
+
+def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
+                 description: str, scheduler: str, progress: bool) -> list[R]:
+    try:
+        from distributed import Client
+        from distributed import as_completed as dask_completed
+        from distributed.scheduler import KilledWorker
+    except ImportError:
+        raise WorkerError(f"scheduler {scheduler}: dask.distributed is not installed "
+                          "(pip install 'rapomdp[dask]')") from None
+    try:
+        client = Client(scheduler, timeout="20s", set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise WorkerError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+    results: dict[int, R] = {}
+    with client, progress_bar(progress) as bars:
+        bar = bars.add_task(f"{description} (dask)", total=len(tasks))
+        futures = [client.submit(_dask_task, function, os.getpid(), task, pure=False)
+                   for task in tasks]
+        index = {future.key: i for i, future in enumerate(futures)}
+        try:
+            for future in dask_completed(futures, loop=client.loop):
+                results[index[future.key]] = future.result()
+                bars.advance(bar)
+        except KilledWorker as exc:
+            raise WorkerError(f"{description}: Dask workers died running a task ({exc}); "
+                              "out of memory?") from None
+        finally:
+            client.cancel([f for f in futures if not f.done()])
+    return [results[i] for i in range(len(tasks))]
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Cancel what is queued and end the workers now (an interrupt must not wait for them)."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in list(getattr(pool, "_processes", {}).values()):
+        if process.is_alive():
+            process.terminate()
+
+
 def run_tasks(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]], workers: int,
-              description: str, progress: bool = True) -> list[R]:
-    """``[function(*task) for task in tasks]``, over ``workers`` processes when more than one
-    (in this process otherwise), with a progress bar when ``progress``."""
+              description: str, progress: bool = True,
+              scheduler: str | None = None) -> list[R]:
+    """``[function(*task) for task in tasks]``, on the Dask ``scheduler`` when one is named,
+    else over ``workers`` processes when more than one (in this process otherwise), with a
+    progress bar when ``progress``. A worker that dies raises :class:`WorkerError`."""
+    if scheduler is not None and tasks:
+        return _run_on_dask(function, tasks, description, scheduler, progress)
     workers = max(1, min(workers, len(tasks)))
     results: dict[int, R] = {}
-    with progress_bar(progress) as bar:
-        task_bar = bar.add_task(description, total=len(tasks))
+    with progress_bar(progress) as bars:
+        bar = bars.add_task(description, total=len(tasks))
         if workers == 1:
             for i, task in enumerate(tasks):
                 results[i] = function(*task)
-                bar.advance(task_bar)
+                bars.advance(bar)
         else:
-            with ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
-                                     initializer=_single_threaded_worker) as pool:
+            pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
+                                       initializer=_single_threaded_worker,
+                                       initargs=(os.getpid(),))
+            try:
                 futures = {pool.submit(function, *task): i for i, task in enumerate(tasks)}
                 for future in as_completed(futures):
                     results[futures[future]] = future.result()
-                    bar.advance(task_bar)
+                    bars.advance(bar)
+            except BrokenProcessPool:
+                raise WorkerError(f"{description}: a worker process died (killed, or out of "
+                                  "memory); nothing of this stage was kept") from None
+            except BaseException:
+                _stop_pool(pool)
+                raise
+            pool.shutdown(wait=True)
     return [results[i] for i in range(len(tasks))]

@@ -16,7 +16,7 @@ from rapomdp.awareness.stage import (
     run_volume_stage,
 )
 from rapomdp.awareness.volume import SaliencyVolume
-from rapomdp.config import Config
+from rapomdp.config import Config, apply_overrides, config_from_dict, read_config_data
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
 from rapomdp.data.training_views import load_training_views, run_render_stage
@@ -154,11 +154,13 @@ def run_pipeline(
         raise KeyError(f"unknown stage(s) {sorted(unknown)}; stages are: {', '.join(STAGE_NAMES)}")
     stages = STAGES if until is None else stages_up_to(until)
     results = []
-    for stage in stages:
-        result = workspace.run(stage, config, force=stage.name in force, context=context)
-        results.append(result)
-        if on_result is not None:
-            on_result(result)
+    with workspace.locked():
+        for stage in stages:
+            result = workspace.run(stage, config, force=stage.name in force, context=context)
+            results.append(result)
+            if on_result is not None:
+                on_result(result)
+        workspace.record_config(config)
     return results
 
 
@@ -188,3 +190,45 @@ def write_fig2(config: Config, ws: Workspace, target: str, against: Sequence[str
     titles.append(f"all {len(classes)} classes")
     out = ws.root / FIGURES_DIR
     return fig2(volumes, titles, target, out / "fig2.png", out / "fig2.html")
+
+
+class ReconfigureError(StageError):
+    """A configuration file would invalidate a workspace's artefacts without --reconfigure."""
+
+
+def format_staleness(stale: dict[str, list[str]]) -> str:
+    """One line per stale stage: ``  train: train.epochs 25 -> 5``."""
+    return "\n".join(f"  {name}: {'; '.join(reasons)}" for name, reasons in stale.items())
+
+
+def resolve_config(workspace: Workspace, config_path: str | Path | None = None,
+                   overrides: Sequence[str] = (), reconfigure: bool = False
+                   ) -> tuple[Config, dict[str, list[str]]]:
+    """The configuration a command runs with, and the recorded stages it would redo (why).
+
+    The workspace owns its configuration: without ``config_path`` it is ``W/config.yaml`` (the
+    default for a new workspace); ``overrides`` (``train.epochs=5``) apply on top and are
+    validated with it. A file that would invalidate recorded stages needs ``reconfigure``;
+    overrides are explicit, so the stages they invalidate are only reported.
+    """
+    if config_path is not None:
+        data, source = read_config_data(config_path), str(config_path)
+    elif workspace.config_path.exists():
+        data, source = read_config_data(workspace.config_path), str(workspace.config_path)
+    else:
+        data, source = {}, "the default configuration"
+    if overrides:
+        data = apply_overrides(data, overrides)
+        source = f"{source} with {' '.join(o[:60] for o in overrides)}"
+    config = config_from_dict(data, source)
+    stale = workspace.staleness(STAGES, config, external=False)
+    recorded = workspace.recorded_config()
+    if recorded is not None and stale:  # stages already stale before this change are left out
+        before = workspace.staleness(STAGES, recorded, external=False)
+        stale = {name: why for name, why in stale.items() if name not in before}
+    if config_path is not None and stale and not reconfigure:
+        raise ReconfigureError(
+            f"{config_path} differs from {workspace.config_path}, the configuration the "
+            f"artefacts were made with: pass --reconfigure to redo {len(stale)} stage(s), or "
+            f"drop -c to keep the workspace's configuration:\n{format_staleness(stale)}")
+    return config, stale

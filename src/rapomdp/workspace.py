@@ -4,29 +4,56 @@ A stage's key hashes its name and version, the configuration sections it reads, 
 stages it reads and any external input (a user's mesh folder). A stage whose key is unchanged is
 skipped. A stage writes into a temporary folder which replaces its folder only when it has
 finished, so an interrupted or failed run leaves the earlier artefacts intact.
-``W/manifest.json`` lists, for every stage, its key, configuration and files.
+``W/manifest.json`` lists, for every stage, its key, configuration and files;
+``W/config.yaml`` is the configuration those artefacts were made with (written only together
+with them). One run at a time holds ``W/.lock``; the next run removes what a killed run left.
 """
 
 from __future__ import annotations
 
+import errno
+import fcntl
+import json
 import os
+import re
 import shutil
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rapomdp.config import Config
+from rapomdp.config import Config, ConfigError, config_from_dict, read_config_data
 from rapomdp.context import RunContext
-from rapomdp.io import ArtefactError, read_json, stable_hash, write_json_atomic
+from rapomdp.io import (
+    ArtefactError,
+    describe_os_error,
+    read_json,
+    stable_hash,
+    write_json_atomic,
+    write_text_atomic,
+)
 
 MANIFEST = "manifest.json"
 STAGE_RECORD = "stage.json"
+CONFIG = "config.yaml"
+LOCK = ".lock"
+
+#: What a run leaves while it works: a stage's new folder, the folder it replaces, a file
+#: being written (:func:`rapomdp.io.atomic_path`).
+_LEFTOVER = re.compile(r"\.(?P<name>.+)\.(?P<kind>tmp|old)-(?P<pid>\d+)|\..+\.tmp")
+
+#: Workspaces this process has locked (a nested run, e.g. Fig. 2's, takes the lock again).
+_HELD: dict[Path, int] = {}
 
 
 class StageError(RuntimeError):
     """A stage cannot run: a missing input, or bad data it names."""
+
+
+class WorkspaceBusyError(StageError):
+    """Another run holds the workspace's lock."""
 
 
 @dataclass(frozen=True)
@@ -61,10 +88,112 @@ class Workspace:
     def manifest_path(self) -> Path:
         return self.root / MANIFEST
 
+    @property
+    def config_path(self) -> Path:
+        return self.root / CONFIG
+
     def manifest(self) -> dict[str, Any]:
+        """``manifest.json`` checked for its shape (a named ArtefactError when it is not one)."""
         if not self.manifest_path.exists():
             return {"stages": {}}
-        return read_json(self.manifest_path)
+        data = read_json(self.manifest_path)
+        stages = data.get("stages") if isinstance(data, dict) else None
+        if not isinstance(stages, dict):
+            got = "a mapping without it" if isinstance(data, dict) else type(data).__name__
+            raise ArtefactError(
+                f"{self.manifest_path}: not a rapomdp manifest (expected a mapping with "
+                f"'stages', got {got}); move it away and rerun the stages")
+        for name, record in stages.items():
+            if (not isinstance(record, dict) or not isinstance(record.get("key"), str)
+                    or not isinstance(record.get("files"), list)):
+                raise ArtefactError(f"{self.manifest_path}: the record of stage {str(name)[:40]!r}"
+                                    " is damaged (no key or files); rerun it with --force")
+        return data
+
+    def recorded_config(self) -> Config | None:
+        """The configuration the workspace's artefacts were made with (``W/config.yaml``), or
+        None for a new workspace."""
+        if not self.config_path.exists():
+            return None
+        return config_from_dict(read_config_data(self.config_path), str(self.config_path))
+
+    def record_config(self, config: Config) -> None:
+        """Write ``W/config.yaml`` (skipped when unchanged, so a read-only cached run works)."""
+        text = config.to_yaml()
+        try:
+            if self.config_path.exists() and self.config_path.read_text("utf-8") == text:
+                return
+        except (OSError, UnicodeDecodeError):
+            pass
+        write_text_atomic(self.config_path, text)
+
+    @contextmanager
+    def locked(self) -> Iterator[None]:
+        """Hold ``W/.lock`` (a second run exits naming the first's pid); then remove what a
+        killed run left. The lock is the kernel's (flock): it ends with its process, even
+        on SIGKILL. A read-only workspace is used unlocked: nothing can be written to it."""
+        key = self.root.resolve()
+        if key in _HELD:
+            _HELD[key] += 1
+            try:
+                yield
+            finally:
+                _HELD[key] -= 1
+            return
+        fd = self._open_lock()
+        if fd is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
+                os.close(fd)
+                raise WorkspaceBusyError(
+                    f"{self.root}: in use by another rapomdp run (pid {holder}); wait for it "
+                    "to finish, or use another workspace") from None
+            if os.access(self.root / LOCK, os.W_OK):
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                self.clean_leftovers()
+        _HELD[key] = 1
+        try:
+            yield
+        finally:
+            del _HELD[key]
+            if fd is not None:
+                os.close(fd)  # closing releases the flock
+
+    def _open_lock(self) -> int | None:
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            path = self.root / LOCK
+            if path.exists() and not os.access(path, os.W_OK):
+                return os.open(path, os.O_RDONLY)
+            return os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:
+            if exc.errno in (errno.EACCES, errno.EROFS, errno.EPERM) and self.root.is_dir():
+                return None
+            raise ArtefactError(describe_os_error(exc)) from None
+
+    def clean_leftovers(self) -> list[str]:
+        """Remove the temporary folders and files of runs that died (call holding the lock).
+
+        A folder a run had moved aside (``.STAGE.old-PID``) is moved back when the swap did not
+        finish, so a kill at any instant loses nothing.
+        """
+        cleaned = []
+        for path in sorted(self.root.iterdir()):
+            match = _LEFTOVER.fullmatch(path.name)
+            if match is None or path.name == LOCK:
+                continue
+            target = self.root / match["name"] if match["name"] else None
+            if match["kind"] == "old" and target is not None and not target.exists():
+                os.replace(path, target)
+            elif path.is_dir():
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+            cleaned.append(path.name)
+        return cleaned
 
     def stage_dir(self, name: str) -> Path:
         return self.root / name
@@ -80,22 +209,71 @@ class Workspace:
             )
         return path
 
-    def key_of(self, stage: Stage, config: Config) -> str:
+    def _key_parts(self, stage: Stage, config: Config) -> tuple[str, dict[str, str], str | None]:
+        """The stage's key, its inputs' keys and its external fingerprint."""
         stages = self.manifest()["stages"]
         upstream = {}
         for name in stage.inputs:
             if name not in stages:
                 raise StageError(f"stage '{stage.name}' needs stage '{name}', which has not run")
             upstream[name] = stages[name]["key"]
-        return stable_hash(
+        external = stage.fingerprint(config) if stage.fingerprint else None
+        key = stable_hash(
             {
                 "stage": stage.name,
                 "version": stage.version,
                 "config": {s: config.section(s) for s in stage.sections},
                 "inputs": upstream,
-                "external": stage.fingerprint(config) if stage.fingerprint else None,
+                "external": external,
             }
         )
+        return key, upstream, external
+
+    def key_of(self, stage: Stage, config: Config) -> str:
+        return self._key_parts(stage, config)[0]
+
+    def staleness(self, stages: Sequence[Stage], config: Config,
+                  external: bool = True) -> dict[str, list[str]]:
+        """Why each recorded stage's artefacts would not be reused under ``config``.
+
+        ``stages`` in pipeline order; a stage is stale when a section it reads changed, its
+        code version changed, an input stage is stale or was redone since, or (``external``)
+        the files it reads from outside changed. Stages without a record are left out.
+        """
+        records = self.manifest()["stages"]
+        stale: dict[str, list[str]] = {}
+        for stage in stages:
+            record = records.get(stage.name)
+            if record is None:
+                continue
+            reasons = []
+            if not self.stage_dir(stage.name).is_dir():
+                reasons.append("its folder is missing")
+            if str(record.get("version")) != stage.version:
+                reasons.append(f"stage version {record.get('version')} -> {stage.version}")
+            recorded = record.get("config") if isinstance(record.get("config"), dict) else {}
+            for section in stage.sections:
+                if recorded.get(section) != config.section(section):
+                    reasons.append(describe_change(section, recorded.get(section),
+                                                   config.section(section)))
+            input_keys = record.get("input_keys")
+            for name in stage.inputs:
+                if name in stale:
+                    reasons.append(f"input {name} is stale")
+                elif name not in records:
+                    reasons.append(f"input {name} has no record")
+                elif isinstance(input_keys, dict) and input_keys.get(name) != records[name]["key"]:
+                    reasons.append(f"input {name} was redone since")
+            if external and not reasons:
+                try:
+                    if self.key_of(stage, config) != record["key"]:
+                        reasons.append("its input files changed" if stage.fingerprint
+                                       else "its inputs changed")
+                except (StageError, ArtefactError, ConfigError, OSError) as exc:
+                    reasons.append(f"its inputs cannot be read ({str(exc)[:120]})")
+            if reasons:
+                stale[stage.name] = reasons
+        return stale
 
     def is_current(self, stage: Stage, config: Config) -> bool:
         record = self.manifest()["stages"].get(stage.name)
@@ -108,49 +286,88 @@ class Workspace:
     def run(self, stage: Stage, config: Config, force: bool = False,
             context: RunContext = RunContext()) -> StageResult:
         """Run ``stage`` unless its cached output is current (or ``force``), with ``context``'s
-        workers, threads and progress bars."""
-        self.root.mkdir(parents=True, exist_ok=True)
-        key = self.key_of(stage, config)
+        workers, threads and progress bars; a stage that ran is recorded in the manifest."""
+        key, upstream, external = self._key_parts(stage, config)
         if not force and self.is_current(stage, config):
             record = self.manifest()["stages"][stage.name]
             return StageResult(stage.name, key, True, 0.0, record.get("files", []))
         inputs = {name: self.require(name) for name in stage.inputs}
         tmp = self.root / f".{stage.name}.tmp-{os.getpid()}"
-        if tmp.exists():
-            shutil.rmtree(tmp)
-        tmp.mkdir()
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            if tmp.exists():
+                shutil.rmtree(tmp)
+            tmp.mkdir()
+        except OSError as exc:
+            raise ArtefactError(describe_os_error(exc)) from None
         start = time.perf_counter()
         try:
             stage.run(config, inputs, tmp, context)
-        except BaseException:
+            seconds = time.perf_counter() - start
+            files = sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file())
+            record = {
+                "key": key,
+                "version": stage.version,
+                "config": {s: config.section(s) for s in stage.sections},
+                "inputs": list(stage.inputs),
+                "input_keys": upstream,
+                "external": external,
+                "files": files,
+                "seconds": round(seconds, 3),
+                "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            }
+            write_json_atomic(tmp / STAGE_RECORD, record)
+            self._swap_in(tmp, self.stage_dir(stage.name))
+        finally:
             shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        seconds = time.perf_counter() - start
-        files = sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file())
-        record = {
-            "key": key,
-            "version": stage.version,
-            "config": {s: config.section(s) for s in stage.sections},
-            "inputs": list(stage.inputs),
-            "files": files,
-            "seconds": round(seconds, 3),
-            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        }
-        write_json_atomic(tmp / STAGE_RECORD, record)
-        self._swap_in(tmp, self.stage_dir(stage.name))
         manifest = self.manifest()
         manifest["stages"][stage.name] = record
         write_json_atomic(self.manifest_path, manifest)
+        self.record_config(config)
         return StageResult(stage.name, key, False, seconds, files)
 
     @staticmethod
     def _swap_in(new: Path, target: Path) -> None:
+        """Replace ``target`` by ``new``: two renames, undone if the second fails."""
         old = target.with_name(f".{target.name}.old-{os.getpid()}")
-        if target.exists():
-            os.replace(target, old)
-        os.replace(new, target)
+        try:
+            if target.exists():
+                os.replace(target, old)
+            try:
+                os.replace(new, target)
+            except OSError:
+                if old.exists() and not target.exists():
+                    os.replace(old, target)
+                raise
+        except OSError as exc:
+            raise ArtefactError(
+                f"{target}: the new artefacts could not be moved into place "
+                f"({describe_os_error(exc).split(': ', 1)[-1]}); the earlier ones are intact"
+            ) from None
         if old.exists():
             shutil.rmtree(old, ignore_errors=True)
+
+
+def _flatten(value: Any, prefix: str) -> dict[str, Any]:
+    if isinstance(value, dict):
+        flat: dict[str, Any] = {}
+        for key, item in value.items():
+            flat.update(_flatten(item, f"{prefix}.{key}"))
+        return flat
+    return {prefix: value}
+
+
+def describe_change(section: str, old: Any, new: Any, limit: int = 3) -> str:
+    """``train.epochs 25 -> 5, ...``: the keys of a section that differ, values bounded."""
+    before, after = _flatten(old, section), _flatten(new, section)
+    keys = [k for k in sorted(before.keys() | after.keys()) if before.get(k) != after.get(k)]
+
+    def shown(value: Any) -> str:
+        return json.dumps(value, default=str)[:40]
+
+    parts = [f"{k} {shown(before.get(k))} -> {shown(after.get(k))}" for k in keys[:limit]]
+    more = f", +{len(keys) - limit} more" if len(keys) > limit else ""
+    return (", ".join(parts) + more) if parts else f"{section} changed"
 
 
 def read_stage_record(path: Path) -> dict[str, Any]:

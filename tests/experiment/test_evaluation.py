@@ -131,3 +131,23 @@ def test_cli_prints_table1_from_the_cached_stage(workspace, tmp_path) -> None:
     bad.write_text("evaluate: {methods: [static, oracle]}\n")
     result = CliRunner().invoke(app, ["evaluate", "-w", str(ws.root), "-c", str(bad)])
     assert result.exit_code == 2 and "unknown method(s) ['oracle']" in result.output
+
+
+def test_episodes_on_a_dask_cluster_are_the_local_pools(workspace) -> None:
+    """Issue 13.6: the evaluation's tasks on a Dask LocalCluster give identical episodes."""
+    distributed = pytest.importorskip("distributed")
+    ws, config = workspace
+    saved = EpisodeTable.load(ws.require("evaluate") / "episodes.npz")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        records, dataset = evaluation.run_episodes(
+            config, _inputs(ws), dataclasses.replace(TEST_CONTEXT, scheduler=cluster.scheduler_address))
+    remote = EpisodeTable.from_records(records, dataset, METHODS)
+    compared = [f.name for f in dataclasses.fields(EpisodeTable) if "seconds" not in f.name]
+    assert len(compared) >= 10  # every field but the measured planning time
+    for name in compared:
+        a, b = getattr(remote, name), getattr(saved, name)
+        if isinstance(a, np.ndarray):
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), name
+        else:
+            assert a == b, name

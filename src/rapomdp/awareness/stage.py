@@ -124,7 +124,7 @@ def run_saliency_stage(config: Config, inputs: dict[str, Path], out: Path,
               str(inputs["train"]), str(out), m.file, task_threads)
              for m in dataset.with_role("volume")]
     done = run_tasks(_saliency_task, tasks, workers, f"saliency ({cfg.method}): volume models",
-                     context.progress)
+                     context.progress, context.scheduler)
     total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
     classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
                                        context.threads)

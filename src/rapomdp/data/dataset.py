@@ -21,8 +21,11 @@ from rapomdp.data.meshes import MeshLoadError, centroid, load_mesh, normalise_me
 from rapomdp.data.procedural import PROCEDURAL_CLASSES, generate_model
 from rapomdp.data.splits import ROLES, split_models
 from rapomdp.io import (
+    ArtefactError,
+    check_plain_name,
     fingerprint_files,
     load_npz,
+    plain_name,
     read_json,
     save_npz,
     stable_hash,
@@ -74,15 +77,32 @@ class Dataset:
 
 
 def load_dataset(stage_dir: str | Path) -> Dataset:
-    """Read a dataset stage folder."""
+    """Read a dataset stage folder (its record checked: names plain, files inside it)."""
     stage_dir = Path(stage_dir)
-    data = read_json(stage_dir / DATASET_FILE)
-    models = [ModelEntry(**entry) for entry in data["models"]]
-    return Dataset(stage_dir, list(data["classes"]), models)
+    path = stage_dir / DATASET_FILE
+    data = read_json(path)
+    try:
+        models = [ModelEntry(**entry) for entry in data["models"]]
+        classes = [check_plain_name(c, "class name", path) for c in data["classes"]]
+        for model in models:
+            check_plain_name(model.class_name, "class name", path)
+            check_plain_name(model.id, "model id", path)
+            if model.file != _mesh_file(model.class_name, model.id):
+                raise ArtefactError(f"{path}: model {model.id!r} has the file {model.file[:80]!r}"
+                                    ", not one of the stage's own")
+    except (TypeError, KeyError) as exc:
+        raise ArtefactError(f"{path}: not a rapomdp dataset record ({str(exc)[:120]})") from None
+    return Dataset(stage_dir, classes, models)
+
+
+def _mesh_file(class_name: str, model_id: str) -> str:
+    """Where the stage writes a model, relative to its folder."""
+    return f"meshes/{class_name}/{model_id}.npz"
 
 
 def _model_id(path: Path, layout: str) -> str:
-    return path.parent.parent.name if layout == "shapenet" else path.stem
+    """A model's id: its file name (ShapeNet: its folder's), made a plain name."""
+    return plain_name(path.parent.parent.name if layout == "shapenet" else path.stem)
 
 
 def _folder_models(config: Config) -> tuple[str, dict[str, list[Path]]]:
@@ -159,7 +179,8 @@ def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path,
             normalised = normalise_mesh(mesh, cfg.radius_m, up_axis)
         except MeshLoadError as exc:
             raise MeshLoadError(f"{source}: {exc}") from exc
-        rel = f"meshes/{class_name}/{model_id}.npz"
+        rel = _mesh_file(check_plain_name(class_name, "class name", source),
+                         check_plain_name(model_id, "model id", source))
         _write_mesh(out, rel, normalised)
         height = float(np.ptp(normalised.vertices[:, 2]))
         models.append(ModelEntry(model_id, class_name, role, source, rel, height,

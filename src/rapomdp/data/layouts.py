@@ -9,7 +9,8 @@
   synset id when neither exists.
 
 Each layout implies the meshes' up axis (ModelNet: z; ObjectNet3D and ShapeNet: y; generic: z),
-which the configuration can override.
+which the configuration can override. Class names become folder names in the workspace, so a
+name that is not a plain file name (``../x``, ``a/b``, ``.x``) is refused, naming its source.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import json
 from pathlib import Path
 
 from rapomdp.data.meshes import MESH_EXTENSIONS
+from rapomdp.io import ArtefactError, check_plain_name, read_text
 
 LAYOUT_UP_AXIS = {"generic": "z", "objectnet3d": "y", "modelnet": "z", "shapenet": "y"}
 
@@ -70,9 +72,11 @@ def _synset_names(root: Path, synset_map: Path | None) -> dict[str, str]:
     if not path.is_file():
         return {}
     try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise DatasetLayoutError(f"{path}: not valid JSON ({exc})") from exc
+        data = json.loads(read_text(path))
+    except ArtefactError as exc:
+        raise DatasetLayoutError(str(exc)) from None
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise DatasetLayoutError(f"{path}: not valid JSON ({str(exc)[:200]})") from None
     if isinstance(data, dict):
         return {str(k): str(v) for k, v in data.items()}
     if isinstance(data, list):  # ShapeNet's taxonomy.json
@@ -84,13 +88,23 @@ def _synset_names(root: Path, synset_map: Path | None) -> dict[str, str]:
     raise DatasetLayoutError(f"{path}: expected a mapping or ShapeNet's taxonomy list")
 
 
+def _checked_name(name: str, source: Path) -> str:
+    try:
+        return check_plain_name(name, "class name", source)
+    except ArtefactError as exc:
+        raise DatasetLayoutError(str(exc)) from None
+
+
 def _shapenet(root: Path, synset_map: Path | None) -> dict[str, list[Path]]:
     names = _synset_names(root, synset_map)
+    source = synset_map if synset_map is not None else root / "taxonomy.json"
     found: dict[str, list[Path]] = {}
     for folder in _class_dirs(root):
         files = sorted(folder.glob("*/models/model_normalized.obj"))
         if files:
-            found.setdefault(names.get(folder.name, folder.name), []).extend(files)
+            name = names.get(folder.name)
+            name = folder.name if name is None else _checked_name(name, source)
+            found.setdefault(name, []).extend(files)
     return found
 
 
@@ -126,4 +140,6 @@ def discover_models(
     found = readers[layout](root)
     if not found:
         raise DatasetLayoutError(f"{root}: no mesh files found in the '{layout}' layout")
+    for name in found:
+        _checked_name(name, root)
     return layout, dict(sorted(found.items()))

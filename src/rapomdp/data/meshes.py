@@ -70,7 +70,25 @@ def load_mesh(path: str | Path) -> trimesh.Trimesh:
     faces = np.asarray(mesh.faces, dtype=np.int64)
     if faces.max() >= len(vertices) or faces.min() < 0:
         raise MeshLoadError(f"{path}: a face refers to a vertex that does not exist")
-    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    loaded = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    check_surface(loaded, path)
+    return loaded
+
+
+#: A face is degenerate when its area is below this fraction of the squared bounding-box
+#: diagonal (a sliver no ray hits at any resolution the project renders).
+DEGENERATE_AREA_FRACTION = 1e-12
+
+
+def check_surface(mesh: trimesh.Trimesh, source: str | Path) -> None:
+    """Refuse a mesh with no surface to see: every face of zero area (collinear or repeated
+    vertices), which would render empty from every view and still reach the tables."""
+    vertices = np.asarray(mesh.vertices)
+    diagonal_sq = float(np.sum(np.ptp(vertices, axis=0) ** 2)) if len(vertices) else 0.0
+    areas = np.asarray(mesh.area_faces)
+    if diagonal_sq <= 0 or not np.any(areas > DEGENERATE_AREA_FRACTION * diagonal_sq):
+        raise MeshLoadError(f"{source}: every face of the mesh is degenerate (zero area): "
+                            "nothing to render")
 
 
 def up_rotation(up_axis: str) -> np.ndarray:

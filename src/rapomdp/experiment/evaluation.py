@@ -157,8 +157,9 @@ def run_episodes(config: Config, inputs: dict[str, Path],
     (test models as listed, then start, then method), whatever the number of workers."""
     dataset = load_dataset(inputs["dataset"])
     models = dataset.with_role("test")
-    count = min(context.worker_count, len(models))
-    if count <= 1:
+    # On a Dask cluster every test model is a task of its own (the cluster spreads them).
+    count = len(models) if context.uses_cluster else min(context.worker_count, len(models))
+    if count <= 1 and not context.uses_cluster:
         loop = ClosedLoop.load(config, inputs, context.threads)
         per_model = run_tasks(loop.run_model, [(m,) for m in models], 1,
                               "evaluate: test models", context.progress)
@@ -169,7 +170,7 @@ def run_episodes(config: Config, inputs: dict[str, Path],
                   for share in np.array_split(np.arange(len(models)), count)]
         per_share = run_tasks(_run_models_task, [(config_json, paths, share) for share in shares],
                               count, f"evaluate: test models ({count} shares)",
-                              context.progress)
+                              context.progress, context.scheduler)
         per_model = [records for share in per_share for records in share]
     return [r for records in per_model for r in records], dataset
 

@@ -120,4 +120,5 @@ def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path,
         workers=context.worker_count,
         allow_stay=False,
         class_names=classes,
+        scheduler=context.scheduler,
     )

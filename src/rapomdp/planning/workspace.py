@@ -79,21 +79,24 @@ def solve_workspace_problems(
     callback: ProgressCallback | None = None,
     max_iterations: int | None = None,
     workers: int = 1,
+    scheduler: str | None = None,
 ) -> dict[str, Path]:
     """Solve one active-recognition MOMDP per observation model; returns name → policy path.
 
     Each solve stops at ``precision``, after ``max_iterations`` iterations (reproducible) or
     after ``timeout`` CPU seconds (not), whichever comes first; models are solved over
     ``workers`` processes. Writes ``out_dir/policy_<name>.npz`` (atomically) and
-    ``out_dir/solve_summary.json`` with the bounds reached, the time and the policy size.
+    ``out_dir/solve_summary.json`` with the bounds reached, the time and the policy size. With a Dask
+    ``scheduler`` the models are solved on that cluster instead.
     """
     out = Path(out_dir)
     names = list(observation_models)
     common = (lambda_, discount, start_viewpoint, precision, timeout, max_iterations, allow_stay,
               class_names)
-    if workers > 1 and callback is None:
+    if (workers > 1 or scheduler is not None) and callback is None:
         rows = run_tasks(_solve_one, [(observation_models[n], move_energy, reachable, out, n,
-                                       *common) for n in names], workers, "solve: models")
+                                       *common) for n in names], workers, "solve: models",
+                         scheduler=scheduler)
     else:
         rows = [_solve_one(observation_models[n], move_energy, reachable, out, n, *common,
                            callback) for n in names]

@@ -244,6 +244,12 @@ class Classifier:
         )
 
 
+def _retrain_hint(path: Path) -> str:
+    """A command that really redoes the training (plain ``rapomdp train`` keeps a cached one)."""
+    where = path.parent.parent if path.parent.name == "train" else "WORKSPACE"
+    return f"Retrain with `rapomdp run -w {where} --force train`."
+
+
 def _check(path: Path, what: str, stored: Any, expected: Any) -> None:
     if expected is None or stored == expected:
         return
@@ -254,9 +260,9 @@ def _check(path: Path, what: str, stored: Any, expected: Any) -> None:
                   else "same classes in another order")
         raise CheckpointMismatchError(
             f"{path}: the checkpoint's {what} does not match ({detail}); "
-            f"checkpoint has {stored}, expected {expected}. Retrain with `rapomdp train`."
+            f"checkpoint has {stored}, expected {expected}. {_retrain_hint(path)}"
         )
     raise CheckpointMismatchError(
         f"{path}: the checkpoint's {what} does not match: checkpoint has {stored}, "
-        f"expected {expected}. Retrain with `rapomdp train`."
+        f"expected {expected}. {_retrain_hint(path)}"
     )

@@ -1,0 +1,85 @@
+"""Independent tasks: the local pool and a Dask cluster give the same results, in task order;
+a worker that dies, a scheduler that cannot be reached and a task's own error are named."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rapomdp.parallel import WorkerError, run_tasks
+
+distributed = pytest.importorskip("distributed")
+
+
+def seeded_draws(seed: int, size: int) -> np.ndarray:
+    """A task whose result depends only on its arguments (as every stage's task does)."""
+    return np.random.default_rng(seed).normal(size=size)
+
+
+def refuse(value: int) -> int:
+    if value == 2:
+        raise ValueError(f"task {value} refuses")
+    return value
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """One in-process Dask worker (seconds to start; the tasks are this module's)."""
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as local:
+        yield local
+
+
+@pytest.fixture
+def on_dask(cluster) -> str:
+    return cluster.scheduler_address
+
+
+def test_dask_gives_the_local_results_in_task_order(on_dask) -> None:
+    tasks = [(seed, 5 + seed) for seed in range(6)]
+    remote = run_tasks(seeded_draws, tasks, 1, "draws", scheduler=on_dask)
+    local = run_tasks(seeded_draws, tasks, 1, "draws")
+    assert [len(r) for r in remote] == [5 + s for s in range(6)]
+    for a, b in zip(remote, local, strict=True):
+        assert a.tobytes() == b.tobytes()
+
+
+def test_a_tasks_own_error_comes_back_as_it_is(on_dask) -> None:
+    with pytest.raises(ValueError, match="task 2 refuses"):
+        run_tasks(refuse, [(1,), (2,), (3,)], 1, "refusing", scheduler=on_dask)
+
+
+def test_solve_on_dask_writes_the_local_policies(on_dask, tmp_path: Path) -> None:
+    from rapomdp.planning.momdp import benchmark_problem
+    from rapomdp.planning.workspace import solve_workspace_problems
+
+    problem = benchmark_problem(12, 3, seed=2)
+    models = {"a": problem.observation_model, "b": problem.observation_model[::-1].copy()}
+    arrays = (problem.move_energy, None)
+    solve_workspace_problems(models, *arrays, tmp_path / "dask", max_iterations=4, workers=1,
+                             scheduler=on_dask)
+    solve_workspace_problems(models, *arrays, tmp_path / "local", max_iterations=4, workers=1)
+    for name in ("a", "b"):
+        remote = np.load(tmp_path / "dask" / f"policy_{name}.npz")
+        local = np.load(tmp_path / "local" / f"policy_{name}.npz")
+        assert remote.files == local.files
+        for key in local.files:
+            assert remote[key].tobytes() == local[key].tobytes(), (name, key)
+
+
+def test_an_unreachable_scheduler_is_named() -> None:
+    with pytest.raises(WorkerError, match="cannot reach the Dask scheduler at tcp://127"):
+        run_tasks(seeded_draws, [(0, 1)], 1, "draws", scheduler="tcp://127.0.0.1:9")
+
+
+def test_the_scheduler_is_validated_and_in_no_stage_key() -> None:
+    from rapomdp.config import ConfigError, config_from_dict
+    from rapomdp.pipeline import STAGES
+
+    assert config_from_dict({"parallel": {"scheduler": "tcp://10.0.0.5:8786"}}).parallel \
+        .scheduler == "tcp://10.0.0.5:8786"
+    with pytest.raises(ConfigError, match="parallel.scheduler"):
+        config_from_dict({"parallel": {"scheduler": "10.0.0.5 8786"}})
+    assert not any("parallel" in stage.sections for stage in STAGES)
