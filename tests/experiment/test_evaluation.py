@@ -140,8 +140,8 @@ def test_episodes_on_a_dask_cluster_are_the_local_pools(workspace) -> None:
     saved = EpisodeTable.load(ws.require("evaluate") / "episodes.npz")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:
-        records, dataset = evaluation.run_episodes(
-            config, _inputs(ws), dataclasses.replace(TEST_CONTEXT, scheduler=cluster.scheduler_address))
+        on_dask = dataclasses.replace(TEST_CONTEXT, scheduler=cluster.scheduler_address)
+        records, dataset = evaluation.run_episodes(config, _inputs(ws), on_dask)
     remote = EpisodeTable.from_records(records, dataset, METHODS)
     compared = [f.name for f in dataclasses.fields(EpisodeTable) if "seconds" not in f.name]
     assert len(compared) >= 10  # every field but the measured planning time

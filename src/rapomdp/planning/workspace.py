@@ -86,8 +86,8 @@ def solve_workspace_problems(
     Each solve stops at ``precision``, after ``max_iterations`` iterations (reproducible) or
     after ``timeout`` CPU seconds (not), whichever comes first; models are solved over
     ``workers`` processes. Writes ``out_dir/policy_<name>.npz`` (atomically) and
-    ``out_dir/solve_summary.json`` with the bounds reached, the time and the policy size. With a Dask
-    ``scheduler`` the models are solved on that cluster instead.
+    ``out_dir/solve_summary.json`` with the bounds reached, the time and the policy size.
+    With a Dask ``scheduler`` the models are solved on that cluster instead.
     """
     out = Path(out_dir)
     names = list(observation_models)
