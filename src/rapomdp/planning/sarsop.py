@@ -59,6 +59,8 @@ class SolveResult:
     iterations: int
     converged: bool
     history: list[Progress] = field(default_factory=list)
+    #: One line on the bounds used where a memory cap or the time budget bound (or "").
+    note: str = ""
 
 
 @dataclass
