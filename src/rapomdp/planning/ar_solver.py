@@ -52,7 +52,7 @@ from rapomdp.planning.memory import (
 )
 from rapomdp.planning.momdp import ActiveRecognitionProblem
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.sarsop import Progress, ProgressCallback, SolveResult
+from rapomdp.planning.sarsop import CLOCKS, Progress, ProgressCallback, SolveResult, check_budget
 
 #: Visited (belief, viewpoint) pairs kept for pruning the library.
 KEEP_PAIRS = 20_000
@@ -60,11 +60,6 @@ KEEP_PAIRS = 20_000
 MIN_CHUNK = 65_536
 #: Vectors and points the library can always hold (the memory check reserves them).
 LIBRARY_MIN = 1_000
-
-CLOCKS: dict[str, Callable[[], float]] = {
-    "process": time.process_time,
-    "wall": time.perf_counter,
-}
 
 
 class _Moves:
@@ -559,6 +554,7 @@ class ActiveRecognitionSolver:
         ``checkpoints`` (seconds) force a history entry as soon as each is passed. Up to
         ``grid_share`` of the time goes to the grid upper bound (where affordable).
         """
+        check_budget(precision, timeout)
         self.clock = CLOCKS[clock]
         start = self.clock()
         self.deadline = start + timeout
