@@ -6,7 +6,10 @@ the machine is shared, so wall time would measure the neighbours too), peak memo
 the process), and the discounted return of the policy over 1000 simulated episodes.
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/planning_active_recognition.py \
-        [--sizes 16x4,64x10,128x10,128x35] [--seconds 100]
+        [--sizes 16x4,64x10,128x10,128x35] [--seconds 100] [--memory-gb 4]
+
+The solver runs under the memory cap (``--memory-gb``, the solve stage's ``solve.memory_gb``);
+each row ends with the solver's note (which bounds the cap and the budget left in use).
 
 Each size runs in its own process so that the memory figure is its own.
 """
@@ -22,7 +25,8 @@ import sys
 CHECKPOINTS = (10.0, 30.0, 100.0)
 
 
-def run_one(n_v: int, n_c: int, seconds: float, seed: int) -> dict[str, object]:
+def run_one(n_v: int, n_c: int, seconds: float, seed: int, memory_gb: float
+            ) -> dict[str, object]:
     from rapomdp.planning.ar_solver import solve_active_recognition
     from rapomdp.planning.momdp import benchmark_problem, simulate_policy
 
@@ -30,7 +34,7 @@ def run_one(n_v: int, n_c: int, seconds: float, seed: int) -> dict[str, object]:
     checks = tuple(c for c in CHECKPOINTS if c <= seconds)
     result = solve_active_recognition(
         problem, precision=1e-3, timeout=seconds, report_every=1e9, checkpoints=checks,
-        clock="process",
+        clock="process", memory_gb=memory_gb,
     )
     at: dict[str, list[float]] = {}
     for c in checks:
@@ -48,6 +52,7 @@ def run_one(n_v: int, n_c: int, seconds: float, seed: int) -> dict[str, object]:
         "max_rss_gb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, 3),
         "sim": {k: round(v, 4) for k, v in sim.items()},
         "declare_at_once": round(-10.0 * (n_c - 1) / n_c, 4),
+        "note": result.note,
     }
 
 
@@ -56,20 +61,22 @@ def main() -> None:
     ap.add_argument("--sizes", default="16x4,64x10,128x10,128x35")
     ap.add_argument("--seconds", type=float, default=100.0)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--memory-gb", type=float, default=4.0)
     ap.add_argument("--one", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
         n_v, n_c = (int(x) for x in args.one.split("x"))
-        print(json.dumps(run_one(n_v, n_c, args.seconds, args.seed)))
+        print(json.dumps(run_one(n_v, n_c, args.seconds, args.seed, args.memory_gb)))
         return
     print(f"active-recognition MOMDP, seed {args.seed}, one core, up to {args.seconds:g} s of "
-          "CPU time (process_time; wall time is unreliable on the shared machine)")
+          f"CPU time (process_time; wall time is unreliable on the shared machine), memory cap "
+          f"{args.memory_gb:g} GB")
     print("size     | bounds [lower, upper] at 10 s | at 30 s | at 100 s | memory | "
           "simulated return (1000 runs) ± s.e. | accuracy | steps")
     for size in args.sizes.split(","):
         out = subprocess.run(
             [sys.executable, __file__, "--one", size, "--seconds", str(args.seconds),
-             "--seed", str(args.seed)],
+             "--seed", str(args.seed), "--memory-gb", str(args.memory_gb)],
             capture_output=True, text=True, check=True,
         )
         r = json.loads(out.stdout.strip().splitlines()[-1])
@@ -81,7 +88,8 @@ def main() -> None:
             f"{r['size']:8s} | {cells} | {r['max_rss_gb']:.2f} GB | "
             f"{s['mean_discounted_return']:.3f} ± {s['stderr']:.3f} | "
             f"{s['accuracy']:.3f} | {s['mean_steps']:.2f} | vectors {r['vectors']}, "
-            f"converged {r['converged']}, declare-at-once {r['declare_at_once']}",
+            f"converged {r['converged']}, declare-at-once {r['declare_at_once']}; "
+            f"{r['note']}",
             flush=True,
         )
 

@@ -292,8 +292,15 @@ class SolveConfig(Section):
         25, ge=1, description="solver iterations per observation model: the budget that makes "
         "a run reproducible (None: until precision or timeout_s)")
     timeout_s: float = Field(
-        120.0, gt=0, description="CPU seconds per observation model at most; a solve stopped "
-        "by it depends on the machine's speed (solve_summary.json: timed_out)")
+        120.0, gt=0, allow_inf_nan=False,
+        description="process CPU seconds per observation model at most (time asleep or "
+        "waiting does not count); a solve stopped by it depends on the machine's speed "
+        "(solve_summary.json: timed_out)")
+    memory_gb: float = Field(
+        4.0, gt=0, allow_inf_nan=False,
+        description="memory cap per solve, in GB: every bound's arrays are sized before they "
+        "are allocated; the grid upper bound is left out where it does not fit "
+        "(solve_summary.json: note)")
     models: list[str] | None = Field(
         ["ra", "classifier", "vptree"],
         description="observation models to solve (the closed-loop evaluation's three); others: "

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -9,6 +11,7 @@ from hypothesis import strategies as st
 from planning_fixtures import TIGER
 
 from rapomdp.planning.io_pomdp import PomdpParseError, format_pomdp, parse_pomdp, read_pomdp
+from rapomdp.planning.memory import MemoryCapError
 
 HEAD = "discount: 0.9\nvalues: reward\nstates: 3\nactions: 2\nobservations: 2\n"
 
@@ -133,6 +136,8 @@ def test_writer_round_trip():
         (HEAD + "start: 0.5 0.6 0.1\nT: *\nuniform\nO: *\nuniform\n", 6, "sums to 1.2"),
         (HEAD.replace("states: 3", "states: 0"), 3, "count must be positive"),
         ("discount: 0.9\nstates: a a\n", 2, "duplicate states"),
+        ("# c\n" + HEAD.replace("discount: 0.9", "discount: 1")
+         + "T: *\nuniform\nO: *\nuniform\n", 2, "discount 1 is not supported"),
     ],
 )
 def test_malformed_inputs_name_the_line(text, line, fragment):
@@ -162,6 +167,26 @@ def test_random_garbage_only_raises_parse_errors(tokens, noise):
     for text in (" ".join(tokens), HEAD + " ".join(tokens), HEAD + noise):
         try:
             p = parse_pomdp(text)
-        except PomdpParseError:
+        except (PomdpParseError, MemoryCapError):  # huge counts: refused by their estimate
             continue
         np.testing.assert_allclose(p.T.sum(axis=2), 1.0)
+
+
+def test_the_reader_is_linear_in_the_names() -> None:
+    n = 100_000
+    names = " ".join(f"s{i}" for i in range(n))
+    text = f"discount: 0.9\nstates: {names}\nactions: a b\nobservations: x y\nT: * identity\n"
+    start = time.process_time()
+    with pytest.raises(MemoryCapError, match=r"100000 states x 2 actions x 2 observations, "
+                                             r"dense\) needs about 320 GB"):
+        parse_pomdp(text)
+    dup = text.replace(f" s{n - 1}\n", " s5\n")
+    with pytest.raises(PomdpParseError, match=r":2: duplicate states name\(s\): s5$"):
+        parse_pomdp(dup)
+    assert time.process_time() - start < 2.0  # 10^5 names twice; quadratic took minutes
+    small = "discount: 0.9\nstates: " + " ".join(f"s{i}" for i in range(300)) + (
+        "\nactions: a\nobservations: x\nT: a identity\nT: a : s299 : s299 0\n"
+        "T: a : s299 : s0 1\nO: * uniform\n")
+    p = parse_pomdp(small)
+    assert p.T[0, 299, 0] == 1.0 and p.T[0, 299, 299] == 0.0  # names resolved, overwritten
+    assert p.T[0, 5, 5] == 1.0

@@ -37,15 +37,29 @@ from collections.abc import Callable
 
 import numpy as np
 
-from rapomdp.planning.grid_bound import GridUpperBound, grid_size, grid_upper_bound
+from rapomdp.planning.grid_bound import (
+    GridUpperBound,
+    grid_bytes,
+    grid_entries,
+    grid_upper_bound,
+)
+from rapomdp.planning.memory import (
+    DEFAULT_MEMORY_GB,
+    ENTRY_BYTES,
+    MemoryCapError,
+    cap_bytes,
+    format_bytes,
+)
 from rapomdp.planning.momdp import ActiveRecognitionProblem
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.sarsop import Progress, ProgressCallback, SolveResult
+from rapomdp.planning.sarsop import CLOCKS, Progress, ProgressCallback, SolveResult, check_budget
 
-CLOCKS: dict[str, Callable[[], float]] = {
-    "process": time.process_time,
-    "wall": time.perf_counter,
-}
+#: Visited (belief, viewpoint) pairs kept for pruning the library.
+KEEP_PAIRS = 20_000
+#: Smallest working block (entries) the memory cap may shrink ``chunk`` to.
+MIN_CHUNK = 65_536
+#: Vectors and points the library can always hold (the memory check reserves them).
+LIBRARY_MIN = 1_000
 
 
 class _Moves:
@@ -110,9 +124,13 @@ class ActiveRecognitionSolver:
         chunk: int = 2_000_000,
         grid: bool | int = True,
         grid_entries: int = 12_000_000,
+        memory_gb: float = DEFAULT_MEMORY_GB,
     ) -> None:
         self.problem = problem
         self.targets = problem.targets  # (J,) viewpoint index of each move target
+        n_c, n_v, n_j = problem.n_classes, problem.n_viewpoints, problem.targets.size
+        self.memory_gb = memory_gb
+        self.chunk = self._fit_chunk(chunk, n_v, n_j, n_c, cap_bytes(memory_gb))
         self.cost = problem.move_cost()  # (V, J)
         self.cost_tt = self.cost[self.targets]  # (J, J): from a target to a target
         self.min_cost = self.cost.min(axis=1)  # (V,) a move costs at least this much
@@ -121,7 +139,6 @@ class ActiveRecognitionSolver:
         )
         self.lam = problem.lambda_
         self.g = problem.discount
-        n_c, n_v = problem.n_classes, problem.n_viewpoints
         self.betas = np.zeros((0, n_c))
         self.slots = np.zeros(0, dtype=np.int64)  # target slot (index into targets) of β
         self.up_points = np.zeros((0, n_c))
@@ -134,9 +151,91 @@ class ActiveRecognitionSolver:
         # visited (belief, viewpoint) pairs: pruning keeps the vectors best at one of them
         self.visited_b: list[np.ndarray] = [problem.start_belief[None]]
         self.visited_v: list[np.ndarray] = [np.array([problem.start_viewpoint])]
-        self.chunk = chunk
         self.clock: Callable[[], float] = time.process_time
         self.deadline = np.inf
+        self.max_resolution, grid_note = self._plan_grid()
+        self.max_vectors, self.max_points = self._plan_library()
+        self.notes: list[str] = [grid_note]
+
+    # -- memory --------------------------------------------------------------------------
+    @staticmethod
+    def working_bytes(chunk: int, n_viewpoints: int, n_targets: int, n_classes: int) -> int:
+        """Bytes of the solver's fixed arrays and working blocks, before any library.
+
+        The problem's arrays (V·C² + 2·J·C² + 3·V·J + V²), one belief's children and their
+        plans (10 arrays of J·C²), eight blocks of ``chunk`` entries, the visited pairs kept
+        for pruning (3 copies of 20 000 × (C + 1)).
+        """
+        v, j, c = n_viewpoints, n_targets, n_classes
+        problem = v * c * c + 2 * j * c * c + 3 * v * j + v * v
+        children = 10 * j * c * c
+        visited = 3 * KEEP_PAIRS * (c + 1)
+        return ENTRY_BYTES * (problem + children + 8 * chunk + visited)
+
+    @classmethod
+    def _fit_chunk(cls, chunk: int, n_v: int, n_j: int, n_c: int, cap: float) -> int:
+        """``chunk`` or less so that the working arrays take at most half of the cap; refused
+        (:class:`MemoryCapError`) when even the smallest blocks do not fit."""
+        smallest = max(MIN_CHUNK, n_j * n_c * n_c)
+        fitted = int(chunk)
+        while fitted > smallest and cls.working_bytes(fitted, n_v, n_j, n_c) > cap / 2:
+            fitted = max(smallest, fitted // 2)
+        need = cls.working_bytes(fitted, n_v, n_j, n_c) + LIBRARY_MIN * ENTRY_BYTES * (
+            4 * n_c + n_v + n_j)
+        if need > cap:
+            raise MemoryCapError(
+                f"the active-recognition problem ({n_v} viewpoints x {n_c} classes, {n_j} move "
+                "targets)", need, cap)
+        return fitted
+
+    def _plan_grid(self) -> tuple[int, str]:
+        """The finest grid resolution whose structures fit in the memory left and in
+        ``grid_entries`` (0: no grid), and a note saying which bound was chosen and why."""
+        pb = self.problem
+        n_v, n_c, n_j = pb.n_viewpoints, pb.n_classes, self.targets.size
+        if self.grid_option is False:
+            return 0, "upper bound: sawtooth only (grid turned off)"
+        cap = cap_bytes(self.memory_gb)
+        left = cap - self.working_bytes(self.chunk, n_v, n_j, n_c)
+        # the grid's share: at most half of what is left, the rest is the library's
+        budget = left / 2
+        extra = 6 * n_j * n_c * n_c * ENTRY_BYTES  # interpolating one belief's children
+        best, refusal = 0, ""
+        for res in self._resolutions():
+            entries = grid_entries(res, n_c, n_j, n_c)
+            if entries > self.grid_entries:
+                refusal = refusal or (f"resolution {res} has {entries:.3g} entries, over "
+                                      f"the {self.grid_entries:.3g} the time budget allows")
+                break
+            need = grid_bytes(res, n_c, n_v, n_j, n_c) + extra
+            if need > budget:
+                refusal = (f"resolution {res} needs {format_bytes(need)}, over the "
+                           f"{format_bytes(budget)} the {format_bytes(cap)} cap leaves it")
+                break
+            best = res
+        if best == 0:
+            return 0, f"upper bound: sawtooth only, grid skipped ({refusal})"
+        if refusal and "cap" in refusal:
+            return best, f"upper bound: grid up to resolution {best} + sawtooth ({refusal})"
+        return best, f"upper bound: grid up to resolution {best} + sawtooth"
+
+    def _plan_library(self) -> tuple[int, int]:
+        """Most lower-bound vectors and upper-bound points the memory left can hold."""
+        pb = self.problem
+        n_v, n_c, n_j = pb.n_viewpoints, pb.n_classes, self.targets.size
+        left = cap_bytes(self.memory_gb) - self.working_bytes(self.chunk, n_v, n_j, n_c)
+        if self.max_resolution:
+            left -= grid_bytes(self.max_resolution, n_c, n_v, n_j, n_c)
+        left = max(left, 0.0)
+        per_vector = ENTRY_BYTES * (2 * n_c + 2 + n_v)  # β, slot, copies in pruning, scores
+        per_point = ENTRY_BYTES * (4 * n_c + n_v + n_j)  # b, 1/b, offset, values, a copy
+        return (max(LIBRARY_MIN, int(left / 2 / per_vector)),
+                max(LIBRARY_MIN, int(left / 2 / per_point)))
+
+    def _resolutions(self) -> list[int]:
+        if isinstance(self.grid_option, int) and not isinstance(self.grid_option, bool):
+            return [int(self.grid_option)]
+        return [2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80, 96, 128]
 
     # -- bounds --------------------------------------------------------------------------
     def lower_values(self, beliefs: np.ndarray) -> np.ndarray:
@@ -280,7 +379,7 @@ class ActiveRecognitionSolver:
             old_up = self.upper_values(B)
             up = np.minimum(old_up, new_up)
             improved = np.any(new_up < old_up - 1e-10, axis=1)
-            if improved.any():
+            if improved.any() and self.up_points.shape[0] < self.max_points:
                 self._add_points(B[improved], up[improved])
             info.update(up=up_u, q_up=q_up)
         return np.maximum(old_low, best), info
@@ -322,6 +421,8 @@ class ActiveRecognitionSolver:
                 break
             v, b = int(self.targets[a]), self.moves.Pj[a, o] * b / prob[0, a, o]
         for view, belief in reversed(path):
+            if self.clock() > self.deadline:  # the bounds stay valid with fewer backups
+                break
             self.backup(belief[None], np.array([view]), upper=True)
         self._visit(np.array([p[1] for p in path]), np.array([p[0] for p in path]))
 
@@ -357,7 +458,8 @@ class ActiveRecognitionSolver:
             key = np.concatenate([np.round(Bs, 12), vs[:, None]], axis=1)
             _, first = np.unique(key, axis=0, return_index=True)
             Bs, vs = Bs[first], vs[first]
-            per = len(self.targets) * Bs.shape[1] * (1 + len(self.slots))
+            # a belief's children (J, O, C) and their dot products with the library
+            per = len(self.targets) * Bs.shape[1] * (1 + len(self.slots) + Bs.shape[1])
             step = max(1, self.chunk // per)
             for i in range(0, Bs.shape[0], step):
                 if self.clock() > self.deadline:
@@ -370,7 +472,7 @@ class ActiveRecognitionSolver:
         self.visited_b.append(np.atleast_2d(B))
         self.visited_v.append(np.atleast_1d(views))
 
-    def prune(self, keep_pairs: int = 20_000) -> None:
+    def prune(self, keep_pairs: int = KEEP_PAIRS) -> None:
         """Drop library vectors best at no visited (belief, viewpoint) pair."""
         B = np.vstack(self.visited_b)[-keep_pairs:]
         views = np.concatenate(self.visited_v)[-keep_pairs:]
@@ -393,20 +495,15 @@ class ActiveRecognitionSolver:
 
     # -- the grid ------------------------------------------------------------------------
     def _build_grid(self, until: float) -> None:
-        """Grid upper bounds of growing resolution while they fit in entries and time."""
+        """Grid upper bounds of growing resolution, up to the one the memory plan allows,
+        while the time extrapolated from the previous one fits before ``until``."""
         pb = self.problem
         n_c, n_j = pb.n_classes, len(self.targets)
-        if self.grid_option is False:
-            return
-        if isinstance(self.grid_option, int) and not isinstance(self.grid_option, bool):
-            resolutions = [int(self.grid_option)]
-        else:
-            resolutions = [2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80, 96, 128]
         last_cost, last_entries = 0.0, 0
-        for res in resolutions:
-            entries = grid_size(res, n_c) * n_j * n_c * n_c
-            if entries > self.grid_entries:
+        for res in self._resolutions():
+            if res > self.max_resolution:
                 break
+            entries = grid_entries(res, n_c, n_j, n_c)
             now = self.clock()
             if last_entries and now + 1.5 * last_cost * entries / last_entries > until:
                 break
@@ -457,13 +554,14 @@ class ActiveRecognitionSolver:
         ``checkpoints`` (seconds) force a history entry as soon as each is passed. Up to
         ``grid_share`` of the time goes to the grid upper bound (where affordable).
         """
+        check_budget(precision, timeout)
         self.clock = CLOCKS[clock]
         start = self.clock()
         self.deadline = start + timeout
         v0, b0 = self.problem.start_viewpoint, self.problem.start_belief
         rng = np.random.default_rng(seed)
         history: list[Progress] = []
-        it, next_prune, last, pruned = 0, 8, -np.inf, 0
+        it, next_prune, last, pruned, full = 0, 8, -np.inf, 0, False
         pending = sorted(checkpoints)
         self._build_grid(start + grid_share * timeout)
         while True:
@@ -477,7 +575,7 @@ class ActiveRecognitionSolver:
                 it,
             )
             converged = snap.gap <= precision
-            done = converged or now > self.deadline or (
+            done = converged or full or now > self.deadline or (
                 max_iterations is not None and it >= max_iterations
             )
             hit = bool(pending) and snap.elapsed >= pending[0]
@@ -500,15 +598,29 @@ class ActiveRecognitionSolver:
                 self.prune()
                 next_prune = int(it * 1.3) + 4
                 pruned = len(self.slots)
+                if pruned > self.max_vectors:
+                    self.notes.append(
+                        f"stopped: {pruned} lower-bound vectors fill the memory cap's share")
+                    full = True
         # the policy file's sawtooth carries the reported upper bound at the start
         up0 = self.upper_values(b0[None])[0]
         if np.any(up0 < self._sawtooth(b0[None])[0] - 1e-12):
             self._add_points(b0[None], np.asarray(up0)[None])
         self.prune()
+        if self.up_points.shape[0] >= self.max_points:
+            self.notes.append(f"upper-bound points capped at {self.max_points} by memory")
+        if self.grid is not None:
+            self.notes.append(f"grid reached resolution {self.grid.grid.n}")
         final = history[-1]
         return SolveResult(
-            self.policy(), final.lower, final.upper, final.elapsed, it, converged, history
+            self.policy(), final.lower, final.upper, final.elapsed, it, converged, history,
+            note=self.note,
         )
+
+    @property
+    def note(self) -> str:
+        """One line: which bounds the memory cap and the time budget left in use."""
+        return "; ".join(self.notes)
 
 
 def solve_active_recognition(
@@ -521,8 +633,10 @@ def solve_active_recognition(
     """Solve the MOMDP with :class:`ActiveRecognitionSolver`; ``result.policy`` is an
     :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`. ``options`` go to
     :meth:`ActiveRecognitionSolver.solve` (``clock``, ``checkpoints``, …), except ``chunk``,
-    ``grid`` (False: no grid bound; an int: that resolution) and ``grid_entries``, which go
-    to the constructor."""
-    init = {k: options.pop(k) for k in ("chunk", "grid", "grid_entries") if k in options}
+    ``grid`` (False: no grid bound; an int: that resolution), ``grid_entries`` and
+    ``memory_gb`` (the cap every structure is sized against, default 4), which go to the
+    constructor. ``result.note`` says which bounds the cap and the budget left in use."""
+    init = {k: options.pop(k) for k in ("chunk", "grid", "grid_entries", "memory_gb")
+            if k in options}
     solver = ActiveRecognitionSolver(problem, **init)  # type: ignore[arg-type]
     return solver.solve(precision, timeout, callback, **options)  # type: ignore[arg-type]

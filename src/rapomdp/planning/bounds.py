@@ -8,35 +8,86 @@ with values, combined by sawtooth interpolation (Hauskrecht 2000; used by HSVI a
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
+
 import numpy as np
 
+from rapomdp.planning.memory import ENTRY_BYTES
 from rapomdp.planning.pomdp import POMDP
 
+#: States up to which the blind policies are solved exactly (a dense solve, ~S³ flops per
+#: action); beyond, they are iterated, with the deadline checked at every sweep.
+EXACT_BLIND_STATES = 600
 
-def blind_policy_alphas(pomdp: POMDP) -> np.ndarray:
-    """(A, S) values of the blind policies: α_a = R_a + γ T_a α_a, solved exactly."""
+
+def blind_policy_alphas(
+    pomdp: POMDP,
+    deadline: float = np.inf,
+    clock: Callable[[], float] = time.process_time,
+    tol: float = 1e-7,
+) -> np.ndarray:
+    """(A, S) lower bounds on the values of the blind policies (α_a = R_a + γ T_a α_a).
+
+    Exact (a linear solve) for small problems; otherwise iterated from the trivial bound
+    min R / (1 − γ), which keeps every iterate a lower bound, until ``tol`` or ``deadline``.
+    """
     n_a, n_s = pomdp.n_actions, pomdp.n_states
-    eye = np.eye(n_s)
-    return np.stack(
-        [np.linalg.solve(eye - pomdp.discount * pomdp.T[a], pomdp.R[a]) for a in range(n_a)]
-    )
+    g, T, R = pomdp.discount, pomdp.T, pomdp.R
+    if n_s <= EXACT_BLIND_STATES:
+        eye = np.eye(n_s)
+        return np.stack([np.linalg.solve(eye - g * T[a], R[a]) for a in range(n_a)])
+    alphas = np.full((n_a, n_s), R.min() / (1.0 - g))
+    while clock() <= deadline:
+        nxt = R + g * np.matmul(T, alphas[:, :, None])[..., 0]
+        step = float(np.abs(nxt - alphas).max())
+        alphas = nxt
+        if step < tol:
+            break
+    return alphas
 
 
-def fast_informed_bound(pomdp: POMDP, tol: float = 1e-7, max_iter: int = 10_000) -> np.ndarray:
-    """Q(a, s) of the fast informed bound, iterated to a fixed point (an upper bound on Q*).
+def fast_informed_bound(
+    pomdp: POMDP,
+    tol: float = 1e-7,
+    max_iter: int = 10_000,
+    deadline: float = np.inf,
+    clock: Callable[[], float] = time.process_time,
+) -> np.ndarray:
+    """Q(a, s) of the fast informed bound, iterated towards its fixed point (an upper bound on
+    Q* at every iterate: it starts from max R / (1 − γ) and decreases), until ``tol``,
+    ``max_iter`` or ``deadline``.
 
     Q(s,a) = R(s,a) + γ Σ_o max_a' Σ_s' T(s,a,s') O(s',a,o) Q(s',a').
     """
     T, Z, R, g = pomdp.T, pomdp.Z, pomdp.R, pomdp.discount
+    Q = np.full(R.shape, R.max() / (1.0 - g))
+    if clock() > deadline:
+        return Q
     # W[a, o, s, s'] = T[a, s, s'] O[a, s', o]
     W = np.einsum("ast,ato->aost", T, Z)
-    Q = np.full(R.shape, R.max() / (1.0 - g))
     for _ in range(max_iter):
+        if clock() > deadline:
+            return Q
         nxt = R + g * (W @ Q.T).max(axis=-1).sum(axis=1)
         if np.max(np.abs(nxt - Q)) < tol:
             return nxt
         Q = nxt
     return Q
+
+
+def flat_solver_bytes(n_states: int, n_actions: int, n_observations: int) -> int:
+    """Bytes the flat solver's fixed arrays take, estimated from the sizes alone.
+
+    The model (T: A·S², O: A·S·Z, R), the fast informed bound's W (A·Z·S²) and product
+    (A·Z·S·A), a dense blind solve (2·S²), one belief's children (6·A·S·Z) and the batched
+    sweep's blocks (2 × 4·10⁶).
+    """
+    s, a, z = n_states, n_actions, n_observations
+    model = a * s * s + a * s * z + 2 * a * s
+    fib = a * z * s * s + a * z * s * a
+    blind = 2 * s * s if s <= EXACT_BLIND_STATES else 3 * a * s
+    return ENTRY_BYTES * (model + fib + blind + 6 * a * s * z + 8_000_000)
 
 
 class AlphaVectorSet:

@@ -1,11 +1,15 @@
 """``rapomdp pomdp ...``: solve ``.pomdp`` files and export active-recognition problems.
 
-Registered by the top-level CLI as ``app.add_typer(pomdp_app, name="pomdp")``.
+Registered by the top-level CLI as ``app.add_typer(pomdp_app, name="pomdp")``. Planning
+stands alone: these commands import no torch, robot or pipeline code (the workspace's
+configuration is read only by ``export --workspace``), so they start in a fraction of a second.
 """
 
 from __future__ import annotations
 
+import math
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -14,11 +18,11 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
-from rapomdp.config import Config, ConfigError, load_config
 from rapomdp.io import ArtefactError
-from rapomdp.planning.ar_solver import solve_active_recognition
+from rapomdp.planning.bounds import flat_solver_bytes
 from rapomdp.planning.io_pomdp import PomdpParseError, read_pomdp, write_pomdp
 from rapomdp.planning.io_pomdpx import write_pomdpx
+from rapomdp.planning.memory import DEFAULT_MEMORY_GB, MemoryCapError
 from rapomdp.planning.momdp import (
     ActiveRecognitionProblem,
     benchmark_problem,
@@ -26,8 +30,6 @@ from rapomdp.planning.momdp import (
     to_flat_pomdp,
 )
 from rapomdp.planning.sarsop import Progress, SolveResult, solve_pomdp
-from rapomdp.planning.workspace import load_problem_arrays
-from rapomdp.workspace import StageError, Workspace
 
 pomdp_app = typer.Typer(
     help="Solve POMDPs (Cassandra .pomdp) with the SARSOP-style solver; export problems.",
@@ -78,36 +80,61 @@ class BoundsDisplay:
 
 def _report(console: Console, result: SolveResult, size: int) -> None:
     state = "converged" if result.converged else "stopped at the time limit"
+    if result.note.startswith("stopped"):
+        state = "stopped at the memory cap"
     console.print(
-        f"{state} after {result.elapsed:.2f} s, {result.iterations} iterations: "
+        f"{state} after {result.elapsed:.2f} s of CPU time, {result.iterations} iterations: "
         f"lower {result.lower:.6g}, upper {result.upper:.6g}, gap {result.upper - result.lower:.4g}"
     )
+    if result.note:
+        console.print(f"note: {result.note}")
     console.print(f"policy: {size} alpha vectors")
+
+
+def _error(console: Console, message: object) -> typer.Exit:
+    console.print(f"[red]error:[/red] {message}", soft_wrap=True, highlight=False)
+    return typer.Exit(2)
+
+
+def _check_positive(console: Console, **options: float) -> None:
+    """Refuse NaN, infinite, zero or negative values of the named options."""
+    for name, value in options.items():
+        if not (math.isfinite(value) and value > 0):
+            raise _error(console, f"--{name.replace('_', '-')} must be a positive finite "
+                                  f"number, got {value}")
+
+
+TIMEOUT_HELP = ("Stop after S seconds of process CPU time (reading the file included; time "
+                "asleep or waiting for the machine does not count).")
+MEMORY_HELP = ("Memory cap in GB: the solver's arrays are estimated before they are "
+               "allocated and a problem that cannot fit is refused.")
 
 
 @pomdp_app.command("solve")
 def solve_cmd(
     file: Path = typer.Argument(..., help="A .pomdp file (Cassandra's format)."),
     precision: float = typer.Option(1e-3, "--precision", help="Stop when upper - lower <= P."),
-    timeout: float = typer.Option(60.0, "--timeout", help="Stop after S seconds."),
+    timeout: float = typer.Option(60.0, "--timeout", help=TIMEOUT_HELP),
+    memory_gb: float = typer.Option(DEFAULT_MEMORY_GB, "--memory-gb", help=MEMORY_HELP),
     out: Path | None = typer.Option(None, "--out", help="Write the policy (.npz)."),
 ) -> None:
     """Solve a .pomdp file, printing the bounds as they improve and the final policy size."""
+    start = time.process_time()
     console = Console(soft_wrap=True)
+    _check_positive(console, precision=precision, timeout=timeout, memory_gb=memory_gb)
     try:
-        pomdp = read_pomdp(file)
-    except PomdpParseError as exc:
-        console.print(f"[red]error:[/red] {exc}", soft_wrap=True)
-        raise typer.Exit(2) from None
-    if precision <= 0 or timeout <= 0:
-        console.print("[red]error:[/red] --precision and --timeout must be positive")
-        raise typer.Exit(2)
-    console.print(
-        f"{file}: {pomdp.n_states} states, {pomdp.n_actions} actions, "
-        f"{pomdp.n_observations} observations, discount {pomdp.discount}"
-    )
-    with BoundsDisplay(console, str(file.name)) as display:
-        result = solve_pomdp(pomdp, precision, timeout, display)
+        pomdp = read_pomdp(file, memory_gb, solver_bytes=flat_solver_bytes)
+        console.print(
+            f"{file}: {pomdp.n_states} states, {pomdp.n_actions} actions, "
+            f"{pomdp.n_observations} observations, discount {pomdp.discount}"
+        )
+        left = timeout - (time.process_time() - start)
+        if left <= 0:
+            raise _error(console, f"reading {file} took the whole --timeout of {timeout:g} s")
+        with BoundsDisplay(console, str(file.name)) as display:
+            result = solve_pomdp(pomdp, precision, left, display, memory_gb)
+    except (PomdpParseError, MemoryCapError) as exc:
+        raise _error(console, exc) from None
     _report(console, result, len(result.policy))  # type: ignore[arg-type]
     if out is not None:
         path = result.policy.save(out)  # type: ignore[attr-defined]
@@ -123,7 +150,9 @@ def _parse_size(text: str) -> tuple[int, int]:
 
 def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
     """The problem the solve stage builds from a workspace, with the workspace's configuration."""
+    from rapomdp.config import Config, load_config
     from rapomdp.planning.stage import workspace_problem
+    from rapomdp.workspace import Workspace
 
     ws = Workspace(root)
     config = load_config(root / "config.yaml") if (root / "config.yaml").exists() else Config()
@@ -152,11 +181,20 @@ def export_cmd(
     discount: float = typer.Option(0.95, "--discount"),
     start: int = typer.Option(0, "--start", help="Index of the start viewpoint."),
     solve_seconds: float = typer.Option(
-        0.0, "--solve", help="Also solve for this many seconds and print the bounds."
+        0.0, "--solve", help="Also solve for this many seconds of process CPU time and print "
+        "the bounds."
     ),
+    memory_gb: float = typer.Option(DEFAULT_MEMORY_GB, "--memory-gb", help=MEMORY_HELP),
 ) -> None:
     """Write an active-recognition problem as .pomdpx (viewpoint fully observed) or .pomdp."""
+    from rapomdp.config import ConfigError
+    from rapomdp.planning.workspace import load_problem_arrays
+    from rapomdp.workspace import StageError
+
     console = Console(soft_wrap=True)
+    _check_positive(console, memory_gb=memory_gb)
+    if not (math.isfinite(solve_seconds) and solve_seconds >= 0):
+        raise _error(console, f"--solve must be a finite number of seconds, got {solve_seconds}")
     try:
         if sum(x is not None for x in (problem, benchmark, workspace)) != 1:
             raise ValueError("give exactly one of --problem, --benchmark and --workspace")
@@ -186,6 +224,12 @@ def export_cmd(
         f"{ar.targets.size} move targets"
     )
     if solve_seconds > 0:
+        from rapomdp.planning.ar_solver import solve_active_recognition
+
         with BoundsDisplay(console, "active recognition") as display:
-            result = solve_active_recognition(ar, 1e-3, solve_seconds, display)
+            try:
+                result = solve_active_recognition(ar, 1e-3, solve_seconds, display,
+                                                  memory_gb=memory_gb)
+            except MemoryCapError as exc:
+                raise _error(console, exc) from None
         _report(console, result, int(np.size(result.policy.targets)))  # type: ignore[attr-defined]

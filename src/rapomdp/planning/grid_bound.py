@@ -26,10 +26,33 @@ from math import comb
 import numpy as np
 import scipy.sparse as sp
 
+from rapomdp.planning.memory import ENTRY_BYTES
+
 
 def grid_size(n: int, n_classes: int) -> int:
     """Number of points of the grid {b : N·b integer} on the simplex of ``n_classes``."""
     return comb(n + n_classes - 1, n_classes - 1)
+
+
+def grid_entries(resolution: int, n_classes: int, n_targets: int, n_labels: int) -> int:
+    """Non-zeros of the grid's transition matrix: every (target, point, label) child
+    interpolates over ``n_classes`` vertices (the measure of its build and sweep time)."""
+    return grid_size(resolution, n_classes) * n_targets * n_labels * n_classes
+
+
+def grid_bytes(resolution: int, n_classes: int, n_viewpoints: int, n_targets: int,
+               n_labels: int) -> int:
+    """Peak bytes :func:`grid_upper_bound` allocates, estimated from the sizes alone.
+
+    The sparse matrix's triplets, their concatenation and the CSR copy (about 80 bytes per
+    non-zero); one target's children and their interpolation (16 arrays of G·O·C); the value
+    arrays (V, G) and a seeding evaluation (V, G, C); the sweep's blocks (4·10⁶ entries).
+    """
+    n_g = grid_size(resolution, n_classes)
+    nnz = grid_entries(resolution, n_classes, n_targets, n_labels)
+    per_target = 16 * n_g * n_labels * n_classes
+    values = (3 * n_viewpoints + n_targets) * n_g + n_viewpoints * n_g * n_classes
+    return 80 * nnz + ENTRY_BYTES * (per_target + values + 2 * 4_000_000 + 3 * n_g * n_classes)
 
 
 class FreudenthalGrid:
@@ -54,18 +77,28 @@ class FreudenthalGrid:
             axis=1,
         )
         self.points = (full[:, :-1] - full[:, 1:]) / resolution  # (G, C)
-        self.base = resolution + 1
-        self.lut = np.full(self.base ** (n_classes - 1), -1, dtype=np.int64)
-        self.lut[self._code(ys)] = np.arange(ys.shape[0])
+        # lexicographic rank of a non-increasing y: Σ_k #sequences that share y_1..y_{k-1}
+        # and have a smaller k-th entry = Σ_k comb(y_k + d − 1 − k, d − k) (k from 0, d = C − 1)
+        d = n_classes - 1
+        self._rank_terms = np.array(
+            [[comb(y + d - 1 - k, d - k) for y in range(resolution + 1)] for k in range(d)],
+            dtype=np.int64,
+        )  # (d, N + 1), every entry < len(self)
 
     def __len__(self) -> int:
         return self.points.shape[0]
 
-    def _code(self, y: np.ndarray) -> np.ndarray:
-        code = np.zeros(y.shape[:-1], dtype=np.int64)
-        for k in range(y.shape[-1]):
-            code = code * self.base + y[..., k]
-        return code
+    def index(self, y: np.ndarray) -> np.ndarray:
+        """Index of the grid point with Lovejoy coordinates ``y`` (..., C − 1); −1 where ``y``
+        is not one (not non-increasing or outside [0, N]). No table over all codes: the
+        rank is computed, so memory stays O(C·N) for any number of classes."""
+        y = np.asarray(y, dtype=np.int64)
+        valid = np.all((y >= 0) & (y <= self.n), axis=-1)
+        if y.shape[-1] > 1:
+            valid &= np.all(y[..., 1:] <= y[..., :-1], axis=-1)
+        safe = np.where(valid[..., None], y, 0)
+        rank = self._rank_terms[np.arange(y.shape[-1]), safe].sum(axis=-1)
+        return np.where(valid, rank, -1)
 
     def interpolation(self, beliefs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Vertex indices (K, C) and barycentric weights (K, C) of beliefs (K, C)."""
@@ -83,11 +116,11 @@ class FreudenthalGrid:
         w = np.empty((k_n, dim + 1))
         cur = v0.copy()
         rows = np.arange(k_n)
-        verts[:, 0] = self.lut[self._code(cur)]
+        verts[:, 0] = self.index(cur)
         w[:, 0] = 1.0 - ds[:, 0]
         for k in range(1, dim + 1):
             cur[rows, order[:, k - 1]] += 1
-            idx = self.lut[self._code(np.minimum(cur, self.n))]
+            idx = self.index(np.minimum(cur, self.n))
             verts[:, k] = idx
             w[:, k] = ds[:, k - 1] - (ds[:, k] if k < dim else 0.0)
         bad = verts < 0

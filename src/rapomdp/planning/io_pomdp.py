@@ -13,17 +13,18 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.io import write_text_atomic
+from rapomdp.planning.memory import DEFAULT_MEMORY_GB, ENTRY_BYTES, MemoryCapError, check_memory
 from rapomdp.planning.pomdp import POMDP
 
-#: Largest dense reward table (A·S·S·Z entries) the reader builds for rewards that depend on
-#: the next state or observation; larger problems are refused with a parse error.
-MAX_DENSE_ENTRIES = 50_000_000
+#: How far a row of T or O may sum from 1 in a file (rows are renormalised).
 SUM_TOL = 1e-3
 
 
@@ -44,6 +45,9 @@ class _Tok:
     line: int
 
 
+#: bytes needed for (states, actions, observations)
+SizeEstimate = Callable[[int, int, int], int]
+
 _TOKEN_RE = re.compile(r":|[^\s:]+")
 _PREAMBLE = ("discount", "values", "states", "actions", "observations", "start")
 
@@ -57,13 +61,18 @@ def _tokenize(text: str) -> list[_Tok]:
 
 
 class _Parser:
-    def __init__(self, text: str, source: str) -> None:
+    def __init__(self, text: str, source: str, memory_gb: float = DEFAULT_MEMORY_GB,
+                 solver_bytes: SizeEstimate | None = None) -> None:
         self.toks = _tokenize(text)
         self.i = 0
         self.source = source
+        self.memory_gb = memory_gb
+        self.solver_bytes = solver_bytes
         self.discount: float | None = None
+        self.discount_line = 0
         self.values = "reward"
         self.names: dict[str, list[str] | None] = {}
+        self.index: dict[str, dict[str, int]] = {}  # name -> index, per kind
         self.sizes: dict[str, int] = {}
         self.start: np.ndarray | None = None
         self.start_spec: tuple[str, list[_Tok], int] | None = None
@@ -138,6 +147,7 @@ class _Parser:
                 if not 0.0 <= d <= 1.0:
                     raise self.error(f"discount must be in [0, 1], got {d}", tok)
                 self.discount = d
+                self.discount_line = tok.line
             elif key == "values":
                 v = self.next("'reward' or 'cost'")
                 if v.text not in ("reward", "cost"):
@@ -159,20 +169,21 @@ class _Parser:
             n = int(items[0].text)
             if n < 1:
                 raise self.error(f"'{key}:' count must be positive", items[0])
-            if n > 100_000:
-                raise self.error(f"'{key}:' count {n} is too large", items[0])
             self.sizes[key] = n
             self.names[key] = None
         else:
             names = [t.text for t in items]
-            dup = {n for n in names if names.count(n) > 1}
-            if dup:
-                raise self.error(f"duplicate {key} name(s): {sorted(dup)}", items[0])
-            bad = [n for n in names if n == "*" or n in ("T", "O", "R")]
+            index = {name: i for i, name in enumerate(names)}  # linear: one pass
+            if len(index) < len(names):
+                dup = sorted(name for name, count in Counter(names).items() if count > 1)
+                shown = ", ".join(dup[:5]) + (f" and {len(dup) - 5} more" if len(dup) > 5 else "")
+                raise self.error(f"duplicate {key} name(s): {shown}", items[0])
+            bad = [n for n in ("*", "T", "O", "R") if n in index]
             if bad:
                 raise self.error(f"{bad[0]!r} cannot be a name in '{key}:'", items[0])
             self.sizes[key] = len(names)
             self.names[key] = names
+            self.index[key] = index
 
     def collect_until_keyword(self) -> list[_Tok]:
         out: list[_Tok] = []
@@ -190,9 +201,9 @@ class _Parser:
         """Index (or ``slice(None)`` for '*') of a state/action/observation reference."""
         if tok.text == "*":
             return slice(None)
-        names = self.names[kind]
-        if names is not None and tok.text in names:
-            return names.index(tok.text)
+        index = self.index.get(kind)
+        if index is not None and tok.text in index:
+            return index[tok.text]
         if re.fullmatch(r"\d+", tok.text):
             idx = int(tok.text)
             if idx < self.sizes[kind]:
@@ -253,8 +264,13 @@ class _Parser:
     def parse(self) -> POMDP:
         self.parse_preamble()
         n_s, n_a, n_z = self.sizes["states"], self.sizes["actions"], self.sizes["observations"]
-        if n_a * n_s * n_s + n_a * n_s * n_z > MAX_DENSE_ENTRIES:
-            raise self.error(f"problem too large for dense arrays ({n_s} states, {n_a} actions)")
+        # T, O and their row-sum copies, the line tables, R and the POMDP's checks
+        need = ENTRY_BYTES * (2 * n_a * n_s * n_s + 2 * n_a * n_s * n_z + 6 * n_a * n_s)
+        sizes = f"{n_s} states x {n_a} actions x {n_z} observations"
+        if self.solver_bytes is not None:  # refuse before reading what cannot be solved
+            check_memory(f"solving {self.source} ({sizes})", self.solver_bytes(n_s, n_a, n_z),
+                         self.memory_gb)
+        check_memory(f"reading {self.source} ({sizes}, dense)", need, self.memory_gb)
         T = np.zeros((n_a, n_s, n_s))
         Z = np.zeros((n_a, n_s, n_z))
         T_line = np.zeros((n_a, n_s), dtype=np.int64)
@@ -288,7 +304,8 @@ class _Parser:
         discount = float(self.discount if self.discount is not None else 0.95)
         if discount >= 1.0:
             raise PomdpParseError(
-                "discount 1 is not supported (the solver needs discount < 1)", 0, self.source
+                "discount 1 is not supported (the solver needs discount < 1)",
+                self.discount_line, self.source,
             )
         return POMDP.from_arrays(
             T,
@@ -390,8 +407,12 @@ class _Parser:
             R2[a, s] = float(np.ravel(value)[0])
             return None
         if R4 is None:
-            if n_a * n_s * n_s * n_z > MAX_DENSE_ENTRIES:
-                raise self.error("rewards that depend on s' or o make this problem too large", key)
+            try:
+                check_memory(f"rewards that depend on the end state or observation in "
+                             f"{self.source} (a dense A x S x S x Z table)",
+                             2 * ENTRY_BYTES * n_a * n_s * n_s * n_z, self.memory_gb)
+            except MemoryCapError as exc:
+                raise self.error(str(exc), key) from None
             R4 = np.broadcast_to(R2[:, :, None, None], (n_a, n_s, n_s, n_z)).copy()
         R4[a, s, s2, o] = value
         return R4
@@ -405,24 +426,30 @@ def _is_float(text: str) -> bool:
     return True
 
 
-def parse_pomdp(text: str, source: str = "<string>") -> POMDP:
-    """Parse the text of a ``.pomdp`` file; raises :class:`PomdpParseError` on any error."""
+def parse_pomdp(text: str, source: str = "<string>", memory_gb: float = DEFAULT_MEMORY_GB,
+                solver_bytes: SizeEstimate | None = None) -> POMDP:
+    """Parse the text of a ``.pomdp`` file; raises :class:`PomdpParseError` on any error and
+    :class:`~rapomdp.planning.memory.MemoryCapError` (before allocating) when its dense arrays
+    — or ``solver_bytes(states, actions, observations)``, what the caller will need to solve
+    it — would exceed ``memory_gb``. Time and memory are linear in the file's size."""
     try:
-        return _Parser(text, source).parse()
+        return _Parser(text, source, memory_gb, solver_bytes).parse()
     except PomdpParseError:
         raise
     except ValueError as exc:  # a model-level check (e.g. from POMDP.__post_init__)
         raise PomdpParseError(str(exc), 0, source) from None
 
 
-def read_pomdp(path: str | os.PathLike[str]) -> POMDP:
-    """Read a ``.pomdp`` file; a missing or undecodable file is a :class:`PomdpParseError`."""
+def read_pomdp(path: str | os.PathLike[str], memory_gb: float = DEFAULT_MEMORY_GB,
+               solver_bytes: SizeEstimate | None = None) -> POMDP:
+    """Read a ``.pomdp`` file; a missing or undecodable file is a :class:`PomdpParseError`;
+    see :func:`parse_pomdp`."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8", errors="strict")
     except (OSError, UnicodeDecodeError) as exc:
         raise PomdpParseError(f"cannot read file: {exc}", 0, str(path)) from None
-    return parse_pomdp(text, str(path))
+    return parse_pomdp(text, str(path), memory_gb, solver_bytes)
 
 
 def _fmt(values: np.ndarray) -> str:

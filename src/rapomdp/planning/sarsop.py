@@ -13,6 +13,7 @@ pruning over the sampled belief tree); redundant upper-bound points are dropped.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,6 +25,14 @@ from rapomdp.planning.bounds import (
     SawtoothUpperBound,
     blind_policy_alphas,
     fast_informed_bound,
+    flat_solver_bytes,
+)
+from rapomdp.planning.memory import (
+    DEFAULT_MEMORY_GB,
+    ENTRY_BYTES,
+    cap_bytes,
+    check_memory,
+    format_bytes,
 )
 from rapomdp.planning.policy import AlphaVectorPolicy
 from rapomdp.planning.pomdp import POMDP
@@ -59,24 +68,67 @@ class SolveResult:
     iterations: int
     converged: bool
     history: list[Progress] = field(default_factory=list)
+    #: One line on the bounds used where a memory cap or the time budget bound (or "").
+    note: str = ""
 
 
-@dataclass
-class _Node:
-    belief: np.ndarray
-    depth: int
+#: The clocks a solver's budget can run on: "process" (CPU time of this process, all its
+#: threads; time asleep or waiting does not count) or "wall".
+CLOCKS: dict[str, Callable[[], float]] = {
+    "process": time.process_time,
+    "wall": time.perf_counter,
+}
+
+
+def check_budget(precision: float, timeout: float) -> None:
+    """ValueError unless ``precision`` and ``timeout`` are positive finite numbers."""
+    for name, value in (("precision", precision), ("timeout", timeout)):
+        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a positive finite number, got {value!r}")
 
 
 class FlatSarsop:
-    """SARSOP-style solver for a flat POMDP (dense arrays; beliefs over all states)."""
+    """SARSOP-style solver for a flat POMDP (dense arrays; beliefs over all states).
 
-    def __init__(self, pomdp: POMDP) -> None:
+    The arrays it needs are estimated from the problem's sizes and refused with
+    :class:`~rapomdp.planning.memory.MemoryCapError` when over ``memory_gb``; the initial
+    bounds (blind policies, fast informed bound) are computed inside the solve's budget.
+    """
+
+    def __init__(self, pomdp: POMDP, memory_gb: float = DEFAULT_MEMORY_GB) -> None:
         self.pomdp = pomdp
-        self.lower = AlphaVectorSet(blind_policy_alphas(pomdp), np.arange(pomdp.n_actions))
-        self.fib = fast_informed_bound(pomdp)
-        self.upper = SawtoothUpperBound(self.fib.max(axis=0))
+        n_s, n_a, n_z = pomdp.n_states, pomdp.n_actions, pomdp.n_observations
+        self.fixed_bytes = flat_solver_bytes(n_s, n_a, n_z)
+        check_memory(f"the flat solver on {n_s} states x {n_a} actions x {n_z} observations",
+                     self.fixed_bytes, memory_gb)
+        self.cap = cap_bytes(memory_gb)
+        self.clock: Callable[[], float] = time.process_time
+        # trivial bounds until the solve computes the initial ones within its budget
+        r = pomdp.R
+        self.lower = AlphaVectorSet(np.full((n_a, n_s), r.min() / (1 - pomdp.discount)),
+                                    np.arange(n_a))
+        self.upper = SawtoothUpperBound(np.full(n_s, r.max() / (1 - pomdp.discount)))
+        self.initialised = False
         self.sampled: list[np.ndarray] = [pomdp.initial_belief]
         # TZ[a, s, s', o] is too big in general; keep T and Z and combine per backup.
+
+    def _initial_bounds(self, deadline: float) -> None:
+        """Blind-policy alphas and the fast informed bound within a quarter and a third of
+        the time to ``deadline`` (the rest is the trajectories'); each stops at its share."""
+        p = self.pomdp
+        now = self.clock()
+        left = max(0.0, deadline - now)
+        self.lower = AlphaVectorSet(blind_policy_alphas(p, now + left / 4, self.clock),
+                                    np.arange(p.n_actions))
+        fib = fast_informed_bound(p, deadline=now + left * 7 / 12, clock=self.clock)
+        self.upper = SawtoothUpperBound(fib.max(axis=0))
+        self.initialised = True
+
+    def library_bytes(self) -> int:
+        """Bytes of the alpha vectors (and their copies when pruned) and upper points."""
+        n_s = self.pomdp.n_states
+        return ENTRY_BYTES * (2 * len(self.lower) * n_s + 6 * len(self.upper) * n_s
+                              + 2 * len(self.sampled) * n_s)
 
     # -- one belief ----------------------------------------------------------------------
     def _expand(self, b: np.ndarray) -> dict[str, np.ndarray]:
@@ -153,7 +205,7 @@ class FlatSarsop:
             ex = self._expand(b)
             low_b, up_b = self._backup(b, ex)
             target = eps * g ** (-depth)
-            if up_b - low_b <= target or time.perf_counter() > deadline:
+            if up_b - low_b <= target or self.clock() > deadline:
                 path.append((b, ex, -1, -1))
                 break
             if follow_lower and rng is not None:
@@ -177,6 +229,8 @@ class FlatSarsop:
         # re-interpolating the upper bound at every child. The lower backup is redone fully.
         child_upper: float | None = None
         for belief, ex, a, o in reversed(path):
+            if self.clock() > deadline:  # fewer backups: both bounds stay valid
+                break
             if a >= 0 and child_upper is not None:
                 ex["up_child"][a, o] = min(ex["up_child"][a, o], child_upper)
                 ex["q_up"][a] = self.pomdp.R[a] @ belief + self.pomdp.discount * float(
@@ -210,10 +264,18 @@ class FlatSarsop:
         sweep_every: int = 1,
         policy_trajectories: bool = True,
         seed: int = 0,
+        clock: str = "process",
     ) -> SolveResult:
-        """Improve both bounds until U − L ≤ ``precision`` at b0 or ``timeout`` seconds pass."""
-        start = time.perf_counter()
+        """Improve both bounds until U − L ≤ ``precision`` at b0 or ``timeout`` seconds of
+        ``clock`` pass ("process": CPU time of this process, the default; or "wall"). Every
+        phase — initial bounds, trajectories, backups, sweeps — checks the deadline."""
+        check_budget(precision, timeout)
+        self.clock = CLOCKS[clock]
+        start = self.clock()
         deadline = start + timeout
+        if not self.initialised:
+            self._initial_bounds(deadline)
+        note = ""
         b0 = self.pomdp.initial_belief
         history: list[Progress] = []
         it = 0
@@ -223,7 +285,7 @@ class FlatSarsop:
 
         def snapshot() -> Progress:
             return Progress(
-                time.perf_counter() - start,
+                self.clock() - start,
                 float(self.lower.values(b0)),
                 float(self.upper.values(b0)),
                 len(self.lower),
@@ -235,9 +297,14 @@ class FlatSarsop:
         while True:
             snap = snapshot()
             converged = snap.gap <= precision
-            now = time.perf_counter()
+            now = self.clock()
+            full = self.fixed_bytes + self.library_bytes() > self.cap
+            if full:
+                note = (f"stopped: {len(self.lower)} alpha vectors and {len(self.upper)} points "
+                        f"fill the memory cap of {format_bytes(self.cap)}")
             done = (
                 converged
+                or full
                 or now > deadline
                 or (max_iterations is not None and it >= max_iterations)
             )
@@ -256,7 +323,7 @@ class FlatSarsop:
                 self._prune()
                 next_prune = int(it * 1.5) + 1
             if sweep_every and it % sweep_every == 0:
-                self._sweep_lower(np.vstack(self.sampled[::-1]))
+                self._sweep_lower(np.vstack(self.sampled[::-1]), deadline)
                 self._prune()
         self._prune()
         final = history[-1]
@@ -264,10 +331,11 @@ class FlatSarsop:
             self.lower.alphas.copy(), self.lower.actions.copy(), self.pomdp.discount
         )
         return SolveResult(
-            policy, final.lower, final.upper, final.elapsed, it, converged, history
+            policy, final.lower, final.upper, final.elapsed, it, converged, history, note
         )
 
-    def _sweep_lower(self, beliefs: np.ndarray, chunk: int = 4_000_000) -> int:
+    def _sweep_lower(self, beliefs: np.ndarray, deadline: float = np.inf,
+                     chunk: int = 4_000_000) -> int:
         """Batched point-based backup of the lower bound at many beliefs (a PBVI-style sweep
         over the sampled beliefs): cheap matrix products that spread values found deep in a
         trajectory to every sampled belief. Returns the number of vectors added."""
@@ -275,9 +343,14 @@ class FlatSarsop:
         n_a, n_s, n_z = p.Z.shape
         new_alphas: list[np.ndarray] = []
         new_actions: list[np.ndarray] = []
-        per = n_a * n_s * n_z + n_a * len(self.lower) * n_z
+        # entries per belief: its children, their scores, and the A·S² products behind them
+        # (a block is also the unit of time between deadline checks); vectors are appended
+        # only after the loop, so the blocks do not change the result
+        per = n_a * n_s * n_z + n_a * len(self.lower) * n_z + n_a * n_s * n_s
         step = max(1, chunk // per)
         for i in range(0, beliefs.shape[0], step):
+            if self.clock() > deadline:
+                break
             B = beliefs[i : i + step]  # (K, S)
             tau = np.einsum("ks,ast->kat", B, p.T)  # (K, A, S')
             bao = tau[:, :, :, None] * p.Z[None]  # (K, A, S', Zo)
@@ -312,7 +385,10 @@ def solve_pomdp(
     precision: float = 1e-3,
     timeout: float = 60.0,
     callback: ProgressCallback | None = None,
+    memory_gb: float = DEFAULT_MEMORY_GB,
     **options: float,
 ) -> SolveResult:
-    """Solve a flat POMDP with :class:`FlatSarsop`; see :meth:`FlatSarsop.solve`."""
-    return FlatSarsop(pomdp).solve(precision, timeout, callback, **options)  # type: ignore[arg-type]
+    """Solve a flat POMDP with :class:`FlatSarsop` within ``timeout`` seconds of process CPU
+    time and ``memory_gb``; see :meth:`FlatSarsop.solve`."""
+    check_budget(precision, timeout)
+    return FlatSarsop(pomdp, memory_gb).solve(precision, timeout, callback, **options)  # type: ignore[arg-type]

@@ -15,10 +15,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from rich.console import Console
 
 from rapomdp.config import Config
 from rapomdp.context import RunContext
-from rapomdp.io import load_npz
+from rapomdp.io import load_npz, read_json
+from rapomdp.planning.memory import MemoryCapError
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.workspace import StageError
@@ -109,16 +111,25 @@ def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path,
     """Solve the workspace's active-recognition problem once per observation model."""
     models, energy, reachable, classes = workspace_arrays(config, inputs["observe"],
                                                          inputs["robot"], inputs.get("vptree"))
-    solve_workspace_problems(
-        models, energy, reachable, out,
-        lambda_=config.solve.wrong_declaration_cost_m,
-        discount=config.solve.discount,
-        start_viewpoint=start_viewpoint(reachable),
-        precision=config.solve.precision,
-        timeout=config.solve.timeout_s,
-        max_iterations=config.solve.iterations,
-        workers=context.worker_count,
-        allow_stay=False,
-        class_names=classes,
-        scheduler=context.scheduler,
-    )
+    try:
+        solve_workspace_problems(
+            models, energy, reachable, out,
+            lambda_=config.solve.wrong_declaration_cost_m,
+            discount=config.solve.discount,
+            start_viewpoint=start_viewpoint(reachable),
+            precision=config.solve.precision,
+            timeout=config.solve.timeout_s,
+            max_iterations=config.solve.iterations,
+            workers=context.worker_count,
+            allow_stay=False,
+            class_names=classes,
+            memory_gb=config.solve.memory_gb,
+            scheduler=context.scheduler,
+        )
+    except MemoryCapError as exc:
+        raise StageError(f"solve: {exc}") from None
+    summary = read_json(out / "solve_summary.json")
+    for name, row in summary.items():
+        if row.get("note"):
+            Console(stderr=True).print(f"solve {name}: {row['note']}", highlight=False,
+                                       soft_wrap=True)

@@ -18,6 +18,7 @@ import numpy as np
 from rapomdp.io import write_text_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.ar_solver import solve_active_recognition
+from rapomdp.planning.memory import DEFAULT_MEMORY_GB
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.sarsop import ProgressCallback
 
@@ -41,15 +42,15 @@ def load_problem_arrays(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
 def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | None,
                out: Path, name: str, lambda_: float, discount: float, start_viewpoint: int,
                precision: float, timeout: float, max_iterations: int | None, allow_stay: bool,
-               class_names: list[str] | None,
-               callback: ProgressCallback | None = None) -> dict[str, float | int | bool]:
+               class_names: list[str] | None, memory_gb: float = DEFAULT_MEMORY_GB,
+               callback: ProgressCallback | None = None) -> dict[str, float | int | bool | str]:
     """Solve one observation model's MOMDP and write its policy; returns its summary row."""
     problem: ActiveRecognitionProblem = build_active_recognition_problem(
         P, move_energy, reachable, lambda_, discount, start_viewpoint,
         allow_stay=allow_stay, class_names=class_names,
     )
     result = solve_active_recognition(problem, precision, timeout, callback,
-                                      max_iterations=max_iterations)
+                                      max_iterations=max_iterations, memory_gb=memory_gb)
     result.policy.save(out / f"policy_{name}.npz")  # type: ignore[attr-defined]
     return {
         "lower": result.lower,
@@ -61,6 +62,7 @@ def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | N
         "timed_out": bool(not result.converged and (max_iterations is None
                                                     or result.iterations < max_iterations)),
         "vectors": int(len(result.policy.targets)),  # type: ignore[attr-defined]
+        "note": result.note,
     }
 
 
@@ -79,20 +81,23 @@ def solve_workspace_problems(
     callback: ProgressCallback | None = None,
     max_iterations: int | None = None,
     workers: int = 1,
+    memory_gb: float = DEFAULT_MEMORY_GB,
     scheduler: str | None = None,
 ) -> dict[str, Path]:
     """Solve one active-recognition MOMDP per observation model; returns name → policy path.
 
     Each solve stops at ``precision``, after ``max_iterations`` iterations (reproducible) or
-    after ``timeout`` CPU seconds (not), whichever comes first; models are solved over
-    ``workers`` processes. Writes ``out_dir/policy_<name>.npz`` (atomically) and
-    ``out_dir/solve_summary.json`` with the bounds reached, the time and the policy size.
-    With a Dask ``scheduler`` the models are solved on that cluster instead.
+    after ``timeout`` seconds of process CPU time (not), whichever comes first, within
+    ``memory_gb`` each (:class:`~rapomdp.planning.memory.MemoryCapError` when a problem cannot
+    fit); models are solved over ``workers`` processes, or on the Dask ``scheduler`` when one
+    is named. Writes ``out_dir/policy_<name>.npz`` (atomically) and
+    ``out_dir/solve_summary.json`` with the bounds reached, the time, the policy size and the
+    memory plan's note.
     """
     out = Path(out_dir)
     names = list(observation_models)
     common = (lambda_, discount, start_viewpoint, precision, timeout, max_iterations, allow_stay,
-              class_names)
+              class_names, memory_gb)
     if (workers > 1 or scheduler is not None) and callback is None:
         rows = run_tasks(_solve_one, [(observation_models[n], move_energy, reachable, out, n,
                                        *common) for n in names], workers, "solve: models",
