@@ -17,11 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rapomdp.config import Config
+from rapomdp.config import Config, load_config
 from rapomdp.context import RunContext
-from rapomdp.io import ArtefactError, read_json, stable_hash, write_json_atomic
+from rapomdp.io import ArtefactError, atomic_path, read_json, stable_hash, write_json_atomic
 
 MANIFEST = "manifest.json"
+#: The configuration a workspace was run with (written by the CLI before its stages run).
+CONFIG_FILE = "config.yaml"
 STAGE_RECORD = "stage.json"
 
 
@@ -65,6 +67,28 @@ class Workspace:
         if not self.manifest_path.exists():
             return {"stages": {}}
         return read_json(self.manifest_path)
+
+    @property
+    def config_path(self) -> Path:
+        return self.root / CONFIG_FILE
+
+    def save_config(self, config: Config) -> None:
+        """Record the configuration this workspace runs with (``W/config.yaml``, atomically)."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        with atomic_path(self.config_path) as tmp:
+            tmp.write_text(config.to_yaml())
+
+    def config(self, default: Config | None = None) -> Config:
+        """The configuration the workspace was run with: ``W/config.yaml``, validated.
+
+        When the file is missing: ``default`` if given, else a :class:`StageError` naming it.
+        """
+        if not self.config_path.exists():
+            if default is not None:
+                return default
+            raise StageError(f"{self.config_path}: not found; a workspace made by `rapomdp` "
+                             f"holds the configuration it ran with")
+        return load_config(self.config_path)
 
     def stage_dir(self, name: str) -> Path:
         return self.root / name

@@ -15,10 +15,9 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import rankdata
 
+from rapomdp.awareness.artefacts import QUALITY_COLUMNS
 from rapomdp.awareness.observation import ObservationModel
 from rapomdp.io import atomic_path
-
-COLUMNS = ("model", "log_likelihood", "brier", "auc", "mean_p_correct", "accuracy")
 
 
 def roc_auc(scores: np.ndarray, positive: np.ndarray) -> float:
@@ -63,7 +62,7 @@ def quality_table(models: dict[str, ObservationModel], true_labels: np.ndarray,
 def write_quality(rows: list[dict[str, float | str]], csv_path: Path, md_path: Path) -> None:
     """The table as CSV and as a markdown table."""
     with atomic_path(csv_path) as tmp, open(tmp, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(COLUMNS))
+        writer = csv.DictWriter(handle, fieldnames=list(QUALITY_COLUMNS))
         writer.writeheader()
         writer.writerows(rows)
     lines = ["| model | log-likelihood / obs. (higher better) | Brier (lower better) | AUC | "

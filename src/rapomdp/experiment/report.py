@@ -31,7 +31,7 @@ from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
 from rapomdp.io import ArtefactError, atomic_path, read_json, stable_hash, write_text_atomic
-from rapomdp.robot.stage import describe
+from rapomdp.robot.artefacts import describe
 from rapomdp.workspace import StageError, Workspace, read_stage_record
 
 REPORT_SECTIONS = ("seed",)

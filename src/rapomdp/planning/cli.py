@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
-from rapomdp.config import Config, ConfigError, load_config
+from rapomdp.config import Config, ConfigError
 from rapomdp.io import ArtefactError
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.io_pomdp import PomdpParseError, read_pomdp, write_pomdp
@@ -126,7 +126,7 @@ def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
     from rapomdp.planning.stage import workspace_problem
 
     ws = Workspace(root)
-    config = load_config(root / "config.yaml") if (root / "config.yaml").exists() else Config()
+    config = ws.config(default=Config())
     vptree = ws.require("vptree") if "vptree" in ws.manifest()["stages"] else None
     return workspace_problem(config, ws.require("observe"), ws.require("robot"), model, vptree)
 
