@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from rapomdp.config import load_config
 from rapomdp.context import default_workers
 from rapomdp.experiment.evaluation import ClosedLoop
 from rapomdp.workspace import Workspace
@@ -32,7 +31,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     ws = Workspace(args.workspace)
-    config = load_config(ws.root / "config.yaml")
+    config = ws.config()
     inputs = {name: ws.require(name) for name in ("dataset", "train", "observe", "vptree",
                                                     "robot", "solve")}
     loop = ClosedLoop.load(config, inputs, threads=1)

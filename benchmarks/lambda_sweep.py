@@ -23,7 +23,7 @@ from pathlib import Path
 
 import torch
 
-from rapomdp.config import METHOD_NAMES, load_config
+from rapomdp.config import METHOD_NAMES
 from rapomdp.experiment.episode_table import EpisodeRecord, EpisodeTable
 from rapomdp.experiment.evaluation import ClosedLoop
 from rapomdp.experiment.methods import POMDPPolicy, StaticPolicy
@@ -31,6 +31,7 @@ from rapomdp.experiment.metrics import table1, table1_markdown
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint, workspace_arrays
+from rapomdp.workspace import Workspace
 
 RESULTS = Path(__file__).parent / "results" / "lambda_sweep.txt"
 STAGES = ("dataset", "train", "observe", "vptree", "robot", "solve")
@@ -71,7 +72,7 @@ def main() -> None:
     out(f"workspace: {args.workspace.resolve()}")
 
     root = args.workspace
-    config = load_config(root / "config.yaml")
+    config = Workspace(root).config()
     if args.starts is not None:
         config.evaluate.starts_per_model = args.starts
     # only Static is loaded from the workspace; the POMDP methods are solved here per λ

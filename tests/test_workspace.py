@@ -97,3 +97,16 @@ def test_stages_up_to_and_unknown_stage_names() -> None:
         stages_up_to("rendr")
     with pytest.raises(KeyError, match="unknown stage"):
         run_pipeline(Config(), Workspace("/nonexistent"), force=["nope"], context=TEST_CONTEXT)
+
+
+def test_the_workspace_configuration_is_read_in_one_place(tmp_path: Path) -> None:
+    ws = Workspace(tmp_path / "ws")
+    with pytest.raises(StageError, match=r"config.yaml: not found; a workspace made by"):
+        ws.config()
+    fallback = Config(seed=11)
+    assert ws.config(default=fallback) is fallback
+    chosen = Config(seed=4, viewpoints={"count": 12})
+    ws.root.mkdir()
+    ws.record_config(chosen)
+    assert ws.config() == chosen and ws.config(default=fallback) == chosen
+    assert ws.config_path == ws.root / "config.yaml"

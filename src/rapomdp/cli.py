@@ -257,14 +257,13 @@ def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
     """Single-view accuracy on the test models: per class, confusion, per viewpoint."""
     _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [],
          _context(threads), overrides, reconfigure)
-    metrics = Path(workspace) / "classifier_eval" / "metrics.json"
-    if metrics.exists():
-        from rapomdp.io import read_json
+    from rapomdp.recognition.artefacts import load_single_view_metrics
 
-        data = read_json(metrics)
-        for key, label in (("xrho", "test viewpoints X_rho"), ("sphere", "whole sphere")):
-            console.print(f"  single-view accuracy, {label}: {data[key]['accuracy']:.1%} "
-                          f"(chance {data[key]['chance']:.1%})", highlight=False)
+    metrics = _guard(lambda: load_single_view_metrics(
+        Workspace(workspace).require("classifier_eval")))
+    for part, label in ((metrics.xrho, "test viewpoints X_rho"), (metrics.sphere, "whole sphere")):
+        console.print(f"  single-view accuracy, {label}: {part.accuracy:.1%} "
+                      f"(chance {part.chance:.1%})", highlight=False)
 
 
 @app.command()
@@ -292,7 +291,9 @@ def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: Forc
     """Observation models P(o | class, viewpoint) and the self-awareness quality table."""
     _run(config, workspace, "observe", ["observe"] if force else [], _context(threads),
          overrides, reconfigure)
-    table = Path(workspace) / "observe" / "quality.md"
+    from rapomdp.awareness.artefacts import QUALITY_MD
+
+    table = Path(workspace) / "observe" / QUALITY_MD
     if table.exists():
         sys.stdout.write(table.read_text())
 
@@ -303,16 +304,14 @@ def vptree(workspace: WorkspaceOption, config: ConfigOption = None,
            overrides: OverridesArgument = None) -> None:
     """The VP-tree baseline: vocabulary-tree classifier and its per-viewpoint confusion."""
     _run(config, workspace, "vptree", ["vptree"] if force else [], None, overrides, reconfigure)
-    summary = Path(workspace) / "vptree" / "vptree.json"
-    if summary.exists():
-        from rapomdp.io import read_json
+    from rapomdp.recognition.artefacts import load_vptree_summary
 
-        data = read_json(summary)
-        test = data["accuracy_test_xrho"]
-        shown = "n/a (no test models)" if test is None else f"{test:.1%}"
-        console.print(f"  VP-tree single-view accuracy, test models at X_rho: {shown} "
-                      f"(volume models {data['accuracy_volume_xrho']:.1%}, chance "
-                      f"{data['chance']:.1%})", highlight=False)
+    data = _guard(lambda: load_vptree_summary(Workspace(workspace).require("vptree")))
+    test = data.accuracy_test_xrho
+    shown = "n/a (no test models)" if test is None else f"{test:.1%}"
+    console.print(f"  VP-tree single-view accuracy, test models at X_rho: {shown} "
+                  f"(volume models {data.accuracy_volume_xrho:.1%}, chance "
+                  f"{data.chance:.1%})", highlight=False)
 
 
 FIG2_TARGET = "bicycle"
@@ -384,10 +383,9 @@ def robot(workspace: WorkspaceOption, config: ConfigOption = None,
     _run(config, workspace, "robot", ["robot"] if force else [], None, overrides, reconfigure)
 
     def summary() -> str:
-        from rapomdp.io import read_json
-        from rapomdp.robot.stage import describe
+        from rapomdp.robot.artefacts import describe, load_robot_summary
 
-        return describe(read_json(Workspace(workspace).require("robot") / "robot.json"))
+        return describe(load_robot_summary(Workspace(workspace).require("robot")))
 
     console.print(f"  {_guard(summary)}", highlight=False, soft_wrap=True)
 

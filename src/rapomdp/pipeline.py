@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
+from rapomdp.awareness.artefacts import volume_file
 from rapomdp.awareness.figures import fig2
 from rapomdp.awareness.report import FIGURES_DIR
 from rapomdp.awareness.stage import (
@@ -180,13 +181,13 @@ def write_fig2(config: Config, ws: Workspace, target: str, against: Sequence[str
             pair.train.epochs = epochs
         sub = Workspace(ws.root / "fig2" / f"{target}-vs-{other}")
         run_pipeline(pair, sub, until="volume", on_result=on_result, context=context)
-        volumes.append(SaliencyVolume.load(sub.require("volume") / f"{target}.npz"))
+        volumes.append(SaliencyVolume.load(sub.require("volume") / volume_file(target)))
         titles.append(f"{target} vs {other}")
     run_pipeline(config, ws, until="volume", on_result=on_result, context=context)
     classes = load_training_views(ws.require("render"), ws.require("dataset")).dataset.classes
     if target not in classes:
         raise StageError(f"class '{target}' is not in the workspace's dataset")
-    volumes.append(SaliencyVolume.load(ws.require("volume") / f"{target}.npz"))
+    volumes.append(SaliencyVolume.load(ws.require("volume") / volume_file(target)))
     titles.append(f"all {len(classes)} classes")
     out = ws.root / FIGURES_DIR
     return fig2(volumes, titles, target, out / "fig2.png", out / "fig2.html")

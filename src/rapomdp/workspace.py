@@ -36,8 +36,9 @@ from rapomdp.io import (
 )
 
 MANIFEST = "manifest.json"
+#: The configuration a workspace's artefacts were made with (recorded after a run succeeds).
+CONFIG_FILE = "config.yaml"
 STAGE_RECORD = "stage.json"
-CONFIG = "config.yaml"
 LOCK = ".lock"
 
 #: What a run leaves while it works: a stage's new folder, the folder it replaces, a file
@@ -87,10 +88,6 @@ class Workspace:
     @property
     def manifest_path(self) -> Path:
         return self.root / MANIFEST
-
-    @property
-    def config_path(self) -> Path:
-        return self.root / CONFIG
 
     def manifest(self) -> dict[str, Any]:
         """``manifest.json`` checked for its shape (a named ArtefactError when it is not one)."""
@@ -194,6 +191,23 @@ class Workspace:
                 path.unlink()
             cleaned.append(path.name)
         return cleaned
+
+    @property
+    def config_path(self) -> Path:
+        return self.root / CONFIG_FILE
+
+    def config(self, default: Config | None = None) -> Config:
+        """The configuration the workspace was run with: ``W/config.yaml``, validated.
+
+        When the file is missing: ``default`` if given, else a :class:`StageError` naming it.
+        """
+        recorded = self.recorded_config()
+        if recorded is not None:
+            return recorded
+        if default is not None:
+            return default
+        raise StageError(f"{self.config_path}: not found; a workspace made by `rapomdp` "
+                         f"holds the configuration it ran with")
 
     def stage_dir(self, name: str) -> Path:
         return self.root / name

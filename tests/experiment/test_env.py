@@ -17,7 +17,7 @@ from rapomdp.experiment.env import ActiveRecognitionEnv
 from rapomdp.experiment.episode import Motion
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.pipeline import run_pipeline
-from rapomdp.robot.stage import load_robot
+from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, Workspace
 from tests.conftest import TEST_CONTEXT, tiny_config
 

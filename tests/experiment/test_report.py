@@ -9,6 +9,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from typer.testing import CliRunner  # noqa: E402
 
@@ -16,36 +17,54 @@ from rapomdp import cli  # noqa: E402
 from rapomdp.cli import app  # noqa: E402
 from rapomdp.config import Config  # noqa: E402
 from rapomdp.context import RunContext
+from rapomdp.data.dataset import load_dataset  # noqa: E402
 from rapomdp.experiment import report as report_module  # noqa: E402
+from rapomdp.experiment.episode_table import EpisodeTable  # noqa: E402
+from rapomdp.experiment.metrics import (  # noqa: E402
+    per_class,
+    per_class_markdown,
+    table1,
+    table1_markdown,
+)
 from rapomdp.experiment.report import (  # noqa: E402
     REPORT_INPUTS,
-    Paragraph,
     Table,
-    parse_markdown,
     run_report_stage,
     table_html,
     write_report,
 )
-from rapomdp.io import write_json_atomic  # noqa: E402
+from rapomdp.io import save_npz, write_json_atomic  # noqa: E402
 from rapomdp.pipeline import get_stage, run_pipeline  # noqa: E402
 from rapomdp.workspace import Stage, StageError, Workspace  # noqa: E402
 from tests.conftest import TEST_CONTEXT, tiny_config  # noqa: E402
 
-TABLE1 = """| Approach | Accuracy | Belief | # steps | Distance | Cost |
-|---|---:|---:|---:|---:|---:|
-| Static | 0.360 | 0.344 | — | — | — |
-| RA-POMDP | 1.000 | 0.771 | 4.688 | 0.814 | 6.498 |
+QUALITY = """model,log_likelihood,brier,auc,mean_p_correct,accuracy
+ra,-0.412,0.131,0.74,0.61,0.58
+classifier,-0.533,0.17,0.66,0.55,0.58
 """
-PER_CLASS = """| class | Static | RA-POMDP |
-|---|---|---|
-| cup | 0.2 | 1.0 |
-| bicycle | 0.4 | 1.0 |
-"""
-QUALITY = """| model | log-likelihood / obs. (higher better) | Brier (lower better) |
-|---|---|---|
-| ra | -0.412 | 0.131 |
-| classifier | -0.533 | 0.170 |
-"""
+METHODS = ["static", "ra"]
+
+
+def _episodes(classes: list[str]) -> EpisodeTable:
+    """25 episodes per method: Static declares at once and is right 9 times (accuracy 0.360);
+    RA-POMDP moves 4 times and is always right."""
+    n = 25
+    class_index = np.tile(np.arange(n) % len(classes), 2)
+    correct = np.concatenate([np.arange(n) < 9, np.ones(n, dtype=bool)])
+    moves = np.concatenate([np.zeros(n, dtype=np.int64), np.full(n, 4)])
+    offsets = np.concatenate([[0], np.cumsum(moves + 1)])
+    steps = int(offsets[-1])
+    return EpisodeTable(
+        classes=list(classes), methods=METHODS, method=np.repeat(METHODS, n),
+        class_index=class_index, model=np.array([f"m{c}" for c in class_index]),
+        start=np.zeros(2 * n, dtype=np.int64),
+        declared=np.where(correct, class_index, (class_index + 1) % len(classes)),
+        exhausted=np.zeros(2 * n, dtype=bool), correct=correct,
+        belief=np.where(correct, 0.8, 0.3), moves=moves, distance_m=0.2 * moves,
+        energy=1.5 * moves, offsets=offsets, step_viewpoints=np.arange(steps) % 16,
+        step_outputs=np.full((steps, len(classes)), 1 / len(classes)),
+        step_beliefs=np.full((steps, len(classes)), 1 / len(classes)),
+        cpu_seconds=np.full(2 * n, 0.01))
 
 
 def _png(path: Path) -> None:
@@ -55,8 +74,12 @@ def _png(path: Path) -> None:
     plt.close(fig)
 
 
-def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ...]):
+def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ...],
+            episodes: bool = False):
     def run(config: Config, inputs: dict[str, Path], out: Path, context: RunContext) -> None:
+        if episodes:
+            classes = load_dataset(out.parent / "dataset").classes
+            save_npz(out / "episodes.npz", **_episodes(classes).arrays())
         for name, text in texts.items():
             (out / name).write_text(text)
         for name, data in jsons.items():
@@ -76,15 +99,15 @@ SYNTHETIC = {
         "xrho": {"images": 48, "accuracy": 0.6458, "chance": 0.3333},
         "sphere": {"images": 18, "accuracy": 0.7222, "chance": 0.3333}}},
         ("confusion_xrho.png", "accuracy_hemisphere.png")),
-    "observe": _writer({"quality.md": QUALITY}, {}, ("calibration.png",)),
+    "observe": _writer({"quality.csv": QUALITY}, {}, ("calibration.png",)),
     "robot": _writer({}, {"robot.json": {
         "viewpoints": 16, "reachable": 9, "reachable_fraction": 0.5625, "ik_seconds": 1.25,
         "manipulability": {"min": 0.02, "median": 0.08, "max": 0.11}}}, ("robot.png",)),
     "solve": _writer({}, {"solve_summary.json": {
         "ra": {"lower": -3.21, "upper": -3.2, "seconds": 1.5, "vectors": 40},
         "classifier": {"lower": -4.0, "upper": -3.99, "seconds": 2.0, "vectors": 31}}}, ()),
-    "evaluate": _writer({"table1.md": TABLE1, "per_class.md": PER_CLASS},
-                        {"evaluate.json": EVALUATE}, ("fig3.png", "trajectories.png")),
+    "evaluate": _writer({}, {"evaluate.json": EVALUATE}, ("fig3.png", "trajectories.png"),
+                        episodes=True),
 }
 
 
@@ -122,11 +145,15 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
     assert (page, md) == (out / "report.html", out / "report.md")
     assert calls == [("bicycle", out)]  # the evaluate stage's figure class
     text, html = md.read_text(), page.read_text()
-    for row in ("| Static | 0.360 | 0.344 | — | — | — |",
-                "| RA-POMDP | 1.000 | 0.771 | 4.688 | 0.814 | 6.498 |",
-                "| bicycle | 0.4 | 1.0 |", "| ra | -0.412 | 0.131 |"):
+    # Table 1 and the per-class table are computed from the episodes, as evaluate writes them
+    episodes = _episodes(load_dataset(ws.require("dataset")).classes)
+    expected = (table1_markdown(table1(episodes, METHODS)).splitlines()[2:]
+                + per_class_markdown(per_class(episodes, METHODS), METHODS).splitlines()[4:])
+    for row in (*expected, "| Static | 0.360 [0.202, 0.555] | 0.480 ± 0.101 | — | — | — | 25 |",
+                "| ra | -0.412 | 0.131 | 0.740 | 0.610 | 0.580 |"):
         assert row in text
-    assert "<td>RA-POMDP</td><td>1.000</td><td>0.771</td>" in html
+    assert "| RA-POMDP | 1.000 [" in text and "| 4.000 ± 0.000 | 0.800 ± 0.000 |" in text
+    assert "<td>RA-POMDP</td><td>1.000 [" in html
     assert "30 episodes" in text and "171 depth images" in text and "412.5 images/s" in text
     assert "| test viewpoints X_rho | 48 | 0.646 | 0.333 |" in text
     assert "| ra | -3.2100 | -3.2000 | 1.5 | 40 |" in text
@@ -171,14 +198,18 @@ def test_missing_files_and_fig1_failures_become_lines(synthetic, tmp_path: Path)
     inputs = _inputs(ws)
     broken = tmp_path / "evaluate"
     broken.mkdir()
-    (broken / "table1.md").write_text(TABLE1)
+    save_npz(broken / "episodes.npz",
+             **_episodes(load_dataset(ws.require("dataset")).classes).arrays())
     inputs["evaluate"] = broken
     # the real Fig. 1 needs the render, saliency and volume stages, absent here
     _, md = write_report(config, inputs, tmp_path / "r")
     text = md.read_text()
-    assert "| Static | 0.360 |" in text
+    assert "| Static | 0.360 [" in text
     assert "evaluate.json (not found) — made by `rapomdp evaluate -w" in text
-    assert "fig3.png (not found)" in text and "per_class.md (not found)" in text
+    assert "fig3.png (not found)" in text and "episodes.npz (not found)" not in text
+    (broken / "episodes.npz").unlink()
+    _, md = write_report(config, inputs, tmp_path / "r2")
+    assert "episodes.npz (not found) — made by `rapomdp evaluate -w" in md.read_text()
     assert "Fig. 1 for class bicycle could not be made" in text
     assert "stage 'render' has not been run" in text
     assert "figure fig1 -w" in text
@@ -212,18 +243,11 @@ def test_report_stage_runs_in_the_pipeline_and_the_cli(synthetic, monkeypatch) -
     assert result.stdout.split() == [str(ws.root / "report" / "report.html"),
                                      str(ws.root / "report" / "report.md")]
     assert "report" in ws.manifest()["stages"]
-    assert "| RA-POMDP | 1.000 |" in (ws.root / "report" / "report.md").read_text()
+    assert "| RA-POMDP | 1.000 [" in (ws.root / "report" / "report.md").read_text()
 
 
-def test_markdown_tables_parse_and_convert() -> None:
-    blocks = parse_markdown("# Title\n\nSome text\nmore.\n\n| a | b \\| c |\n|:--|--:|\n"
-                            "| 1 | <2> |\n| 3 |\n\ntail")
-    assert blocks[1] == Paragraph("Some text more.")
-    table = blocks[2]
-    assert table == Table(["a", "b | c"], [["1", "<2>"], ["3", ""]])
-    assert blocks[3] == Paragraph("tail")
+def test_tables_convert_to_html_escaped() -> None:
+    table = Table(["a", "b | c"], [["1", "<2>"], ["3", ""]])
     assert table_html(table) == ("<table>\n<thead><tr><th>a</th><th>b | c</th></tr></thead>\n"
                                  "<tbody><tr><td>1</td><td>&lt;2&gt;</td></tr>"
                                  "<tr><td>3</td><td></td></tr></tbody>\n</table>")
-    # a pipe line without a delimiter row is text, not a table
-    assert parse_markdown("| not | a table |") == [Paragraph("| not | a table |")]

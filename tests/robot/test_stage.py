@@ -9,18 +9,10 @@ import pytest
 
 from rapomdp.config import Config, ConfigError, config_from_dict
 from rapomdp.io import load_npz, read_json
+from rapomdp.robot.artefacts import ROBOT_ARRAYS, ROBOT_FIGURE, ROBOT_SUMMARY, describe, load_robot
 from rapomdp.robot.energy import movement_energy
 from rapomdp.robot.figures import pick_poses
-from rapomdp.robot.stage import (
-    ROBOT_ARRAYS,
-    ROBOT_FIGURE,
-    ROBOT_SUMMARY,
-    UnreachableError,
-    describe,
-    load_robot,
-    run_robot_stage,
-    solve_robot,
-)
+from rapomdp.robot.stage import UnreachableError, run_robot_stage, solve_robot
 from rapomdp.workspace import StageError
 from tests.conftest import TEST_CONTEXT
 

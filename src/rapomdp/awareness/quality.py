@@ -15,10 +15,9 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import rankdata
 
+from rapomdp.awareness.artefacts import QUALITY_COLUMNS
 from rapomdp.awareness.observation import ObservationModel
-from rapomdp.io import atomic_path
-
-COLUMNS = ("model", "log_likelihood", "brier", "auc", "mean_p_correct", "accuracy")
+from rapomdp.io import atomic_path, markdown_table
 
 
 def roc_auc(scores: np.ndarray, positive: np.ndarray) -> float:
@@ -63,13 +62,16 @@ def quality_table(models: dict[str, ObservationModel], true_labels: np.ndarray,
 def write_quality(rows: list[dict[str, float | str]], csv_path: Path, md_path: Path) -> None:
     """The table as CSV and as a markdown table."""
     with atomic_path(csv_path) as tmp, open(tmp, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(COLUMNS))
+        writer = csv.DictWriter(handle, fieldnames=list(QUALITY_COLUMNS))
         writer.writeheader()
         writer.writerows(rows)
-    lines = ["| model | log-likelihood / obs. (higher better) | Brier (lower better) | AUC | "
-             "mean P(correct) | test accuracy |", "|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['model']} | {r['log_likelihood']:.3f} | {r['brier']:.3f} | "
-                     f"{r['auc']:.3f} | {r['mean_p_correct']:.3f} | {r['accuracy']:.3f} |")
     with atomic_path(md_path) as tmp:
-        tmp.write_text("\n".join(lines) + "\n")
+        tmp.write_text(markdown_table(*quality_cells(rows)))
+
+
+def quality_cells(rows: list[dict[str, float | str]]) -> tuple[list[str], list[list[str]]]:
+    """The self-awareness table's header and cells (the markdown file and the report)."""
+    header = ["model", "log-likelihood / obs. (higher better)", "Brier (lower better)", "AUC",
+              "mean P(correct)", "test accuracy"]
+    return header, [[str(r["model"]), *(f"{float(r[k]):.3f}" for k in QUALITY_COLUMNS[1:])]
+                    for r in rows]

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from rapomdp.awareness.artefacts import OBSERVATION_FILE, volume_file
 from rapomdp.awareness.figures import fig1
-from rapomdp.awareness.stage import OBSERVATION_FILE, load_saliency
+from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
 from rapomdp.io import load_npz
@@ -34,7 +35,7 @@ def write_fig1(ws: Workspace, class_name: str | None = None, view: int | None = 
         view = int(np.argmax((depth > 0).sum(axis=(1, 2))))
     if not 0 <= view < depth.shape[0]:
         raise StageError(f"view {view} is out of range: the model has {depth.shape[0]} views")
-    volume = SaliencyVolume.load(ws.require("volume") / f"{class_name}.npz")
+    volume = SaliencyVolume.load(ws.require("volume") / volume_file(class_name))
     observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
     c = dataset.classes.index(class_name)
     out = Path(out_dir) if out_dir is not None else ws.root / FIGURES_DIR

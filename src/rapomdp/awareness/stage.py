@@ -25,6 +25,18 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from rapomdp.awareness.artefacts import (
+    CALIBRATION_FIGURE,
+    CALIBRATION_FILE,
+    OBSERVATION_FILE,
+    QUALITY_CSV,
+    QUALITY_MD,
+    SALIENCY_FILE,
+    TIMING_FILE,
+    VOLUME_FILE,
+    saliency_map_file,
+    volume_file,
+)
 from rapomdp.awareness.observation import (
     BlackBoxObservationModel,
     ClassifierObservationModel,
@@ -48,7 +60,7 @@ from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
 from rapomdp.data.training_views import load_training_views
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.geometry.viewsphere import fibonacci_directions
-from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
+from rapomdp.io import load_npz, save_npz, write_json_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
 from rapomdp.recognition.classifier import Classifier
@@ -59,7 +71,6 @@ from rapomdp.workspace import StageError
 SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency")
 VOLUME_SECTIONS = ("volume",)
 OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
-OBSERVATION_FILE = "observation_models.npz"
 
 
 def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, method: str,
@@ -104,7 +115,7 @@ def _saliency_task(config_json: str, render_dir: str, dataset_dir: str, train_di
     result = saliency_maps(classifier, depth, dataset.label(model), cfg.method, cfg, seed,
                            cfg.batch_size)
     seconds = time.perf_counter() - start
-    save_npz(Path(out) / "maps" / model.class_name / f"{model.id}.npz", compressed=True,
+    save_npz(Path(out) / saliency_map_file(model.class_name, model.id), compressed=True,
              saliency=result["saliency"].astype(np.float16),
              probability=result["probability"],
              perturbed_probability=result["perturbed_probability"])
@@ -128,7 +139,7 @@ def run_saliency_stage(config: Config, inputs: dict[str, Path], out: Path,
     total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
     classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
                                        context.threads)
-    write_json_atomic(out / "saliency.json", {
+    write_json_atomic(out / SALIENCY_FILE, {
         "method": cfg.method, "config": cfg.model_dump(mode="json"),
         "input_size_px": classifier.preprocessing.input_size_px,
         "views": total_views, "seconds": seconds,
@@ -139,7 +150,7 @@ def run_saliency_stage(config: Config, inputs: dict[str, Path], out: Path,
 
 
 def load_saliency(saliency_dir: Path, model: ModelEntry) -> dict[str, np.ndarray]:
-    return load_npz(saliency_dir / "maps" / model.class_name / f"{model.id}.npz")
+    return load_npz(saliency_dir / saliency_map_file(model.class_name, model.id))
 
 
 def class_volume(dataset: Dataset, views, saliency_dir: Path, class_name: str,  # noqa: ANN001
@@ -172,11 +183,11 @@ def run_volume_stage(config: Config, inputs: dict[str, Path], out: Path,
     for class_name in track(dataset.classes, "volume: classes", context.progress):
         volume = class_volume(dataset, views, inputs["saliency"], class_name,
                               config.volume.resolution)
-        volume.save(out / f"{class_name}.npz")
+        volume.save(out / volume_file(class_name))
         info[class_name] = {"grid": volume.grid.to_dict(),
                             "occupied_voxels": int(volume.occupied.sum()),
                             "mean_score": float(np.nanmean(volume.scores))}
-    write_json_atomic(out / "volume.json", {
+    write_json_atomic(out / VOLUME_FILE, {
         "classes": dataset.classes, "resolution": config.volume.resolution,
         "seconds": time.perf_counter() - start, "volumes": info,
     })
@@ -282,10 +293,10 @@ def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path,
     dataset = load_dataset(inputs["dataset"])
     classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
                                        context.threads)
-    volumes = {name: SaliencyVolume.load(inputs["volume"] / f"{name}.npz")
+    volumes = {name: SaliencyVolume.load(inputs["volume"] / volume_file(name))
                for name in dataset.classes}
     result = observe(config, dataset, classifier, volumes, progress=context.progress)
-    write_quality(result.quality, out / "quality.csv", out / "quality.md")
+    write_quality(result.quality, out / QUALITY_CSV, out / QUALITY_MD)
     directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
     save_npz(out / OBSERVATION_FILE,
              **{name: m.probabilities for name, m in result.models.items()},
@@ -294,16 +305,12 @@ def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path,
              volume_labels=result.volume_labels, volume_predictions=result.volume_predictions,
              test_labels=result.test_labels, test_predictions=result.test_predictions)
     correct = result.volume_predictions == result.volume_labels[:, None]
-    write_json_atomic(out / "calibration.json", {
+    write_json_atomic(out / CALIBRATION_FILE, {
         **result.calibration.to_dict(),
         "per_class": result.models["ra_class"].calibration.to_dict(),
         "volume_accuracy": float(correct.mean()),
         "pairs": int(correct.size),
     })
     calibration_figure(result.scores[result.volume_labels], correct, result.calibration,
-                       out / "calibration.png")
-    write_json_atomic(out / "timing.json", result.seconds)
-
-
-def read_observe_timing(observe_dir: Path) -> dict[str, float]:
-    return read_json(observe_dir / "timing.json")
+                       out / CALIBRATION_FIGURE)
+    write_json_atomic(out / TIMING_FILE, result.seconds)

@@ -23,11 +23,10 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from rapomdp.config import load_config
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.test_views import TestViews
 from rapomdp.experiment.episode import Motion
-from rapomdp.robot.stage import load_robot
+from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, Workspace
 
 Observation = dict[str, Any]
@@ -117,17 +116,13 @@ class ActiveRecognitionEnv(gymnasium.Env):
         ``solve.wrong_declaration_cost_m``. The configuration is read from ``W/config.yaml``.
         """
         ws = Workspace(path)
-        config_path = ws.root / "config.yaml"
-        if not config_path.exists():
-            raise StageError(f"{config_path}: not found; a workspace made by `rapomdp` holds "
-                             f"the configuration it ran with")
-        config = load_config(config_path)
+        config = ws.config()
         dataset = load_dataset(ws.require("dataset"))
         robot = load_robot(ws.require("robot"))
         vp = config.viewpoints
         if robot["reachable"].size != vp.count:
             raise StageError(f"{ws.require('robot')}: robot.npz covers "
-                             f"{robot['reachable'].size} viewpoints, {config_path} "
+                             f"{robot['reachable'].size} viewpoints, {ws.config_path} "
                              f"viewpoints.count is {vp.count}")
         models = dataset.with_role("test")
         scenes = [TestViews.of_model(config, dataset, m) for m in models]

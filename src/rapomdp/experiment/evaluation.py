@@ -46,7 +46,7 @@ from rapomdp.parallel import run_tasks
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import offered_observation_models
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
-from rapomdp.robot.stage import load_robot
+from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError
 
 EVALUATE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "evaluate")

@@ -19,6 +19,7 @@ import numpy as np
 from scipy import stats
 
 from rapomdp.config import METHOD_NAMES
+from rapomdp.io import markdown_table
 
 if TYPE_CHECKING:
     from rapomdp.experiment.episode_table import EpisodeTable
@@ -109,35 +110,48 @@ def _pm(mean: float, half: float, digits: int = 3) -> str:
     return f"{mean:.{digits}f} ± {half:.{digits}f}"
 
 
-def table1_markdown(rows: Sequence[MethodSummary]) -> str:
-    """Table 1 as markdown: mean (95 % interval) per method; — where a method never moves."""
-    lines = ["| Method | Accuracy [95 % CI] | Belief | # steps | Distance (m) | Energy (m) "
-             "| Episodes |", "|---|---|---|---|---|---|---|"]
+TABLE1_HEADER = ["Method", "Accuracy [95 % CI]", "Belief", "# steps", "Distance (m)",
+                 "Energy (m)", "Episodes"]
+#: What the per-class table's cells hold.
+PER_CLASS_NOTE = "Accuracy per class (mean final belief in the true class in brackets)."
+
+
+def table1_cells(rows: Sequence[MethodSummary]) -> tuple[list[str], list[list[str]]]:
+    """Table 1's header and cells: mean (95 % interval) per method; — where a method never
+    moves. The markdown file and the report both show these."""
+    cells = []
     for r in rows:
         move_cells = ([_pm(r.means[k], r.halfwidths[k]) for k in QUANTITIES[1:]]
                       if r.moves_at_all else ["—"] * 3)
         budget = f" ({r.exhausted} hit the step budget)" if r.exhausted else ""
-        lines.append(
-            f"| {METHOD_NAMES.get(r.method, r.method)} | {r.accuracy:.3f} "
-            f"[{r.accuracy_low:.3f}, {r.accuracy_high:.3f}] | "
-            f"{_pm(r.means['belief'], r.halfwidths['belief'])} | " + " | ".join(move_cells)
-            + f" | {r.episodes}{budget} |")
-    return "\n".join(lines) + "\n"
+        cells.append([METHOD_NAMES.get(r.method, r.method),
+                      f"{r.accuracy:.3f} [{r.accuracy_low:.3f}, {r.accuracy_high:.3f}]",
+                      _pm(r.means["belief"], r.halfwidths["belief"]), *move_cells,
+                      f"{r.episodes}{budget}"])
+    return list(TABLE1_HEADER), cells
+
+
+def table1_markdown(rows: Sequence[MethodSummary]) -> str:
+    """Table 1 as markdown (:func:`table1_cells`)."""
+    return markdown_table(*table1_cells(rows))
+
+
+def per_class_cells(rows: Sequence[tuple[str, MethodSummary]],
+                    methods: Sequence[str]) -> tuple[list[str], list[list[str]]]:
+    """The per-class table's header and cells: accuracy (mean final belief) per class and
+    method."""
+    classes = list(dict.fromkeys(name for name, _ in rows))
+    cell = {(name, r.method): r for name, r in rows}
+    header = ["Class", *(METHOD_NAMES.get(m, m) for m in methods)]
+    body = [[name, *(f"{cell[name, m].accuracy:.2f} ({cell[name, m].means['belief']:.2f})"
+                     if (name, m) in cell else "" for m in methods)] for name in classes]
+    return header, body
 
 
 def per_class_markdown(rows: Sequence[tuple[str, MethodSummary]],
                        methods: Sequence[str]) -> str:
-    """Accuracy (final belief) per class and method."""
-    classes = list(dict.fromkeys(name for name, _ in rows))
-    cell = {(name, r.method): r for name, r in rows}
-    header = "| Class | " + " | ".join(METHOD_NAMES.get(m, m) for m in methods) + " |"
-    lines = [header, "|---|" + "---|" * len(methods)]
-    for name in classes:
-        cells = [f"{cell[name, m].accuracy:.2f} ({cell[name, m].means['belief']:.2f})"
-                 if (name, m) in cell else "" for m in methods]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    return ("Accuracy per class (mean final belief in the true class in brackets).\n\n"
-            + "\n".join(lines) + "\n")
+    """The per-class table as markdown, after :data:`PER_CLASS_NOTE`."""
+    return PER_CLASS_NOTE + "\n\n" + markdown_table(*per_class_cells(rows, methods))
 
 
 def rows_csv(rows: Sequence[MethodSummary], classes: Sequence[str] | None = None) -> str:

@@ -3,9 +3,10 @@
 ``W/report/`` holds ``report.md`` and ``report.html`` and a copy of every figure they show (PNG),
 so the folder is self-contained. The report reads, from the stages it needs:
 
-- ``evaluate``: ``table1.md``, ``per_class.md``, ``fig3.png``, ``trajectories.png`` and
+- ``evaluate``: ``episodes.npz`` (Table 1 and the per-class table are computed from the
+  episodes, not parsed back from the markdown files), ``fig3.png``, ``trajectories.png`` and
   ``evaluate.json`` (episodes, images, images/s, methods, figure class, seconds);
-- ``observe``: ``quality.md`` (self-awareness table) and ``calibration.png``;
+- ``observe``: ``quality.csv`` (the self-awareness table's numbers) and ``calibration.png``;
 - ``classifier_eval``: ``metrics.json``, ``confusion_xrho.png``, ``accuracy_hemisphere.png``;
 - ``train``: ``training.png``; ``robot``: ``robot.json`` and ``robot.png``;
 - ``solve``: ``solve_summary.json`` (the solver's bounds per observation model);
@@ -23,21 +24,41 @@ import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
+from rapomdp.awareness.artefacts import CALIBRATION_FIGURE, QUALITY_CSV, load_quality
+from rapomdp.awareness.quality import quality_cells
 from rapomdp.awareness.report import FIGURES_DIR, write_fig1
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
+from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
+from rapomdp.experiment.metrics import (
+    PER_CLASS_NOTE,
+    per_class,
+    per_class_cells,
+    table1,
+    table1_cells,
+)
 from rapomdp.io import ArtefactError, atomic_path, read_json, stable_hash, write_text_atomic
-from rapomdp.robot.stage import describe
+from rapomdp.recognition.artefacts import (
+    HEMISPHERE_FIGURE,
+    METRICS_FILE,
+    TRAINING_FIGURE,
+    VPTREE_SUMMARY_FILE,
+    confusion_file,
+    load_single_view_metrics,
+    load_vptree_summary,
+)
+from rapomdp.robot.artefacts import ROBOT_FIGURE, ROBOT_SUMMARY, describe
 from rapomdp.workspace import StageError, Workspace, read_stage_record
 
 REPORT_SECTIONS = ("seed",)
 REPORT_INPUTS = ("dataset", "train", "classifier_eval", "observe", "robot", "solve", "evaluate")
 REPORT_MD = "report.md"
 REPORT_HTML = "report.html"
+T = TypeVar("T")
 
 
 # --- the report's blocks, rendered both as markdown and as HTML -------------------------------
@@ -73,67 +94,6 @@ class Missing:
 
 
 Block = Heading | Paragraph | Table | Image | Missing
-
-
-def _split_row(line: str) -> list[str]:
-    line = line.strip()
-    if line.startswith("|"):
-        line = line[1:]
-    if line.endswith("|") and not line.endswith("\\|"):
-        line = line[:-1]
-    cells, current, escaped = [], "", False
-    for char in line:
-        if char == "|" and not escaped:
-            cells.append(current.strip())
-            current = ""
-        else:
-            current += char
-        escaped = char == "\\" and not escaped
-    cells.append(current.strip())
-    return [cell.replace("\\|", "|") for cell in cells]
-
-
-def _is_delimiter(cells: Sequence[str]) -> bool:
-    return bool(cells) and all(c and set(c) <= set(":-") and "-" in c for c in cells)
-
-
-def parse_markdown(text: str) -> list[Block]:
-    """Blocks of a simple markdown text: pipe tables (a header, a ``|---|`` row, body rows),
-    ``#`` headings and paragraphs (consecutive other lines). Enough for the stages' tables."""
-    blocks: list[Block] = []
-    lines = text.splitlines()
-    i, paragraph = 0, []
-
-    def flush() -> None:
-        if paragraph:
-            blocks.append(Paragraph(" ".join(paragraph)))
-            paragraph.clear()
-
-    while i < len(lines):
-        line = lines[i].strip()
-        if (line.startswith("|") and i + 1 < len(lines)
-                and _is_delimiter(_split_row(lines[i + 1]))):
-            flush()
-            header = _split_row(line)
-            rows = []
-            i += 2
-            while i < len(lines) and lines[i].strip().startswith("|"):
-                cells = _split_row(lines[i])
-                rows.append((cells + [""] * len(header))[: len(header)])
-                i += 1
-            blocks.append(Table(header, rows))
-            continue
-        if line.startswith("#"):
-            flush()
-            level = len(line) - len(line.lstrip("#"))
-            blocks.append(Heading(line[level:].strip(), min(level, 6)))
-        elif line:
-            paragraph.append(line)
-        else:
-            flush()
-        i += 1
-    flush()
-    return blocks
 
 
 def _md_cell(text: str) -> str:
@@ -233,15 +193,16 @@ class _Builder:
                 shutil.copyfile(source, tmp)
         self.blocks.append(Image(name, caption))
 
-    def markdown(self, source: Path, how: str) -> None:
-        """The tables (and text) of a markdown file, or a missing line."""
+    def load(self, source: Path, reader: Callable[[Path], T], how: str) -> T | None:
+        """``reader(source)`` (an artefact's typed loader), or a missing line saying why not."""
         if not source.is_file():
             self.missing(f"{self._shown(source)} (not found)", how)
-            return
-        blocks = parse_markdown(source.read_text())
-        if not any(isinstance(b, Table) for b in blocks):
-            self.missing(f"{self._shown(source)} holds no markdown table", how)
-        self.blocks.extend(blocks)
+            return None
+        try:
+            return reader(source)
+        except (ArtefactError, KeyError, ValueError) as exc:
+            self.missing(f"{self._shown(source)}: {exc}", how)
+            return None
 
     def json(self, source: Path, how: str) -> dict[str, Any] | None:
         if not source.is_file():
@@ -308,9 +269,11 @@ def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
             f"{', '.join(map(str, methods)) if isinstance(methods, list) else methods}; "
             f"{data.get('images', '?')} depth images rendered and classified "
             f"({_fmt(data.get('images_per_s', '?'), 1)} images/s). Time: {timing or '-'}."))
-    b.markdown(folder / "table1.md", how)
-    b.add(Paragraph("Per class:"))
-    b.markdown(folder / "per_class.md", how)
+    table = b.load(folder / EPISODES_FILE, EpisodeTable.load, how)
+    if table is not None:
+        b.add(Table(*table1_cells(table1(table, table.methods))))
+        b.add(Paragraph("Per class:"), Paragraph(PER_CLASS_NOTE),
+              Table(*per_class_cells(per_class(table, table.methods), table.methods)))
     figure = (data or {}).get("figure_class", "the figure class")
     b.figure(folder / "fig3.png",
              f"Fig. 3: belief in the true class along the episodes of class {figure}, per "
@@ -342,8 +305,11 @@ def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name:
     observe_how = f"made by `{cmd} observe -w {b.root}`"
     b.add(Paragraph("How well each observation model predicts the classifier's correctness on "
                     "the test models over X_rho:"))
-    b.markdown(inputs["observe"] / "quality.md", observe_how)
-    b.figure(inputs["observe"] / "calibration.png",
+    quality = b.load(inputs["observe"] / QUALITY_CSV, lambda p: load_quality(p.parent),
+                     observe_how)
+    if quality is not None:
+        b.add(Table(*quality_cells(quality)))
+    b.figure(inputs["observe"] / CALIBRATION_FIGURE,
              "Calibration: the classifier's accuracy per viewpoint-score bin on the volume "
              "models, and the fitted score-to-correctness map.", observe_how)
 
@@ -351,45 +317,43 @@ def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name:
 def _classifier(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
     b.add(Heading("Single-view classifier"))
     how = f"made by `{cmd} evaluate-classifier -w {b.root}`"
-    metrics = b.json(inputs["classifier_eval"] / "metrics.json", how)
+    metrics = b.load(inputs["classifier_eval"] / METRICS_FILE,
+                     lambda p: load_single_view_metrics(p.parent), how)
     if metrics is not None:
-        rows = []
-        for key, label in (("xrho", "test viewpoints X_rho"), ("sphere", "whole sphere")):
-            part = metrics.get(key)
-            if isinstance(part, dict):
-                rows.append([label, _fmt(part.get("images", "-")),
-                             _fmt(part.get("accuracy", "-")), _fmt(part.get("chance", "-"))])
+        rows = [[label, _fmt(part.images), _fmt(part.accuracy), _fmt(part.chance)]
+                for part, label in ((metrics.xrho, "test viewpoints X_rho"),
+                                    (metrics.sphere, "whole sphere"))]
         b.add(Table(["test views", "images", "accuracy", "chance"], rows))
-    b.figure(inputs["classifier_eval"] / "confusion_xrho.png",
+    b.figure(inputs["classifier_eval"] / confusion_file("xrho", "png"),
              "Single-view confusion of the classifier on the test models over X_rho.", how)
-    b.figure(inputs["classifier_eval"] / "accuracy_hemisphere.png",
+    b.figure(inputs["classifier_eval"] / HEMISPHERE_FIGURE,
              "Single-view accuracy and mean probability of the true class per test viewpoint.",
              how)
-    b.figure(inputs["train"] / "training.png",
+    b.figure(inputs["train"] / TRAINING_FIGURE,
              "Training curves: loss and accuracy per epoch.",
              f"made by `{cmd} train -w {b.root}`")
-    vptree = b.root / "vptree" / "vptree.json"
+    vptree = b.root / "vptree" / VPTREE_SUMMARY_FILE
     how = f"made by `{cmd} vptree -w {b.root}` (the VP-tree baseline)"
     if vptree.is_file():
-        data = b.json(vptree, how)
+        data = b.load(vptree, lambda p: load_vptree_summary(p.parent), how)
         if data is not None:
+            accuracy = "?" if data.accuracy_test_xrho is None else data.accuracy_test_xrho
             b.add(Paragraph(f"VP-tree baseline (vocabulary tree), single-view accuracy on the "
-                            f"test models over X_rho: {_fmt(data.get('accuracy_test_xrho', '?'))}"
-                            f"."))
+                            f"test models over X_rho: {_fmt(accuracy)}."))
     else:
-        b.missing("VP-tree baseline accuracy (vptree/vptree.json not found)", how)
+        b.missing(f"VP-tree baseline accuracy (vptree/{VPTREE_SUMMARY_FILE} not found)", how)
 
 
 def _robot_and_solver(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
     b.add(Heading("Robot and planner"))
     how = f"made by `{cmd} robot -w {b.root}`"
-    summary = b.json(inputs["robot"] / "robot.json", how)
+    summary = b.json(inputs["robot"] / ROBOT_SUMMARY, how)
     if summary is not None:
         try:
             b.add(Paragraph(f"Panda arm: {describe(summary)}."))
         except (KeyError, TypeError) as exc:
-            b.missing(f"robot/robot.json lacks {exc}", how)
-    b.figure(inputs["robot"] / "robot.png",
+            b.missing(f"robot/{ROBOT_SUMMARY} lacks {exc}", how)
+    b.figure(inputs["robot"] / ROBOT_FIGURE,
              "The Panda's reachability of the test viewpoints, coloured by manipulability, with "
              "the arm drawn at a few of its solutions.", how)
     how = f"made by `{cmd} solve -w {b.root}`"

@@ -19,7 +19,6 @@ import numpy as np
 XTION_WIDTH_PX = 640
 XTION_HEIGHT_PX = 480
 XTION_HFOV_DEG = 58.0
-XTION_VFOV_DEG = 45.0
 
 
 @dataclass(frozen=True)

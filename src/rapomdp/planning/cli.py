@@ -150,12 +150,12 @@ def _parse_size(text: str) -> tuple[int, int]:
 
 def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
     """The problem the solve stage builds from a workspace, with the workspace's configuration."""
-    from rapomdp.config import Config, load_config
+    from rapomdp.config import Config
     from rapomdp.planning.stage import workspace_problem
     from rapomdp.workspace import Workspace
 
     ws = Workspace(root)
-    config = load_config(root / "config.yaml") if (root / "config.yaml").exists() else Config()
+    config = ws.config(default=Config())
     vptree = ws.require("vptree") if "vptree" in ws.manifest()["stages"] else None
     return workspace_problem(config, ws.require("observe"), ws.require("robot"), model, vptree)
 

@@ -17,17 +17,16 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
+from rapomdp.awareness.artefacts import OBSERVATION_FILE
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.io import load_npz, read_json
 from rapomdp.planning.memory import MemoryCapError
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.workspace import solve_workspace_problems
+from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE as VPTREE_FILE
+from rapomdp.robot.artefacts import ROBOT_ARRAYS
 from rapomdp.workspace import StageError
-
-OBSERVATION_FILE = "observation_models.npz"
-VPTREE_FILE = "observation_model.npz"
-ROBOT_FILE = "robot.npz"
 
 
 def offered_observation_models(observe_dir: Path, vptree_dir: Path | None = None
@@ -65,7 +64,7 @@ def workspace_arrays(
     :func:`offered_observation_models`), E_M (finite), the reachable mask and the class names.
     """
     offered, classes = offered_observation_models(observe_dir, vptree_dir)
-    robot = load_npz(Path(robot_dir) / ROBOT_FILE)
+    robot = load_npz(Path(robot_dir) / ROBOT_ARRAYS)
     available = list(offered)
     wanted = config.solve.models if config.solve.models is not None else available
     unknown = [name for name in wanted if name not in available]

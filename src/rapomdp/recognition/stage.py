@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from rapomdp.config import Config, load_config
+from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import TEST_STREAM, TestViews, test_view_rng
@@ -25,6 +25,14 @@ from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, stable_hash, write_json_atomic
 from rapomdp.progress import track
+from rapomdp.recognition.artefacts import (
+    HEMISPHERE_FIGURE,
+    HISTORY_FILE,
+    METRICS_FILE,
+    PROBABILITIES_FILE,
+    TRAINING_FIGURE,
+    confusion_file,
+)
 from rapomdp.recognition.classifier import (
     WEIGHTS_FILE,
     Classifier,
@@ -61,8 +69,7 @@ def load_workspace_classifier(root: str | Path, threads: int | None = None,
     For scripts and notebooks that work on a workspace after ``rapomdp train``.
     """
     ws = Workspace(root)
-    config_path = ws.root / "config.yaml"
-    config = load_config(config_path if config_path.exists() else None)
+    config = ws.config(default=Config())
     views = load_training_views(ws.require("render"), ws.require("dataset"))
     classifier = load_stage_classifier(config, ws.require("train"), views.dataset.classes,
                                        threads)
@@ -119,12 +126,12 @@ def run_train_stage(config: Config, inputs: dict[str, Path], out: Path,
     }
     classifier.save(out, train_config_hash(config), extra={"training": metrics})
     rows = history.rows()
-    with atomic_path(out / "history.csv") as tmp, open(tmp, "w", newline="") as handle:
+    with atomic_path(out / HISTORY_FILE) as tmp, open(tmp, "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    training_curves(rows, out / "training.png")
-    write_json_atomic(out / "metrics.json", metrics)
+    training_curves(rows, out / TRAINING_FIGURE)
+    write_json_atomic(out / METRICS_FILE, metrics)
 
 
 def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path,
@@ -148,13 +155,13 @@ def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path
         SingleViewResult("sphere", dataset.classes, np.stack(sphere), labels),
     ]
     for result in results:
-        write_confusion_csv(out / f"confusion_{result.name}.csv", result.confusion(),
+        write_confusion_csv(out / confusion_file(result.name, "csv"), result.confusion(),
                             dataset.classes)
         where = "test viewpoints X_rho" if result.name == "xrho" else "whole training sphere"
         confusion_figure(
             result.confusion(), dataset.classes,
             f"single-view confusion, {where} (accuracy {result.accuracy:.1%})",
-            out / f"confusion_{result.name}.png",
+            out / confusion_file(result.name, "png"),
         )
     on_x = results[0]
     hemisphere_figure(
@@ -163,10 +170,10 @@ def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path
         ["accuracy over the test models", "mean probability of the true class"],
         f"single-view recognition per test viewpoint ({vp.count} on the hemisphere, "
         f"radius {vp.radius_m} m)",
-        out / "accuracy_hemisphere.png",
+        out / HEMISPHERE_FIGURE,
     )
     save_npz(
-        out / "probabilities.npz",
+        out / PROBABILITIES_FILE,
         xrho=on_x.probabilities.astype(np.float32),
         sphere=results[1].probabilities.astype(np.float32),
         labels=labels,
@@ -174,7 +181,7 @@ def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path
         models=np.array([m.id for m in test_models]),
     )
     write_json_atomic(
-        out / "metrics.json",
+        out / METRICS_FILE,
         {
             "xrho": on_x.summary(),
             "sphere": results[1].summary(),

@@ -25,15 +25,17 @@ from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.io import save_npz, write_json_atomic
 from rapomdp.progress import track
+from rapomdp.recognition.artefacts import (
+    VPTREE_CLASSIFIER_FILE,
+    VPTREE_MODEL_NAME,
+    VPTREE_OBSERVATION_FILE,
+    VPTREE_SUMMARY_FILE,
+)
 from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.recognition.vocabulary_tree import DescriptorParams, VocabularyTreeClassifier
 from rapomdp.workspace import StageError
 
 VPTREE_SECTIONS = ("seed", "camera", "render", "viewpoints", "vptree")
-CLASSIFIER_FILE = "vocabulary_tree.npz"
-OBSERVATION_FILE = "observation_model.npz"
-SUMMARY_FILE = "vptree.json"
-MODEL_NAME = "vptree"
 
 
 def descriptor_params(cfg: VPTreeConfig) -> DescriptorParams:
@@ -99,11 +101,11 @@ def run_vptree_stage(config: Config, inputs: dict[str, Path], out: Path,
             "vptree: test models at X_rho", context.progress)
         test_accuracy = float((test_pred == test_labels[:, None]).mean())
     seconds["test"] = time.perf_counter() - step
-    classifier.save(out / CLASSIFIER_FILE)
-    save_npz(out / OBSERVATION_FILE, **{MODEL_NAME: confusion},
+    classifier.save(out / VPTREE_CLASSIFIER_FILE)
+    save_npz(out / VPTREE_OBSERVATION_FILE, **{VPTREE_MODEL_NAME: confusion},
              classes=np.array(dataset.classes))
     seconds["total"] = time.perf_counter() - start
-    write_json_atomic(out / SUMMARY_FILE, {
+    write_json_atomic(out / VPTREE_SUMMARY_FILE, {
         "classes": dataset.classes,
         "train_images": int(classifier.labels.size),
         "descriptors_fit": classifier.fit_descriptors,
@@ -117,4 +119,4 @@ def run_vptree_stage(config: Config, inputs: dict[str, Path], out: Path,
 
 def load_workspace_vptree(stage_dir: str | Path) -> VocabularyTreeClassifier:
     """The vptree stage's classifier (``W/vptree/vocabulary_tree.npz``)."""
-    return VocabularyTreeClassifier.load(Path(stage_dir) / CLASSIFIER_FILE)
+    return VocabularyTreeClassifier.load(Path(stage_dir) / VPTREE_CLASSIFIER_FILE)

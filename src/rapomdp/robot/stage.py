@@ -1,7 +1,8 @@
 """The ``robot`` stage: IK for every test viewpoint, manipulability, and the E_M matrix.
 
 Writes ``robot.npz`` (arrays, index = viewpoint index of X_rho), ``robot.json`` (a summary with
-the measured figures) and ``robot.png`` (the figure).
+the measured figures) and ``robot.png`` (the figure); :mod:`rapomdp.robot.artefacts` names them
+and reads them back.
 """
 
 from __future__ import annotations
@@ -16,17 +17,14 @@ import numpy as np
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
-from rapomdp.io import ArtefactError, load_npz, save_npz, write_json_atomic
+from rapomdp.io import save_npz, write_json_atomic
 from rapomdp.robot.arm import CameraArm
+from rapomdp.robot.artefacts import ROBOT_ARRAYS, ROBOT_FIGURE, ROBOT_SUMMARY
 from rapomdp.robot.energy import joint_distance_matrix, movement_energy, singularity_penalty
 from rapomdp.robot.figures import pick_poses, plot_robot
 from rapomdp.robot.ik import IKSettings, ViewpointSolutions, arm_skeleton_world, solve_viewpoints
 from rapomdp.robot.scene import Scene
 from rapomdp.workspace import StageError
-
-ROBOT_ARRAYS = "robot.npz"
-ROBOT_SUMMARY = "robot.json"
-ROBOT_FIGURE = "robot.png"
 
 
 class UnreachableError(StageError):
@@ -190,28 +188,3 @@ def run_robot_stage(config: Config, inputs: dict[str, Path], out: Path,
     save_npz(out / ROBOT_ARRAYS, **result.arrays())
     write_json_atomic(out / ROBOT_SUMMARY, result.summary)
     plot_result(result, config, out / ROBOT_FIGURE)
-
-
-def describe(summary: dict[str, Any]) -> str:
-    """One line for the command line from a ``robot.json`` summary."""
-    m = summary["manipulability"]
-    return (
-        f"{summary['reachable']}/{summary['viewpoints']} viewpoints reachable "
-        f"({100 * summary['reachable_fraction']:.0f} %), IK {summary['ik_seconds']:.2f} s, "
-        f"manipulability {m['min']:.3f}-{m['max']:.3f} (median {m['median']:.3f})"
-    )
-
-
-def load_robot(folder: str | Path) -> dict[str, np.ndarray]:
-    """The arrays of a finished robot stage (``robot.npz`` in ``folder``), checked for shape."""
-    arrays = load_npz(Path(folder) / ROBOT_ARRAYS)
-    missing = {"reachable", "energy", "distance_m", "manipulability", "q_rad"} - set(arrays)
-    if missing:
-        raise ArtefactError(f"{Path(folder) / ROBOT_ARRAYS}: missing arrays {sorted(missing)}")
-    n = arrays["reachable"].shape[0]
-    if arrays["energy"].shape != (n, n) or arrays["distance_m"].shape != (n, n):
-        raise ArtefactError(
-            f"{Path(folder) / ROBOT_ARRAYS}: energy/distance are not {n}x{n} "
-            f"(got {arrays['energy'].shape}, {arrays['distance_m'].shape})"
-        )
-    return arrays

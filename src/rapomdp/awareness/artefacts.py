@@ -1,0 +1,54 @@
+"""The artefacts of the saliency, volume and observe stages: their names, and the readers the
+report, the command line and later stages go through (NumPy and JSON only: no torch).
+
+``W/saliency/``: ``maps/<class>/<model>.npz`` (:func:`saliency_map_file`), :data:`SALIENCY_FILE`.
+``W/volume/``: ``<class>.npz`` (:func:`volume_file`), :data:`VOLUME_FILE`.
+``W/observe/``: :data:`OBSERVATION_FILE` (every observation model (V, C, C) by name, ``models``,
+``classes``, ``scores``, ``directions``, ...), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
+self-awareness table, :func:`load_quality`), :data:`CALIBRATION_FILE`,
+:data:`CALIBRATION_FIGURE`, :data:`TIMING_FILE`.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from rapomdp.io import ArtefactError
+
+SALIENCY_FILE = "saliency.json"
+VOLUME_FILE = "volume.json"
+OBSERVATION_FILE = "observation_models.npz"
+QUALITY_CSV = "quality.csv"
+QUALITY_MD = "quality.md"
+CALIBRATION_FILE = "calibration.json"
+CALIBRATION_FIGURE = "calibration.png"
+TIMING_FILE = "timing.json"
+#: The self-awareness table's columns: the model's name, then its scores on the test models.
+QUALITY_COLUMNS = ("model", "log_likelihood", "brier", "auc", "mean_p_correct", "accuracy")
+
+
+def saliency_map_file(class_name: str, model_id: str) -> Path:
+    """A volume model's saliency maps, relative to ``W/saliency``."""
+    return Path("maps") / class_name / f"{model_id}.npz"
+
+
+def volume_file(class_name: str) -> str:
+    """A class's saliency volume, in ``W/volume``."""
+    return f"{class_name}.npz"
+
+
+def load_quality(folder: str | Path) -> list[dict[str, float | str]]:
+    """The observe stage's self-awareness table (``quality.csv``): one row per observation
+    model, its scores as floats."""
+    path = Path(folder) / QUALITY_CSV
+    try:
+        with open(path, newline="") as handle:
+            rows = list(csv.DictReader(handle))
+    except OSError as exc:
+        raise ArtefactError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        return [{"model": r["model"], **{k: float(r[k]) for k in QUALITY_COLUMNS[1:]}}
+                for r in rows]
+    except (KeyError, TypeError, ValueError):
+        raise ArtefactError(f"{path}: expected the columns {', '.join(QUALITY_COLUMNS)}") from None

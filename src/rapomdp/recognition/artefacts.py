@@ -1,0 +1,96 @@
+"""The artefacts of the train, classifier_eval and vptree stages: their names, and the readers
+the command line, the report and later stages go through (JSON and NumPy only: no torch).
+
+``W/train/``: the checkpoint (:data:`~rapomdp.recognition.classifier.WEIGHTS_FILE` +
+``META_FILE``), :data:`HISTORY_FILE`, :data:`TRAINING_FIGURE`, :data:`METRICS_FILE`.
+``W/classifier_eval/``: :data:`METRICS_FILE` (:class:`SingleViewMetrics` over X_rho and the
+whole sphere), :data:`PROBABILITIES_FILE`, ``confusion_{xrho,sphere}.csv|png``,
+:data:`HEMISPHERE_FIGURE`.
+``W/vptree/``: :data:`VPTREE_CLASSIFIER_FILE`, :data:`VPTREE_OBSERVATION_FILE` (the
+``vptree`` (V, C, C) confusion and ``classes``), :data:`VPTREE_SUMMARY_FILE`
+(:class:`VPTreeSummary`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rapomdp.io import ArtefactError, read_json
+
+METRICS_FILE = "metrics.json"
+HISTORY_FILE = "history.csv"
+TRAINING_FIGURE = "training.png"
+PROBABILITIES_FILE = "probabilities.npz"
+HEMISPHERE_FIGURE = "accuracy_hemisphere.png"
+VPTREE_CLASSIFIER_FILE = "vocabulary_tree.npz"
+VPTREE_OBSERVATION_FILE = "observation_model.npz"
+VPTREE_SUMMARY_FILE = "vptree.json"
+#: The VP-tree's observation model's name (its array in :data:`VPTREE_OBSERVATION_FILE`).
+VPTREE_MODEL_NAME = "vptree"
+
+
+def confusion_file(views: str, suffix: str) -> str:
+    """``confusion_xrho.csv`` and the like: a classifier_eval confusion over ``views``."""
+    return f"confusion_{views}.{suffix}"
+
+
+@dataclass(frozen=True)
+class SingleViewAccuracy:
+    """The classifier's single-view accuracy on the test models over one set of views."""
+
+    images: int
+    accuracy: float
+    chance: float
+
+
+@dataclass(frozen=True)
+class SingleViewMetrics:
+    """``W/classifier_eval/metrics.json``: over the test viewpoints X_rho and the whole sphere
+    (``raw`` holds the rest: per-class accuracy, per-viewpoint accuracy, checkpoint hash)."""
+
+    xrho: SingleViewAccuracy
+    sphere: SingleViewAccuracy
+    raw: dict[str, Any]
+
+
+def load_single_view_metrics(folder: str | Path) -> SingleViewMetrics:
+    """The classifier_eval stage's metrics, checked; an :class:`ArtefactError` names what is
+    missing."""
+    path = Path(folder) / METRICS_FILE
+    data = read_json(path)
+    parts = {}
+    for key in ("xrho", "sphere"):
+        part = data.get(key) if isinstance(data, dict) else None
+        try:
+            parts[key] = SingleViewAccuracy(int(part["images"]), float(part["accuracy"]),
+                                            float(part["chance"]))
+        except (KeyError, TypeError, ValueError):
+            raise ArtefactError(f"{path}: '{key}' needs images, accuracy and chance") from None
+    return SingleViewMetrics(parts["xrho"], parts["sphere"], data)
+
+
+@dataclass(frozen=True)
+class VPTreeSummary:
+    """``W/vptree/vptree.json``: the VP-tree's single-view accuracy at X_rho on the test and the
+    volume models (None where the summary does not hold it) and chance."""
+
+    accuracy_test_xrho: float | None
+    accuracy_volume_xrho: float | None
+    chance: float | None
+    raw: dict[str, Any]
+
+
+def load_vptree_summary(folder: str | Path) -> VPTreeSummary:
+    path = Path(folder) / VPTREE_SUMMARY_FILE
+    data = read_json(path)
+    if not isinstance(data, dict):
+        raise ArtefactError(f"{path}: not a JSON object")
+
+    def number(key: str) -> float | None:
+        value = data.get(key)
+        return None if value is None else float(value)
+
+    return VPTreeSummary(number("accuracy_test_xrho"), number("accuracy_volume_xrho"),
+                         number("chance"), data)
