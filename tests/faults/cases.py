@@ -229,7 +229,7 @@ def seed_huge(root: Path) -> Outcome:
     return outcome
 
 
-@case("seed: 2^32", "`seed=4294967296`", "seed: Input should be less than 4294967296")
+@case("seed: 2^32", "`seed=4294967296`", "seed: a whole number of magnitude below 2^32")
 def seed_too_large(root: Path) -> Outcome:
     ws = cached_workspace(root)
     before = snapshot(ws)
