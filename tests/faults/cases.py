@@ -445,15 +445,16 @@ def killed_parent_workers(root: Path) -> Outcome:
     pids.mkdir()
     parent = python_process(
         "from rapomdp.parallel import run_tasks\n"
-        "from tests.faults.harness import sleep_and_report_pid\n"
+        "from tests.faults.tasks import sleep_and_report_pid\n"
         f"run_tasks(sleep_and_report_pid, [({str(pids)!r}, 120)] * 2, 2, 'sleep')\n")
     try:
         wait_for(lambda: len(list(pids.glob("*.pid"))) == 2, 120, "two workers")
     finally:
+        start = time.monotonic()
         parent.send_signal(signal.SIGKILL)
         parent.communicate()
     workers = [int(p.stem) for p in pids.glob("*.pid")]
-    start = time.monotonic()
+    assert len(workers) == 2
     wait_for(lambda: not any(alive(pid) for pid in workers), 10, "the workers to end")
     return Outcome(0, f"workers ended {time.monotonic() - start:.1f} s after the parent's "
                    "SIGKILL")
@@ -484,7 +485,7 @@ def two_runs(root: Path) -> Outcome:
       "a worker process died")
 def worker_dies(root: Path) -> Outcome:
     from rapomdp.parallel import WorkerError, run_tasks
-    from tests.faults.harness import die
+    from tests.faults.tasks import die
 
     try:
         run_tasks(die, [(0,), (1,)], 2, "dying tasks")
