@@ -76,3 +76,26 @@ def test_console_script_exits_with_the_commands_status_and_no_teardown_noise(tmp
     bad = subprocess.run(run[:-1] + [str(tmp_path / "missing.yaml")], capture_output=True,
                          text=True, env=env, timeout=300)
     assert bad.returncode == 2 and "missing.yaml: cannot read" in bad.stderr
+
+
+def test_the_workspace_keeps_its_configuration(tmp_path: Path) -> None:
+    path = tmp_path / "tiny.yaml"
+    path.write_text(tiny_config().to_yaml())
+    ws = tmp_path / "ws"
+    assert runner.invoke(app, ["dataset", "-w", str(ws), "-c", str(path)]).exit_code == 0
+    recorded = (ws / "config.yaml").read_text()
+    shown = runner.invoke(app, ["config", "-w", str(ws), "train.epochs=5"])
+    assert shown.exit_code == 0, shown.output
+    assert yaml.safe_load(shown.stdout)["train"]["epochs"] == 5
+    assert yaml.safe_load(shown.stdout)["seed"] == tiny_config().seed
+    assert (ws / "config.yaml").read_text() == recorded, "config only shows"
+    again = runner.invoke(app, ["dataset", "-w", str(ws)])
+    assert again.exit_code == 0 and "dataset    cached" in again.output
+    changed = runner.invoke(app, ["render", "-w", str(ws), "seed=4"])
+    assert changed.exit_code == 0, changed.output
+    assert "1 stage(s) will be redone when run:\n  dataset: seed 3 -> 4" in changed.output
+    assert yaml.safe_load((ws / "config.yaml").read_text())["seed"] == 4
+    refused = runner.invoke(app, ["dataset", "-w", str(ws), "-c", str(path)])
+    assert refused.exit_code == 2
+    assert "pass --reconfigure to redo 2 stage(s)" in refused.output
+    assert "dataset: seed 4 -> 3" in refused.output

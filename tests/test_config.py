@@ -48,3 +48,83 @@ def test_cross_field_rules_and_unreadable_files(tmp_path: Path) -> None:
     (tmp_path / "list.yaml").write_text("- 1\n- 2\n")
     with pytest.raises(ConfigError, match="expected a mapping"):
         load_config(tmp_path / "list.yaml")
+
+
+def test_aliases_and_expansions_are_bounded(tmp_path: Path) -> None:
+    import time
+
+    from rapomdp.config import MAX_ALIASES, parse_yaml
+
+    many = "a: &a 1\nb: [" + ", ".join(["*a"] * (MAX_ALIASES + 1)) + "]\n"
+    with pytest.raises(ConfigError, match=f"more than {MAX_ALIASES} aliases"):
+        parse_yaml(many, "many.yaml")
+    assert parse_yaml("a: &a [1, 2]\nb: *a\n", "ok.yaml") == {"a": [1, 2], "b": [1, 2]}
+    # 3 levels of 10 aliases of 1000 values: 21 aliases, 200 000 values once expanded
+    wide = "l0: &l0 [" + ", ".join(["x"] * 1000) + "]\n"
+    wide += "l1: &l1 [" + ", ".join(["*l0"] * 10) + "]\n"
+    wide += "l2: &l2 [" + ", ".join(["*l1"] * 10) + "]\nseed: *l2\n"
+    start = time.perf_counter()
+    with pytest.raises(ConfigError, match="values once aliases are expanded"):
+        parse_yaml(wide, "wide.yaml")
+    assert time.perf_counter() - start < 2.0
+
+
+def test_numbers_are_finite_in_range_and_never_booleans() -> None:
+    cases = {
+        "seed: Input should be greater than or equal to 0": {"seed": -1},
+        "seed: a whole number of magnitude below 2^32 is expected": {"seed": 2**32},
+        "render.radius_m: Input should be a finite number (got inf)":
+            {"render": {"radius_m": float("inf")}},
+        "solve.discount: Input should be a finite number": {"solve": {"discount": float("nan")}},
+        "render.views: a boolean is not a number (got True)": {"render": {"views": True}},
+        "robot.base_xyz_m: a boolean is not a number": {"robot": {"base_xyz_m": [True, 0, 0]}},
+        "render.radius_m (0.1) must exceed dataset.radius_m (0.2)":
+            {"render": {"radius_m": 0.1}},
+        "viewpoints.radius_m (0.2) must exceed": {"viewpoints": {"radius_m": 0.2}},
+        "dataset.classes: class '../x' is not a plain name": {"dataset": {"classes": ["../x"]}},
+    }
+    for message, data in cases.items():
+        with pytest.raises(ConfigError) as info:
+            config_from_dict(data)
+        assert message in str(info.value), (message, str(info.value))
+    assert config_from_dict({"seed": 2**32 - 1}).seed == 2**32 - 1
+    assert config_from_dict({"render": {"noise": {"enabled": True}}}).render.noise.enabled
+
+
+def test_an_error_never_shows_an_unbounded_value() -> None:
+    with pytest.raises(ConfigError) as info:
+        config_from_dict({"seed": "9" * 1_000_000, "render": {"views": list(range(10**5))}})
+    message = str(info.value)
+    assert len(message) < 600
+    assert "render.views: Input should be a valid integer (got a list of 100000 items)" in message
+
+
+def test_text_in_any_common_encoding(tmp_path: Path) -> None:
+    text = "# réglages\nseed: 4\n"
+    for encoding in ("utf-8", "utf-8-sig", "utf-16", "latin-1", "cp1252"):
+        path = tmp_path / f"{encoding}.yaml"
+        path.write_bytes(text.encode(encoding))
+        assert load_config(path).seed == 4, encoding
+    (tmp_path / "bin.yaml").write_bytes(b"seed: 4\x00\x00")
+    with pytest.raises(ConfigError, match="bin.yaml: binary data"):
+        load_config(tmp_path / "bin.yaml")
+
+
+def test_overrides_are_typed_and_validated_like_the_file() -> None:
+    from rapomdp.config import apply_overrides
+
+    base = {"train": {"epochs": 3}, "seed": 1}
+    data = apply_overrides(base, ["train.epochs=5", "dataset.classes=[cup, mug]",
+                                  "solve.iterations=null", "train.augment.noise=true"])
+    config = config_from_dict(data)
+    assert config.train.epochs == 5 and config.dataset.classes == ["cup", "mug"]
+    assert config.solve.iterations is None and config.train.augment.noise is True
+    assert base == {"train": {"epochs": 3}, "seed": 1}, "the base mapping is not changed"
+    with pytest.raises(ConfigError, match="expected section.key=value"):
+        apply_overrides({}, ["train.epochs"])
+    with pytest.raises(ConfigError, match="seed is a value, not a section"):
+        apply_overrides({"seed": 1}, ["seed.x=2"])
+    with pytest.raises(ConfigError, match="train.epochz: unknown key"):
+        config_from_dict(apply_overrides({}, ["train.epochz=5"]))
+    with pytest.raises(ConfigError, match="train.epochs: a boolean is not a number"):
+        config_from_dict(apply_overrides({}, ["train.epochs=yes"]))

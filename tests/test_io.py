@@ -36,3 +36,49 @@ def test_json_atomic_and_named_errors(tmp_path: Path) -> None:
         read_json(tmp_path / "bad.json")
     with pytest.raises(ArtefactError, match="missing.json: not found"):
         read_json(tmp_path / "missing.json")
+
+
+def test_damaged_archives_are_named(tmp_path: Path) -> None:
+    save_npz(tmp_path / "a.npz", compressed=True, x=np.arange(1000.0))
+    data = (tmp_path / "a.npz").read_bytes()
+    (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])
+    (tmp_path / "empty.npz").write_bytes(b"")
+    (tmp_path / "text.npz").write_bytes(b"not a zip at all" * 10)
+    for name, message in (("cut", "damaged .npz archive"), ("empty", "empty file"),
+                          ("text", "npz")):
+        with pytest.raises(ArtefactError, match=message) as info:
+            load_npz(tmp_path / f"{name}.npz")
+        assert str(tmp_path / f"{name}.npz") in str(info.value)
+        assert "\n" not in str(info.value)
+
+
+def test_json_that_is_not_utf8_is_named(tmp_path: Path) -> None:
+    (tmp_path / "m.json").write_bytes(b'{"caf\xe9": 1}')
+    with pytest.raises(ArtefactError, match=r"m.json: not valid JSON \(byte 5 is not UTF-8\)"):
+        read_json(tmp_path / "m.json")
+
+
+def test_text_decoding_and_plain_names() -> None:
+    from rapomdp.io import check_plain_name, decode_text, plain_name
+
+    for encoding in ("utf-8", "utf-8-sig", "utf-16", "utf-32", "latin-1"):
+        assert decode_text("# modèle\nv 0 0 0\n".encode(encoding), "f") == "# modèle\nv 0 0 0\n"
+    with pytest.raises(ArtefactError, match="f: binary data"):
+        decode_text(b"v 0\x00", "f")
+    for good in ("cup", "trash can", "02691156", "é-class", "a&b"):
+        assert check_plain_name(good, "class", "src") == good
+    for bad in ("../../../x", "a/b", "..", ".hidden", "x\x00", "a\\b", "", "x" * 129, "x."):
+        with pytest.raises(ArtefactError, match="not a plain name"):
+            check_plain_name(bad, "class", "src")
+    assert [plain_name(n) for n in ("..", "a/b", ".x", "m#1")] == ["model", "a_b", "x", "m#1"]
+
+
+def test_os_errors_are_described_by_file_and_cause() -> None:
+    import errno
+
+    from rapomdp.io import describe_os_error
+
+    full = OSError(errno.ENOSPC, "No space left on device", "/w/render/x.npz")
+    assert describe_os_error(full) == "/w/render/x.npz: no space left on the device"
+    read_only = OSError(errno.EROFS, "Read-only file system", "/w/.lock")
+    assert describe_os_error(read_only) == "/w/.lock: the file system is read-only"

@@ -110,3 +110,70 @@ def test_the_workspace_configuration_is_read_in_one_place(tmp_path: Path) -> Non
     ws.record_config(chosen)
     assert ws.config() == chosen and ws.config(default=fallback) == chosen
     assert ws.config_path == ws.root / "config.yaml"
+
+
+def test_staleness_names_the_changed_keys_and_the_stages_after(workspace_dir: Path) -> None:
+    cfg = tiny_config()
+    ws = Workspace(workspace_dir)
+    run_pipeline(cfg, ws, until="render", context=TEST_CONTEXT)
+    assert ws.staleness(stages_up_to("render"), cfg) == {}
+    changed = tiny_config(seed=4, render={"views": 8})
+    stale = ws.staleness(stages_up_to("render"), changed)
+    assert stale["dataset"] == ["seed 3 -> 4"]
+    assert stale["render"] == ["seed 3 -> 4", "render.views 6 -> 8", "input dataset is stale"]
+    only_render = ws.staleness(stages_up_to("render"), tiny_config(render={"views": 8}))
+    assert list(only_render) == ["render"]
+
+
+def test_config_is_recorded_only_with_the_artefacts_it_made(workspace_dir: Path) -> None:
+    cfg = tiny_config()
+    ws = Workspace(workspace_dir)
+    run_pipeline(cfg, ws, until="dataset", context=TEST_CONTEXT)
+    assert ws.recorded_config() == cfg
+
+    def fails(config, inputs, out, context):
+        (out / "half.npz").write_bytes(b"x")
+        raise StageError("it failed")
+
+    other = tiny_config(seed=9)
+    with pytest.raises(StageError, match="it failed"):
+        ws.run(Stage("broken", fails, sections=("seed",)), other)
+    assert ws.recorded_config() == cfg, "a failed stage does not record its configuration"
+    assert not [p for p in workspace_dir.iterdir() if ".tmp-" in p.name]
+
+
+def test_one_run_at_a_time_and_leftovers_of_dead_runs(workspace_dir: Path) -> None:
+    import subprocess
+    import sys
+
+    from rapomdp.workspace import WorkspaceBusyError
+
+    ws = Workspace(workspace_dir)
+    run_pipeline(tiny_config(), ws, until="dataset", context=TEST_CONTEXT)
+    os_replace = __import__("os").replace
+    os_replace(workspace_dir / "dataset", workspace_dir / ".dataset.old-12345")
+    (workspace_dir / ".render.tmp-12345").mkdir()
+    (workspace_dir / ".manifest.json.abc.tmp").write_text("{")
+    with ws.locked(), ws.locked():  # the same process may nest
+        assert (workspace_dir / "dataset" / "dataset.json").exists(), "moved back"
+        assert sorted(p.name for p in workspace_dir.iterdir()) == [
+            ".lock", "config.yaml", "dataset", "manifest.json"]
+        holder = subprocess.run(
+            [sys.executable, "-c", "import sys; from rapomdp.workspace import Workspace\n"
+             f"with Workspace({str(workspace_dir)!r}).locked(): pass"],
+            capture_output=True, text=True, timeout=120)
+        assert holder.returncode == 1
+        assert f"in use by another rapomdp run (pid {__import__('os').getpid()})" in holder.stderr
+        assert WorkspaceBusyError.__name__ in holder.stderr
+
+
+def test_a_damaged_manifest_is_named(workspace_dir: Path) -> None:
+    from rapomdp.io import ArtefactError
+
+    workspace_dir.mkdir()
+    ws = Workspace(workspace_dir)
+    for content, message in (("[]", "not a rapomdp manifest"), ("{}", "without it"),
+                             ('{"stages": {"render": 3}}', "record of stage 'render'")):
+        (workspace_dir / "manifest.json").write_text(content)
+        with pytest.raises(ArtefactError, match=message):
+            ws.manifest()

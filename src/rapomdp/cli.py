@@ -114,6 +114,10 @@ def _guard(action: Callable[[], T]) -> T:
         raise _fail(f"{describe_os_error(exc)}; the earlier artefacts are intact") from None
     except KeyError as exc:
         raise _fail(str(exc.args[0])) from None
+    except MemoryError:
+        raise _fail("out of memory: a setting asks for more than this machine has (smaller "
+                    "camera, fewer views or viewpoints?); the earlier artefacts are intact"
+                    ) from None
 
 
 def _report(result: StageResult) -> None:

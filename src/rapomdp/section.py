@@ -27,6 +27,11 @@ def _leaf_types(annotation: Any) -> set[Any]:
     return leaves
 
 
+#: Every whole-number field lies within this magnitude (a count of 2^40 views or epochs would
+#: only fail later, for memory); a field may bound itself tighter.
+MAX_MAGNITUDE = 2**32
+
+
 def _holds_boolean(value: Any) -> bool:
     if isinstance(value, bool):
         return True
@@ -42,9 +47,12 @@ class Section(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _no_boolean_numbers(cls, value: Any, info: ValidationInfo) -> Any:
-        if info.field_name is None or not _holds_boolean(value):
+        if info.field_name is None:
             return value
         leaves = _leaf_types(cls.model_fields[info.field_name].annotation)
-        if bool not in leaves and leaves & {int, float}:
+        if _holds_boolean(value) and bool not in leaves and leaves & {int, float}:
             raise ValueError("a boolean is not a number")
+        if (int in leaves and float not in leaves and isinstance(value, int | float)
+                and not isinstance(value, bool) and abs(value) >= MAX_MAGNITUDE):
+            raise ValueError("a whole number of magnitude below 2^32 is expected")
         return value

@@ -130,20 +130,21 @@ def status_marks_stale(root: Path) -> Outcome:
     return _kept(outcome, before, ws, changed=("config.yaml",))
 
 
-@case("override: boolean", "`render.views=true` on the command line",
-      "render.views: a boolean is not a number")
-def override_boolean(root: Path) -> Outcome:
+def _override(root: Path, override: str) -> Outcome:
+    """A bad ``KEY=VALUE`` on a cached workspace: refused, nothing touched."""
     ws = cached_workspace(root)
     before = snapshot(ws)
-    return _kept(cli(["render", "-w", str(ws), "render.views=true"]), before, ws)
+    return _kept(cli(["render", "-w", str(ws), override]), before, ws)
 
 
-@case("override: unknown key", "`train.epochz=3` on the command line",
-      "train.epochz: unknown key")
-def override_unknown(root: Path) -> Outcome:
-    ws = cached_workspace(root)
-    before = snapshot(ws)
-    return _kept(cli(["render", "-w", str(ws), "train.epochz=3"]), before, ws)
+for _name, _override_text, _expect in (
+        ("override: boolean", "render.views=true", "render.views: a boolean is not a number"),
+        ("override: unknown key", "train.epochz=3", "train.epochz: unknown key"),
+        ("radius .inf", "render.radius_m=.inf", "render.radius_m: Input should be a finite"),
+        ("seed: -1", "seed=-1", "seed: Input should be greater than or equal to 0"),
+        ("seed: 2^32", "seed=4294967296", "seed: a whole number of magnitude below 2^32")):
+    case(_name, f"`{_override_text}` on the command line", _expect)(
+        lambda root, text=_override_text: _override(root, text))
 
 
 # -- hostile input ---------------------------------------------------------------------------
@@ -196,13 +197,6 @@ def zero_area_meshes(root: Path) -> Outcome:
     return cli(["render", "-w", str(root / "ws"), "-c", str(config)])
 
 
-@case("radius .inf", "`render.radius_m: .inf`", "render.radius_m: Input should be a finite")
-def infinite_radius(root: Path) -> Outcome:
-    ws = cached_workspace(root)
-    before = snapshot(ws)
-    return _kept(cli(["render", "-w", str(ws), "render.radius_m=.inf"]), before, ws)
-
-
 @case("views: true", "`render: {views: true}` in a configuration file",
       "render.views: a boolean is not a number")
 def views_true(root: Path) -> Outcome:
@@ -210,13 +204,6 @@ def views_true(root: Path) -> Outcome:
     path.parent.mkdir()
     path.write_text("render: {views: true}\n")
     return cli(["render", "-w", str(root / "ws"), "-c", str(path)])
-
-
-@case("seed: -1", "`seed: -1`", "seed: Input should be greater than or equal to 0")
-def seed_negative(root: Path) -> Outcome:
-    ws = cached_workspace(root)
-    before = snapshot(ws)
-    return _kept(cli(["render", "-w", str(ws), "seed=-1"]), before, ws)
 
 
 @case("seed: 1e23", "`seed: 1.0e+23` (a float YAML reads) in a file", "seed:")
@@ -227,13 +214,6 @@ def seed_huge(root: Path) -> Outcome:
     outcome = cli(["render", "-w", str(root / "ws"), "-c", str(path)])
     assert "seed" in outcome.detail and outcome.exit_code == 2, outcome.detail
     return outcome
-
-
-@case("seed: 2^32", "`seed=4294967296`", "seed: Input should be less than 4294967296")
-def seed_too_large(root: Path) -> Outcome:
-    ws = cached_workspace(root)
-    before = snapshot(ws)
-    return _kept(cli(["render", "-w", str(ws), "seed=4294967296"]), before, ws)
 
 
 @case("Latin-1 OBJ", "OBJ files with a Latin-1 comment (`# modèle créé`)",
@@ -305,28 +285,17 @@ def _bad_manifest(root: Path, content: bytes, command: str) -> Outcome:
     return _kept(outcome, before, ws)
 
 
-@case("manifest not UTF-8", "manifest.json with a Latin-1 byte, then `render`",
-      "not valid JSON (byte")
-def manifest_not_utf8(root: Path) -> Outcome:
-    return _bad_manifest(root, b'{"stages": {"caf\xe9": 1}}', "render")
-
-
-@case("manifest a list", "manifest.json holding a JSON list, then `render`",
-      "not a rapomdp manifest")
-def manifest_list(root: Path) -> Outcome:
-    return _bad_manifest(root, b"[]", "render")
-
-
-@case("manifest {} (status)", "manifest.json holding `{}`, then `status`",
-      "not a rapomdp manifest")
-def manifest_empty_status(root: Path) -> Outcome:
-    return _bad_manifest(root, b"{}", "status")
-
-
-@case("manifest list (status)", "manifest.json holding `[1, 2]`, then `status`",
-      "not a rapomdp manifest")
-def manifest_list_status(root: Path) -> Outcome:
-    return _bad_manifest(root, b"[1, 2]", "status")
+for _name, _fault, _expect, _content, _command in (
+        ("manifest not UTF-8", "manifest.json with a Latin-1 byte, then `render`",
+         "not valid JSON (byte", b'{"stages": {"caf\xe9": 1}}', "render"),
+        ("manifest a list", "manifest.json holding a JSON list, then `render`",
+         "not a rapomdp manifest", b"[]", "render"),
+        ("manifest {} (status)", "manifest.json holding `{}`, then `status`",
+         "not a rapomdp manifest", b"{}", "status"),
+        ("manifest list (status)", "manifest.json holding `[1, 2]`, then `status`",
+         "not a rapomdp manifest", b"[1, 2]", "status")):
+    case(_name, _fault, _expect)(
+        lambda root, content=_content, command=_command: _bad_manifest(root, content, command))
 
 
 @case("read-only, cached", "a read-only workspace whose stages are all cached",
@@ -445,15 +414,16 @@ def killed_parent_workers(root: Path) -> Outcome:
     pids.mkdir()
     parent = python_process(
         "from rapomdp.parallel import run_tasks\n"
-        "from tests.faults.harness import sleep_and_report_pid\n"
+        "from tests.faults.tasks import sleep_and_report_pid\n"
         f"run_tasks(sleep_and_report_pid, [({str(pids)!r}, 120)] * 2, 2, 'sleep')\n")
     try:
         wait_for(lambda: len(list(pids.glob("*.pid"))) == 2, 120, "two workers")
     finally:
+        start = time.monotonic()
         parent.send_signal(signal.SIGKILL)
         parent.communicate()
     workers = [int(p.stem) for p in pids.glob("*.pid")]
-    start = time.monotonic()
+    assert len(workers) == 2
     wait_for(lambda: not any(alive(pid) for pid in workers), 10, "the workers to end")
     return Outcome(0, f"workers ended {time.monotonic() - start:.1f} s after the parent's "
                    "SIGKILL")
@@ -484,7 +454,7 @@ def two_runs(root: Path) -> Outcome:
       "a worker process died")
 def worker_dies(root: Path) -> Outcome:
     from rapomdp.parallel import WorkerError, run_tasks
-    from tests.faults.harness import die
+    from tests.faults.tasks import die
 
     try:
         run_tasks(die, [(0,), (1,)], 2, "dying tasks")

@@ -240,15 +240,3 @@ def disk_full(root: Path) -> Iterator[None]:
         yield
     finally:
         builtins.open = io.open = real_open  # type: ignore[assignment]
-
-
-def sleep_and_report_pid(folder: str, seconds: float) -> int:
-    """A worker task that writes its pid to ``folder`` and sleeps (kill tests)."""
-    Path(folder, f"{os.getpid()}.pid").write_text(str(os.getpid()))
-    time.sleep(seconds)
-    return os.getpid()
-
-
-def die(code: int) -> None:
-    """A worker task whose process dies at once, as one killed for memory does."""
-    os.kill(os.getpid(), 9)
