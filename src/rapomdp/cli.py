@@ -6,21 +6,21 @@ import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, TypeVar
+from typing import TYPE_CHECKING, Annotated, TypeVar
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
-from rapomdp.config import Config, ConfigError, load_config
-from rapomdp.data.layouts import DatasetLayoutError
-from rapomdp.data.meshes import MeshLoadError
-from rapomdp.data.splits import TooFewModelsError
 from rapomdp.io import ArtefactError, atomic_path
-from rapomdp.pipeline import STAGE_NAMES, STAGES, run_pipeline
 from rapomdp.planning.cli import pomdp_app
-from rapomdp.recognition.classifier import CheckpointError
-from rapomdp.workspace import StageError, StageResult, Workspace
+
+if TYPE_CHECKING:
+    from rapomdp.config import Config
+    from rapomdp.workspace import StageResult, Workspace
+
+# Stage code (torch, the robot, rendering) is imported inside the commands that run it, so
+# `rapomdp pomdp ...` and `--help` start without it.
 
 app = typer.Typer(
     help=(
@@ -41,15 +41,21 @@ app.add_typer(dataset_app, name="dataset")
 app.add_typer(pomdp_app, name="pomdp")
 
 console = Console(stderr=True)
-USER_ERRORS = (
-    ConfigError,
-    StageError,
-    MeshLoadError,
-    DatasetLayoutError,
-    TooFewModelsError,
-    ArtefactError,
-    CheckpointError,
-)
+
+
+def _user_errors() -> tuple[type[Exception], ...]:
+    """The errors that are the user's to fix (imported when one is being handled)."""
+    from rapomdp.config import ConfigError
+    from rapomdp.data.layouts import DatasetLayoutError
+    from rapomdp.data.meshes import MeshLoadError
+    from rapomdp.data.splits import TooFewModelsError
+    from rapomdp.recognition.classifier import CheckpointError
+    from rapomdp.workspace import StageError
+
+    return (ConfigError, StageError, MeshLoadError, DatasetLayoutError, TooFewModelsError,
+            ArtefactError, CheckpointError)
+
+
 T = TypeVar("T")
 
 ConfigOption = Annotated[
@@ -66,7 +72,7 @@ def _guard(action: Callable[[], T]) -> T:
     """Run ``action``; a user error prints one clear message and exits with status 2."""
     try:
         return action()
-    except USER_ERRORS as exc:
+    except _user_errors() as exc:
         console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
     except KeyError as exc:
@@ -88,6 +94,10 @@ def _save_config(config: Config, workspace: Workspace) -> None:
 def _run(config_path: Path | None, workspace: Path, until: str | None,
          force: list[str]) -> None:
     def action() -> None:
+        from rapomdp.config import load_config
+        from rapomdp.pipeline import run_pipeline
+        from rapomdp.workspace import Workspace
+
         config = load_config(config_path)
         ws = Workspace(workspace)
         _save_config(config, ws)
@@ -102,7 +112,8 @@ def run(
     config: ConfigOption = None,
     force: Annotated[
         list[str] | None,
-        typer.Option("--force", "-f", help=f"Redo a stage ({', '.join(STAGE_NAMES)}); repeatable."),
+        typer.Option("--force", "-f", help="Redo a stage (by name, as `rapomdp status` lists "
+                     "them); repeatable."),
     ] = None,
     until: Annotated[
         str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
@@ -147,6 +158,7 @@ def dataset_preview(
         from rapomdp.data.dataset import load_dataset
         from rapomdp.data.preview import contact_sheet
         from rapomdp.geometry.camera import xtion_intrinsics
+        from rapomdp.workspace import Workspace
 
         ws = Workspace(workspace)
         dataset = load_dataset(ws.require("dataset"))
@@ -268,6 +280,7 @@ def figure_fig1(
 
     def action() -> tuple[Path, Path]:
         from rapomdp.awareness.report import write_fig1
+        from rapomdp.workspace import Workspace
 
         return write_fig1(Workspace(workspace), class_name, view)
 
@@ -295,6 +308,8 @@ def figure_fig2(
 
     def action() -> tuple[Path, Path]:
         from rapomdp.awareness.report import write_fig2
+        from rapomdp.config import load_config
+        from rapomdp.workspace import Workspace
 
         return write_fig2(load_config(config), Workspace(workspace), target,
                           [a.strip() for a in against.split(",") if a.strip()], epochs,
@@ -313,6 +328,7 @@ def robot(workspace: WorkspaceOption, config: ConfigOption = None,
     def summary() -> str:
         from rapomdp.io import read_json
         from rapomdp.robot.stage import describe
+        from rapomdp.workspace import Workspace
 
         return describe(read_json(Workspace(workspace).require("robot") / "robot.json"))
 
@@ -327,13 +343,15 @@ def solve(workspace: WorkspaceOption, config: ConfigOption = None,
 
     def summary() -> dict:
         from rapomdp.io import read_json
+        from rapomdp.workspace import Workspace
 
         return read_json(Workspace(workspace).require("solve") / "solve_summary.json")
 
     for name, bounds in _guard(summary).items():
         console.print(
             f"  {name:<11} value in [{bounds['lower']:.4f}, {bounds['upper']:.4f}] after "
-            f"{bounds['seconds']:.1f} s, {bounds['vectors']} vectors", highlight=False)
+            f"{bounds['seconds']:.1f} s of CPU time, {bounds['vectors']} vectors"
+            + (f"; {bounds['note']}" if bounds.get("note") else ""), highlight=False)
 
 
 WorkersOption = Annotated[
@@ -389,6 +407,8 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
     if fig2:
         def make_fig2() -> tuple[Path, Path]:
             from rapomdp.awareness.report import write_fig2
+            from rapomdp.config import load_config
+            from rapomdp.workspace import Workspace
 
             return write_fig2(load_config(config), Workspace(workspace), FIG2_TARGET,
                               list(FIG2_AGAINST), None, on_result=_report)
@@ -403,6 +423,8 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
 @app.command("config")
 def show_config(config: ConfigOption = None) -> None:
     """Print the resolved configuration as YAML (the default when no file is given)."""
+    from rapomdp.config import load_config
+
     resolved = _guard(lambda: load_config(config))
     sys.stdout.write(resolved.to_yaml())
 
@@ -410,10 +432,14 @@ def show_config(config: ConfigOption = None) -> None:
 @app.command()
 def status(workspace: WorkspaceOption) -> None:
     """Show which stages a workspace holds, and when they ran."""
+    from rapomdp.pipeline import STAGES
+    from rapomdp.workspace import Workspace
+
     manifest = _guard(lambda: Workspace(workspace).manifest())
     table = Table(title=str(workspace))
     for column in ("stage", "files", "seconds", "finished", "key"):
         table.add_column(column)
+
     for stage in STAGES:
         record = manifest["stages"].get(stage.name)
         if record is None:
