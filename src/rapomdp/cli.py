@@ -7,36 +7,23 @@ import sys
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, TypeVar
+from typing import TYPE_CHECKING, Annotated, TypeVar
 
 import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from rapomdp.config import (
-    Config,
-    ConfigError,
-    apply_overrides,
-    config_from_dict,
-    read_config_data,
-)
 from rapomdp.context import RunContext
-from rapomdp.data.layouts import DatasetLayoutError
-from rapomdp.data.meshes import MeshLoadError
-from rapomdp.data.splits import TooFewModelsError
 from rapomdp.io import ArtefactError, describe_os_error
-from rapomdp.parallel import WorkerError
-from rapomdp.pipeline import (
-    STAGE_NAMES,
-    STAGES,
-    format_staleness,
-    resolve_config,
-    run_pipeline,
-)
 from rapomdp.planning.cli import pomdp_app
-from rapomdp.recognition.classifier import CheckpointError
-from rapomdp.workspace import StageError, StageResult, Workspace
+
+if TYPE_CHECKING:
+    from rapomdp.config import Config
+    from rapomdp.workspace import StageResult, Workspace
+
+# Stage code (torch, the robot, rendering) is imported inside the commands that run it, so
+# `rapomdp pomdp ...` and `--help` start without it.
 
 app = typer.Typer(
     help=(
@@ -57,16 +44,22 @@ app.add_typer(dataset_app, name="dataset")
 app.add_typer(pomdp_app, name="pomdp")
 
 console = Console(stderr=True)
-USER_ERRORS = (
-    ConfigError,
-    StageError,
-    MeshLoadError,
-    DatasetLayoutError,
-    TooFewModelsError,
-    ArtefactError,
-    CheckpointError,
-    WorkerError,
-)
+
+
+def _user_errors() -> tuple[type[Exception], ...]:
+    """The errors that are the user's to fix (imported when one is being handled)."""
+    from rapomdp.config import ConfigError
+    from rapomdp.data.layouts import DatasetLayoutError
+    from rapomdp.data.meshes import MeshLoadError
+    from rapomdp.data.splits import TooFewModelsError
+    from rapomdp.parallel import WorkerError
+    from rapomdp.recognition.classifier import CheckpointError
+    from rapomdp.workspace import StageError
+
+    return (ConfigError, StageError, MeshLoadError, DatasetLayoutError, TooFewModelsError,
+            ArtefactError, CheckpointError, WorkerError)
+
+
 T = TypeVar("T")
 
 ConfigOption = Annotated[
@@ -108,7 +101,7 @@ def _guard(action: Callable[[], T]) -> T:
     """Run ``action``; a user error prints one clear message and exits with status 2."""
     try:
         return action()
-    except USER_ERRORS as exc:
+    except _user_errors() as exc:
         raise _fail(str(exc)) from None
     except OSError as exc:  # a read-only folder, a full disk: the file and the cause
         raise _fail(f"{describe_os_error(exc)}; the earlier artefacts are intact") from None
@@ -129,6 +122,9 @@ def _resolve(config_path: Path | None, workspace: Path, overrides: list[str] | N
              reconfigure: bool) -> Config:
     """The workspace's configuration for this command (see :func:`resolve_config`); the
     recorded stages it will redo are listed first."""
+    from rapomdp.pipeline import format_staleness, resolve_config
+    from rapomdp.workspace import Workspace
+
     config, stale = resolve_config(Workspace(workspace), config_path, overrides or (),
                                    reconfigure)
     if stale:
@@ -141,6 +137,9 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
          force: list[str], context: RunContext | None = None,
          overrides: list[str] | None = None, reconfigure: bool = False) -> None:
     def action() -> None:
+        from rapomdp.pipeline import run_pipeline
+        from rapomdp.workspace import Workspace
+
         config = _resolve(config_path, workspace, overrides, reconfigure)
         run_context = context or RunContext()
         if run_context.scheduler is None and config.parallel.scheduler is not None:
@@ -157,7 +156,8 @@ def run(
     config: ConfigOption = None,
     force: Annotated[
         list[str] | None,
-        typer.Option("--force", "-f", help=f"Redo a stage ({', '.join(STAGE_NAMES)}); repeatable."),
+        typer.Option("--force", "-f", help="Redo a stage (by name, as `rapomdp status` lists "
+                     "them); repeatable."),
     ] = None,
     until: Annotated[
         str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
@@ -211,6 +211,7 @@ def dataset_preview(
         from rapomdp.data.dataset import load_dataset
         from rapomdp.data.preview import contact_sheet
         from rapomdp.geometry.camera import xtion_intrinsics
+        from rapomdp.workspace import Workspace
 
         ws = Workspace(workspace)
         dataset = load_dataset(ws.require("dataset"))
@@ -262,6 +263,7 @@ def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
     _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [],
          _context(threads), overrides, reconfigure)
     from rapomdp.recognition.artefacts import load_single_view_metrics
+    from rapomdp.workspace import Workspace
 
     metrics = _guard(lambda: load_single_view_metrics(
         Workspace(workspace).require("classifier_eval")))
@@ -309,6 +311,7 @@ def vptree(workspace: WorkspaceOption, config: ConfigOption = None,
     """The VP-tree baseline: vocabulary-tree classifier and its per-viewpoint confusion."""
     _run(config, workspace, "vptree", ["vptree"] if force else [], None, overrides, reconfigure)
     from rapomdp.recognition.artefacts import load_vptree_summary
+    from rapomdp.workspace import Workspace
 
     data = _guard(lambda: load_vptree_summary(Workspace(workspace).require("vptree")))
     test = data.accuracy_test_xrho
@@ -341,6 +344,7 @@ def figure_fig1(
 
     def action() -> tuple[Path, Path]:
         from rapomdp.awareness.report import write_fig1
+        from rapomdp.workspace import Workspace
 
         return write_fig1(Workspace(workspace), class_name, view)
 
@@ -368,6 +372,7 @@ def figure_fig2(
     """
     def action() -> tuple[Path, Path]:
         from rapomdp.pipeline import write_fig2
+        from rapomdp.workspace import Workspace
 
         resolved = _resolve(config, workspace, overrides, reconfigure)
         with Workspace(workspace).locked():
@@ -388,6 +393,7 @@ def robot(workspace: WorkspaceOption, config: ConfigOption = None,
 
     def summary() -> str:
         from rapomdp.robot.artefacts import describe, load_robot_summary
+        from rapomdp.workspace import Workspace
 
         return describe(load_robot_summary(Workspace(workspace).require("robot")))
 
@@ -404,13 +410,15 @@ def solve(workspace: WorkspaceOption, config: ConfigOption = None,
 
     def summary() -> dict:
         from rapomdp.io import read_json
+        from rapomdp.workspace import Workspace
 
         return read_json(Workspace(workspace).require("solve") / "solve_summary.json")
 
     for name, bounds in _guard(summary).items():
         console.print(
             f"  {name:<11} value in [{bounds['lower']:.4f}, {bounds['upper']:.4f}] after "
-            f"{bounds['seconds']:.1f} s, {bounds['vectors']} vectors", highlight=False)
+            f"{bounds['seconds']:.1f} s of CPU time, {bounds['vectors']} vectors"
+            + (f"; {bounds['note']}" if bounds.get("note") else ""), highlight=False)
 
 
 WorkersOption = Annotated[
@@ -460,6 +468,7 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
     if fig2:
         def make_fig2() -> tuple[Path, Path]:
             from rapomdp.pipeline import write_fig2
+            from rapomdp.workspace import Workspace
 
             resolved = _resolve(config, workspace, overrides, reconfigure)
             with Workspace(workspace).locked():
@@ -484,6 +493,10 @@ def show_config(
     default, with any KEY=VALUE overrides; nothing is written."""
 
     def action() -> Config:
+        from rapomdp.config import apply_overrides, config_from_dict, read_config_data
+        from rapomdp.pipeline import resolve_config
+        from rapomdp.workspace import Workspace
+
         if workspace is None:
             data = read_config_data(config) if config is not None else {}
             return config_from_dict(apply_overrides(data, overrides or ()), str(config))
@@ -496,6 +509,10 @@ def show_config(
 def status(workspace: WorkspaceOption) -> None:
     """Show which stages a workspace holds, when they ran, and which are stale and why
     (against W/config.yaml, the stages' code and their input files)."""
+
+    from rapomdp.config import Config
+    from rapomdp.pipeline import STAGES
+    from rapomdp.workspace import Workspace
 
     def action() -> tuple[dict, dict[str, list[str]], bool]:
         ws = Workspace(workspace)

@@ -149,15 +149,21 @@ def _parse_size(text: str) -> tuple[int, int]:
 
 
 def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
-    """The problem the solve stage builds from a workspace, with the workspace's configuration."""
-    from rapomdp.config import Config
+    """The problem the solve stage builds from a workspace, with the workspace's configuration
+    (the only command that reads the pipeline's configuration: imported here). Its errors come
+    back as ValueError."""
+    from rapomdp.config import Config, ConfigError
     from rapomdp.planning.stage import workspace_problem
-    from rapomdp.workspace import Workspace
+    from rapomdp.workspace import StageError, Workspace
 
-    ws = Workspace(root)
-    config = ws.config(default=Config())
-    vptree = ws.require("vptree") if "vptree" in ws.manifest()["stages"] else None
-    return workspace_problem(config, ws.require("observe"), ws.require("robot"), model, vptree)
+    try:
+        ws = Workspace(root)
+        config = ws.config(default=Config())
+        vptree = ws.require("vptree") if "vptree" in ws.manifest()["stages"] else None
+        return workspace_problem(config, ws.require("observe"), ws.require("robot"), model,
+                                 vptree)
+    except (StageError, ConfigError) as exc:
+        raise ValueError(str(exc)) from None
 
 
 @pomdp_app.command("export")
@@ -187,9 +193,7 @@ def export_cmd(
     memory_gb: float = typer.Option(DEFAULT_MEMORY_GB, "--memory-gb", help=MEMORY_HELP),
 ) -> None:
     """Write an active-recognition problem as .pomdpx (viewpoint fully observed) or .pomdp."""
-    from rapomdp.config import ConfigError
     from rapomdp.planning.workspace import load_problem_arrays
-    from rapomdp.workspace import StageError
 
     console = Console(soft_wrap=True)
     _check_positive(console, memory_gb=memory_gb)
@@ -209,7 +213,7 @@ def export_cmd(
                 arrays["observation_model"], arrays["move_energy"], arrays.get("reachable"),
                 lambda_, discount, start,
             )
-    except (ValueError, StageError, ArtefactError, ConfigError) as exc:
+    except (ValueError, ArtefactError) as exc:
         console.print(f"[red]error:[/red] {exc}", soft_wrap=True)
         raise typer.Exit(2) from None
     if out.suffix == ".pomdp":

@@ -24,7 +24,6 @@ from collections.abc import Callable
 from math import comb
 
 import numpy as np
-import scipy.sparse as sp
 
 from rapomdp.planning.memory import ENTRY_BYTES
 
@@ -170,6 +169,8 @@ def grid_upper_bound(
     move is forbidden). ``initial`` (a coarser bound) seeds the iteration: the minimum of two
     upper bounds is one.
     """
+    import scipy.sparse as sp  # here: planning's import stays light (start-up of the CLI)
+
     P = np.asarray(observation_model, dtype=np.float64)
     n_v, n_c, n_o = P.shape
     grid = FreudenthalGrid(resolution, n_c)

@@ -456,8 +456,23 @@ def _fmt(values: np.ndarray) -> str:
     return " ".join(repr(float(v)) for v in np.ravel(values))
 
 
+def _matrix_lines(key: str, action: str, matrix: np.ndarray) -> list[str]:
+    """One action's T or O as rows, or as ``key: a : i : j p`` entries when those are
+    fewer numbers (unlisted entries are 0 in the format): an exported active-recognition
+    problem has one non-zero per row of T, so its file stays linear in the states."""
+    rows, cols = np.nonzero(matrix)
+    if 4 * rows.size < matrix.size:
+        return [f"{key}: {action} : {i} : {j} {float(matrix[i, j])!r}"
+                for i, j in zip(rows.tolist(), cols.tolist(), strict=True)]
+    return [f"{key}: {action}", *(_fmt(row) for row in matrix)]
+
+
 def format_pomdp(pomdp: POMDP) -> str:
-    """The ``.pomdp`` text of a flat POMDP (names kept when they are valid identifiers)."""
+    """The ``.pomdp`` text of a flat POMDP (names kept when they are valid identifiers).
+
+    T and O are written per action as rows or, when sparse, as single entries; an O that is
+    the same for every action is written once with ``*``.
+    """
 
     def names(items: list[str], n: int) -> str:
         ok = all(re.fullmatch(r"[A-Za-z][\w\-.]*", x) for x in items) and len(items) == n
@@ -474,11 +489,12 @@ def format_pomdp(pomdp: POMDP) -> str:
         "",
     ]
     for a in range(pomdp.n_actions):
-        lines.append(f"T: {a}")
-        lines.extend(_fmt(row) for row in pomdp.T[a])
-    for a in range(pomdp.n_actions):
-        lines.append(f"O: {a}")
-        lines.extend(_fmt(row) for row in pomdp.Z[a])
+        lines.extend(_matrix_lines("T", str(a), pomdp.T[a]))
+    if pomdp.n_actions > 1 and bool(np.all(pomdp.Z == pomdp.Z[0])):
+        lines.extend(_matrix_lines("O", "*", pomdp.Z[0]))
+    else:
+        for a in range(pomdp.n_actions):
+            lines.extend(_matrix_lines("O", str(a), pomdp.Z[a]))
     for a in range(pomdp.n_actions):
         for s in np.flatnonzero(pomdp.R[a]):
             lines.append(f"R: {a} : {s} : * : * {float(pomdp.R[a, s])!r}")

@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from xml.sax.saxutils import escape
 
 import numpy as np
 
 from rapomdp.io import write_text_atomic
 from rapomdp.planning.momdp import FORBIDDEN_REWARD, ActiveRecognitionProblem
+
+
+def escape(text: str) -> str:
+    """XML character data: &, < and > escaped (xml.sax.saxutils would import urllib)."""
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 def _num(x: float) -> str:
@@ -88,7 +92,10 @@ def format_pomdpx(problem: ActiveRecognitionProblem, description: str = "") -> s
         for c in range(n_c):
             w(f"<Entry><Instance>* {views[v]} {classes[c]} -</Instance>"
               f"<ProbTable>{' '.join(_num(x) for x in P[v, c])}</ProbTable></Entry>")
-    w("<Entry><Instance>* done * -</Instance><ProbTable>uniform</ProbTable></Entry>")
+    # in the terminal state the label carries nothing; pomdpsol accepts ``uniform`` only in
+    # the initial belief, so the row is written out (all mass on the first label: exact)
+    done_row = " ".join(["1.0"] + ["0.0"] * (n_c - 1))
+    w(f"<Entry><Instance>* done * -</Instance><ProbTable>{done_row}</ProbTable></Entry>")
     w("</Parameter></CondProb>")
     w("</ObsFunction>")
     # rewards: move cost by (from, to); declaration by (declared, true class); 0 when done
