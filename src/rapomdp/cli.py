@@ -20,7 +20,7 @@ from rapomdp.planning.cli import pomdp_app
 
 if TYPE_CHECKING:
     from rapomdp.config import Config
-    from rapomdp.workspace import StageResult, Workspace
+    from rapomdp.workspace import StageResult
 
 # Stage code (torch, the robot, rendering) is imported inside the commands that run it, so
 # `rapomdp pomdp ...` and `--help` start without it.
