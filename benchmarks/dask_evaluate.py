@@ -21,11 +21,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from rapomdp import parallel
 from rapomdp.config import config_from_dict
+from rapomdp.context import RunContext
 from rapomdp.io import load_npz
 from rapomdp.pipeline import get_stage, run_pipeline
-from rapomdp.progress import set_progress
 from rapomdp.workspace import Workspace
 
 RESULTS = Path(__file__).parent / "results" / "dask_evaluate.txt"
@@ -72,9 +71,9 @@ def compare(a: Path, b: Path) -> list[str]:
     return differ
 
 
-def timed_evaluate(ws: Workspace, config, copy_to: Path) -> float:
+def timed_evaluate(ws: Workspace, config, copy_to: Path, context: RunContext) -> float:
     start = time.perf_counter()
-    ws.run(get_stage("evaluate"), config, force=True)
+    ws.run(get_stage("evaluate"), config, force=True, context=context)
     seconds = time.perf_counter() - start
     shutil.copytree(ws.require("evaluate"), copy_to)
     return seconds
@@ -86,25 +85,24 @@ def main() -> None:
                         help="a workspace to reuse (default: a new one in a temporary folder)")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
-    set_progress(False)
     from distributed import LocalCluster
 
     config = config_from_dict(CONFIG)
     ws = Workspace(args.workspace or Path(tempfile.mkdtemp(prefix="dask-bench-")) / "ws")
-    parallel.workers = args.workers
+    local = RunContext(workers=args.workers, progress=False)
     start = time.perf_counter()
-    run_pipeline(config, ws, until="solve")
+    run_pipeline(config, ws, until="solve", context=local)
     print(f"workspace {ws.root} up to solve in {time.perf_counter() - start:.0f} s",
           file=sys.stderr)
     out = Path(tempfile.mkdtemp(prefix="dask-bench-out-"))
-    local_s = timed_evaluate(ws, config, out / "local")
+    local_s = timed_evaluate(ws, config, out / "local", local)
     start = time.perf_counter()
     with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster:
         startup_s = time.perf_counter() - start
-        parallel.scheduler = cluster.scheduler_address
-        dask_s = timed_evaluate(ws, config, out / "dask")
-        parallel.scheduler = None
+        on_dask = RunContext(workers=args.workers, progress=False,
+                             scheduler=cluster.scheduler_address)
+        dask_s = timed_evaluate(ws, config, out / "dask", on_dask)
     differ = compare(out / "local", out / "dask")
     files = sum(1 for p in (out / "local").rglob("*") if p.is_file())
     episodes = len(load_npz(out / "local" / "episodes.npz")["correct"])

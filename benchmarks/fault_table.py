@@ -24,8 +24,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from rapomdp import parallel  # noqa: E402
-from rapomdp.progress import set_progress  # noqa: E402
 from tests.faults.cases import CASES  # noqa: E402
 from tests.faults.harness import Case, Outcome, files_outside  # noqa: E402
 
@@ -68,8 +66,6 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--limit-s", type=float, default=180.0, help="a case past it hangs")
     args = parser.parse_args()
-    set_progress(False)
-    parallel.workers = 1
     signal.signal(signal.SIGALRM, _alarm)
     rows, verdicts = [], Counter()
     for case in CASES:
