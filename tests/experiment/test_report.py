@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from typer.testing import CliRunner  # noqa: E402
 
-from rapomdp import cli  # noqa: E402
+from rapomdp import pipeline as pipeline_module  # noqa: E402
 from rapomdp.cli import app  # noqa: E402
 from rapomdp.config import Config  # noqa: E402
 from rapomdp.context import RunContext
@@ -236,7 +236,7 @@ def test_report_stage_runs_in_the_pipeline_and_the_cli(synthetic, monkeypatch) -
         assert (until, force) == ("report", ["report"])
         return [workspace.run(get_stage("report"), config, force=True, context=context)]
 
-    monkeypatch.setattr(cli, "run_pipeline", only_the_report)
+    monkeypatch.setattr(pipeline_module, "run_pipeline", only_the_report)  # cli imports it lazily
     result = CliRunner().invoke(app, ["report", "-w", str(ws.root), "-c",
                                       str(ws.root / "config.yaml")])
     assert result.exit_code == 0, result.output
