@@ -76,3 +76,23 @@ def test_console_script_exits_with_the_commands_status_and_no_teardown_noise(tmp
     bad = subprocess.run(run[:-1] + [str(tmp_path / "missing.yaml")], capture_output=True,
                          text=True, env=env, timeout=300)
     assert bad.returncode == 2 and "missing.yaml: cannot read" in bad.stderr
+
+
+def test_workers_and_threads_reach_the_stages_as_one_run_context(tmp_path: Path,
+                                                                 monkeypatch) -> None:
+    from rapomdp import cli
+    from rapomdp.context import RunContext
+
+    seen: list[RunContext] = []
+
+    def record(config, workspace, until, force, on_result, context):  # noqa: ANN001
+        seen.append(context)
+        return []
+
+    monkeypatch.setattr(cli, "run_pipeline", record)
+    result = runner.invoke(app, ["run", "-w", str(tmp_path / "ws"), "--until", "dataset",
+                                 "--workers", "3", "--threads", "2"])
+    assert result.exit_code == 0, result.output
+    assert seen == [RunContext(workers=3, threads=2, progress=True)]
+    runner.invoke(app, ["train", "-w", str(tmp_path / "ws")])
+    assert seen[-1] == RunContext()
