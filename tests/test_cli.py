@@ -99,3 +99,23 @@ def test_the_workspace_keeps_its_configuration(tmp_path: Path) -> None:
     assert refused.exit_code == 2
     assert "pass --reconfigure to redo 2 stage(s)" in refused.output
     assert "dataset: seed 4 -> 3" in refused.output
+
+
+def test_workers_and_threads_reach_the_stages_as_one_run_context(tmp_path: Path,
+                                                                 monkeypatch) -> None:
+    from rapomdp import pipeline
+    from rapomdp.context import RunContext
+
+    seen: list[RunContext] = []
+
+    def record(config, workspace, until, force, on_result, context):  # noqa: ANN001
+        seen.append(context)
+        return []
+
+    monkeypatch.setattr(pipeline, "run_pipeline", record)  # the CLI imports it lazily
+    result = runner.invoke(app, ["run", "-w", str(tmp_path / "ws"), "--until", "dataset",
+                                 "--workers", "3", "--threads", "2"])
+    assert result.exit_code == 0, result.output
+    assert seen == [RunContext(workers=3, threads=2, progress=True)]
+    runner.invoke(app, ["train", "-w", str(tmp_path / "ws")])
+    assert seen[-1] == RunContext()

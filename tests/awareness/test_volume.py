@@ -4,12 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import trimesh
 
-from rapomdp.awareness.scores import normalise_scores, viewpoint_scores
-from rapomdp.awareness.visibility import render_visibility, visibility_from_depth
 from rapomdp.awareness.volume import SaliencyVolume, saliency_volume, segment_medians
-from rapomdp.data.renderer import DepthRenderer
 from rapomdp.geometry.camera import Intrinsics, look_at_many
 from rapomdp.geometry.voxels import VoxelGrid
 
@@ -71,41 +67,9 @@ def test_saliency_maps_must_match_depth():
         saliency_volume(np.zeros((1, 5, 5)), side_camera(), np.zeros((1, 4, 5)), TINY, GRID)
 
 
-@pytest.fixture(scope="module")
-def box_renderer():
-    mesh = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
-    return DepthRenderer(mesh, Intrinsics(width=64, height=48, fx=60.0, fy=60.0, cx=31.5,
-                                          cy=23.5))
 
 
-def test_voxel_facing_the_camera_is_visible_and_one_behind_is_not(box_renderer):
-    grid = VoxelGrid.around(np.full(3, -0.1), np.full(3, 0.1), 10)
-    eyes = np.array([[0.6, 0.0, 0.0], [-0.6, 0.0, 0.0]])
-    vis = render_visibility(box_renderer, look_at_many(eyes), grid).toarray()
-    front = grid.flat(grid.points_to_indices(np.array([[0.099, 0.0, 0.0]]))[0])[0]
-    back = grid.flat(grid.points_to_indices(np.array([[-0.099, 0.0, 0.0]]))[0])[0]
-    inside = grid.flat(grid.points_to_indices(np.array([[0.0, 0.0, 0.0]]))[0])[0]
-    assert vis[0, front] and not vis[0, back] and not vis[0, inside]
-    assert vis[1, back] and not vis[1, front]
-    assert vis.dtype == bool and vis.shape == (2, grid.count)
 
 
-def test_viewpoint_score_is_the_mean_of_visible_scored_voxels():
-    depth = np.zeros((2, 5, 5))
-    depth[0, 2, 2] = 0.9  # view 0 sees voxel (2, 2, 2)
-    depth[1, 1, 4] = 0.5  # view 1 sees voxel (3, 2, 2)
-    depth[1, 2, 2] = 0.9  # ... and voxel (2, 2, 2)
-    vis = visibility_from_depth(depth, np.repeat(side_camera(), 2, axis=0), TINY, GRID)
-    scores = np.full(GRID.shape, np.nan)
-    scores[2, 2, 2], scores[3, 2, 2] = 0.2, 0.6
-    out = viewpoint_scores(vis, scores.reshape(-1))
-    assert out == pytest.approx([0.2, 0.4])
-    scores[3, 2, 2] = np.nan  # an empty voxel does not count
-    assert viewpoint_scores(vis, scores.reshape(-1)) == pytest.approx([0.2, 0.2])
 
 
-def test_scores_normalise_per_class_to_unit_range():
-    out = normalise_scores(np.array([[0.2, 0.4, 0.3], [0.5, 0.5, 0.5], [1.0, np.nan, 3.0]]))
-    assert out[0] == pytest.approx([0.0, 1.0, 0.5])
-    assert out[1] == pytest.approx([0.5, 0.5, 0.5])
-    assert out[2] == pytest.approx([0.0, 0.0, 1.0])

@@ -193,3 +193,13 @@ def test_pomdp_method_acts_as_its_policy_on_its_own_belief(motion: Motion, solve
         assert revisits == 0
     with pytest.raises(ValueError, match="observation model"):
         POMDPPolicy(policy, P[:5], "bad")
+
+
+def test_a_move_is_checked_and_costs_its_energy_and_distance() -> None:
+    energy = np.arange(9, dtype=np.float64).reshape(3, 3)
+    motion = Motion(energy, 0.5 * energy, np.array([True, True, False]))
+    assert motion.move(0, 1) == (1.0, 0.5)
+    with pytest.raises(ValueError, match="cannot reach"):
+        motion.move(0, 2)
+    with pytest.raises(ValueError, match="already there"):
+        motion.move(1, 1)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rapomdp.config import Config, ConfigError, config_from_dict
-from rapomdp.io import load_npz, read_json
+from rapomdp.io import read_json
 from rapomdp.robot.artefacts import ROBOT_ARRAYS, ROBOT_FIGURE, ROBOT_SUMMARY, describe, load_robot
 from rapomdp.robot.energy import movement_energy
 from rapomdp.robot.figures import pick_poses
@@ -70,15 +70,6 @@ def test_robot_section_is_validated() -> None:
         config_from_dict({"robot": {"energy": {"penalty": "cubic"}}})
     with pytest.raises(ConfigError, match="robot.restarts"):
         config_from_dict({"robot": {"restarts": 0}})
-
-
-def test_load_robot_refuses_a_wrong_file(tmp_path: Path) -> None:
-    from rapomdp.io import ArtefactError, save_npz
-
-    save_npz(tmp_path / ROBOT_ARRAYS, reachable=np.ones(3, dtype=bool))
-    with pytest.raises(ArtefactError, match="missing arrays"):
-        load_robot(tmp_path)
-    assert set(load_npz(tmp_path / ROBOT_ARRAYS)) == {"reachable"}
 
 
 def test_pick_poses_spans_the_manipulability_range() -> None:

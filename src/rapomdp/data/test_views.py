@@ -2,7 +2,7 @@
 
 The observe, classifier_eval and vptree stages render every model at all of X_rho at once, with
 the sensor noise drawn from a stream keyed by the seed, a purpose and the model
-(:func:`test_view_rng`): the volume models under :data:`VOLUME_STREAM`, the test models under
+(:func:`xrho_noise_rng`): the volume models under :data:`VOLUME_STREAM`, the test models under
 :data:`TEST_STREAM`, so that every stage that classifies a test model at X_rho sees the same
 images. The closed loop renders one viewpoint at a time (:meth:`TestViews.look`) with the
 episode's own generator.
@@ -27,7 +27,7 @@ VOLUME_STREAM = "observe/volume"
 TEST_STREAM = "classifier_eval"
 
 
-def test_view_rng(seed: int, purpose: str, model: ModelEntry) -> np.random.Generator:
+def xrho_noise_rng(seed: int, purpose: str, model: ModelEntry) -> np.random.Generator:
     """The sensor-noise generator of one model's renders at X_rho for ``purpose``."""
     return class_seed(seed, f"{purpose}/{model.class_name}/{model.id}")
 
@@ -73,5 +73,5 @@ def xrho_renders(dataset: Dataset, model: ModelEntry, config: Config,
     """Clean depth, sensor depth (noise when enabled) and poses of a model at X_rho, the noise
     drawn from ``purpose``'s stream (:data:`VOLUME_STREAM` or :data:`TEST_STREAM`)."""
     views = TestViews.of_model(config, dataset, model)
-    clean, sensed = views.render_all(test_view_rng(config.seed, purpose, model))
+    clean, sensed = views.render_all(xrho_noise_rng(config.seed, purpose, model))
     return clean, sensed, views.poses

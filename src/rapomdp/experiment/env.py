@@ -187,10 +187,9 @@ class ActiveRecognitionEnv(gymnasium.Env):
                         model=self._model)
             reward = 0.0 if declared == truth else -self.lambda_
             return self._observation(), reward, True, False, info
-        self.motion.check_move(self._viewpoint, action)
-        energy = float(self.motion.energy[self._viewpoint, action])
+        energy, distance_m = self.motion.move(self._viewpoint, action)
         self._energy += energy
-        self._distance += float(self.motion.distance_m[self._viewpoint, action])
+        self._distance += distance_m
         self._moves += 1
         self._viewpoint = action
         self._depth = self._look()

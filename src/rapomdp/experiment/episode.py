@@ -69,6 +69,13 @@ class Motion:
         if target == source:
             raise ValueError(f"move to viewpoint {target}: the camera is already there")
 
+    def move(self, source: int, target: int) -> tuple[float, float]:
+        """One closed-loop move, checked: its energy E_M[source, target] and its geodesic
+        distance in metres (the episode simulator and the gymnasium environment both step
+        through here)."""
+        self.check_move(source, target)
+        return float(self.energy[source, target]), float(self.distance_m[source, target])
+
 
 @dataclass(frozen=True)
 class Episode:
@@ -119,9 +126,9 @@ def run_episode(scene: TestViews, recogniser: Recogniser, policy: Policy, motion
             action = ARAction("declare", int(np.argmax(beliefs[-1])))
         if action.is_declare:
             break
-        motion.check_move(viewpoint, action.target)
-        energy.append(float(motion.energy[viewpoint, action.target]))
-        distance.append(float(motion.distance_m[viewpoint, action.target]))
+        move_energy, move_distance_m = motion.move(viewpoint, action.target)
+        energy.append(move_energy)
+        distance.append(move_distance_m)
         viewpoint = action.target
     return Episode(np.array(views), np.stack(outputs), np.stack(beliefs), np.array(energy),
                    np.array(distance), int(action.target), exhausted)

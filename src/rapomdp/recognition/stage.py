@@ -20,7 +20,7 @@ import torch
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
-from rapomdp.data.test_views import TEST_STREAM, TestViews, test_view_rng
+from rapomdp.data.test_views import TEST_STREAM, TestViews, xrho_noise_rng
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, stable_hash, write_json_atomic
@@ -147,7 +147,7 @@ def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path
     xrho, sphere = [], []
     for model in track(test_models, "classifier: test models", context.progress):
         sensed = TestViews.of_model(config, dataset, model).sensed(
-            test_view_rng(config.seed, TEST_STREAM, model))
+            xrho_noise_rng(config.seed, TEST_STREAM, model))
         xrho.append(classifier.predict(sensed))
         sphere.append(classifier.predict(views.load(model)[0]))
     results = [
