@@ -57,7 +57,8 @@ def test_table1_has_every_method_and_consistent_episodes(workspace) -> None:
     table = EpisodeTable.load(out / "episodes.npz")
     assert table.methods == METHODS
     assert table.method.size == 3 * 3 * len(METHODS)  # classes x starts x methods
-    lines = (out / "table1.md").read_text().strip().splitlines()
+    lines = [line for line in (out / "table1.md").read_text().splitlines()
+             if line.startswith("|")]
     assert [line.split("|")[1].strip() for line in lines[2:]] == [
         "Static", "Random", "VP-tree", "Classifier", "RA-POMDP"]
     robot = np.load(ws.require("robot") / "robot.npz")
@@ -75,6 +76,27 @@ def test_table1_has_every_method_and_consistent_episodes(workspace) -> None:
     assert info["figure_class"] == "bicycle"
     for name in ("fig3.png", "trajectories.png", "per_class.md", "episodes.csv", "table1.csv"):
         assert (out / name).stat().st_size > 0
+
+
+def test_every_method_runs_from_the_same_pairs_and_table1_pairs_them(workspace) -> None:
+    ws, _ = workspace
+    out = ws.require("evaluate")
+    table = EpisodeTable.load(out / "episodes.npz")
+    pairs = {m: sorted(zip(table.model[table.method == m], table.start[table.method == m],
+                           strict=True)) for m in METHODS}
+    assert all(pairs[m] == pairs["static"] for m in METHODS)
+    assert len(set(pairs["static"])) == 3 * 3  # distinct (test model, start) pairs
+    rows = (out / "paired.csv").read_text().splitlines()
+    assert rows[0].startswith("method,reference,accuracy_difference")
+    ra = table.correct[table.method == "ra"].mean()
+    for row in rows[1:]:
+        method, reference, diff, low, high, n, models = row.split(",")
+        assert reference == "ra" and int(n) == 9 and int(models) == 3
+        assert float(diff) == pytest.approx(table.correct[table.method == method].mean() - ra,
+                                            abs=1e-5)
+        assert float(low) <= float(diff) + 1e-9 <= float(high) + 2e-9
+    assert [r.split(",")[0] for r in rows[1:]] == ["static", "random", "vptree", "classifier"]
+    assert "Δ accuracy vs RA-POMDP" in (out / "table1.md").read_text()
 
 
 def test_static_accuracy_is_the_single_view_accuracy_at_the_same_starts(workspace) -> None:

@@ -10,6 +10,8 @@ number of workers). Writes into the stage folder:
   ``energy``) and the steps of all episodes concatenated (``step_viewpoints``, ``step_outputs``,
   ``step_beliefs``; episode i is rows ``offsets[i]:offsets[i + 1]``); ``classes``, ``methods``;
 - ``episodes.csv`` (one row per episode), ``table1.md|csv``, ``per_class.md|csv``;
+- ``paired.csv``: each method's accuracy minus RA-POMDP's over the same (test model, start)
+  pairs, with a 95 % cluster-bootstrap interval over test models (when RA-POMDP ran);
 - ``fig3.png`` (belief in the true class against step), ``trajectories.png``;
 - ``evaluate.json``: counts, timing, images per second of the episode loop.
 """
@@ -47,6 +49,8 @@ from rapomdp.robot.stage import load_robot
 from rapomdp.workspace import StageError
 
 EVALUATE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "evaluate")
+#: The method every other is compared with, pair by pair, in Table 1.
+PAIRED_REFERENCE = "ra"
 VPTREE_RECOGNISER = "vptree"
 
 
@@ -263,6 +267,8 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> No
     """Run every episode, score them, write Table 1, the per-class table and the figures."""
     from rapomdp.experiment import figures
     from rapomdp.experiment.metrics import (
+        paired_against,
+        paired_csv,
         per_class,
         per_class_markdown,
         rows_csv,
@@ -279,8 +285,11 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> No
     save_npz(out / "episodes.npz", compressed=True, **table.arrays())
     rows = table1(table, methods)
     classes_rows = per_class(table, methods)
-    write_text_atomic(out / "table1.md", table1_markdown(rows))
+    paired = paired_against(table, methods, PAIRED_REFERENCE, seed=config.seed)
+    write_text_atomic(out / "table1.md", table1_markdown(rows, paired))
     write_text_atomic(out / "table1.csv", rows_csv(rows))
+    if paired:
+        write_text_atomic(out / "paired.csv", paired_csv(paired))
     write_text_atomic(out / "per_class.md", per_class_markdown(classes_rows, methods))
     write_text_atomic(out / "per_class.csv", rows_csv([r for _, r in classes_rows],
                                                       [name for name, _ in classes_rows]))
