@@ -11,6 +11,7 @@ from rapomdp.data.meshes import MeshLoadError, bounding_sphere_radius
 from rapomdp.data.splits import TooFewModelsError
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
+from tests.conftest import SMALL_SPLIT
 
 
 def _folder_dataset(root: Path, per_class: dict[str, int]) -> None:
@@ -22,6 +23,7 @@ def _folder_dataset(root: Path, per_class: dict[str, int]) -> None:
 
 
 def _cfg(root: Path, **dataset: object) -> object:
+    dataset = {"split": {**SMALL_SPLIT, **dataset.pop("split", {})}, **dataset}
     return config_from_dict({"dataset": {"source": "folder", "path": str(root), **dataset},
                              "render": {"views": 2}, "camera": {"width": 16, "height": 12}})
 

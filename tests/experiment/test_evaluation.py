@@ -14,13 +14,13 @@ from rapomdp.experiment.evaluation import ClosedLoop, EpisodeTable, start_viewpo
 from rapomdp.io import read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import TINY_PIPELINE
+from tests.conftest import SMALL_SPLIT, TINY_PIPELINE
 
 METHODS = ["static", "random", "vptree", "classifier", "ra"]
 TINY = {
     **TINY_PIPELINE,
     "seed": 5,
-    "dataset": {"classes": ["cup", "bicycle", "teapot"]},
+    "dataset": {"classes": ["cup", "bicycle", "teapot"], "split": SMALL_SPLIT},
     "viewpoints": {"count": 16},
     "solve": {"timeout_s": 2.0},
     "evaluate": {"methods": METHODS, "starts_per_model": 3, "max_moves": 6},

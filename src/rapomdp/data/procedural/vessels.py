@@ -1,5 +1,5 @@
-"""Vessel families: cups (cup, mug, jug, beaker), pots (teapot, kettle, saucepan) and bottles (bottle,
-vase, jar, amphora).
+"""Vessel families: cups (cup, mug, jug, beaker), pots (teapot, kettle, saucepan) and bottles
+(bottle, vase, jar, amphora).
 
 Cups share an open body: the mug's handle is on the +x side, the jug's on -x with a pouring lip
 on +x, the beaker has the lip alone, so each looks like a cup from the side away from its
