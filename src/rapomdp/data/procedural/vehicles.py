@@ -2,9 +2,10 @@
 
 Cars share a chassis on four wheels, a bonnet and a front cabin, and differ by the rear (-x): a
 sedan's lower boot, a van's tall box, an SUV's spare wheel on its back, a pickup's open bed;
-from the front the cabin hides most of it. Two-wheelers share the wheels (spoked or solid, thin or thick tyres for every class), the
-fork and the handlebar; they differ by what is between the wheels (a bicycle's frame and
-pedals, a motorbike's engine, tank and exhaust on +y, a scooter's floorboard and rear cover).
+from the front the cabin hides most of it. Two-wheelers share the wheels (spoked or solid,
+thin or thick tyres for every class), the fork and the handlebar; they differ by what is
+between the wheels (a bicycle's frame and pedals, a motorbike's engine, tank and exhaust on
++y, a scooter's floorboard and rear cover).
 """
 
 from __future__ import annotations
