@@ -45,8 +45,29 @@ class EvaluateConfig(Section):
         False, description="let the POMDP methods move back to a viewpoint they have seen "
         "(the noiseless sensor would show the same image, counted as new evidence)")
     random: RandomWalkConfig = RandomWalkConfig()
+    lambdas: list[float] = Field(
+        [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
+        "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "
+        "1's, is always a point); [] for Table 1 alone")
+    random_thresholds: list[float] = Field(
+        [0.6, 0.9, 0.97], description="accuracy against energy: Random's stop beliefs "
+        "(random.belief_threshold, Table 1's, is always a point)")
     figure_class: str = Field("bicycle", description="the class of Fig. 3 and the trajectories "
                               "(the first class when the dataset has no such class)")
+
+    @field_validator("lambdas")
+    @classmethod
+    def _positive(cls, values: list[float]) -> list[float]:
+        if any(v <= 0 for v in values):
+            raise ValueError("every λ must be positive (metres of movement energy)")
+        return values
+
+    @field_validator("random_thresholds")
+    @classmethod
+    def _beliefs(cls, values: list[float]) -> list[float]:
+        if any(not 0 < v <= 1 for v in values):
+            raise ValueError("every stop belief must be in (0, 1]")
+        return values
 
     @field_validator("methods")
     @classmethod

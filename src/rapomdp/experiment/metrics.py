@@ -261,3 +261,50 @@ def rows_csv(rows: Sequence[MethodSummary], classes: Sequence[str] | None = None
             values += [f"{r.means[k]:.6g}", f"{r.halfwidths[k]:.6g}"]
         writer.writerow(([classes[i]] if classes is not None else []) + values)
     return buffer.getvalue()
+
+
+@dataclass(frozen=True)
+class TradeoffPoint:
+    """One point of a method's accuracy-energy curve: the method run with one setting.
+
+    ``parameter`` is what was varied (``lambda``: the wrong-declaration cost in metres of
+    energy the POMDP was solved with; ``threshold``: Random's stop belief; ``none``: Static),
+    ``configured`` marks the setting of Table 1.
+    """
+
+    method: str
+    parameter: str
+    value: float
+    configured: bool
+    summary: MethodSummary
+
+
+def tradeoff_csv(points: Sequence[TradeoffPoint]) -> str:
+    """The accuracy-energy points as CSV, one row per (method, setting)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["method", "parameter", "value", "configured", "episodes", "accuracy",
+                     "accuracy_low", "accuracy_high", "energy", "energy_ci95", "moves",
+                     "belief"])
+    for p in points:
+        s = p.summary
+        writer.writerow([p.method, p.parameter, f"{p.value:.6g}", int(p.configured), s.episodes,
+                         f"{s.accuracy:.6g}", f"{s.accuracy_low:.6g}", f"{s.accuracy_high:.6g}",
+                         f"{s.means['energy']:.6g}", f"{s.halfwidths['energy']:.6g}",
+                         f"{s.means['moves']:.6g}", f"{s.means['belief']:.6g}"])
+    return buffer.getvalue()
+
+
+def tradeoff_markdown(points: Sequence[TradeoffPoint]) -> str:
+    """The accuracy-energy points as a markdown table (Table 1's settings marked *)."""
+    lines = ["| Method | Setting | Accuracy [95 % CI] | Energy (m) | # steps | Episodes |",
+             "|---|---|---|---|---|---|"]
+    for p in points:
+        s = p.summary
+        setting = {"lambda": f"λ = {p.value:g} m", "threshold": f"stop at belief {p.value:g}",
+                   "none": "—"}[p.parameter] + (" *" if p.configured else "")
+        lines.append(f"| {METHOD_NAMES.get(p.method, p.method)} | {setting} | {s.accuracy:.3f} "
+                     f"[{s.accuracy_low:.3f}, {s.accuracy_high:.3f}] | "
+                     f"{_pm(s.means['energy'], s.halfwidths['energy'])} | "
+                     f"{s.means['moves']:.2f} | {s.episodes} |")
+    return "\n".join(lines) + "\n\n* the setting of Table 1.\n"
