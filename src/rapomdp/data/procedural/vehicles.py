@@ -62,10 +62,12 @@ def car(body: Body, rng: np.random.Generator) -> dict[str, Parts]:
     d = body.dims
     rear = -d["length"] * rng.uniform(0.18, 0.3)
     top = d["deck"] + d["cabin_h"]
+    back = -d["length"] / 2 + rng.uniform(0.0, 0.1)
+    boot = d["deck"] + d["cabin_h"] * rng.uniform(0.25, 0.5)
     parts = {"rear": [slab((rear, -d["cabin_w"], d["deck"] - 0.01), (d["cabin_back"] + 0.01,
                                                                      d["cabin_w"], top)),
-                      slab((rear - 0.3, -d["cabin_w"], d["deck"] - 0.01),
-                           (rear + 0.01, d["cabin_w"], d["deck"] + d["cabin_h"] * 0.4))]}
+                      slab((back, -d["cabin_w"], d["deck"] - 0.01),
+                           (rear + 0.01, d["cabin_w"], boot))]}
     if rng.random() < 0.3:
         x = -d["length"] / 2 + 0.15
         parts["spoiler"] = [slab((x - 0.12, -d["cabin_w"], d["deck"] + 0.12),
