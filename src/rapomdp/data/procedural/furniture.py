@@ -29,6 +29,15 @@ def _corners(half_x: float, half_y: float) -> np.ndarray:
     return np.array([[sx * half_x, sy * half_y] for sx in (-1, 1) for sy in (-1, 1)])
 
 
+def _slab_on_legs(rng: np.random.Generator, name: str, top_z: float, depth: float, width: float,
+                  thick: float, inset: float, leg: float) -> dict[str, Parts]:
+    """A slab (a table top, a seat) whose top is at ``top_z`` on four round or square legs."""
+    hx, hy = depth / 2, width / 2
+    corners = _corners(hx - inset, hy - inset)
+    return {name: [slab((-hx, -hy, top_z - thick), (hx, hy, top_z))],
+            "legs": _legs(corners, top_z - thick, leg, bool(rng.random() < 0.5))}
+
+
 def _knob(rng: np.random.Generator, centre: np.ndarray, size: float, bar: bool,
           along: str = "y") -> Parts:
     """A knob (a small sphere) or a bar pull standing off a front face at +x."""
@@ -165,11 +174,7 @@ def table_body(rng: np.random.Generator) -> Body:
     inset = rng.uniform(0.03, 0.08)
     leg = rng.uniform(0.018, 0.035)
     hx, hy = depth / 2, length / 2
-    corners = _corners(hx - inset, hy - inset)
-    parts: dict[str, Parts] = {
-        "top": [slab((-hx, -hy, height - thick), (hx, hy, height))],
-        "legs": _legs(corners, height - thick, leg, bool(rng.random() < 0.5)),
-    }
+    parts = _slab_on_legs(rng, "top", height, depth, length, thick, inset, leg)
     if rng.random() < 0.5:
         a = rng.uniform(0.05, 0.09)
         ix, iy = hx - inset, hy - inset
@@ -232,11 +237,7 @@ def seat_body(rng: np.random.Generator) -> Body:
     leg = rng.uniform(0.015, 0.03)
     inset = rng.uniform(0.01, 0.05)
     hx, hy = depth / 2, width / 2
-    corners = _corners(hx - inset, hy - inset)
-    parts: dict[str, Parts] = {
-        "seat": [slab((-hx, -hy, seat_h - thick), (hx, hy, seat_h))],
-        "legs": _legs(corners, seat_h - thick, leg, bool(rng.random() < 0.5)),
-    }
+    parts = _slab_on_legs(rng, "seat", seat_h, depth, width, thick, inset, leg)
     if rng.random() < 0.4:
         z = rng.uniform(0.1, 0.25)
         ix, iy = hx - inset, hy - inset
