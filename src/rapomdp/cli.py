@@ -20,7 +20,7 @@ from rapomdp.planning.cli import pomdp_app
 
 if TYPE_CHECKING:
     from rapomdp.config import Config
-    from rapomdp.workspace import StageResult
+    from rapomdp.workspace import StageResult, Workspace
 
 # Stage code (torch, the robot, rendering) is imported inside the commands that run it, so
 # `rapomdp pomdp ...` and `--help` start without it.
@@ -113,9 +113,14 @@ def _guard(action: Callable[[], T]) -> T:
                     ) from None
 
 
-def _report(result: StageResult) -> None:
+def _report(result: StageResult, workspace: Workspace | None = None) -> None:
     state = "cached" if result.cached else f"done in {result.seconds:.1f} s"
     console.print(f"[green]✓[/] {result.name:<10} {state}  ({len(result.files)} files)")
+    if result.name == "dataset" and not result.cached and workspace is not None:
+        from rapomdp.data.dataset import role_count_lines
+
+        for line in role_count_lines(workspace.stage_dir("dataset")):
+            console.print(f"  {line}", highlight=False, soft_wrap=True)
 
 
 def _resolve(config_path: Path | None, workspace: Path, overrides: list[str] | None,
@@ -144,8 +149,9 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
         run_context = context or RunContext()
         if run_context.scheduler is None and config.parallel.scheduler is not None:
             run_context = replace(run_context, scheduler=config.parallel.scheduler)
-        run_pipeline(config, Workspace(workspace), until=until, force=force, on_result=_report,
-                     context=run_context)
+        ws = Workspace(workspace)
+        run_pipeline(config, ws, until=until, force=force,
+                     on_result=lambda result: _report(result, ws), context=run_context)
 
     _guard(action)
 

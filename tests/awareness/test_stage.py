@@ -16,9 +16,9 @@ from rapomdp.context import RunContext
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import TEST_CONTEXT, TINY_PIPELINE
+from tests.conftest import SMALL_SPLIT, TEST_CONTEXT, TINY_PIPELINE
 
-TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"]},
+TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"], "split": SMALL_SPLIT},
         "viewpoints": {"count": 10}}
 
 

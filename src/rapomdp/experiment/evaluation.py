@@ -10,7 +10,12 @@ number of workers). Writes into the stage folder:
   ``energy``) and the steps of all episodes concatenated (``step_viewpoints``, ``step_outputs``,
   ``step_beliefs``; episode i is rows ``offsets[i]:offsets[i + 1]``); ``classes``, ``methods``;
 - ``episodes.csv`` (one row per episode), ``table1.md|csv``, ``per_class.md|csv``;
+- ``paired.csv``: each method's accuracy minus RA-POMDP's over the same (test model, start)
+  pairs, with a 95 % cluster-bootstrap interval over test models (when RA-POMDP ran);
 - ``fig3.png`` (belief in the true class against step), ``trajectories.png``;
+- ``tradeoff.csv|md|png``: accuracy against mean energy, one curve per method: every POMDP
+  method solved (``sweep/lambda_<λ>/``) and run at each ``evaluate.lambdas``, Random at each
+  ``evaluate.random_thresholds``, Static one point; Table 1's settings are points of it;
 - ``evaluate.json``: counts, timing, images per second of the episode loop.
 """
 
@@ -20,6 +25,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -49,7 +55,12 @@ from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError
 
+if TYPE_CHECKING:
+    from rapomdp.experiment.metrics import TradeoffPoint
+
 EVALUATE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "evaluate")
+#: The method every other is compared with, pair by pair, in Table 1.
+PAIRED_REFERENCE = "ra"
 VPTREE_RECOGNISER = "vptree"
 
 
@@ -175,6 +186,90 @@ def run_episodes(config: Config, inputs: dict[str, Path],
     return [r for records in per_model for r in records], dataset
 
 
+#: The methods that are POMDP policies (solved per λ); the others are Static and Random.
+NOT_POMDP = ("static", "random")
+
+
+def sweep_settings(config: Config) -> list[tuple[str, str, float, Config, str | None]]:
+    """The accuracy-energy sweep's extra runs: (method, parameter, value, configuration, λ
+    folder) for every POMDP method at every extra λ and Random at every extra stop belief.
+
+    Table 1's own settings (``solve.wrong_declaration_cost_m``, ``random.belief_threshold``)
+    are not repeated: the main episodes are their points.
+    """
+    cfg = config.evaluate
+    pomdp = [m for m in cfg.methods if m not in NOT_POMDP]
+    out: list[tuple[str, str, float, Config, str | None]] = []
+    configured = config.solve.wrong_declaration_cost_m
+    for lam in dict.fromkeys(cfg.lambdas):
+        if np.isclose(lam, configured) or not pomdp:
+            continue
+        variant = config.model_copy(deep=True)
+        variant.evaluate.methods = list(pomdp)
+        variant.solve.wrong_declaration_cost_m = float(lam)
+        out += [(m, "lambda", float(lam), variant, f"lambda_{lam:g}") for m in pomdp]
+    if "random" in cfg.methods:
+        for threshold in dict.fromkeys(cfg.random_thresholds):
+            if np.isclose(threshold, cfg.random.belief_threshold):
+                continue
+            variant = config.model_copy(deep=True)
+            variant.evaluate.methods = ["random"]
+            variant.evaluate.random.belief_threshold = float(threshold)
+            out.append(("random", "threshold", float(threshold), variant, None))
+    return out
+
+
+def run_tradeoff(config: Config, inputs: dict[str, Path], out: Path, table: EpisodeTable,
+                 dataset: Dataset, context: RunContext = RunContext()) -> list[TradeoffPoint]:
+    """Accuracy against energy: Table 1's points plus every POMDP method solved and run at each
+    extra λ (policies under ``out/sweep/lambda_<λ>/``) and Random at each extra stop belief,
+    all from the same (test model, start) pairs."""
+    from rapomdp.experiment.metrics import TradeoffPoint, table1
+    from rapomdp.planning.stage import start_viewpoint, workspace_arrays
+    from rapomdp.planning.workspace import solve_workspace_problems
+
+    cfg = config.evaluate
+    points: list[TradeoffPoint] = []
+    for row in table1(table, cfg.methods):
+        if row.method == "static":
+            points.append(TradeoffPoint("static", "none", 0.0, True, row))
+        elif row.method == "random":
+            points.append(TradeoffPoint("random", "threshold", cfg.random.belief_threshold,
+                                        True, row))
+        else:
+            points.append(TradeoffPoint(row.method, "lambda",
+                                        config.solve.wrong_declaration_cost_m, True, row))
+    settings = sweep_settings(config)
+    solved: dict[str, Path] = {}
+    for _, _, value, variant, folder in settings:
+        if folder is None or folder in solved:
+            continue
+        variant.solve.models = list(variant.evaluate.methods)
+        models, energy, reachable, classes = workspace_arrays(
+            variant, inputs["observe"], inputs["robot"], inputs.get("vptree"))
+        solved[folder] = out / "sweep" / folder
+        solve_workspace_problems(
+            models, energy, reachable, solved[folder], lambda_=value,
+            discount=variant.solve.discount, start_viewpoint=start_viewpoint(reachable),
+            precision=variant.solve.precision, timeout=variant.solve.timeout_s,
+            max_iterations=variant.solve.iterations, workers=context.worker_count,
+            allow_stay=False, class_names=classes, memory_gb=variant.solve.memory_gb,
+            scheduler=context.scheduler)
+    runs: dict[tuple[str, float], EpisodeTable] = {}
+    for _, parameter, value, variant, folder in settings:
+        if (parameter, value) in runs:
+            continue
+        run_inputs = dict(inputs) if folder is None else {**inputs, "solve": solved[folder]}
+        records, _ = run_episodes(variant, run_inputs, context)
+        runs[parameter, value] = EpisodeTable.from_records(records, dataset,
+                                                           variant.evaluate.methods)
+    for method, parameter, value, _, _ in settings:
+        row = table1(runs[parameter, value], [method])[0]
+        points.append(TradeoffPoint(method, parameter, value, False, row))
+    order = {m: i for i, m in enumerate(cfg.methods)}
+    return sorted(points, key=lambda p: (order[p.method], p.value))
+
+
 def figure_class(config: Config, classes: Sequence[str]) -> str:
     """The configured figure class, or the first class when the dataset has no such class."""
     wanted = config.evaluate.figure_class
@@ -186,11 +281,15 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
     """Run every episode, score them, write Table 1, the per-class table and the figures."""
     from rapomdp.experiment import figures
     from rapomdp.experiment.metrics import (
+        paired_against,
+        paired_csv,
         per_class,
         per_class_markdown,
         rows_csv,
         table1,
         table1_markdown,
+        tradeoff_csv,
+        tradeoff_markdown,
     )
     from rapomdp.io import save_npz, write_json_atomic, write_text_atomic
 
@@ -202,12 +301,21 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
     save_npz(out / EPISODES_FILE, compressed=True, **table.arrays())
     rows = table1(table, methods)
     classes_rows = per_class(table, methods)
-    write_text_atomic(out / "table1.md", table1_markdown(rows))
+    paired = paired_against(table, methods, PAIRED_REFERENCE, seed=config.seed)
+    write_text_atomic(out / "table1.md", table1_markdown(rows, paired))
     write_text_atomic(out / "table1.csv", rows_csv(rows))
+    if paired:
+        write_text_atomic(out / "paired.csv", paired_csv(paired))
     write_text_atomic(out / "per_class.md", per_class_markdown(classes_rows, methods))
     write_text_atomic(out / "per_class.csv", rows_csv([r for _, r in classes_rows],
                                                       [name for name, _ in classes_rows]))
     write_text_atomic(out / EPISODES_CSV, episodes_csv(table))
+    began_sweep = time.perf_counter()
+    points = run_tradeoff(config, inputs, out, table, dataset, context)
+    sweep_s = time.perf_counter() - began_sweep
+    write_text_atomic(out / "tradeoff.csv", tradeoff_csv(points))
+    write_text_atomic(out / "tradeoff.md", tradeoff_markdown(points))
+    figures.tradeoff(points, out / "tradeoff.png")
     shown = figure_class(config, dataset.classes)
     robot = load_robot(inputs["robot"])
     figures.fig3(table, methods, shown, out / "fig3.png")
@@ -224,6 +332,7 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
         "images": images,
         "images_per_s": images / cpu if cpu > 0 else None,
         "workers": min(context.worker_count, len(dataset.with_role("test"))),
-        "seconds": {"episodes_wall": episodes_s, "episodes_cpu": cpu,
+        "tradeoff_points": len(points),
+        "seconds": {"episodes_wall": episodes_s, "episodes_cpu": cpu, "tradeoff_wall": sweep_s,
                     "total": time.perf_counter() - began},
     })
