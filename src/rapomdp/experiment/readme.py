@@ -1,0 +1,101 @@
+"""The README's results, generated from a finished workspace so that they cannot drift.
+
+``rapomdp report -w runs/demo --readme README.md`` replaces the block between
+:data:`BEGIN` and :data:`END` in the README with what the workspace's artefacts say: the
+dataset's roles, the stages' times, single-view accuracy, Table 1 with its paired column, the
+accuracy–energy sweep and the self-awareness table; its figures are copied next to the README
+(``--readme-figures``, default ``docs/figures`` beside it). Nothing in the block is typed by hand.
+"""
+
+from __future__ import annotations
+
+import platform
+import shutil
+from pathlib import Path
+
+from rapomdp.data.dataset import role_count_lines
+from rapomdp.io import atomic_path, write_text_atomic
+from rapomdp.recognition.artefacts import load_single_view_metrics
+from rapomdp.workspace import StageError, Workspace
+
+BEGIN = "<!-- BEGIN generated results: rapomdp report --readme (do not edit by hand) -->"
+END = "<!-- END generated results -->"
+
+#: Figures of the evaluate stage shown in the README: (file in W/evaluate, name beside it).
+README_FIGURES = (("tradeoff.png", "demo_tradeoff.png"), ("fig3.png", "demo_fig3.png"))
+
+
+def _read(path: Path) -> str:
+    if not path.exists():
+        raise StageError(f"{path}: not found; run the stage that makes it "
+                         f"(rapomdp run -w {path.parent.parent})")
+    return path.read_text(encoding="utf-8").strip()
+
+
+def results_markdown(workspace: Workspace, figures_link: str) -> str:
+    """The generated block (without its markers) for a workspace whose stages have all run;
+    ``figures_link`` is the figures folder as the README links it."""
+    manifest = workspace.manifest()["stages"]
+    missing = [s for s in ("dataset", "classifier_eval", "observe", "evaluate")
+               if s not in manifest]
+    if missing:
+        raise StageError(f"{workspace.root}: stage(s) {', '.join(missing)} have not run; "
+                         f"run `rapomdp run -w {workspace.root}` first")
+    finished = max(str(r.get("finished", "")) for r in manifest.values())
+    seconds = {name: float(r.get("seconds", 0.0)) for name, r in manifest.items()}
+    metrics = load_single_view_metrics(workspace.require("classifier_eval"))
+    evaluate = workspace.require("evaluate")
+    lines = [
+        f"*Generated from the workspace `{workspace.root.name}` (last stage finished "
+        f"{finished}; Python {platform.python_version()}, {platform.machine()}).*",
+        "",
+        "**Dataset.** " + "; ".join(role_count_lines(workspace.require("dataset"))) + ".",
+        "",
+        f"**Single views.** The classifier is right on {metrics.xrho.accuracy:.1%} of the test "
+        f"models' views from X_rho (chance {metrics.xrho.chance:.1%}).",
+        "",
+        "**Stage times** (seconds, as recorded in the manifest; "
+        f"{sum(seconds.values()):.0f} s in all):",
+        "",
+        "| " + " | ".join(seconds) + " |",
+        "|" + "---|" * len(seconds),
+        "| " + " | ".join(f"{s:.0f}" for s in seconds.values()) + " |",
+        "",
+        "**Table 1** (closed-loop episodes on the test models):",
+        "",
+        _read(evaluate / "table1.md"),
+        "",
+    ]
+    if (evaluate / "tradeoff.md").exists():
+        lines += ["**Accuracy against energy** (every method over its settings, the same "
+                  "(test model, start) pairs):", "", _read(evaluate / "tradeoff.md"), "",
+                  f"![Accuracy against energy]({figures_link}/demo_tradeoff.png)", ""]
+    lines += ["**Self-awareness** (observation models on the test models):", "",
+              _read(workspace.require("observe") / "quality.md"), "",
+              f"![Belief in the true class]({figures_link}/demo_fig3.png)"]
+    return "\n".join(lines)
+
+
+def update_readme(workspace: Workspace, readme: Path, figures: Path | None = None) -> Path:
+    """Replace the README's generated block with ``workspace``'s results and copy its figures to
+    ``figures`` (default: ``docs/figures`` beside the README). The README must hold the markers."""
+    readme = Path(readme)
+    figures = Path(figures) if figures is not None else readme.parent / "docs" / "figures"
+    text = readme.read_text(encoding="utf-8")
+    start, end = text.find(BEGIN), text.find(END)
+    if start < 0 or end < start:
+        raise StageError(f"{readme}: no generated-results block; add the two lines\n{BEGIN}\n"
+                         f"{END}\nwhere the results should go")
+    try:
+        link = figures.resolve().relative_to(readme.parent.resolve()).as_posix()
+    except ValueError:
+        link = figures.resolve().as_posix()
+    block = results_markdown(workspace, link)
+    figures.mkdir(parents=True, exist_ok=True)
+    evaluate = workspace.require("evaluate")
+    for source, name in README_FIGURES:
+        if (evaluate / source).exists():
+            with atomic_path(figures / name) as tmp:
+                shutil.copyfile(evaluate / source, tmp)
+    write_text_atomic(readme, text[:start] + BEGIN + "\n" + block + "\n" + text[end:])
+    return readme

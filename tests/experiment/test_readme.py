@@ -1,0 +1,92 @@
+"""The README's generated block: built from the workspace's artefacts, idempotent, refused
+without its markers or its stages."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rapomdp.config import Config
+from rapomdp.context import RunContext
+from rapomdp.experiment.readme import BEGIN, END, update_readme
+from rapomdp.io import write_json_atomic
+from rapomdp.pipeline import run_pipeline
+from rapomdp.workspace import Stage, StageError, Workspace
+from tests.conftest import TEST_CONTEXT, tiny_config
+
+TABLE1 = "| Method | Accuracy [95 % CI] |\n|---|---|\n| Static | 0.421 [0.380, 0.463] |\n"
+TRADEOFF = "| Method | λ | Accuracy |\n|---|---|---|\n| RA-POMDP | 2 | 0.612 |\n"
+QUALITY = "| model | AUC |\n|---|---|\n| ra | 0.733 |\n"
+PNG = b"\x89PNG\r\n\x1a\n-not-a-real-image-"
+
+
+def _writer(files: dict[str, str | bytes], metrics: dict | None = None):
+    def run(config: Config, inputs: dict[str, Path], out: Path, context: RunContext) -> None:
+        for name, data in files.items():
+            (out / name).write_bytes(data if isinstance(data, bytes) else data.encode())
+        if metrics is not None:
+            write_json_atomic(out / "metrics.json", metrics)
+
+    return run
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> Workspace:
+    ws = Workspace(tmp_path_factory.mktemp("ws"))
+    config = tiny_config()
+    run_pipeline(config, ws, until="dataset", context=TEST_CONTEXT)
+    stages = {
+        "classifier_eval": _writer({}, {"xrho": {"images": 48, "accuracy": 0.5417,
+                                                 "chance": 0.3333},
+                                        "sphere": {"images": 18, "accuracy": 0.6,
+                                                   "chance": 0.3333}}),
+        "observe": _writer({"quality.md": QUALITY}),
+        "evaluate": _writer({"table1.md": TABLE1, "tradeoff.md": TRADEOFF, "fig3.png": PNG,
+                             "tradeoff.png": PNG}),
+    }
+    for name, run in stages.items():
+        ws.run(Stage(name, run), config, context=TEST_CONTEXT)
+    return ws
+
+
+def test_the_block_holds_the_workspace_numbers_and_is_idempotent(finished, tmp_path) -> None:
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# Title\n\nbefore\n\n{BEGIN}\nstale numbers 0.999\n{END}\n\nafter\n")
+    update_readme(finished, readme)
+    text = readme.read_text()
+    assert text.startswith("# Title\n\nbefore\n\n" + BEGIN + "\n")
+    assert text.endswith(END + "\n\nafter\n")
+    assert "stale numbers 0.999" not in text
+    block = text[text.index(BEGIN):text.index(END)]
+    for part in (TABLE1.strip(), TRADEOFF.strip(), QUALITY.strip()):
+        assert part in block
+    assert "right on 54.2% of the test models' views from X_rho (chance 33.3%)" in block
+    assert "1 test model(s) per class (3 classes" in block  # the tiny split, from the dataset
+    assert "](docs/figures/demo_tradeoff.png)" in block
+    assert (tmp_path / "docs" / "figures" / "demo_fig3.png").read_bytes() == PNG
+    update_readme(finished, readme)
+    assert readme.read_text() == text
+
+
+def test_figures_go_where_the_user_says(finished, tmp_path: Path) -> None:
+    readme = tmp_path / "README.md"
+    readme.write_text(f"{BEGIN}\n{END}\n")
+    update_readme(finished, readme, tmp_path / "pictures")
+    assert "](pictures/demo_fig3.png)" in readme.read_text()
+    assert sorted(p.name for p in (tmp_path / "pictures").iterdir()) == [
+        "demo_fig3.png", "demo_tradeoff.png"]
+    assert not (tmp_path / "docs").exists()
+
+
+def test_no_markers_or_no_stages_is_a_named_error(finished, tmp_path: Path) -> None:
+    readme = tmp_path / "README.md"
+    readme.write_text("# no block here\n")
+    with pytest.raises(StageError, match="no generated-results block; add the two lines"):
+        update_readme(finished, readme)
+    assert readme.read_text() == "# no block here\n"
+    readme.write_text(f"{BEGIN}\n{END}\n")
+    empty = Workspace(tmp_path / "empty")
+    with pytest.raises(StageError, match=r"stage\(s\) dataset, classifier_eval, observe, "
+                                         r"evaluate have not run"):
+        update_readme(empty, readme)
