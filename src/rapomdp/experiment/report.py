@@ -285,8 +285,8 @@ def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
         b.figure(folder / "tradeoff.png",
                  "Accuracy against mean movement energy: each POMDP method solved at every "
                  "λ of evaluate.lambdas, Random at every stop belief, from the same (test "
-                 "model, start) pairs as Table 1.", how)
-        b.markdown(folder / "tradeoff.md", how)
+                 "model, start) pairs as Table 1 (the points: evaluate/tradeoff.md and .csv).",
+                 how)
     return data
 
 
