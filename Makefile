@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 DEMO_WORKSPACE ?= runs/demo
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: install demo test lint bench clean
+.PHONY: install demo readme test lint bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,10 @@ demo: $(STAMP)
 	$(VENV)/bin/rapomdp dataset --workspace $(DEMO_WORKSPACE)
 	$(VENV)/bin/rapomdp dataset preview --workspace $(DEMO_WORKSPACE) --out $(DEMO_WORKSPACE)/contact_sheet.png
 	$(VENV)/bin/rapomdp run --workspace $(DEMO_WORKSPACE)
+
+# The README's generated results block (and docs/figures/demo_*.png) from the demo workspace.
+readme: demo
+	$(VENV)/bin/rapomdp report --workspace $(DEMO_WORKSPACE) --readme README.md
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks

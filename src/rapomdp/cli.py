@@ -464,11 +464,18 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
                "--fig2", help="Make Fig. 2 first, as `rapomdp figure fig2` with its defaults "
                               "(trains three two-class classifiers: minutes).")] = False,
            workers: WorkersOption = None, reconfigure: ReconfigureOption = False,
-           overrides: OverridesArgument = None) -> None:
+           overrides: OverridesArgument = None,
+           readme: Annotated[Path | None, typer.Option(
+               "--readme", help="Also replace the generated-results block of this README "
+                                "with the workspace's numbers and figures.")] = None,
+           readme_figures: Annotated[Path | None, typer.Option(
+               "--readme-figures", help="Where --readme copies its figures (default: "
+                                        "docs/figures beside the README).")] = None) -> None:
     """Write W/report/report.html and report.md (and their figures) from the stages' results.
 
     The report is always rebuilt (it is cheap): it also shows optional artefacts that are not
-    among its inputs (Fig. 2 from `rapomdp figure fig2` or --fig2).
+    among its inputs (Fig. 2 from `rapomdp figure fig2` or --fig2). With --readme the README's
+    results block is generated from the same workspace (`make readme` does it for the demo).
     """
     context = _context(threads, workers)
     if fig2:
@@ -486,6 +493,14 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
     folder = Path(workspace) / "report"
     for name in ("report.html", "report.md"):
         sys.stdout.write(f"{folder / name}\n")
+    if readme is not None:
+        def write_readme() -> Path:
+            from rapomdp.experiment.readme import update_readme
+            from rapomdp.workspace import Workspace
+
+            return update_readme(Workspace(workspace), readme, readme_figures)
+
+        sys.stdout.write(f"{_guard(write_readme)}\n")
 
 
 @app.command("config")
