@@ -130,8 +130,9 @@ def _resolve(config_path: Path | None, workspace: Path, overrides: list[str] | N
     config, stale = resolve_config(Workspace(workspace), config_path, overrides or (),
                                    reconfigure)
     if stale:
-        console.print(f"[yellow]configuration changed[/]: {len(stale)} stage(s) will be redone "
-                      f"when run:\n{format_staleness(stale)}", highlight=False, markup=True)
+        console.print(f"[yellow]configuration changed[/]: {len(stale)} recorded stage(s) "
+                      f"differ:\n{escape(format_staleness(stale))}", highlight=False,
+                      soft_wrap=True)
     return config
 
 
@@ -143,7 +144,13 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
 
         config = _resolve(config_path, workspace, overrides, reconfigure)
         parallel.scheduler = scheduler or config.parallel.scheduler
-        run_pipeline(config, Workspace(workspace), until=until, force=force, on_result=_report)
+        ws = Workspace(workspace)
+        run_pipeline(config, ws, until=until, force=force, on_result=_report)
+        recorded = ws.recorded_config()
+        if recorded is not None and recorded != config:
+            console.print(f"note: {ws.config_path} is unchanged: this command made no artefact "
+                          "with the new values (run a stage they change to keep them)",
+                          highlight=False, soft_wrap=True)
 
     _guard(action)
 

@@ -117,17 +117,17 @@ def failed_run_keeps_config(root: Path) -> Outcome:
     return _kept(outcome, before, ws)
 
 
-@case("status: stale", "`rapomdp status` after `run --until dataset render.views=7`",
-      "stale: render.views 6 -> 7", succeeds=True)
+@case("status: stale", "`rapomdp status` after `run --until dataset seed=4`",
+      "stale: seed 3 -> 4; input dataset was redone since", succeeds=True)
 def status_marks_stale(root: Path) -> Outcome:
     ws = cached_workspace(root)
     before = snapshot(ws)
-    first = cli(["run", "-w", str(ws), "--until", "dataset", "render.views=7"])
+    first = cli(["run", "-w", str(ws), "--until", "dataset", "seed=4"])
     assert first.exit_code == 0, first.detail
     outcome = cli(["status", "-w", str(ws)])
     row = next((line for line in outcome.detail.splitlines() if "│ render " in line), "")
-    outcome.message = " ".join(row.replace("│", " ").split()[:6])
-    return _kept(outcome, before, ws, changed=("config.yaml",))
+    outcome.message = " ".join(row.replace("│", " ").split()[:11])
+    return _kept(outcome, before, ws, changed=("config.yaml", "dataset/", "manifest.json"))
 
 
 def _override(root: Path, override: str) -> Outcome:
