@@ -23,7 +23,7 @@ from rapomdp.config import (
 from rapomdp.data.layouts import DatasetLayoutError
 from rapomdp.data.meshes import MeshLoadError
 from rapomdp.data.splits import TooFewModelsError
-from rapomdp.io import ArtefactError, describe_os_error
+from rapomdp.io import ArtefactError, check_plain_name, describe_os_error
 from rapomdp.parallel import WorkerError
 from rapomdp.pipeline import (
     STAGE_NAMES,
@@ -377,10 +377,12 @@ def figure_fig2(
     def action() -> tuple[Path, Path]:
         from rapomdp.awareness.report import write_fig2
 
+        opponents = [a.strip() for a in against.split(",") if a.strip()]
+        for name in (target, *opponents):  # they name folders W/fig2/<target>-vs-<other>
+            check_plain_name(name, "class", "fig2")
         resolved = _resolve(config, workspace, overrides, reconfigure)
         with Workspace(workspace).locked():
-            return write_fig2(resolved, Workspace(workspace), target,
-                              [a.strip() for a in against.split(",") if a.strip()], epochs,
+            return write_fig2(resolved, Workspace(workspace), target, opponents, epochs,
                               on_result=_report)
 
     png, html = _guard(action)

@@ -169,6 +169,15 @@ def synset_map_traversal(root: Path) -> Outcome:
     return cli(["render", "-w", str(root / "ws"), "-c", str(config)])
 
 
+@case("fig2 --against ../", "`rapomdp figure fig2 --against ../../x` (names a folder)",
+      "is not a plain name")
+def fig2_traversal(root: Path) -> Outcome:
+    ws = cached_workspace(root)
+    before = snapshot(ws)
+    outcome = cli(["figure", "fig2", "-w", str(ws), "--target", "cup", "--against", "../../x"])
+    return _kept(outcome, before, ws)
+
+
 @case("billion laughs", "a YAML document of 9 nested levels of 9 aliases (10^9 values)",
       "aliases")
 def billion_laughs(root: Path) -> Outcome:
