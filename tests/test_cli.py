@@ -93,8 +93,11 @@ def test_the_workspace_keeps_its_configuration(tmp_path: Path) -> None:
     assert again.exit_code == 0 and "dataset    cached" in again.output
     changed = runner.invoke(app, ["render", "-w", str(ws), "seed=4"])
     assert changed.exit_code == 0, changed.output
-    assert "1 stage(s) will be redone when run:\n  dataset: seed 3 -> 4" in changed.output
+    assert "1 recorded stage(s) differ:\n  dataset: seed 3 -> 4" in changed.output
     assert yaml.safe_load((ws / "config.yaml").read_text())["seed"] == 4
+    kept = runner.invoke(app, ["run", "-w", str(ws), "--until", "dataset", "render.views=9"])
+    assert kept.exit_code == 0 and "config.yaml is unchanged: this command made no" in kept.output
+    assert yaml.safe_load((ws / "config.yaml").read_text())["render"]["views"] == 6
     refused = runner.invoke(app, ["dataset", "-w", str(ws), "-c", str(path)])
     assert refused.exit_code == 2
     assert "pass --reconfigure to redo 2 stage(s)" in refused.output

@@ -15,7 +15,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from rapomdp.context import RunContext
-from rapomdp.io import ArtefactError, describe_os_error
+from rapomdp.io import ArtefactError, check_plain_name, describe_os_error
 from rapomdp.planning.cli import pomdp_app
 
 if TYPE_CHECKING:
@@ -133,8 +133,9 @@ def _resolve(config_path: Path | None, workspace: Path, overrides: list[str] | N
     config, stale = resolve_config(Workspace(workspace), config_path, overrides or (),
                                    reconfigure)
     if stale:
-        console.print(f"[yellow]configuration changed[/]: {len(stale)} stage(s) will be redone "
-                      f"when run:\n{format_staleness(stale)}", highlight=False, markup=True)
+        console.print(f"[yellow]configuration changed[/]: {len(stale)} recorded stage(s) "
+                      f"differ:\n{escape(format_staleness(stale))}", highlight=False,
+                      soft_wrap=True)
     return config
 
 
@@ -152,6 +153,11 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
         ws = Workspace(workspace)
         run_pipeline(config, ws, until=until, force=force,
                      on_result=lambda result: _report(result, ws), context=run_context)
+        recorded = ws.recorded_config()
+        if recorded is not None and recorded != config:
+            console.print(f"note: {ws.config_path} is unchanged: this command made no artefact "
+                          "with the new values (run a stage they change to keep them)",
+                          highlight=False, soft_wrap=True)
 
     _guard(action)
 
@@ -380,10 +386,12 @@ def figure_fig2(
         from rapomdp.pipeline import write_fig2
         from rapomdp.workspace import Workspace
 
+        opponents = [a.strip() for a in against.split(",") if a.strip()]
+        for name in (target, *opponents):  # they name folders W/fig2/<target>-vs-<other>
+            check_plain_name(name, "class", "fig2")
         resolved = _resolve(config, workspace, overrides, reconfigure)
         with Workspace(workspace).locked():
-            return write_fig2(resolved, Workspace(workspace), target,
-                              [a.strip() for a in against.split(",") if a.strip()], epochs,
+            return write_fig2(resolved, Workspace(workspace), target, opponents, epochs,
                               on_result=_report, context=_context(threads))
 
     png, html = _guard(action)

@@ -166,7 +166,7 @@ def check_plain_name(name: object, what: str, source: str | Path) -> str:
     with a control character never reach the file system.
     """
     if not isinstance(name, str) or not _PLAIN_NAME.fullmatch(name):
-        shown = repr(name)[:80] if isinstance(name, str) else type(name).__name__
+        shown = repr(name[:80]) if isinstance(name, str) else type(name).__name__
         raise ArtefactError(
             f"{source}: {what} {shown} is not a plain name (no / \\ : * ? \" < > | or control "
             "character, no leading dot, 1 to 128 characters): names are data, not paths")

@@ -161,7 +161,10 @@ def run_pipeline(
             results.append(result)
             if on_result is not None:
                 on_result(result)
-        workspace.record_config(config)
+        # Each stage that ran recorded the configuration; a run where every stage was cached
+        # records it only if no recorded stage disagrees with it (it made no artefact).
+        if not workspace.staleness(STAGES, config, external=False):
+            workspace.record_config(config)
     return results
 
 

@@ -194,6 +194,16 @@ def test_episodes_on_a_dask_cluster_are_the_local_pools(workspace) -> None:
                                   dashboard_address=None) as cluster:
         on_dask = dataclasses.replace(TEST_CONTEXT, scheduler=cluster.scheduler_address)
         records, dataset = evaluation.run_episodes(config, _inputs(ws), on_dask)
+        from typer.testing import CliRunner
+
+        from rapomdp.cli import app
+
+        table = (ws.require("evaluate") / "table1.md").read_text()
+        # the CLI's --scheduler: the forced stage on the cluster writes the same table
+        result = CliRunner().invoke(app, ["evaluate", "-w", str(ws.root), "--force",
+                                          "--scheduler", cluster.scheduler_address])
+        assert result.exit_code == 0, result.output
+        assert (ws.require("evaluate") / "table1.md").read_text() == table
     remote = EpisodeTable.from_records(records, dataset, METHODS)
     compared = [f.name for f in dataclasses.fields(EpisodeTable) if "seconds" not in f.name]
     assert len(compared) >= 10  # every field but the measured planning time

@@ -53,7 +53,8 @@ def _tetrahedron(comment: str = "") -> str:
 
 def _folder_config(root: Path, path: Path, layout: str, extra: str = "") -> Path:
     config = root / "input" / "config.yaml"
-    config.write_text(f"dataset: {{source: folder, path: {path}, layout: {layout}{extra}}}\n"
+    config.write_text(f"dataset: {{source: folder, path: {path}, layout: {layout}{extra}, "
+                      "split: {train: 3, volume: 1, test: 1}}\n"
                       "camera: {width: 40, height: 30}\nrender: {views: 6}\n")
     return config
 
@@ -117,17 +118,17 @@ def failed_run_keeps_config(root: Path) -> Outcome:
     return _kept(outcome, before, ws)
 
 
-@case("status: stale", "`rapomdp status` after `run --until dataset render.views=7`",
-      "stale: render.views 6 -> 7", succeeds=True)
+@case("status: stale", "`rapomdp status` after `run --until dataset seed=4`",
+      "stale: seed 3 -> 4; input dataset was redone since", succeeds=True)
 def status_marks_stale(root: Path) -> Outcome:
     ws = cached_workspace(root)
     before = snapshot(ws)
-    first = cli(["run", "-w", str(ws), "--until", "dataset", "render.views=7"])
+    first = cli(["run", "-w", str(ws), "--until", "dataset", "seed=4"])
     assert first.exit_code == 0, first.detail
     outcome = cli(["status", "-w", str(ws)])
     row = next((line for line in outcome.detail.splitlines() if "│ render " in line), "")
-    outcome.message = " ".join(row.replace("│", " ").split()[:6])
-    return _kept(outcome, before, ws, changed=("config.yaml",))
+    outcome.message = " ".join(row.replace("│", " ").split()[:11])
+    return _kept(outcome, before, ws, changed=("config.yaml", "dataset/", "manifest.json"))
 
 
 def _override(root: Path, override: str) -> Outcome:
@@ -167,6 +168,15 @@ def synset_map_traversal(root: Path) -> Outcome:
     mapping.write_text(json.dumps({"02691156": "../../escape"}))
     config = _folder_config(root, base, "shapenet", f", synset_map: {mapping}")
     return cli(["render", "-w", str(root / "ws"), "-c", str(config)])
+
+
+@case("fig2 --against ../", "`rapomdp figure fig2 --against ../../x` (names a folder)",
+      "is not a plain name")
+def fig2_traversal(root: Path) -> Outcome:
+    ws = cached_workspace(root)
+    before = snapshot(ws)
+    outcome = cli(["figure", "fig2", "-w", str(ws), "--target", "cup", "--against", "../../x"])
+    return _kept(outcome, before, ws)
 
 
 @case("billion laughs", "a YAML document of 9 nested levels of 9 aliases (10^9 values)",

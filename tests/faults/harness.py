@@ -32,7 +32,7 @@ REPO = Path(__file__).resolve().parents[2]
 #: The configuration of every case: three procedural classes, tiny renders (seconds).
 TINY_YAML = """\
 seed: 3
-dataset: {classes: [cup, mug, bicycle]}
+dataset: {classes: [cup, mug, bicycle], split: {train: 3, volume: 1, test: 1}}
 camera: {width: 40, height: 30}
 render: {views: 6}
 viewpoints: {count: 16}
