@@ -29,6 +29,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
+	$(PY) -m mypy
 	OMP_NUM_THREADS=1 $(PY) -m pytest -q
 
 lint: $(STAMP)
