@@ -70,6 +70,10 @@ KEEP_PAIRS = 20_000
 MIN_CHUNK = 65_536
 #: Vectors and points the library can always hold (the memory check reserves them).
 LIBRARY_MIN = 1_000
+#: Prune schedule: first after this many iterations, then at iteration ⌊1.3·it⌋ + 4, and
+#: whenever the library has grown past 2 × its size after the last pruning + 256 vectors.
+FIRST_PRUNE, PRUNE_GROWTH, PRUNE_STEP = 8, 1.3, 4
+LIBRARY_GROWTH, LIBRARY_SLACK = 2, 256
 
 
 class _Moves:
@@ -568,7 +572,7 @@ class ActiveRecognitionSolver:
         v0, b0 = self.problem.start_viewpoint, self.problem.start_belief
         rng = np.random.default_rng(seed)
         history: list[Progress] = []
-        it, next_prune, last, pruned, full = 0, 8, -np.inf, 0, False
+        it, next_prune, last, pruned, full = 0, FIRST_PRUNE, -np.inf, 0, False
         pending = sorted(checkpoints)
         self._build_grid(start + grid_share * timeout)
         while True:
@@ -601,9 +605,9 @@ class ActiveRecognitionSolver:
             else:
                 self._trajectory(eps, max_depth)
             it += 1
-            if it >= next_prune or len(self.slots) > 2 * pruned + 256:
+            if it >= next_prune or len(self.slots) > LIBRARY_GROWTH * pruned + LIBRARY_SLACK:
                 self.prune()
-                next_prune = int(it * 1.3) + 4
+                next_prune = int(it * PRUNE_GROWTH) + PRUNE_STEP
                 pruned = len(self.slots)
                 if pruned > self.max_vectors:
                     self.notes.append(

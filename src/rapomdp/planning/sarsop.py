@@ -90,6 +90,11 @@ CLOCKS: dict[str, Callable[[], float]] = {
 }
 
 
+#: Prune schedule of the flat solver: after 16 iterations, then at ⌊1.5·it⌋ + 1 (and after
+#: every batched sweep of the lower bound).
+FIRST_PRUNE, PRUNE_GROWTH = 16, 1.5
+
+
 def check_budget(precision: float, timeout: float) -> None:
     """ValueError unless ``precision`` and ``timeout`` are positive finite numbers."""
     for name, value in (("precision", precision), ("timeout", timeout)):
@@ -290,7 +295,7 @@ class FlatSarsop:
         history: list[Progress] = []
         it = 0
         last_report = -np.inf
-        next_prune = 16
+        next_prune = FIRST_PRUNE
         rng = np.random.default_rng(seed)
 
         def snapshot() -> Progress:
@@ -329,13 +334,16 @@ class FlatSarsop:
             lower_turn = policy_trajectories and it % 2 == 1
             self._trajectory(eps, max_depth, deadline, lower_turn, rng)
             it += 1
+            if self.clock() > deadline:  # the next snapshot ends the solve
+                continue
             if it >= next_prune:
                 self._prune()
-                next_prune = int(it * 1.5) + 1
+                next_prune = int(it * PRUNE_GROWTH) + 1
             if sweep_every and it % sweep_every == 0:
                 self._sweep_lower(np.vstack(self.sampled[::-1]), deadline)
                 self._prune()
-        self._prune()
+        # the policy keeps the vectors best at a sampled belief (duplicates change nothing)
+        self.lower.prune(np.vstack(self.sampled))
         final = history[-1]
         policy = AlphaVectorPolicy(
             self.lower.alphas.copy(), self.lower.actions.copy(), self.pomdp.discount
