@@ -33,6 +33,7 @@ readme: demo
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
+	$(PY) -m mypy
 	OMP_NUM_THREADS=1 $(PY) -m pytest -q
 
 lint: $(STAMP)

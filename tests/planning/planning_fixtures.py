@@ -1,4 +1,9 @@
-"""Small problems shared by the planning tests."""
+"""Small problems and helpers shared by the planning tests."""
+
+import numpy as np
+
+from rapomdp.planning.grid_bound import grid_upper_bound
+from rapomdp.planning.momdp import benchmark_problem
 
 TIGER = """\
 # the tiger problem
@@ -33,3 +38,16 @@ R:open-left : tiger-right : * : * 10
 R:open-right : tiger-left : * : * 10
 R:open-right : tiger-right : * : * -100
 """
+
+
+def grid_value(problem, resolution: int) -> float:
+    g = grid_upper_bound(
+        problem.observation_model, problem.move_cost(), problem.targets, problem.lambda_,
+        problem.discount, resolution, tol=1e-9,
+    )
+    return float(g.evaluate(problem.start_belief[None], np.array([problem.start_viewpoint]))[0])
+
+
+def small_arrays(n_v: int = 3, n_c: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    p = benchmark_problem(n_v, n_c, seed=3)
+    return p.observation_model, p.move_energy

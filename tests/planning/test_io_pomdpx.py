@@ -22,7 +22,10 @@ from rapomdp.planning import (
     write_pomdpx,
 )
 from rapomdp.planning.io_pomdpx import format_pomdpx
-from rapomdp.planning.momdp import FORBIDDEN_REWARD
+from rapomdp.planning.momdp import (
+    FORBIDDEN_REWARD,
+    benchmark_problem,
+)
 
 
 def general_problem() -> object:
@@ -130,3 +133,22 @@ def test_the_reference_toolkit_loads_and_solves_our_exports(tmp_path: Path, suff
     # both solvers' bounds bracket the same optimum
     assert theirs[0] <= ours.upper + 1e-3 and ours.lower <= theirs[1] + 1e-3
     assert theirs[0] == pytest.approx(ours.lower, abs=2e-2)
+
+
+def test_pomdpx_writer_structure():
+    problem = benchmark_problem(3, 2, seed=0)
+    root = ET.fromstring(format_pomdpx(problem).encode())
+    view = root.find("Variable/StateVar[@vnamePrev='view_0']")
+    assert view.get("fullyObs") == "true"
+    assert view.find("ValueEnum").text.split() == ["v0", "v1", "v2", "done"]
+    assert root.find("Discount").text == "0.95"
+    actions = root.find("Variable/ActionVar/ValueEnum").text.split()
+    assert actions == ["move0", "move1", "move2", "declare0", "declare1"]
+    entries = root.findall("ObsFunction/CondProb/Parameter/Entry")
+    assert len(entries) == 3 * 2 + 1
+    first = [float(x) for x in entries[0].find("ProbTable").text.split()]
+    np.testing.assert_allclose(first, problem.observation_model[0, 0])
+    rewards = root.findall("RewardFunction/Func/Parameter/Entry")
+    values = {e.find("Instance").text: float(e.find("ValueTable").text) for e in rewards}
+    assert values["move1 v0 *"] == pytest.approx(-problem.move_energy[0, 1])
+    assert values["declare0 v2 c1"] == -10.0

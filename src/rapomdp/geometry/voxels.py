@@ -38,7 +38,8 @@ class VoxelGrid:
         shape = np.maximum(np.ceil(extent / size - 1e-9).astype(int), 1) + 1
         centre = (lower + upper) / 2.0
         origin = centre - shape * size / 2.0
-        return cls(tuple(origin.tolist()), size, tuple(int(s) for s in shape))
+        nx, ny, nz = (int(s) for s in shape)
+        return cls(tuple(origin.tolist()), size, (nx, ny, nz))
 
     @property
     def count(self) -> int:

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -52,6 +53,15 @@ from rapomdp.planning.memory import (
 )
 from rapomdp.planning.momdp import ActiveRecognitionProblem
 from rapomdp.planning.policy import ActiveRecognitionPolicy
+from rapomdp.planning.rules import (
+    BELIEF_DECIMALS,
+    EQUAL_TOL,
+    IMPROVEMENT_TOL,
+    declare_value,
+    declare_values,
+    move_or_declare,
+    unnormalised_declare_value,
+)
 from rapomdp.planning.sarsop import CLOCKS, Progress, ProgressCallback, SolveResult, check_budget
 
 #: Visited (belief, viewpoint) pairs kept for pruning the library.
@@ -60,6 +70,10 @@ KEEP_PAIRS = 20_000
 MIN_CHUNK = 65_536
 #: Vectors and points the library can always hold (the memory check reserves them).
 LIBRARY_MIN = 1_000
+#: Prune schedule: first after this many iterations, then at iteration ⌊1.3·it⌋ + 4, and
+#: whenever the library has grown past 2 × its size after the last pruning + 256 vectors.
+FIRST_PRUNE, PRUNE_GROWTH, PRUNE_STEP = 8, 1.3, 4
+LIBRARY_GROWTH, LIBRARY_SLACK = 2, 256
 
 
 class _Moves:
@@ -79,7 +93,7 @@ class _Moves:
             off = Pj.copy()
             off[:, self.idx, self.idx] = np.nan
             hi, lo = np.nanmax(off, axis=1), np.nanmin(off, axis=1)  # (J, C) over wrong o
-            if np.all(hi - lo <= 1e-12):
+            if np.all(hi - lo <= EQUAL_TOL):
                 self.fast = True
                 self.A, self.W, self.D = diag, lo, diag - lo
 
@@ -241,7 +255,7 @@ class ActiveRecognitionSolver:
     def lower_values(self, beliefs: np.ndarray) -> np.ndarray:
         """Lower bound (K, V) at beliefs (K, C) for every viewpoint."""
         B = np.atleast_2d(beliefs)
-        dec = -self.lam * (1.0 - B.max(axis=1))
+        dec = declare_value(B, self.lam)
         out = np.repeat(dec[:, None], self.problem.n_viewpoints, axis=1)
         if len(self.slots):
             step = max(1, self.chunk // (len(self.slots) * self.problem.n_viewpoints))
@@ -254,14 +268,12 @@ class ActiveRecognitionSolver:
 
     def _lower_at(self, B: np.ndarray, views: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lower bound at pairs (B[k], views[k]) and the chosen target slot (−1: declare)."""
-        dec = -self.lam * (1.0 - B.max(axis=1))
+        dec = declare_value(B, self.lam)
         if not len(self.slots):
             return dec, np.full(B.shape[0], -1)
         s = B @ self.betas.T - self.cost[views][:, self.slots]  # (K, M)
-        m = s.argmax(axis=1)
-        best = s[np.arange(B.shape[0]), m]
-        go = best > dec + 1e-12
-        return np.where(go, best, dec), np.where(go, self.slots[m], -1)
+        value, m = move_or_declare(s, dec)
+        return value, np.where(m >= 0, self.slots[m], -1)
 
     def _sawtooth(self, beliefs: np.ndarray) -> np.ndarray:
         """Sawtooth part (K, V) of the upper bound (0 without points)."""
@@ -282,7 +294,7 @@ class ActiveRecognitionSolver:
         """Upper bound (K, V) at beliefs (K, C) for every viewpoint."""
         B = np.atleast_2d(beliefs)
         out = self._sawtooth(B)
-        dec = -self.lam * (1.0 - B.max(axis=1))
+        dec = declare_value(B, self.lam)
         out = np.minimum(out, np.maximum(dec[:, None], -self.min_cost[None]))
         if self.grid is not None:
             out = np.minimum(out, self.grid.evaluate(B))
@@ -296,7 +308,7 @@ class ActiveRecognitionSolver:
         prob = u.sum(axis=3)
         kstar = u.argmax(axis=3)
         umax = np.take_along_axis(u, kstar[..., None], axis=3)[..., 0]
-        value = -self.lam * (prob - umax)
+        value = -self.lam * (prob - umax)  # unnormalised_declare_value, u's sum and max reused
         n_c = B.shape[1]
         n_m = len(self.slots)
         choice = np.full(prob.shape, -1)
@@ -313,7 +325,7 @@ class ActiveRecognitionSolver:
                 better = best > value
                 value = np.where(better, best, value)
                 choice = np.where(better, m + i, choice)
-        alpha = -self.lam * (1.0 - np.eye(n_c)[kstar])
+        alpha = declare_values(np.eye(n_c)[kstar], self.lam)
         use = choice >= 0
         if use.any():
             jj = np.broadcast_to(np.arange(prob.shape[1])[None, :, None], prob.shape)[use]
@@ -325,9 +337,9 @@ class ActiveRecognitionSolver:
         """Unnormalised upper bound prob · U(targets[a], child) at every child: (K, J, O)."""
         K, n_j, n_o = prob.shape
         # one step: declaring, or a move (≥ the cheapest) followed by at most 0
-        umax = self.moves.unnormalised(B).max(axis=3)
         step_cost = self.min_cost[self.targets][None, :, None]
-        out = np.maximum(-self.lam * (prob - umax), -prob * step_cost)
+        out = np.maximum(unnormalised_declare_value(self.moves.unnormalised(B), self.lam),
+                         -prob * step_cost)
         n = self.up_points.shape[0]
         if n:
             vals = self.up_values[:, self.targets].T  # (J, N)
@@ -348,7 +360,7 @@ class ActiveRecognitionSolver:
     # -- backups -------------------------------------------------------------------------
     def backup(
         self, B: np.ndarray, views: np.ndarray | None = None, upper: bool = True
-    ) -> tuple[np.ndarray, dict]:
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Back up the beliefs B (K, C): add the plan that improves most at (B[k], views[k])
         (at every viewpoint where it improves when ``views`` is None) and, if ``upper``, an
         upper point with values for every viewpoint. Returns the lower bound (K, V) after and
@@ -360,7 +372,7 @@ class ActiveRecognitionSolver:
         best_a = cand.argmax(axis=2)
         best = np.take_along_axis(cand, best_a[..., None], axis=2)[..., 0]
         old_low = self.lower_values(B)
-        better = best > old_low + 1e-10
+        better = best > old_low + IMPROVEMENT_TOL
         if views is not None:
             mask = np.zeros_like(better)
             mask[np.arange(B.shape[0]), views] = True
@@ -374,11 +386,11 @@ class ActiveRecognitionSolver:
         if upper:
             up_u = self._child_upper(B, prob)
             q_up = self.g * up_u.sum(axis=2)  # (K, J)
-            dec = -self.lam * (1.0 - B.max(axis=1))
+            dec = declare_value(B, self.lam)
             new_up = np.maximum(dec[:, None], (q_up[:, None, :] - self.cost[None]).max(axis=2))
             old_up = self.upper_values(B)
             up = np.minimum(old_up, new_up)
-            improved = np.any(new_up < old_up - 1e-10, axis=1)
+            improved = np.any(new_up < old_up - IMPROVEMENT_TOL, axis=1)
             if improved.any() and self.up_points.shape[0] < self.max_points:
                 self._add_points(B[improved], up[improved])
             info.update(up=up_u, q_up=q_up)
@@ -406,7 +418,7 @@ class ActiveRecognitionSolver:
             prob, low_u, _ = self._child_lower(B)
             up_u = self._child_upper(B, prob)
             q_up = self.g * up_u[0].sum(axis=1) - self.cost[v]  # (J,)
-            dec = -self.lam * (1.0 - b.max())
+            dec = float(declare_value(b, self.lam))
             up_here = min(float(self.upper_values(B)[0, v]), max(dec, float(q_up.max())))
             low_here = float(self.lower_values(B)[0, v])
             target = eps * self.g ** (-depth)
@@ -455,7 +467,7 @@ class ActiveRecognitionSolver:
             steps.append(B)
             step_v.append(views)
         for Bs, vs in zip(reversed(steps), reversed(step_v), strict=True):
-            key = np.concatenate([np.round(Bs, 12), vs[:, None]], axis=1)
+            key = np.concatenate([np.round(Bs, BELIEF_DECIMALS), vs[:, None]], axis=1)
             _, first = np.unique(key, axis=0, return_index=True)
             Bs, vs = Bs[first], vs[first]
             # a belief's children (J, O, C) and their dot products with the library
@@ -476,7 +488,7 @@ class ActiveRecognitionSolver:
         """Drop library vectors best at no visited (belief, viewpoint) pair."""
         B = np.vstack(self.visited_b)[-keep_pairs:]
         views = np.concatenate(self.visited_v)[-keep_pairs:]
-        key = np.concatenate([np.round(B, 12), views[:, None]], axis=1)
+        key = np.concatenate([np.round(B, BELIEF_DECIMALS), views[:, None]], axis=1)
         _, first = np.unique(key, axis=0, return_index=True)
         B, views = B[first], views[first]
         self.visited_b, self.visited_v = [B], [views]
@@ -488,9 +500,8 @@ class ActiveRecognitionSolver:
         for i in range(0, B.shape[0], step):
             blk, vb = B[i : i + step], views[i : i + step]
             s = blk @ self.betas.T - self.cost[vb][:, self.slots]
-            m = s.argmax(axis=1)
-            dec = -self.lam * (1.0 - blk.max(axis=1))
-            used[m[s[np.arange(blk.shape[0]), m] > dec]] = True
+            _, m = move_or_declare(s, declare_value(blk, self.lam))
+            used[m[m >= 0]] = True
         self.betas, self.slots = self.betas[used], self.slots[used]
 
     # -- the grid ------------------------------------------------------------------------
@@ -547,7 +558,7 @@ class ActiveRecognitionSolver:
         clock: str = "process",
         grid_share: float = 0.3,
         policy_runs: int = 16,
-    ) -> SolveResult:
+    ) -> SolveResult[ActiveRecognitionPolicy]:
         """Improve both bounds at (v0, b0) until their gap ≤ ``precision`` or ``timeout`` s
         of ``clock`` ("process": CPU time, or "wall").
 
@@ -561,7 +572,7 @@ class ActiveRecognitionSolver:
         v0, b0 = self.problem.start_viewpoint, self.problem.start_belief
         rng = np.random.default_rng(seed)
         history: list[Progress] = []
-        it, next_prune, last, pruned, full = 0, 8, -np.inf, 0, False
+        it, next_prune, last, pruned, full = 0, FIRST_PRUNE, -np.inf, 0, False
         pending = sorted(checkpoints)
         self._build_grid(start + grid_share * timeout)
         while True:
@@ -594,9 +605,9 @@ class ActiveRecognitionSolver:
             else:
                 self._trajectory(eps, max_depth)
             it += 1
-            if it >= next_prune or len(self.slots) > 2 * pruned + 256:
+            if it >= next_prune or len(self.slots) > LIBRARY_GROWTH * pruned + LIBRARY_SLACK:
                 self.prune()
-                next_prune = int(it * 1.3) + 4
+                next_prune = int(it * PRUNE_GROWTH) + PRUNE_STEP
                 pruned = len(self.slots)
                 if pruned > self.max_vectors:
                     self.notes.append(
@@ -604,7 +615,7 @@ class ActiveRecognitionSolver:
                     full = True
         # the policy file's sawtooth carries the reported upper bound at the start
         up0 = self.upper_values(b0[None])[0]
-        if np.any(up0 < self._sawtooth(b0[None])[0] - 1e-12):
+        if np.any(up0 < self._sawtooth(b0[None])[0] - EQUAL_TOL):
             self._add_points(b0[None], np.asarray(up0)[None])
         self.prune()
         if self.up_points.shape[0] >= self.max_points:
@@ -628,15 +639,18 @@ def solve_active_recognition(
     precision: float = 1e-3,
     timeout: float = 30.0,
     callback: ProgressCallback | None = None,
-    **options: object,
-) -> SolveResult:
+    *,
+    chunk: int = 2_000_000,
+    grid: bool | int = True,
+    grid_entries: int = 12_000_000,
+    memory_gb: float = DEFAULT_MEMORY_GB,
+    **options: Any,
+) -> SolveResult[ActiveRecognitionPolicy]:
     """Solve the MOMDP with :class:`ActiveRecognitionSolver`; ``result.policy`` is an
-    :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`. ``options`` go to
-    :meth:`ActiveRecognitionSolver.solve` (``clock``, ``checkpoints``, …), except ``chunk``,
-    ``grid`` (False: no grid bound; an int: that resolution), ``grid_entries`` and
-    ``memory_gb`` (the cap every structure is sized against, default 4), which go to the
-    constructor. ``result.note`` says which bounds the cap and the budget left in use."""
-    init = {k: options.pop(k) for k in ("chunk", "grid", "grid_entries", "memory_gb")
-            if k in options}
-    solver = ActiveRecognitionSolver(problem, **init)  # type: ignore[arg-type]
-    return solver.solve(precision, timeout, callback, **options)  # type: ignore[arg-type]
+    :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`. ``chunk``, ``grid`` (False: no
+    grid bound; an int: that resolution), ``grid_entries`` and ``memory_gb`` (the cap every
+    structure is sized against, default 4) go to the constructor, ``options`` to
+    :meth:`ActiveRecognitionSolver.solve` (``clock``, ``checkpoints``, ``max_iterations``, …).
+    ``result.note`` says which bounds the cap and the budget left in use."""
+    solver = ActiveRecognitionSolver(problem, chunk, grid, grid_entries, memory_gb)
+    return solver.solve(precision, timeout, callback, **options)

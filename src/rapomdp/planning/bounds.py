@@ -15,6 +15,7 @@ import numpy as np
 
 from rapomdp.planning.memory import ENTRY_BYTES
 from rapomdp.planning.pomdp import POMDP
+from rapomdp.planning.rules import EQUAL_TOL
 
 #: States up to which the blind policies are solved exactly (a dense solve, ~S³ flops per
 #: action); beyond, they are iterated, with the deadline checked at every sweep.
@@ -209,7 +210,8 @@ class SawtoothUpperBound:
             own = self._excess[rows, None]
             later = idx[None, :] > idx[rows, None]
             earlier = idx[None, :] < idx[rows, None]
-            dominated = (later & (bound <= own + 1e-12)) | (earlier & (bound < own - 1e-12))
+            dominated = ((later & (bound <= own + EQUAL_TOL))
+                         | (earlier & (bound < own - EQUAL_TOL)))
             drop[rows] = dominated.any(axis=1)
         keep = ~drop
         self.points, self.values_ = self.points[keep], self.values_[keep]

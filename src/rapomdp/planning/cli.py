@@ -11,6 +11,7 @@ import math
 import re
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import typer
@@ -78,7 +79,7 @@ class BoundsDisplay:
             )
 
 
-def _report(console: Console, result: SolveResult, size: int) -> None:
+def _report(console: Console, result: SolveResult[Any], size: int) -> None:
     state = "converged" if result.converged else "stopped at the time limit"
     if result.note.startswith("stopped"):
         state = "stopped at the memory cap"
@@ -135,9 +136,9 @@ def solve_cmd(
             result = solve_pomdp(pomdp, precision, left, display, memory_gb)
     except (PomdpParseError, MemoryCapError) as exc:
         raise _error(console, exc) from None
-    _report(console, result, len(result.policy))  # type: ignore[arg-type]
+    _report(console, result, len(result.policy))
     if out is not None:
-        path = result.policy.save(out)  # type: ignore[attr-defined]
+        path = result.policy.save(out)
         console.print(f"wrote {path}")
 
 
@@ -199,6 +200,7 @@ def export_cmd(
     _check_positive(console, memory_gb=memory_gb)
     if not (math.isfinite(solve_seconds) and solve_seconds >= 0):
         raise _error(console, f"--solve must be a finite number of seconds, got {solve_seconds}")
+    ar: ActiveRecognitionProblem
     try:
         if sum(x is not None for x in (problem, benchmark, workspace)) != 1:
             raise ValueError("give exactly one of --problem, --benchmark and --workspace")
@@ -206,9 +208,10 @@ def export_cmd(
             ar = _workspace_problem(workspace, model)
         elif benchmark is not None:
             n_v, n_c = _parse_size(benchmark)
-            ar: ActiveRecognitionProblem = benchmark_problem(n_v, n_c, seed, lambda_, discount)
+            ar = benchmark_problem(n_v, n_c, seed, lambda_, discount)
         else:
-            arrays = load_problem_arrays(problem)  # type: ignore[arg-type]
+            assert problem is not None  # one of the three was given
+            arrays = load_problem_arrays(problem)
             ar = build_active_recognition_problem(
                 arrays["observation_model"], arrays["move_energy"], arrays.get("reachable"),
                 lambda_, discount, start,
@@ -236,4 +239,4 @@ def export_cmd(
                                                   memory_gb=memory_gb)
             except MemoryCapError as exc:
                 raise _error(console, exc) from None
-        _report(console, result, int(np.size(result.policy.targets)))  # type: ignore[attr-defined]
+        _report(console, result, int(np.size(result.policy.targets)))

@@ -26,6 +26,7 @@ from math import comb
 import numpy as np
 
 from rapomdp.planning.memory import ENTRY_BYTES
+from rapomdp.planning.rules import declare_value
 
 
 def grid_size(n: int, n_classes: int) -> int:
@@ -176,7 +177,7 @@ def grid_upper_bound(
     grid = FreudenthalGrid(resolution, n_c)
     pts = grid.points
     n_g, n_j = len(grid), len(targets)
-    dec = -lambda_ * (1.0 - pts.max(axis=1))
+    dec = declare_value(pts, lambda_)
     rows, cols, vals = [], [], []
     for a, j in enumerate(targets):
         if clock() > deadline:

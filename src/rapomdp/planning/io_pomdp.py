@@ -88,6 +88,10 @@ class _Parser:
         j = self.i + k
         return self.toks[j] if j < len(self.toks) else None
 
+    def peek_text(self, k: int = 0) -> str | None:
+        tok = self.peek(k)
+        return None if tok is None else tok.text
+
     def next(self, what: str) -> _Tok:
         tok = self.peek()
         if tok is None:
@@ -125,10 +129,7 @@ class _Parser:
             if tok is None or tok.text not in _PREAMBLE:
                 break
             key = tok.text
-            if key == "start" and self.peek(1) is not None and self.peek(1).text in (
-                "include",
-                "exclude",
-            ):
+            if key == "start" and self.peek_text(1) in ("include", "exclude"):
                 self.i += 2
                 self.expect_colon()
                 key = f"start {self.toks[self.i - 2].text}"
@@ -188,10 +189,9 @@ class _Parser:
     def collect_until_keyword(self) -> list[_Tok]:
         out: list[_Tok] = []
         while (
-            self.peek() is not None
+            self.peek_text() not in (None, ":")
             and not self.at_keyword()
-            and self.peek().text != ":"
-            and (self.peek(1) is None or self.peek(1).text != ":")
+            and self.peek_text(1) != ":"
         ):
             out.append(self.next("a value"))
         return out
@@ -324,10 +324,10 @@ class _Parser:
         """``T: a [: s [: s' p]]`` or ``O: a [: s' [: o p]]`` with rows/matrices/keywords."""
         a = self.ref("actions", self.next("an action"))
         n_s = arr.shape[1]
-        if self.peek() is not None and self.peek().text == ":":
+        if self.peek_text() == ":":
             self.i += 1
             s = self.ref("states", self.next("a state"))
-            if self.peek() is not None and self.peek().text == ":":
+            if self.peek_text() == ":":
                 self.i += 1
                 target = self.ref(second, self.next(f"a {second[:-1]}"))
                 value = self.number("a probability")
@@ -390,10 +390,10 @@ class _Parser:
         s = self.ref("states", self.next("a state"))
         s2: slice | int = slice(None)
         o: slice | int = slice(None)
-        if self.peek() is not None and self.peek().text == ":":
+        if self.peek_text() == ":":
             self.i += 1
             s2 = self.ref("states", self.next("an end state"))
-            if self.peek() is not None and self.peek().text == ":":
+            if self.peek_text() == ":":
                 self.i += 1
                 o = self.ref("observations", self.next("an observation"))
                 value: np.ndarray | float = self.number("a reward")
@@ -503,4 +503,4 @@ def format_pomdp(pomdp: POMDP) -> str:
 
 def write_pomdp(pomdp: POMDP, path: str | os.PathLike[str]) -> Path:
     """Write a flat POMDP as a ``.pomdp`` file (atomically)."""
-    return write_text_atomic(path, format_pomdp(pomdp))
+    return write_text_atomic(Path(path), format_pomdp(pomdp))

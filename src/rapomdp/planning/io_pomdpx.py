@@ -88,10 +88,10 @@ def format_pomdpx(problem: ActiveRecognitionProblem, description: str = "") -> s
     w("<ObsFunction>")
     w("<CondProb><Var>label</Var><Parent>action view_1 class_1</Parent>"
       "<Parameter type=\"TBL\">")
-    for v in range(n_v):
+    for vi in range(n_v):
         for c in range(n_c):
-            w(f"<Entry><Instance>* {views[v]} {classes[c]} -</Instance>"
-              f"<ProbTable>{' '.join(_num(x) for x in P[v, c])}</ProbTable></Entry>")
+            w(f"<Entry><Instance>* {views[vi]} {classes[c]} -</Instance>"
+              f"<ProbTable>{' '.join(_num(x) for x in P[vi, c])}</ProbTable></Entry>")
     # in the terminal state the label carries nothing; pomdpsol accepts ``uniform`` only in
     # the initial belief, so the row is written out (all mass on the first label: exact)
     done_row = " ".join(["1.0"] + ["0.0"] * (n_c - 1))
@@ -102,10 +102,10 @@ def format_pomdpx(problem: ActiveRecognitionProblem, description: str = "") -> s
     w("<RewardFunction>")
     w("<Func><Var>reward</Var><Parent>action view_0 class_0</Parent><Parameter type=\"TBL\">")
     for a, m in enumerate(moves):
-        for v in range(n_v):
-            r = -cost[v, a] if np.isfinite(cost[v, a]) else FORBIDDEN_REWARD
+        for vi in range(n_v):
+            r = float(-cost[vi, a]) if np.isfinite(cost[vi, a]) else FORBIDDEN_REWARD
             if r != 0:
-                w(f"<Entry><Instance>{m} {views[v]} *</Instance>"
+                w(f"<Entry><Instance>{m} {views[vi]} *</Instance>"
                   f"<ValueTable>{_num(r)}</ValueTable></Entry>")
     for k, d in enumerate(declares):
         for c in range(n_c):
@@ -123,4 +123,4 @@ def write_pomdpx(
     problem: ActiveRecognitionProblem, path: str | os.PathLike[str], description: str = ""
 ) -> Path:
     """Write the problem as ``.pomdpx`` (atomically)."""
-    return write_text_atomic(path, format_pomdpx(problem, description))
+    return write_text_atomic(Path(path), format_pomdpx(problem, description))

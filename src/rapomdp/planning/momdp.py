@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
-from rapomdp.planning.pomdp import POMDP
+from rapomdp.planning.pomdp import POMDP, PROB_TOL
+from rapomdp.planning.rules import declare_value, move_or_declare
 
 
 @dataclass
@@ -36,7 +37,8 @@ class ActiveRecognitionProblem:
     lambda_: float = 10.0
     discount: float = 0.95
     start_viewpoint: int = 0
-    start_belief: np.ndarray | None = None
+    #: empty (the default) or None: uniform
+    start_belief: np.ndarray = field(default_factory=lambda: np.zeros(0))
     allow_stay: bool = False
     class_names: list[str] = field(default_factory=list)
 
@@ -52,8 +54,8 @@ class ActiveRecognitionProblem:
         if not np.all(np.isfinite(P)) or np.any(P < 0):
             raise ValueError("observation_model has negative or non-finite probabilities")
         sums = P.sum(axis=2)
-        if np.any(np.abs(sums - 1.0) > 1e-6):
-            v, c = (int(i) for i in np.argwhere(np.abs(sums - 1.0) > 1e-6)[0])
+        if np.any(np.abs(sums - 1.0) > PROB_TOL):
+            v, c = (int(i) for i in np.argwhere(np.abs(sums - 1.0) > PROB_TOL)[0])
             raise ValueError(
                 f"observation_model[{v}, {c}, :] sums to {sums[v, c]:.6g}; rows must sum to 1"
             )
@@ -71,12 +73,13 @@ class ActiveRecognitionProblem:
             raise ValueError(f"lambda must be non-negative, got {self.lambda_}")
         if not 0 <= self.start_viewpoint < n_v:
             raise ValueError(f"start viewpoint {self.start_viewpoint} is not in [0, {n_v})")
+        given = self.start_belief
         b0 = (
             np.full(n_c, 1.0 / n_c)
-            if self.start_belief is None
-            else np.asarray(self.start_belief, dtype=np.float64)
+            if given is None or np.size(given) == 0
+            else np.asarray(given, dtype=np.float64)
         )
-        if b0.shape != (n_c,) or np.any(b0 < 0) or abs(b0.sum() - 1.0) > 1e-6:
+        if b0.shape != (n_c,) or np.any(b0 < 0) or abs(b0.sum() - 1.0) > PROB_TOL:
             raise ValueError(f"start belief must be a distribution over {n_c} classes")
         self.observation_model, self.move_energy, self.reachable = P, E, reach
         self.start_belief = b0 / b0.sum()
@@ -110,7 +113,7 @@ class ActiveRecognitionProblem:
 
     def declare_value(self, belief: np.ndarray) -> np.ndarray:
         """max_k −λ(1 − b_k) for beliefs (..., C): the value of stopping now."""
-        return -self.lambda_ * (1.0 - np.max(belief, axis=-1))
+        return declare_value(belief, self.lambda_)
 
 
 def update_beliefs(
@@ -154,7 +157,7 @@ def build_active_recognition_problem(
         float(lambda_),
         float(discount),
         int(start_viewpoint),
-        start_belief,
+        np.zeros(0) if start_belief is None else np.asarray(start_belief, dtype=np.float64),
         allow_stay,
         list(class_names or []),
     )
@@ -196,7 +199,6 @@ def benchmark_problem(
         lambda_,
         discount,
         start_viewpoint=0,
-        start_belief=None,
         allow_stay=True,
     )
 
@@ -303,13 +305,9 @@ def simulate_policy(
         if idx.size == 0:
             break
         b = belief[idx]
-        dec = -lam * (1.0 - b.max(axis=1))
-        move_target = np.full(idx.size, -1)
-        if len(policy.targets):
-            s = b @ policy.betas.T - policy.move_energy[view[idx]][:, policy.targets]
-            m = s.argmax(axis=1)
-            go = s[np.arange(idx.size), m] > dec + 1e-12
-            move_target = np.where(go, policy.targets[m], -1)
+        s = b @ policy.betas.T - policy.move_energy[view[idx]][:, policy.targets]
+        _, m = move_or_declare(s, declare_value(b, lam))
+        move_target = np.where(m >= 0, policy.targets[m] if len(policy.targets) else -1, -1)
         stop = move_target < 0
         # declarations
         d = idx[stop]

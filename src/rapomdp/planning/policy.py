@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.io import ArtefactError, load_npz, save_npz
+from rapomdp.planning.rules import declare_value, declare_values, move_or_declare
 
 FORMAT_FLAT = "rapomdp.alpha-vector-policy.v1"
 FORMAT_AR = "rapomdp.active-recognition-policy.v1"
@@ -23,13 +24,13 @@ FORMAT_AR = "rapomdp.active-recognition-policy.v1"
 
 def save_npz_atomic(path: str | os.PathLike[str], **arrays: np.ndarray) -> Path:
     """Write a policy's arrays atomically (compressed, no pickle); returns the path."""
-    save_npz(path, compressed=True, **arrays)
+    save_npz(Path(path), compressed=True, **arrays)
     return Path(path)
 
 
 def _load(path: str | os.PathLike[str], expected: str) -> dict[str, np.ndarray]:
     try:
-        arrays = load_npz(path)
+        arrays = load_npz(Path(path))
     except ArtefactError as exc:
         raise ValueError(f"{path}: not a readable policy file ({exc})") from None
     fmt = str(arrays.get("format", ""))
@@ -83,11 +84,6 @@ class ARAction:
         return self.kind == "declare"
 
 
-def declare_values(belief: np.ndarray, lambda_: float) -> np.ndarray:
-    """Value of declaring each class: −λ(1 − b_k), shape (..., C)."""
-    return -lambda_ * (1.0 - belief)
-
-
 @dataclass(frozen=True)
 class ActiveRecognitionPolicy:
     """Lower-bound policy of the active-recognition MOMDP.
@@ -120,7 +116,7 @@ class ActiveRecognitionPolicy:
     def value(self, viewpoint: int, belief: np.ndarray) -> float:
         """The lower bound at (viewpoint, belief): the policy's guaranteed expected return."""
         b = np.asarray(belief, dtype=np.float64)
-        best = float(declare_values(b, self.lambda_).max())
+        best = float(declare_value(b, self.lambda_))
         if len(self.targets):
             best = max(best, float(self._moves(viewpoint, b).max()))
         return best
@@ -132,15 +128,13 @@ class ActiveRecognitionPolicy:
         ``forbidden`` (V,) bool removes plans that start by moving to those viewpoints (e.g.
         ones already visited, when the sensor would only see the same image again)."""
         b = np.asarray(belief, dtype=np.float64)
-        dv = declare_values(b, self.lambda_)
-        k = int(np.argmax(dv))
-        if len(self.targets):
-            moves = self._moves(viewpoint, b)
-            if forbidden is not None:
-                moves = np.where(np.asarray(forbidden, dtype=bool)[self.targets], -np.inf, moves)
-            m = int(np.argmax(moves))
-            if moves[m] > dv[k] + 1e-12:
-                return ARAction("move", int(self.targets[m]))
+        k = int(np.argmax(declare_values(b, self.lambda_)))
+        moves = self._moves(viewpoint, b)
+        if forbidden is not None:
+            moves = np.where(np.asarray(forbidden, dtype=bool)[self.targets], -np.inf, moves)
+        _, m = move_or_declare(moves[None], declare_value(b, self.lambda_)[None])
+        if m[0] >= 0:
+            return ARAction("move", int(self.targets[m[0]]))
         return ARAction("declare", k)
 
     def upper(self, viewpoint: int, belief: np.ndarray) -> float:

@@ -14,10 +14,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: How far a model's probability rows may sum from 1.
 PROB_TOL = 1e-6
 
 
-def _check_stochastic(name: str, array: np.ndarray, tol: float = 1e-6) -> None:
+def _check_stochastic(name: str, array: np.ndarray, tol: float = PROB_TOL) -> None:
     """Raise ValueError unless ``array`` is non-negative with last-axis sums of 1."""
     if not np.all(np.isfinite(array)):
         raise ValueError(f"{name} has non-finite entries")
@@ -39,9 +40,6 @@ class TransitionModel:
     def probability(self, next_state: int, state: int, action: int) -> float:
         return float(self.T[action, state, next_state])
 
-    def sample(self, state: int, action: int, rng: np.random.Generator) -> int:
-        return int(rng.choice(self.T.shape[2], p=self.T[action, state]))
-
 
 @dataclass(frozen=True)
 class ObservationModel:
@@ -52,9 +50,6 @@ class ObservationModel:
     def probability(self, observation: int, next_state: int, action: int) -> float:
         return float(self.Z[action, next_state, observation])
 
-    def sample(self, next_state: int, action: int, rng: np.random.Generator) -> int:
-        return int(rng.choice(self.Z.shape[2], p=self.Z[action, next_state]))
-
 
 @dataclass(frozen=True)
 class RewardModel:
@@ -64,17 +59,6 @@ class RewardModel:
 
     def reward(self, state: int, action: int) -> float:
         return float(self.R[action, state])
-
-
-@dataclass(frozen=True)
-class Belief:
-    """A distribution over the states of a flat POMDP, updated by Eq. 5 of the paper."""
-
-    probs: np.ndarray
-
-    def update(self, pomdp: POMDP, action: int, observation: int) -> Belief:
-        """b'(s') ∝ O(s', a, o) Σ_s T(s, a, s') b(s); ValueError if o is impossible under b."""
-        return Belief(belief_update(pomdp.T, pomdp.Z, self.probs, action, observation))
 
 
 def belief_update(
@@ -169,25 +153,3 @@ class POMDP:
     @property
     def n_observations(self) -> int:
         return self.Z.shape[2]
-
-    def simulate(
-        self,
-        policy_act: object,
-        n_runs: int,
-        horizon: int,
-        rng: np.random.Generator,
-    ) -> np.ndarray:
-        """Discounted returns of ``policy_act(belief) -> action`` over ``n_runs`` episodes."""
-        returns = np.zeros(n_runs)
-        for run in range(n_runs):
-            b = self.initial_belief.copy()
-            s = int(rng.choice(self.n_states, p=b))
-            disc = 1.0
-            for _ in range(horizon):
-                a = int(policy_act(b))  # type: ignore[operator]
-                returns[run] += disc * self.R[a, s]
-                s = self.transition.sample(s, a, rng)
-                o = self.observation.sample(s, a, rng)
-                b = belief_update(self.T, self.Z, b, a, o)
-                disc *= self.discount
-        return returns

@@ -17,6 +17,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
@@ -36,6 +37,11 @@ from rapomdp.planning.memory import (
 )
 from rapomdp.planning.policy import AlphaVectorPolicy
 from rapomdp.planning.pomdp import POMDP
+from rapomdp.planning.rules import (
+    IMPROVEMENT_TOL,
+    NEGLIGIBLE_PROBABILITY,
+    POINT_IMPROVEMENT_TOL,
+)
 
 
 @dataclass(frozen=True)
@@ -57,11 +63,15 @@ class Progress:
 ProgressCallback = Callable[[Progress], None]
 
 
-@dataclass
-class SolveResult:
-    """What a solve returns: the policy, the final bounds and their history."""
+PolicyT = TypeVar("PolicyT")
 
-    policy: object
+
+@dataclass
+class SolveResult(Generic[PolicyT]):
+    """What a solve returns: the policy (an :class:`AlphaVectorPolicy` from the flat solver,
+    an ActiveRecognitionPolicy from the structured one), the final bounds and their history."""
+
+    policy: PolicyT
     lower: float
     upper: float
     elapsed: float
@@ -78,6 +88,11 @@ CLOCKS: dict[str, Callable[[], float]] = {
     "process": time.process_time,
     "wall": time.perf_counter,
 }
+
+
+#: Prune schedule of the flat solver: after 16 iterations, then at ⌊1.5·it⌋ + 1 (and after
+#: every batched sweep of the lower bound).
+FIRST_PRUNE, PRUNE_GROWTH = 16, 1.5
 
 
 def check_budget(precision: float, timeout: float) -> None:
@@ -150,7 +165,7 @@ class FlatSarsop:
         n_a, n_z = prob.shape
         safe = np.where(prob > 0, prob, 1.0)
         children = (bao / safe[:, None, :]).transpose(0, 2, 1).reshape(n_a * n_z, -1)
-        live = prob.reshape(-1) > 1e-300
+        live = prob.reshape(-1) > NEGLIGIBLE_PROBABILITY
         up_child = np.zeros(n_a * n_z)
         up_child[live] = self.upper.values(children[live])
         up_child = up_child.reshape(n_a, n_z)
@@ -172,12 +187,12 @@ class FlatSarsop:
         ex = self._expand(b) if ex is None else ex
         a = int(np.argmax(ex["q_low"]))
         low_b = float(self.lower.values(b))
-        if ex["q_low"][a] > low_b + 1e-12:
+        if ex["q_low"][a] > low_b + POINT_IMPROVEMENT_TOL:
             self.lower.add(ex["alphas"][a], a)
             low_b = float(ex["q_low"][a])
         up_b = float(self.upper.values(b))
         q = float(ex["q_up"].max())
-        if q < up_b - 1e-12:
+        if q < up_b - POINT_IMPROVEMENT_TOL:
             self.upper.add(b, q)
             up_b = q
         return low_b, up_b
@@ -265,7 +280,7 @@ class FlatSarsop:
         policy_trajectories: bool = True,
         seed: int = 0,
         clock: str = "process",
-    ) -> SolveResult:
+    ) -> SolveResult[AlphaVectorPolicy]:
         """Improve both bounds until U − L ≤ ``precision`` at b0 or ``timeout`` seconds of
         ``clock`` pass ("process": CPU time of this process, the default; or "wall"). Every
         phase — initial bounds, trajectories, backups, sweeps — checks the deadline."""
@@ -280,7 +295,7 @@ class FlatSarsop:
         history: list[Progress] = []
         it = 0
         last_report = -np.inf
-        next_prune = 16
+        next_prune = FIRST_PRUNE
         rng = np.random.default_rng(seed)
 
         def snapshot() -> Progress:
@@ -319,13 +334,16 @@ class FlatSarsop:
             lower_turn = policy_trajectories and it % 2 == 1
             self._trajectory(eps, max_depth, deadline, lower_turn, rng)
             it += 1
+            if self.clock() > deadline:  # the next snapshot ends the solve
+                continue
             if it >= next_prune:
                 self._prune()
-                next_prune = int(it * 1.5) + 1
+                next_prune = int(it * PRUNE_GROWTH) + 1
             if sweep_every and it % sweep_every == 0:
                 self._sweep_lower(np.vstack(self.sampled[::-1]), deadline)
                 self._prune()
-        self._prune()
+        # the policy keeps the vectors best at a sampled belief (duplicates change nothing)
+        self.lower.prune(np.vstack(self.sampled))
         final = history[-1]
         policy = AlphaVectorPolicy(
             self.lower.alphas.copy(), self.lower.actions.copy(), self.pomdp.discount
@@ -361,7 +379,7 @@ class FlatSarsop:
             alphas = p.R[None] + p.discount * np.einsum("ast,kat->kas", p.T, gz)  # (K, A, S)
             q = np.einsum("kas,ks->ka", alphas, B)
             a = q.argmax(axis=1)
-            improve = q[np.arange(len(B)), a] > self.lower.values(B) + 1e-10
+            improve = q[np.arange(len(B)), a] > self.lower.values(B) + IMPROVEMENT_TOL
             if improve.any():
                 rows = np.flatnonzero(improve)
                 new_alphas.append(alphas[rows, a[rows]])
@@ -386,9 +404,9 @@ def solve_pomdp(
     timeout: float = 60.0,
     callback: ProgressCallback | None = None,
     memory_gb: float = DEFAULT_MEMORY_GB,
-    **options: float,
-) -> SolveResult:
+    **options: Any,
+) -> SolveResult[AlphaVectorPolicy]:
     """Solve a flat POMDP with :class:`FlatSarsop` within ``timeout`` seconds of process CPU
     time and ``memory_gb``; see :meth:`FlatSarsop.solve`."""
     check_budget(precision, timeout)
-    return FlatSarsop(pomdp, memory_gb).solve(precision, timeout, callback, **options)  # type: ignore[arg-type]
+    return FlatSarsop(pomdp, memory_gb).solve(precision, timeout, callback, **options)

@@ -51,7 +51,7 @@ def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | N
     )
     result = solve_active_recognition(problem, precision, timeout, callback,
                                       max_iterations=max_iterations, memory_gb=memory_gb)
-    result.policy.save(out / f"policy_{name}.npz")  # type: ignore[attr-defined]
+    result.policy.save(out / f"policy_{name}.npz")
     return {
         "lower": result.lower,
         "upper": result.upper,
@@ -61,7 +61,7 @@ def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | N
         # the CPU-time limit, not the iteration count, stopped it: not reproducible
         "timed_out": bool(not result.converged and (max_iterations is None
                                                     or result.iterations < max_iterations)),
-        "vectors": int(len(result.policy.targets)),  # type: ignore[attr-defined]
+        "vectors": int(len(result.policy.targets)),
         "note": result.note,
     }
 

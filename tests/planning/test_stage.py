@@ -137,3 +137,21 @@ def test_export_workspace_problem(workspace: Workspace, tmp_path: Path) -> None:
                                              "--out", str(out)])
     assert missing.exit_code == 2
     assert "has not been run here" in missing.output
+
+
+def test_solve_stage_records_the_memory_note_and_refuses_what_cannot_fit(
+        workspace: Workspace, tmp_path: Path) -> None:
+    inputs = {"observe": workspace.stage_dir("observe"), "robot": workspace.stage_dir("robot")}
+    out = tmp_path / "solve"
+    out.mkdir()
+    cfg = config_from_dict({"solve": {"models": ["ra"], "iterations": 3}})
+    run_solve_stage(cfg, inputs, out)
+    assert read_json(out / "solve_summary.json")["ra"]["note"].startswith(
+        "upper bound: grid up to resolution")
+    tiny = config_from_dict({"solve": {"models": ["ra"], "memory_gb": 0.001}})
+    with pytest.raises(StageError, match=r"^solve: the active-recognition problem \(10 "
+                                         r"viewpoints x 3 classes, 9 move targets\) needs about "
+                                         r"[\d.]+ MB, over the memory cap of 1 MB"):
+        run_solve_stage(tiny, inputs, out)
+    with pytest.raises(ValueError, match="memory_gb"):
+        config_from_dict({"solve": {"memory_gb": float("nan")}})

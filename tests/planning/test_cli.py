@@ -1,0 +1,56 @@
+"""`rapomdp pomdp solve` and `rapomdp pomdp export`."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from planning_fixtures import small_arrays
+from typer.testing import CliRunner
+
+from rapomdp.planning.cli import pomdp_app
+from rapomdp.planning.io_pomdp import read_pomdp
+from rapomdp.planning.policy import AlphaVectorPolicy
+
+runner = CliRunner()
+
+
+def test_cli_solve_prints_bounds_and_policy_size(tmp_path, benchmarks):
+    out = tmp_path / "tiger.npz"
+    res = runner.invoke(
+        pomdp_app,
+        ["solve", str(benchmarks / "Tiger.pomdp"), "--precision", "0.01", "--timeout", "30",
+         "--out", str(out)],
+    )
+    assert res.exit_code == 0, res.output
+    assert "lower=" in res.output and "upper=" in res.output
+    assert "converged" in res.output and "alpha vectors" in res.output
+    policy = AlphaVectorPolicy.load(out)
+    assert policy.value(np.array([0.5, 0.5])) == pytest.approx(19.37, abs=0.02)
+
+
+def test_cli_solve_reports_parse_errors_with_line(tmp_path):
+    bad = tmp_path / "bad.pomdp"
+    bad.write_text("discount: 0.9\nstates: 2\nactions: 2\nobservations: 2\nT: 7 : 0 : 0 1\n")
+    res = runner.invoke(pomdp_app, ["solve", str(bad)])
+    assert res.exit_code == 2
+    assert "bad.pomdp:5" in res.output.replace("\n", "") and "out of range" in res.output
+
+
+def test_cli_export_pomdpx_and_flat(tmp_path):
+    P, E = small_arrays()
+    arrays = tmp_path / "problem.npz"
+    np.savez(arrays, observation_model=P, move_energy=E, reachable=np.ones(3, dtype=bool))
+    res = runner.invoke(pomdp_app, ["export", "--problem", str(arrays), "--out",
+                                    str(tmp_path / "ar.pomdpx")])
+    assert res.exit_code == 0, res.output
+    assert ET.parse(tmp_path / "ar.pomdpx").getroot().tag == "pomdpx"
+    res = runner.invoke(pomdp_app, ["export", "--benchmark", "3x2", "--out",
+                                    str(tmp_path / "ar.pomdp")])
+    assert res.exit_code == 0, res.output
+    flat = read_pomdp(tmp_path / "ar.pomdp")
+    assert flat.n_states == 3 * 2 + 1 and flat.n_actions == 3 + 2
+    res = runner.invoke(pomdp_app, ["export", "--out", str(tmp_path / "x.pomdpx")])
+    assert res.exit_code == 2
+    assert "exactly one of --problem, --benchmark and --workspace" in res.output
