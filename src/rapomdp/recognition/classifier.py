@@ -124,6 +124,11 @@ class Classifier:
             depth_images, fx_px or self.fx_px, fy_px or self.fy_px, self.preprocessing
         )
 
+    def logits_of_inputs(self, inputs: torch.Tensor | np.ndarray) -> torch.Tensor:
+        """Logits (n, C) of preprocessed inputs (n, 1, S, S), with gradients if they need them."""
+        x = torch.as_tensor(inputs, dtype=torch.float32, device=self.device)
+        return self.network(x)
+
     def predict_inputs(self, inputs: np.ndarray, batch_size: int = 512) -> np.ndarray:
         """Class probabilities (n, C) of preprocessed inputs (n, 1, S, S)."""
         inputs = np.asarray(inputs, dtype=np.float32)
