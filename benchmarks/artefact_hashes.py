@@ -8,6 +8,11 @@ that measure wall time; PNG files are hashed as decoded pixels.
     PYTHONPATH=src python benchmarks/artefact_hashes.py [--out hashes.json]
     PYTHONPATH=src python benchmarks/artefact_hashes.py \
         --compare benchmarks/results/artefact_hashes_main.json
+    PYTHONPATH=src python benchmarks/artefact_hashes.py --noise \
+        --compare benchmarks/results/artefact_hashes_main_noise.json
+
+``benchmarks/results/artefact_hashes_main{,_noise}.json`` were recorded on main at 9b0d8b4 (the
+tree before issue 16's restructuring), with the sensor noise off and on.
 """
 
 from __future__ import annotations
@@ -101,13 +106,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write {file: digest} here as JSON")
     parser.add_argument("--workspace", type=Path, help="keep the workspace here")
+    parser.add_argument("--noise", action="store_true",
+                        help="with the Xtion sensor noise on (render.noise.enabled)")
     parser.add_argument("--compare", type=Path,
                         help="a --out file of another tree: print every difference, exit 1 if any")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         ws = args.workspace or Path(tmp) / "ws"
         config = Path(tmp) / "tiny.yaml"
-        config.write_text(yaml.safe_dump(TINY))
+        data = {**TINY, "render": {**TINY["render"], "noise": {"enabled": True}}} \
+            if args.noise else TINY
+        config.write_text(yaml.safe_dump(data))
         subprocess.run([sys.executable, "-m", "rapomdp.cli", "run", "-w", str(ws), "-c",
                         str(config), "--workers", "1"], check=True, stdout=subprocess.DEVNULL)
         hashes = {str(p.relative_to(ws)): digest(p, ws) for p in sorted(ws.rglob("*"))

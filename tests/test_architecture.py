@@ -226,3 +226,10 @@ def test_figures_use_the_object_api() -> None:
                     and node.func.value.id == "matplotlib"):
                 found.append(f"{path.relative_to(SOURCE)}:{node.lineno} calls matplotlib.use")
     assert found == []
+
+
+def test_the_artefact_readers_and_the_solve_stage_load_no_torch() -> None:
+    for statement in ("import rapomdp.recognition.artefacts", "import rapomdp.awareness.artefacts",
+                      "import rapomdp.robot.artefacts", "import rapomdp.planning.stage"):
+        modules = loaded_modules(statement)
+        assert "torch" not in modules and "roboticstoolbox" not in modules, statement

@@ -8,7 +8,7 @@ from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.meshes import bounding_sphere_radius
 from rapomdp.data.training_views import load_training_views
-from rapomdp.pipeline import run_pipeline, stages_up_to
+from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Stage, StageError, Workspace
 from tests.conftest import TEST_CONTEXT, tiny_config
 
@@ -91,12 +91,6 @@ def test_missing_inputs_are_named(workspace_dir: Path) -> None:
         ws.require("dataset")
 
 
-def test_stages_up_to_and_unknown_stage_names() -> None:
-    assert [s.name for s in stages_up_to("render")] == ["dataset", "render"]
-    with pytest.raises(KeyError, match="unknown stage 'rendr'"):
-        stages_up_to("rendr")
-    with pytest.raises(KeyError, match="unknown stage"):
-        run_pipeline(Config(), Workspace("/nonexistent"), force=["nope"], context=TEST_CONTEXT)
 
 
 def test_the_workspace_configuration_is_read_in_one_place(tmp_path: Path) -> None:

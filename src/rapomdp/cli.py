@@ -443,7 +443,9 @@ WorkersOption = Annotated[
 
 
 def _print_table1(workspace: Path) -> None:
-    table = Path(workspace) / "evaluate" / "table1.md"
+    from rapomdp.experiment.episode_table import TABLE1_MD
+
+    table = Path(workspace) / "evaluate" / TABLE1_MD
     if table.exists():
         sys.stdout.write("\nTable 1 (closed-loop episodes on the test models):\n\n"
                          + table.read_text())

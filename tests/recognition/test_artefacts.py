@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from rapomdp.io import ArtefactError, write_json_atomic
@@ -14,7 +13,6 @@ from rapomdp.recognition.artefacts import (
     load_single_view_metrics,
     load_vptree_summary,
 )
-from rapomdp.recognition.evaluation import viewpoint_confusion
 
 
 def test_single_view_metrics_read_back_typed_and_refuse_a_partial_file(tmp_path: Path) -> None:
@@ -41,14 +39,3 @@ def test_vptree_summary_gives_none_for_what_it_lacks(tmp_path: Path) -> None:
         None, 0.75, 0.5)
 
 
-def test_viewpoint_confusion_counts_per_viewpoint_with_pseudo_counts() -> None:
-    true = np.array([0, 1])
-    predicted = np.array([[0, 1], [1, 1]])  # model of class 0 wrong at viewpoint 1
-    p = viewpoint_confusion(true, predicted, 2, 0.5)
-    assert p.shape == (2, 2, 2)
-    np.testing.assert_allclose(p.sum(axis=2), 1.0)
-    np.testing.assert_allclose(p[0, 0], [1.5 / 2, 0.5 / 2])  # (n + a) / (n(c, x) + C a)
-    np.testing.assert_allclose(p[1, 0], [0.5 / 2, 1.5 / 2])
-    np.testing.assert_allclose(p[1, 1], [0.5 / 2, 1.5 / 2])
-    with pytest.raises(ValueError, match="pseudo-count must be positive"):
-        viewpoint_confusion(true, predicted, 2, 0.0)

@@ -1,7 +1,10 @@
-"""The closed loop's episodes as a table: one row per episode, plus the concatenated steps.
+"""The evaluate stage's artefacts: the closed loop's episodes as a table (one row per episode,
+plus the concatenated steps) and the names of every file the stage writes.
 
-The evaluate stage writes it as ``W/evaluate/episodes.npz`` (:data:`EPISODES_FILE`) and
-``episodes.csv``; metrics, figures and the report read it back with :meth:`EpisodeTable.load`.
+``W/evaluate/``: :data:`EPISODES_FILE` and :data:`EPISODES_CSV` (the table; metrics, figures and
+the report read it back with :meth:`EpisodeTable.load`), :data:`TABLE1_MD` / :data:`TABLE1_CSV`,
+:data:`PER_CLASS_MD` / :data:`PER_CLASS_CSV`, :data:`FIG3_FILE`, :data:`TRAJECTORIES_FILE` and
+:data:`SUMMARY_FILE` (counts, time, the figure class).
 """
 
 from __future__ import annotations
@@ -19,6 +22,17 @@ from rapomdp.io import load_npz
 
 EPISODES_FILE = "episodes.npz"
 EPISODES_CSV = "episodes.csv"
+TABLE1_MD = "table1.md"
+TABLE1_CSV = "table1.csv"
+PER_CLASS_MD = "per_class.md"
+PER_CLASS_CSV = "per_class.csv"
+FIG3_FILE = "fig3.png"
+TRAJECTORIES_FILE = "trajectories.png"
+SUMMARY_FILE = "evaluate.json"
+PAIRED_CSV = "paired.csv"
+TRADEOFF_CSV = "tradeoff.csv"
+TRADEOFF_MD = "tradeoff.md"
+TRADEOFF_FIGURE = "tradeoff.png"
 
 
 @dataclass(frozen=True)

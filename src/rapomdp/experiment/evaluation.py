@@ -43,6 +43,17 @@ from rapomdp.experiment.episode import (
 from rapomdp.experiment.episode_table import (
     EPISODES_CSV,
     EPISODES_FILE,
+    FIG3_FILE,
+    PAIRED_CSV,
+    PER_CLASS_CSV,
+    PER_CLASS_MD,
+    SUMMARY_FILE,
+    TABLE1_CSV,
+    TABLE1_MD,
+    TRADEOFF_CSV,
+    TRADEOFF_FIGURE,
+    TRADEOFF_MD,
+    TRAJECTORIES_FILE,
     EpisodeRecord,
     EpisodeTable,
     episodes_csv,
@@ -302,28 +313,28 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
     rows = table1(table, methods)
     classes_rows = per_class(table, methods)
     paired = paired_against(table, methods, PAIRED_REFERENCE, seed=config.seed)
-    write_text_atomic(out / "table1.md", table1_markdown(rows, paired))
-    write_text_atomic(out / "table1.csv", rows_csv(rows))
+    write_text_atomic(out / TABLE1_MD, table1_markdown(rows, paired))
+    write_text_atomic(out / TABLE1_CSV, rows_csv(rows))
     if paired:
-        write_text_atomic(out / "paired.csv", paired_csv(paired))
-    write_text_atomic(out / "per_class.md", per_class_markdown(classes_rows, methods))
-    write_text_atomic(out / "per_class.csv", rows_csv([r for _, r in classes_rows],
+        write_text_atomic(out / PAIRED_CSV, paired_csv(paired))
+    write_text_atomic(out / PER_CLASS_MD, per_class_markdown(classes_rows, methods))
+    write_text_atomic(out / PER_CLASS_CSV, rows_csv([r for _, r in classes_rows],
                                                       [name for name, _ in classes_rows]))
     write_text_atomic(out / EPISODES_CSV, episodes_csv(table))
     began_sweep = time.perf_counter()
     points = run_tradeoff(config, inputs, out, table, dataset, context)
     sweep_s = time.perf_counter() - began_sweep
-    write_text_atomic(out / "tradeoff.csv", tradeoff_csv(points))
-    write_text_atomic(out / "tradeoff.md", tradeoff_markdown(points))
-    figures.tradeoff(points, out / "tradeoff.png")
+    write_text_atomic(out / TRADEOFF_CSV, tradeoff_csv(points))
+    write_text_atomic(out / TRADEOFF_MD, tradeoff_markdown(points))
+    figures.tradeoff(points, out / TRADEOFF_FIGURE)
     shown = figure_class(config, dataset.classes)
     robot = load_robot(inputs["robot"])
-    figures.fig3(table, methods, shown, out / "fig3.png")
+    figures.fig3(table, methods, shown, out / FIG3_FILE)
     figures.trajectories(table, methods, shown, robot["directions"],
-                         robot["reachable"].astype(bool), out / "trajectories.png")
+                         robot["reachable"].astype(bool), out / TRAJECTORIES_FILE)
     images = int(table.step_viewpoints.size)
     cpu = float(table.cpu_seconds.sum())
-    write_json_atomic(out / "evaluate.json", {
+    write_json_atomic(out / SUMMARY_FILE, {
         "methods": [METHOD_NAMES[m] for m in methods],
         "method_keys": methods,
         "classes": dataset.classes,

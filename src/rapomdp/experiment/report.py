@@ -32,7 +32,13 @@ from rapomdp.awareness.report import FIGURES_DIR, write_fig1
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
-from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.experiment.episode_table import (
+    EPISODES_FILE,
+    FIG3_FILE,
+    SUMMARY_FILE,
+    TRAJECTORIES_FILE,
+    EpisodeTable,
+)
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
 from rapomdp.experiment.metrics import (
     PER_CLASS_NOTE,
@@ -258,7 +264,7 @@ def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> N
 def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
     how = f"made by `{cmd} evaluate -w {b.root}`"
     b.add(Heading("Closed-loop recognition (Table 1)"))
-    data = b.json(folder / "evaluate.json", how)
+    data = b.json(folder / SUMMARY_FILE, how)
     if data is not None:
         seconds = data.get("seconds", {})
         timing = ", ".join(f"{k} {_fmt(v, 1)} s" for k, v in seconds.items()) \
@@ -275,10 +281,10 @@ def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
         b.add(Paragraph("Per class:"), Paragraph(PER_CLASS_NOTE),
               Table(*per_class_cells(per_class(table, table.methods), table.methods)))
     figure = (data or {}).get("figure_class", "the figure class")
-    b.figure(folder / "fig3.png",
+    b.figure(folder / FIG3_FILE,
              f"Fig. 3: belief in the true class along the episodes of class {figure}, per "
              f"method (step 0 is the start viewpoint).", how)
-    b.figure(folder / "trajectories.png",
+    b.figure(folder / TRAJECTORIES_FILE,
              "The camera's trajectories on the test viewsphere X_rho, per method.", how)
     if (folder / "tradeoff.png").exists():
         b.add(Heading("Accuracy against energy"))

@@ -1,0 +1,94 @@
+"""The methods of the closed loop (Static, Random, the POMDP methods) on a scripted scene."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rapomdp.experiment.episode import Motion, run_episode
+from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
+from rapomdp.geometry.viewsphere import geodesic_distance_matrix, k_nearest, viewpoints
+from rapomdp.planning.ar_solver import solve_active_recognition
+from rapomdp.planning.momdp import build_active_recognition_problem, update_beliefs
+from tests.experiment.scripted import C, TableRecogniser, V, ViewScene, confusion
+
+
+def test_static_declares_the_recognisers_choice_from_one_view(motion: Motion) -> None:
+    labels = np.arange(V) % C
+    for start in (0, 1, 2, 7):
+        episode = run_episode(ViewScene(), TableRecogniser(labels), StaticPolicy(), motion,
+                              start, 10, np.random.default_rng(0))
+        assert episode.moves == 0 and episode.declared == labels[start]
+        assert np.allclose(episode.beliefs[-1], episode.outputs[0])
+
+
+def test_random_walk_never_revisits_and_steps_to_near_neighbours(motion: Motion) -> None:
+    P = np.full((V, C, C), 1 / C)  # uninformative: the belief never reaches the threshold
+    walk = RandomWalkPolicy(P, motion.distance_m, motion.reachable, neighbours=8,
+                            belief_threshold=0.99, max_moves=50)
+    near = k_nearest(motion.distance_m, 8, allowed=motion.reachable)
+    recogniser = TableRecogniser(np.zeros(V, dtype=int))
+    lengths = set()
+    for seed in range(20):
+        episode = run_episode(ViewScene(), recogniser, walk, motion, 0, 100,
+                              np.random.default_rng(seed))
+        views = episode.viewpoints.tolist()
+        assert len(set(views)) == len(views)
+        assert all(b in near[a] for a, b in zip(views, views[1:], strict=False))
+        assert motion.reachable[views].all()
+        # it stops only when every neighbour of the last view was visited
+        assert set(near[views[-1]]) <= set(views)
+        lengths.add(len(views))
+    assert len(lengths) > 1  # different seeds, different walks
+
+
+def test_random_walk_stop_rules(motion: Motion) -> None:
+    informative = confusion(0)
+    recogniser = TableRecogniser(np.zeros(V, dtype=int), confidence=0.9)
+    walk = RandomWalkPolicy(informative, motion.distance_m, motion.reachable,
+                            belief_threshold=0.8, max_moves=30)
+    episode = run_episode(ViewScene(), recogniser, walk, motion, 0, 100,
+                          np.random.default_rng(0))
+    assert episode.beliefs[-1].max() >= 0.8 and (episode.beliefs[:-1].max(axis=1) < 0.8).all()
+    capped = RandomWalkPolicy(np.full((V, C, C), 1 / C), motion.distance_m, motion.reachable,
+                              belief_threshold=0.99, max_moves=3)
+    episode = run_episode(ViewScene(), recogniser, capped, motion, 0, 100,
+                          np.random.default_rng(0))
+    assert episode.moves == 3 and not episode.exhausted
+    with pytest.raises(ValueError, match="belief_threshold"):
+        RandomWalkPolicy(informative, motion.distance_m, motion.reachable, belief_threshold=0)
+
+
+@pytest.fixture(scope="module")
+def solved() -> tuple[np.ndarray, object]:
+    distance = geodesic_distance_matrix(viewpoints(V, 0.6, hemisphere=True), 0.6)
+    reachable = np.ones(V, dtype=bool)
+    reachable[[5, 6]] = False
+    P = confusion(1)
+    problem = build_active_recognition_problem(P, distance + 0.1, reachable, lambda_=6.0)
+    return P, solve_active_recognition(problem, precision=1e-2, timeout=3.0).policy
+
+
+@pytest.mark.parametrize("revisit", [True, False])
+def test_pomdp_method_acts_as_its_policy_on_its_own_belief(motion: Motion, solved,
+                                                           revisit: bool) -> None:
+    P, policy = solved
+    method = POMDPPolicy(policy, P, "RA-POMDP", revisit=revisit)
+    revisits = 0
+    for seed in range(6):
+        labels = np.random.default_rng(seed).integers(0, C, size=V)
+        episode = run_episode(ViewScene(), TableRecogniser(labels), method, motion, 0, 30,
+                              np.random.default_rng(0))
+        belief = np.full(C, 1 / C)
+        visited = np.zeros(V, dtype=bool)
+        for t, view in enumerate(episode.viewpoints):
+            belief = update_beliefs(P, belief, view, labels[view])
+            visited[view] = True
+            assert np.allclose(episode.beliefs[t], belief)
+            expected = policy.act(int(view), belief, None if revisit else visited)
+            assert episode.actions[t] == expected
+        revisits += episode.viewpoints.size - np.unique(episode.viewpoints).size
+    if not revisit:
+        assert revisits == 0
+    with pytest.raises(ValueError, match="observation model"):
+        POMDPPolicy(policy, P[:5], "bad")
