@@ -8,7 +8,7 @@ from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.meshes import bounding_sphere_radius
 from rapomdp.data.training_views import load_training_views
-from rapomdp.pipeline import run_pipeline
+from rapomdp.pipeline import run_pipeline, stages_up_to
 from rapomdp.workspace import Stage, StageError, Workspace
 from tests.conftest import TEST_CONTEXT, tiny_config
 
