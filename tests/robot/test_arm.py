@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import PANDA_Q_MAX, PANDA_Q_MIN, dh_flange_pose
 
 from rapomdp.robot.arm import CameraArm, manipulability_from_jacobians
 from rapomdp.robot.scene import Scene
+from tests.robot.conftest import PANDA_Q_MAX, PANDA_Q_MIN, dh_flange_pose
 
 
 def _fd_jacobian(scene: Scene, q: np.ndarray, step: float = 1e-6) -> np.ndarray:

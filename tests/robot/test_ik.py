@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from conftest import PANDA_Q_MAX, PANDA_Q_MIN, dh_camera_pose_world
 
 from rapomdp.robot.arm import CameraArm
 from rapomdp.robot.ik import IKSettings, camera_targets, roll_angles, solve_viewpoints
 from rapomdp.robot.scene import Scene
+from tests.robot.conftest import PANDA_Q_MAX, PANDA_Q_MIN, dh_camera_pose_world
 
 
 def test_every_solution_reaches_its_viewpoint(solved, arm: CameraArm) -> None:
