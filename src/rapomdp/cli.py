@@ -219,6 +219,14 @@ def volume(workspace: WorkspaceOption, config: ConfigOption = None, force: Force
 
 
 @app.command()
+def crossfit(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+             threads: ThreadsOption = None) -> None:
+    """Held-out evidence: k small classifiers label the training models they did not see."""
+    _set_threads(threads)
+    _run(config, workspace, "crossfit", ["crossfit"] if force else [])
+
+
+@app.command()
 def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
             threads: ThreadsOption = None) -> None:
     """Observation models P(o | class, viewpoint) and the self-awareness quality table."""

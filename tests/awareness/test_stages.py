@@ -19,6 +19,7 @@ from tests.conftest import TINY_PIPELINE
 
 TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"]},
         "viewpoints": {"count": 10}}
+MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "classifier", "blackbox")
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +64,7 @@ def test_one_volume_per_class_with_empty_voxels_marked(workspace):
 def test_observation_models_follow_the_planner_contract(workspace):
     data = load_npz(workspace.root / "observe" / "observation_models.npz")
     assert list(data["classes"]) == ["bicycle", "teapot"]
-    assert list(data["models"]) == ["ra", "ra_class", "classifier", "blackbox"]
+    assert list(data["models"]) == list(MODELS)
     for name in data["models"]:
         p = data[name]
         assert p.shape == (10, 2, 2) and np.allclose(p.sum(axis=2), 1) and np.all(p > 0)
@@ -71,10 +72,10 @@ def test_observation_models_follow_the_planner_contract(workspace):
     assert data["scores"].min() >= 0 and data["scores"].max() <= 1
     assert data["directions"].shape == (10, 3) and np.all(data["directions"][:, 2] >= 0)
     models = load_observation_models(workspace.root / "observe" / "observation_models.npz")
-    assert set(models) == {"ra", "ra_class", "classifier", "blackbox"}
+    assert set(models) == set(MODELS)
     with open(workspace.root / "observe" / "quality.csv") as handle:
         rows = list(csv.DictReader(handle))
-    assert [r["model"] for r in rows] == ["ra", "ra_class", "classifier", "blackbox"]
+    assert [r["model"] for r in rows] == list(MODELS)
     assert all(float(r["log_likelihood"]) <= 0 for r in rows)
 
 
@@ -102,7 +103,7 @@ def test_solve_stage_plans_on_the_observation_models_and_robot(workspace):
 
     config = config_from_dict({**TINY, "solve": {"timeout_s": 2.0}})
     results = run_pipeline(config, workspace, until="solve")
-    assert [r.name for r in results][-4:] == ["robot", "observe", "vptree", "solve"]
+    assert [r.name for r in results][-5:] == ["robot", "crossfit", "observe", "vptree", "solve"]
     summary = read_json(workspace.root / "solve" / "solve_summary.json")
     assert set(summary) == {"ra", "classifier", "vptree"}  # the default solve.models
     reachable = load_npz(workspace.root / "robot" / "robot.npz")["reachable"]

@@ -25,19 +25,24 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit_outcomes
+from rapomdp.awareness.evidence import (
+    Evidence,
+    choose_ra_variant,
+    fit_observation_models,
+    held_out_temperatures,
+    leave_one_group_out,
+    temper,
+    validation_quality,
+)
 from rapomdp.awareness.observation import (
-    BlackBoxObservationModel,
-    ClassifierObservationModel,
+    ClassScoreCalibration,
     ObservationModel,
-    RAObservationModel,
     ScoreCalibration,
-    calibrate_correctness,
-    calibrate_per_class,
-    wrong_label_distribution,
 )
 from rapomdp.awareness.quality import quality_table, write_quality
 from rapomdp.awareness.saliency import PerturbationMask, make_attribution
-from rapomdp.awareness.scores import normalise_scores, viewpoint_scores
+from rapomdp.awareness.scores import normalise_scores, viewpoint_salient_area, viewpoint_scores
 from rapomdp.awareness.visibility import visibility_from_depth
 from rapomdp.awareness.volume import SaliencyVolume, object_grid, saliency_volume
 from rapomdp.config import Config
@@ -50,15 +55,21 @@ from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
 from rapomdp.parallel import run_tasks, worker_count
 from rapomdp.progress import track
-from rapomdp.recognition.classifier import Classifier
+from rapomdp.recognition import stage as recognition_stage
+from rapomdp.recognition.classifier import Classifier, configure_torch
 from rapomdp.recognition.preprocess import input_to_image
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
-from rapomdp.workspace import StageError
+from rapomdp.workspace import StageError, stable_hash
 
 SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency")
 VOLUME_SECTIONS = ("volume",)
 OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
 OBSERVATION_FILE = "observation_models.npz"
+CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
+TEMPERATURE_WALK_LENGTH = 6
+"""Views per held-out walk the temperature is fitted on (an active episode's few moves)."""
+TEMPERATURE_WALKS_PER_ROW = 16
+TEMPERATURE_NEIGHBOURS = 8
 
 
 def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, method: str,
@@ -211,20 +222,29 @@ class Observation:
     models: dict[str, ObservationModel]
     raw_scores: np.ndarray
     scores: np.ndarray
-    calibration: ScoreCalibration
+    area_scores: np.ndarray
+    calibration: ScoreCalibration | ClassScoreCalibration
     volume_labels: np.ndarray
     volume_predictions: np.ndarray
+    evidence: Evidence
     test_labels: np.ndarray
     test_predictions: np.ndarray
     quality: list[dict[str, float | str]]
+    validation: list[dict[str, float | str]] = field(default_factory=list)
+    ra_variant: str = "paper"
+    temperatures: dict[str, float] = field(default_factory=dict)
+    single_view: dict[str, ObservationModel] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
             volumes: dict[str, SaliencyVolume],
-            cache: dict[str, XrhoOutcomes] | None = None) -> Observation:
+            cache: dict[str, XrhoOutcomes] | None = None,
+            crossfit: CrossfitOutcomes | None = None) -> Observation:
     """Viewpoint scores, observation models and their quality on the test models.
 
+    The models are fitted on the held-out evidence ``observe.evidence`` names: the volume
+    models under ``classifier`` and/or the cross-fitted training models (``crossfit``).
     ``cache`` ("class/model id" -> :class:`XrhoOutcomes`) lets callers that try several volumes (the
     voxel-resolution sweep) render and classify each model at X_rho once.
     """
@@ -241,71 +261,144 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         return cache[key]
 
     raw = np.zeros((len(classes), config.viewpoints.count))
+    area = np.zeros_like(raw)
     vol_labels, vol_pred = [], []
     for c, class_name in enumerate(track(classes, "observe: volume models at X_rho")):
         volume = volumes[class_name]
-        per_model = []
+        per_model, per_model_area = [], []
         for model in (m for m in dataset.with_role("volume") if m.class_name == class_name):
             seen = outcomes(model, "observe/volume")
             vis = visibility_from_depth(seen.clean, seen.poses, intrinsics, volume.grid)
             per_model.append(viewpoint_scores(vis, volume.flat_scores()))
+            per_model_area.append(viewpoint_salient_area(vis, volume.flat_scores()))
             vol_pred.append(seen.predicted)
             vol_labels.append(c)
         raw[c] = np.nanmean(np.stack(per_model), axis=0)
+        area[c] = np.mean(np.stack(per_model_area), axis=0)
     scores_s = time.perf_counter() - start
-    scores = normalise_scores(raw)
+    scores = {"mean": normalise_scores(raw), "area": normalise_scores(area)}
     labels, predicted = np.array(vol_labels), np.stack(vol_pred)
-    correct = predicted == labels[:, None]
-    calibration = calibrate_correctness(scores[labels], correct, cfg.calibration)
-    wrong = wrong_label_distribution(np.broadcast_to(labels[:, None], predicted.shape),
-                                     predicted, len(classes), cfg.confusion_pseudo_count)
+    evidence = observation_evidence(cfg.evidence, labels, predicted, crossfit)
+    # RA-POMDP's model and the belief's temperature: chosen / fitted on held-out groups
+    folds = leave_one_group_out(evidence, scores, classes, cfg)
+    validation = validation_quality(evidence, folds)
+    variant = choose_ra_variant(validation, cfg.ra_model)
+    fitted = fit_observation_models(evidence, scores, classes, cfg)
+    single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
+    temperatures = {name: 1.0 for name in single_view}
+    if cfg.belief_correction == "temperature":
+        held = held_out_temperatures(
+            evidence, folds, fibonacci_directions(config.viewpoints.count, hemisphere=True),
+            TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+            class_seed(config.seed, "observe/temperature"))
+        temperatures.update(held)
+        if f"ra_{variant}" in held:
+            temperatures["ra"] = held[f"ra_{variant}"]
     models: dict[str, ObservationModel] = {
-        "ra": RAObservationModel(scores, calibration, wrong, classes),
-        "ra_class": RAObservationModel(
-            scores, calibrate_per_class(scores[labels], correct,
-                                        np.broadcast_to(labels[:, None], correct.shape),
-                                        len(classes)), wrong, classes),
-        "classifier": ClassifierObservationModel(labels, predicted, classes,
-                                                 cfg.classifier_pseudo_count),
-        "blackbox": BlackBoxObservationModel(labels, predicted, classes,
-                                             cfg.confusion_pseudo_count),
-    }
+        name: ObservationModel(temper(m.probabilities, temperatures[name]), classes)
+        for name, m in single_view.items()}
     models_s = time.perf_counter() - start
     test_models = dataset.with_role("test")
     test_labels = np.array([dataset.label(m) for m in test_models])
     test_pred = np.stack([outcomes(m, "classifier_eval").predicted
                           for m in track(test_models, "observe: test models at X_rho")])
-    rows = quality_table(models, test_labels, test_pred)
-    return Observation(models, raw, scores, calibration, labels, predicted, test_labels,
-                       test_pred, rows, {"scores_s": scores_s, "observation_models_s": models_s,
-                                         "total_s": time.perf_counter() - start})
+    rows = quality_table(single_view, test_labels, test_pred)
+    calibration = single_view["ra"].calibration  # type: ignore[attr-defined]
+    return Observation(models, raw, scores["mean"], scores["area"], calibration, labels,
+                       predicted, evidence, test_labels, test_pred, rows, validation, variant,
+                       temperatures, single_view,
+                       {"scores_s": scores_s, "observation_models_s": models_s,
+                        "total_s": time.perf_counter() - start})
+
+
+def observation_evidence(kind: str, volume_labels: np.ndarray, volume_predicted: np.ndarray,
+                         crossfit: CrossfitOutcomes | None) -> Evidence:
+    """The held-out evidence ``observe.evidence`` names (group 0: the volume models, f + 1:
+    cross-fitting fold f)."""
+    volume = Evidence(volume_labels, volume_predicted, np.zeros(len(volume_labels), np.int64))
+    if kind == "volume":
+        return volume
+    if crossfit is None or len(crossfit.labels) == 0:
+        raise StageError(f"observe.evidence is '{kind}' but there are no cross-fitted "
+                         "outcomes: run the crossfit stage")
+    folded = Evidence(crossfit.labels, crossfit.predicted, crossfit.folds + 1)
+    return folded if kind == "crossfit" else Evidence.concatenate([volume, folded])
+
+
+def run_crossfit_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
+    """k classifiers, each labelling at X_rho the training models it did not train on (nothing
+    is trained when ``observe.evidence`` is ``volume``: the paper's protocol)."""
+    start = time.perf_counter()
+    views = load_training_views(inputs["render"], inputs["dataset"])
+    dataset = views.dataset
+    if config.observe.evidence == "volume":
+        result = CrossfitOutcomes(np.zeros(0, dtype=str), np.zeros(0, np.int64),
+                                  np.zeros(0, np.int64),
+                                  np.zeros((0, config.viewpoints.count), np.int64), [])
+    else:
+        device = configure_torch(config.train.device, recognition_stage.threads)
+        result = crossfit_outcomes(
+            config, views, device, lambda m: xrho_renders(dataset, m, config, "crossfit")[1])
+    result.save(out / CROSSFIT_FILE)
+    correct = result.predicted == result.labels[:, None]
+    write_json_atomic(out / "crossfit.json", {
+        "folds": config.observe.crossfit_folds if len(result.labels) else 0,
+        "epochs": config.observe.crossfit_epochs, "models": len(result.labels),
+        "held_out_accuracy": float(correct.mean()) if correct.size else None,
+        "seconds": time.perf_counter() - start,
+    })
+
+
+def crossfit_fingerprint(config: Config) -> str:
+    """The crossfit stage reads these ``observe`` keys only (the rest would retrain for
+    nothing)."""
+    cfg = config.observe
+    return stable_hash({"crossfit": cfg.evidence != "volume", "folds": cfg.crossfit_folds,
+                        "epochs": cfg.crossfit_epochs})
 
 
 def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
-    """Viewpoint scores, the RA / Classifier / black-box observation models and their quality."""
+    """Viewpoint scores, the RA variants / Classifier / black-box observation models fitted on
+    held-out evidence, their held-out validation and their quality on the test models."""
     from rapomdp.awareness.figures import calibration_figure
 
     dataset = load_dataset(inputs["dataset"])
     classifier = load_stage_classifier(config, inputs["train"], dataset.classes)
     volumes = {name: SaliencyVolume.load(inputs["volume"] / f"{name}.npz")
                for name in dataset.classes}
-    result = observe(config, dataset, classifier, volumes)
+    crossfit = (CrossfitOutcomes.load(inputs["crossfit"] / CROSSFIT_FILE)
+                if "crossfit" in inputs else None)
+    result = observe(config, dataset, classifier, volumes, crossfit=crossfit)
     write_quality(result.quality, out / "quality.csv", out / "quality.md")
+    if result.validation:
+        write_quality(result.validation, out / "validation.csv", out / "validation.md")
     directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
+    ev = result.evidence
     save_npz(out / OBSERVATION_FILE,
              **{name: m.probabilities for name, m in result.models.items()},
              models=np.array(list(result.models)), classes=np.array(dataset.classes),
-             scores=result.scores, raw_scores=result.raw_scores, directions=directions,
+             temperatures=np.array([result.temperatures[n] for n in result.models]),
+             scores=result.scores, raw_scores=result.raw_scores, area_scores=result.area_scores,
+             directions=directions,
              volume_labels=result.volume_labels, volume_predictions=result.volume_predictions,
+             evidence_labels=ev.labels, evidence_predictions=ev.predicted,
+             evidence_groups=ev.groups,
              test_labels=result.test_labels, test_predictions=result.test_predictions)
-    correct = result.volume_predictions == result.volume_labels[:, None]
+    correct = ev.correct
     write_json_atomic(out / "calibration.json", {
+        "ra_model": result.ra_variant, "ra_model_configured": config.observe.ra_model,
         **result.calibration.to_dict(),
-        "per_class": result.models["ra_class"].calibration.to_dict(),
-        "volume_accuracy": float(correct.mean()),
+        "variants": {name: m.calibration.to_dict()  # type: ignore[attr-defined]
+                     for name, m in result.single_view.items() if name.startswith("ra_")},
+        "temperatures": result.temperatures,
+        "evidence": config.observe.evidence,
+        "evidence_accuracy": float(correct.mean()),
+        "volume_accuracy": float((result.volume_predictions
+                                  == result.volume_labels[:, None]).mean()),
         "pairs": int(correct.size),
     })
-    calibration_figure(result.scores[result.volume_labels], correct, result.calibration,
+    figure_scores = result.area_scores if "area" in result.ra_variant else result.scores
+    calibration_figure(figure_scores[ev.labels], correct, result.calibration,
                        out / "calibration.png")
     write_json_atomic(out / "timing.json", result.seconds)
 
