@@ -135,3 +135,30 @@ def test_saliency_maps_do_not_depend_on_the_number_of_processes(workspace, tmp_p
         spread = load_npz(tmp_path / "maps" / name / f"{model}.npz")
         assert np.array_equal(serial["saliency"], spread["saliency"])
     assert read_json(tmp_path / "saliency.json")["processes"] == 2
+
+
+def test_crossfit_never_lets_a_classifier_see_a_model_it_is_evaluated_on(workspace):
+    from rapomdp.awareness.crossfit import CrossfitOutcomes, model_key
+    from rapomdp.data.dataset import load_dataset
+
+    dataset = load_dataset(workspace.root / "dataset")
+    train = sorted(model_key(m) for m in dataset.with_role("train"))
+    out = CrossfitOutcomes.load(workspace.root / "crossfit" / "outcomes.npz")
+    assert sorted(out.keys.tolist()) == train  # every training model labelled once
+    assert out.predicted.shape == (len(train), 10) and len(out.trained_on) == 3
+    for fold, seen in enumerate(out.trained_on):
+        evaluated = set(out.keys[out.folds == fold].tolist())
+        assert evaluated and not evaluated & set(seen.tolist())
+        assert evaluated | set(seen.tolist()) == set(train)  # trained on every other model
+        # one model per class held out in each fold (3 training models per class, 3 folds)
+        assert sorted(k.split("/")[0] for k in evaluated) == ["bicycle", "teapot"]
+    leaked = CrossfitOutcomes(out.keys, out.labels, out.folds, out.predicted,
+                              [out.keys, *out.trained_on[1:]])
+    with pytest.raises(ValueError, match="fold 0: its classifier trained on models it is "
+                                         "evaluated on"):
+        leaked.check_held_out()
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
+    assert np.array_equal(np.unique(data["evidence_groups"]), [0, 1, 2, 3])  # volume + folds
+    assert data["evidence_predictions"].shape == (2 + len(train), 10)
+    temperatures = dict(zip(data["models"].tolist(), data["temperatures"].tolist()))
+    assert all(0.05 <= t <= 2.0 for t in temperatures.values())

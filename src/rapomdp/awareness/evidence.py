@@ -143,6 +143,40 @@ def choose_ra_variant(validation: list[dict[str, float | str]], configured: str)
     return str(best["model"]).removeprefix("ra_")
 
 
+# -- the classifier's level ----------------------------------------------------------------
+
+def shift_level(probabilities: np.ndarray, shift: float) -> np.ndarray:
+    """The model with P(correct | c, x) moved by ``shift`` on the logit scale and the wrong
+    labels rescaled to the rest (their proportions kept). 0 returns the model."""
+    p = np.asarray(probabilities, dtype=np.float64)
+    if shift == 0.0:
+        return p.copy()
+    idx = np.arange(p.shape[1])
+    right = np.clip(p[:, idx, idx], 1e-12, 1 - 1e-12)  # (V, C)
+    moved = 1.0 / (1.0 + np.exp(-(np.log(right / (1 - right)) + shift)))
+    out = p * ((1.0 - moved) / (1.0 - right))[:, :, None]
+    out[:, idx, idx] = moved
+    return out
+
+
+def fit_level(probabilities: np.ndarray, labels: np.ndarray, predicted: np.ndarray,
+              bound: float = 6.0) -> float:
+    """The logit shift of P(correct) that maximises the likelihood of whether the classifier
+    was right on ``labels`` / ``predicted`` (the modelled classifier's own held-out objects)."""
+    idx = np.arange(probabilities.shape[1])
+    right = np.clip(probabilities[:, idx, idx], 1e-12, 1 - 1e-12)
+    x = np.broadcast_to(np.arange(right.shape[0])[None], predicted.shape)
+    z = np.log(right / (1 - right))[x, np.broadcast_to(labels[:, None], predicted.shape)]
+    y = (predicted == labels[:, None]).astype(np.float64)
+
+    def loss(shift: float) -> float:
+        return float(np.sum(np.logaddexp(0.0, -(z + shift)) * y
+                            + np.logaddexp(0.0, z + shift) * (1 - y)))
+
+    return float(minimize_scalar(loss, bounds=(-bound, bound), method="bounded",
+                                 options={"xatol": 1e-4}).x)
+
+
 # -- the belief's temperature ----------------------------------------------------------------
 
 def temper(probabilities: np.ndarray, temperature: float) -> np.ndarray:

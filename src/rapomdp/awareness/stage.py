@@ -29,9 +29,11 @@ from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit
 from rapomdp.awareness.evidence import (
     Evidence,
     choose_ra_variant,
+    fit_level,
     fit_observation_models,
     held_out_temperatures,
     leave_one_group_out,
+    shift_level,
     temper,
     validation_quality,
 )
@@ -234,6 +236,7 @@ class Observation:
     ra_variant: str = "paper"
     temperatures: dict[str, float] = field(default_factory=dict)
     single_view: dict[str, ObservationModel] = field(default_factory=dict)
+    levels: dict[str, float] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
 
 
@@ -284,7 +287,16 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     validation = validation_quality(evidence, folds)
     variant = choose_ra_variant(validation, cfg.ra_model)
     fitted = fit_observation_models(evidence, scores, classes, cfg)
+    levels = {name: 0.0 for name in fitted}
+    if (evidence.groups > 0).any() and (evidence.groups == 0).any():
+        # cross-fitted classifiers train on less data and err more: each model's P(correct)
+        # is moved to the level of the modelled classifier on its own held-out objects
+        volume = evidence.subset(evidence.groups == 0)
+        levels = {name: fit_level(m.probabilities, volume.labels, volume.predicted)
+                  for name, m in fitted.items()}
+        fitted = {name: _relevel(m, levels[name]) for name, m in fitted.items()}
     single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
+    levels["ra"] = levels[f"ra_{variant}"]
     temperatures = {name: 1.0 for name in single_view}
     if cfg.belief_correction == "temperature":
         held = held_out_temperatures(
@@ -306,9 +318,15 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     calibration = single_view["ra"].calibration  # type: ignore[attr-defined]
     return Observation(models, raw, scores["mean"], scores["area"], calibration, labels,
                        predicted, evidence, test_labels, test_pred, rows, validation, variant,
-                       temperatures, single_view,
+                       temperatures, single_view, levels,
                        {"scores_s": scores_s, "observation_models_s": models_s,
                         "total_s": time.perf_counter() - start})
+
+
+def _relevel(model: ObservationModel, shift: float) -> ObservationModel:
+    out = ObservationModel(shift_level(model.probabilities, shift), model.classes)
+    out.calibration = getattr(model, "calibration", None)  # type: ignore[attr-defined]
+    return out
 
 
 def observation_evidence(kind: str, volume_labels: np.ndarray, volume_predicted: np.ndarray,
@@ -391,6 +409,7 @@ def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path) -> Non
         "variants": {name: m.calibration.to_dict()  # type: ignore[attr-defined]
                      for name, m in result.single_view.items() if name.startswith("ra_")},
         "temperatures": result.temperatures,
+        "level_shifts": result.levels,
         "evidence": config.observe.evidence,
         "evidence_accuracy": float(correct.mean()),
         "volume_accuracy": float((result.volume_predictions
