@@ -186,7 +186,8 @@ class ObserveConfig(Section):
         "both", description="held-out evidence the models are fitted on: the volume models "
         "under the classifier (the paper's), cross-fitted training models, or both")
     crossfit_folds: int = Field(3, ge=2, description="cross-fitting folds over training models")
-    crossfit_epochs: int = Field(8, ge=1, description="epochs of each fold's classifier")
+    crossfit_epochs: int = Field(
+        6, ge=1, description="epochs of each fold's classifier (the demo's time budget)")
     ra_model: Literal["auto", "paper", "class", "area", "class_area"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")

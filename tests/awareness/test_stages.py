@@ -160,5 +160,5 @@ def test_crossfit_never_lets_a_classifier_see_a_model_it_is_evaluated_on(workspa
     data = load_npz(workspace.root / "observe" / "observation_models.npz")
     assert np.array_equal(np.unique(data["evidence_groups"]), [0, 1, 2, 3])  # volume + folds
     assert data["evidence_predictions"].shape == (2 + len(train), 10)
-    temperatures = dict(zip(data["models"].tolist(), data["temperatures"].tolist()))
+    temperatures = dict(zip(data["models"].tolist(), data["temperatures"].tolist(), strict=True))
     assert all(0.05 <= t <= 2.0 for t in temperatures.values())
