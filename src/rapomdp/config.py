@@ -188,7 +188,10 @@ class ObserveConfig(Section):
     crossfit_folds: int = Field(3, ge=2, description="cross-fitting folds over training models")
     crossfit_epochs: int = Field(
         6, ge=1, description="epochs of each fold's classifier (the demo's time budget)")
-    ra_model: Literal["auto", "paper", "class", "area", "class_area"] = Field(
+    contrastive: bool = Field(
+        False, description="also fit ra_contrastive: each class's saliency volume against its "
+        "most confused class (one more mask per volume-model view)")
+    ra_model: Literal["auto", "paper", "class", "area", "class_area", "contrastive"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")
     belief_correction: Literal["none", "temperature"] = Field(

@@ -92,7 +92,7 @@ STAGES: list[Stage] = [
         name="observe",
         run=run_observe_stage,
         sections=OBSERVE_SECTIONS,
-        inputs=("dataset", "train", "volume", "crossfit"),
+        inputs=("dataset", "render", "train", "volume", "crossfit"),
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
     Stage(

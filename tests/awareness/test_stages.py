@@ -162,3 +162,18 @@ def test_crossfit_never_lets_a_classifier_see_a_model_it_is_evaluated_on(workspa
     assert data["evidence_predictions"].shape == (2 + len(train), 10)
     temperatures = dict(zip(data["models"].tolist(), data["temperatures"].tolist(), strict=True))
     assert all(0.05 <= t <= 2.0 for t in temperatures.values())
+
+
+def test_contrastive_variant_joins_the_table_and_the_held_out_belief_is_reported(workspace):
+    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "contrastive": True,
+                                                   "ra_model": "contrastive"}})
+    results = run_pipeline(config, workspace, until="observe")
+    assert {r.name: r.cached for r in results}["crossfit"]  # observe keys do not retrain
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
+    assert "ra_contrastive" in data["models"].tolist()
+    assert np.allclose(data["ra"], data["ra_contrastive"])  # the configured RA-POMDP model
+    calibration = read_json(workspace.root / "observe" / "calibration.json")
+    assert calibration["ra_model"] == "contrastive"
+    held = calibration["held_out_belief"]["ra_contrastive"]
+    assert 0 <= held["ece_last_tempered"] <= 1 and 0 <= held["accuracy_last"] <= 1
+    run_pipeline(config_from_dict(TINY), workspace, until="observe")  # back to the default

@@ -26,7 +26,7 @@ from rapomdp.awareness.observation import (
     calibrate_per_class,
     wrong_label_distribution,
 )
-from rapomdp.awareness.quality import quality_from_probabilities
+from rapomdp.awareness.quality import expected_calibration_error, quality_from_probabilities
 from rapomdp.config import ObserveConfig
 
 RA_VARIANTS = {
@@ -34,6 +34,7 @@ RA_VARIANTS = {
     "class": ("mean", True),  # + one intercept per class (its difficulty), shared slope
     "area": ("area", False),  # the salient area seen (Eq. 6's sum), one calibration
     "class_area": ("area", True),  # the salient area seen + per-class intercepts
+    "contrastive": ("contrastive", True),  # a class against its most confused (observe.contrastive)
 }
 """RA variant -> (viewpoint score it calibrates, per-class intercepts?)."""
 
@@ -75,6 +76,8 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
     wrong = wrong_label_distribution(rows, predicted, len(classes), cfg.confusion_pseudo_count)
     models: dict[str, ObservationModel] = {}
     for variant, (kind, per_class) in RA_VARIANTS.items():
+        if kind not in scores:
+            continue
         s = scores[kind]
         calibration = (calibrate_per_class(s[labels], correct, rows, len(classes)) if per_class
                        else calibrate_correctness(s[labels], correct, cfg.calibration))
@@ -216,12 +219,12 @@ def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighb
     return walks
 
 
-def belief_log_loss(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
-                    labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
-                    walk_row: np.ndarray) -> float:
-    """Mean −log belief in the true class after every step of every walk, the belief updated by
+def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
+                     predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray
+                     ) -> np.ndarray:
+    """Log beliefs (E, L, C) after every step of every walk, from a uniform prior, updated by
     Eq. 5 with the tempered models (row r of the outcomes uses ``models[row_model[r]]``). A
-    viewpoint a walk revisits adds no evidence (the sensor would see the same image)."""
+    viewpoint a walk stays on adds no evidence (the sensor would see the same image)."""
     loglik = np.empty(predicted.shape + (models[0].shape[1],))  # (N, V, C)
     for m, p in enumerate(models):
         rows = np.flatnonzero(row_model == m)
@@ -236,9 +239,16 @@ def belief_log_loss(temperature: float, models: Sequence[np.ndarray], row_model:
     steps = np.where(repeat[..., None], 0.0, steps)
     cumulative = np.cumsum(steps, axis=1)
     cumulative -= cumulative.max(axis=2, keepdims=True)
-    log_belief = cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
-    true = labels[walk_row]
-    return float(-np.mean(log_belief[np.arange(len(walks)), :, true]))
+    return cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
+
+
+def belief_log_loss(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
+                    labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
+                    walk_row: np.ndarray) -> float:
+    """Mean −log belief in the true class after every step of every walk
+    (:func:`walk_log_beliefs`)."""
+    log_belief = walk_log_beliefs(temperature, models, row_model, predicted, walks, walk_row)
+    return float(-np.mean(log_belief[np.arange(len(walks)), :, labels[walk_row]]))
 
 
 def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels: np.ndarray,
@@ -256,11 +266,14 @@ def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels:
 def held_out_temperatures(evidence: Evidence,
                           folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
                           directions: np.ndarray, length: int, starts_per_row: int,
-                          neighbours: int, rng: np.random.Generator) -> dict[str, float]:
+                          neighbours: int, rng: np.random.Generator
+                          ) -> tuple[dict[str, float], dict[str, dict[str, float]]]:
     """One temperature per model, fitted on random walks over the held-out groups' outcomes,
-    each group's beliefs updated by the models fitted without it. Empty without folds."""
+    each group's beliefs updated by the models fitted without it; and, per model, the
+    calibration of those held-out beliefs (max belief against a right argmax) after the first
+    and the last step, naive (t = 1) and tempered. Empty without folds."""
     if not folds:
-        return {}
+        return {}, {}
     row_model = np.full(len(evidence.labels), -1, dtype=np.int64)
     for m, (held, _) in enumerate(folds):
         row_model[held] = m
@@ -268,7 +281,22 @@ def held_out_temperatures(evidence: Evidence,
     walk_row = np.repeat(rows, starts_per_row)
     starts = rng.integers(0, evidence.predicted.shape[1], size=walk_row.size)
     walks = random_walks(directions, starts, length, neighbours, rng)
-    return {name: fit_temperature([models[name].probabilities for _, models in folds],
-                                  row_model, evidence.labels, evidence.predicted, walks,
-                                  walk_row)
-            for name in folds[0][1]}
+    true = evidence.labels[walk_row]
+    temperatures, calibration = {}, {}
+    for name in folds[0][1]:
+        models = [m[name].probabilities for _, m in folds]
+        t = fit_temperature(models, row_model, evidence.labels, evidence.predicted, walks,
+                            walk_row)
+        temperatures[name] = t
+        report: dict[str, float] = {"temperature": t}
+        for label, value in (("naive", 1.0), ("tempered", t)):
+            belief = np.exp(walk_log_beliefs(value, models, row_model, evidence.predicted,
+                                             walks, walk_row))
+            for step, at in (("first", 0), ("last", length - 1)):
+                confidence = belief[:, at].max(axis=1)
+                right = belief[:, at].argmax(axis=1) == true
+                report[f"ece_{step}_{label}"] = expected_calibration_error(confidence, right)
+                report[f"belief_{step}_{label}"] = float(confidence.mean())
+                report[f"accuracy_{step}"] = float(right.mean())
+        calibration[name] = report
+    return temperatures, calibration

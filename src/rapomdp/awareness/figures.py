@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rapomdp.awareness.observation import ScoreCalibration  # noqa: E402
+from rapomdp.awareness.observation import ClassScoreCalibration, ScoreCalibration  # noqa: E402
 from rapomdp.awareness.volume import SaliencyVolume  # noqa: E402
 from rapomdp.geometry.viewsphere import azimuth_zenith
 from rapomdp.io import atomic_path  # noqa: E402
@@ -34,9 +34,10 @@ def _save_html(fig, path: Path) -> Path:  # noqa: ANN001 - a plotly Figure
     return path
 
 
-def calibration_figure(scores: np.ndarray, correct: np.ndarray, calibration: ScoreCalibration,
+def calibration_figure(scores: np.ndarray, correct: np.ndarray,
+                       calibration: ScoreCalibration | ClassScoreCalibration,
                        path: Path, bins: int = 10) -> Path:
-    """Accuracy of the classifier per score bin on the volume models, and the fitted map."""
+    """Accuracy of the classifier per score bin on the held-out evidence, and the fitted map."""
     s, y = np.asarray(scores).ravel(), np.asarray(correct, dtype=float).ravel()
     edges = np.linspace(0, 1, bins + 1)
     which = np.clip(np.digitize(s, edges) - 1, 0, bins - 1)
@@ -46,9 +47,15 @@ def calibration_figure(scores: np.ndarray, correct: np.ndarray, calibration: Sco
     fig, ax = plt.subplots(figsize=(5, 3.6))
     seen = count > 0
     ax.scatter(centres[seen], hits[seen] / count[seen], s=10 + 40 * count[seen] / count.max(),
-               label="volume models: accuracy per score bin")
+               label="held-out evidence: accuracy per score bin")
     grid = np.linspace(0, 1, 200)
-    ax.plot(grid, calibration(grid), color="C3", label=f"{calibration.method} fit (RA)")
+    if isinstance(calibration, ClassScoreCalibration):  # one curve per class
+        curves = calibration(np.broadcast_to(grid, (len(calibration.intercepts), grid.size)))
+        for curve in curves:
+            ax.plot(grid, curve, color="C3", alpha=0.25, lw=0.8)
+        ax.plot(grid, curves.mean(axis=0), color="C3", label="per-class fit (RA), class mean")
+    else:
+        ax.plot(grid, calibration(grid), color="C3", label=f"{calibration.method} fit (RA)")
     ax.set(xlabel="normalised viewpoint saliency score (Eq. 6)", ylabel="P(classifier right)",
            ylim=(0, 1.02), title="score -> P(correct) calibration")
     ax.legend(fontsize=8)

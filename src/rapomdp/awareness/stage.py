@@ -27,6 +27,7 @@ import torch
 
 from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit_outcomes
 from rapomdp.awareness.evidence import (
+    RA_VARIANTS,
     Evidence,
     choose_ra_variant,
     fit_level,
@@ -41,9 +42,10 @@ from rapomdp.awareness.observation import (
     ClassScoreCalibration,
     ObservationModel,
     ScoreCalibration,
+    wrong_label_distribution,
 )
 from rapomdp.awareness.quality import quality_table, write_quality
-from rapomdp.awareness.saliency import PerturbationMask, make_attribution
+from rapomdp.awareness.saliency import ContrastiveMask, PerturbationMask, make_attribution
 from rapomdp.awareness.scores import normalise_scores, viewpoint_salient_area, viewpoint_scores
 from rapomdp.awareness.visibility import visibility_from_depth
 from rapomdp.awareness.volume import SaliencyVolume, object_grid, saliency_volume
@@ -51,7 +53,12 @@ from rapomdp.config import Config
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.renderer import DepthRenderer
 from rapomdp.data.splits import class_seed
-from rapomdp.data.training_views import load_training_views, model_poses, render_depth
+from rapomdp.data.training_views import (
+    TrainingViews,
+    load_training_views,
+    model_poses,
+    render_depth,
+)
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
@@ -75,8 +82,10 @@ TEMPERATURE_NEIGHBOURS = 8
 
 
 def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, method: str,
-                  cfg: object, seed: int, batch_size: int = 128) -> dict[str, np.ndarray]:
-    """2D saliency (views, H, W) of depth images w.r.t. class ``label``, on the image's pixels.
+                  cfg: object, seed: int, batch_size: int = 128,
+                  against: int | None = None) -> dict[str, np.ndarray]:
+    """2D saliency (views, H, W) of depth images w.r.t. class ``label``, on the image's pixels
+    (with ``against``: the mask of ``label`` against that class, :class:`ContrastiveMask`).
 
     Views are attributed ``batch_size`` at a time (the mask optimises a whole batch at once).
     """
@@ -85,6 +94,10 @@ def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, metho
     attribution = make_attribution(method, classifier.network,
                                    classifier.preprocessing.input_size_px, cfg, seed,
                                    baseline=classifier.preprocessing.background)
+    if against is not None:
+        if not isinstance(attribution, PerturbationMask):
+            raise ValueError(f"contrastive saliency needs the mask, not {method!r}")
+        attribution = ContrastiveMask(attribution.network, attribution.params, against, seed)
     prep = classifier.preprocess(depth_m)
     maps = np.empty((n, h, w), dtype=np.float32)
     perturbed = np.full(n, np.nan, dtype=np.float32)
@@ -237,13 +250,16 @@ class Observation:
     temperatures: dict[str, float] = field(default_factory=dict)
     single_view: dict[str, ObservationModel] = field(default_factory=dict)
     levels: dict[str, float] = field(default_factory=dict)
+    belief_calibration: dict[str, dict[str, float]] = field(default_factory=dict)
+    score_kinds: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
             volumes: dict[str, SaliencyVolume],
             cache: dict[str, XrhoOutcomes] | None = None,
-            crossfit: CrossfitOutcomes | None = None) -> Observation:
+            crossfit: CrossfitOutcomes | None = None,
+            views: TrainingViews | None = None) -> Observation:
     """Viewpoint scores, observation models and their quality on the test models.
 
     The models are fitted on the held-out evidence ``observe.evidence`` names: the volume
@@ -278,14 +294,20 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
             vol_labels.append(c)
         raw[c] = np.nanmean(np.stack(per_model), axis=0)
         area[c] = np.mean(np.stack(per_model_area), axis=0)
-    scores_s = time.perf_counter() - start
     scores = {"mean": normalise_scores(raw), "area": normalise_scores(area)}
     labels, predicted = np.array(vol_labels), np.stack(vol_pred)
     evidence = observation_evidence(cfg.evidence, labels, predicted, crossfit)
+    if cfg.contrastive:
+        if views is None:
+            raise StageError("observe.contrastive needs the training renders (render stage)")
+        scores["contrastive"] = contrastive_scores(config, views, classifier, evidence, cache)
+    scores_s = time.perf_counter() - start
     # RA-POMDP's model and the belief's temperature: chosen / fitted on held-out groups
     folds = leave_one_group_out(evidence, scores, classes, cfg)
     validation = validation_quality(evidence, folds)
     variant = choose_ra_variant(validation, cfg.ra_model)
+    if variant == "contrastive" and not cfg.contrastive:
+        raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
     fitted = fit_observation_models(evidence, scores, classes, cfg)
     levels = {name: 0.0 for name in fitted}
     if (evidence.groups > 0).any() and (evidence.groups == 0).any():
@@ -298,11 +320,11 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
     levels["ra"] = levels[f"ra_{variant}"]
     temperatures = {name: 1.0 for name in single_view}
+    held, belief_calibration = held_out_temperatures(
+        evidence, folds, fibonacci_directions(config.viewpoints.count, hemisphere=True),
+        TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+        class_seed(config.seed, "observe/temperature"))
     if cfg.belief_correction == "temperature":
-        held = held_out_temperatures(
-            evidence, folds, fibonacci_directions(config.viewpoints.count, hemisphere=True),
-            TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
-            class_seed(config.seed, "observe/temperature"))
         temperatures.update(held)
         if f"ra_{variant}" in held:
             temperatures["ra"] = held[f"ra_{variant}"]
@@ -318,9 +340,49 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     calibration = single_view["ra"].calibration  # type: ignore[attr-defined]
     return Observation(models, raw, scores["mean"], scores["area"], calibration, labels,
                        predicted, evidence, test_labels, test_pred, rows, validation, variant,
-                       temperatures, single_view, levels,
+                       temperatures, single_view, levels, belief_calibration, scores,
                        {"scores_s": scores_s, "observation_models_s": models_s,
                         "total_s": time.perf_counter() - start})
+
+
+def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
+    """Each class's most frequent wrong label on the held-out evidence (C,) (ties: lowest)."""
+    rows = np.broadcast_to(evidence.labels[:, None], evidence.predicted.shape)
+    return wrong_label_distribution(rows, evidence.predicted, classes, 0.0).argmax(axis=1)
+
+
+def contrastive_scores(config: Config, views: TrainingViews, classifier: Classifier,
+                       evidence: Evidence, cache: dict[str, XrhoOutcomes]) -> np.ndarray:
+    """Normalised viewpoint scores (C, V) of contrastive volumes: each class's volume model
+    attributed against its most confused class (the mask, ``saliency`` settings), fused into a
+    volume as the volume stage does, seen from X_rho as Eq. 6 sees the class's volume."""
+    dataset = views.dataset
+    classes = dataset.classes
+    intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
+    against = most_confused(evidence, len(classes))
+    raw = np.zeros((len(classes), config.viewpoints.count))
+    for c, class_name in enumerate(track(classes, "observe: contrastive volumes")):
+        models = [m for m in dataset.with_role("volume") if m.class_name == class_name]
+        depth, poses, maps = [], [], []
+        for model in models:
+            d, p = views.load(model)
+            depth.append(d)
+            poses.append(p)
+            maps.append(saliency_maps(classifier, d, c, "mask", config.saliency, config.seed,
+                                      config.saliency.batch_size, int(against[c]))["saliency"])
+        meshes = [dataset.mesh(m) for m in models]
+        grid = object_grid(np.min([m.bounds[0] for m in meshes], axis=0),
+                           np.max([m.bounds[1] for m in meshes], axis=0),
+                           config.volume.resolution)
+        volume = saliency_volume(np.concatenate(depth), np.concatenate(poses),
+                                 np.concatenate(maps), views.intrinsics, grid)
+        per_model = []
+        for model in models:
+            seen = cache[f"{model.class_name}/{model.id}"]
+            vis = visibility_from_depth(seen.clean, seen.poses, intrinsics, volume.grid)
+            per_model.append(viewpoint_scores(vis, volume.flat_scores()))
+        raw[c] = np.nanmean(np.stack(per_model), axis=0)
+    return normalise_scores(raw)
 
 
 def _relevel(model: ObservationModel, shift: float) -> ObservationModel:
@@ -386,7 +448,9 @@ def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path) -> Non
                for name in dataset.classes}
     crossfit = (CrossfitOutcomes.load(inputs["crossfit"] / CROSSFIT_FILE)
                 if "crossfit" in inputs else None)
-    result = observe(config, dataset, classifier, volumes, crossfit=crossfit)
+    views = (load_training_views(inputs["render"], inputs["dataset"])
+             if "render" in inputs else None)
+    result = observe(config, dataset, classifier, volumes, crossfit=crossfit, views=views)
     write_quality(result.quality, out / "quality.csv", out / "quality.md")
     if result.validation:
         write_quality(result.validation, out / "validation.csv", out / "validation.md")
@@ -410,13 +474,14 @@ def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path) -> Non
                      for name, m in result.single_view.items() if name.startswith("ra_")},
         "temperatures": result.temperatures,
         "level_shifts": result.levels,
+        "held_out_belief": result.belief_calibration,
         "evidence": config.observe.evidence,
         "evidence_accuracy": float(correct.mean()),
         "volume_accuracy": float((result.volume_predictions
                                   == result.volume_labels[:, None]).mean()),
         "pairs": int(correct.size),
     })
-    figure_scores = result.area_scores if "area" in result.ra_variant else result.scores
+    figure_scores = result.score_kinds[RA_VARIANTS[result.ra_variant][0]]
     calibration_figure(figure_scores[ev.labels], correct, result.calibration,
                        out / "calibration.png")
     write_json_atomic(out / "timing.json", result.seconds)
