@@ -135,3 +135,25 @@ def test_held_out_validation_prefers_the_score_that_predicts_correctness():
     models = fit_observation_models(evidence, {"mean": mean, "area": area}, ["a", "b"], cfg)
     assert set(models) == {"ra_paper", "ra_class", "ra_area", "ra_class_area", "classifier",
                            "blackbox"}
+
+
+def test_viewpoint_evidence_is_stacked_on_other_groups_and_finds_a_bad_patch():
+    from rapomdp.awareness.evidence import fit_viewpoint_correctness, viewpoint_logit
+
+    rng = np.random.default_rng(7)
+    directions = fibonacci_directions(64, hemisphere=True)
+    bad = directions[:, 0] > 0.5  # the classifier fails on class 0 seen from +x
+    labels = np.repeat([0, 1], 4)
+    p_right = np.where(bad[None] & (labels[:, None] == 0), 0.2, 0.9)
+    right = rng.random(p_right.shape) < p_right
+    predicted = np.where(right, labels[:, None], 1 - labels[:, None])
+    logit = viewpoint_logit(labels, predicted, 2, directions)
+    assert logit[0, bad].mean() < 0.0 < logit[0, ~bad].mean() - 1.2  # smoothed, still apart
+    assert abs(logit[1, bad].mean() - logit[1, ~bad].mean()) < 0.6
+    evidence = Evidence(labels, predicted, np.tile(np.arange(4), 2))
+    flat = np.full((2, 64), 0.5)  # a score that says nothing
+    fused = fit_viewpoint_correctness(evidence, flat, 2, directions)
+    assert fused is not None and fused.weights[1] > 0.5
+    assert fused.correct[0, bad].mean() < 0.45 < 0.75 < fused.correct[0, ~bad].mean()
+    single = Evidence(labels, predicted, np.zeros(8, np.int64))
+    assert fit_viewpoint_correctness(single, flat, 2, directions) is None

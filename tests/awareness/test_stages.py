@@ -19,7 +19,8 @@ from tests.conftest import TINY_PIPELINE
 
 TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"]},
         "viewpoints": {"count": 10}}
-MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "classifier", "blackbox")
+MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint", "classifier",
+          "blackbox")
 
 
 @pytest.fixture(scope="module")
@@ -177,3 +178,28 @@ def test_contrastive_variant_joins_the_table_and_the_held_out_belief_is_reported
     held = calibration["held_out_belief"]["ra_contrastive"]
     assert 0 <= held["ece_last_tempered"] <= 1 and 0 <= held["accuracy_last"] <= 1
     run_pipeline(config_from_dict(TINY), workspace, until="observe")  # back to the default
+
+
+def test_report_figures_read_the_single_view_models_the_quality_table_scores(workspace,
+                                                                              tmp_path):
+    from rapomdp.awareness.evidence import temper
+    from rapomdp.awareness.observation import ObservationModel
+    from rapomdp.awareness.quality import awareness_quality
+    from rapomdp.awareness.report import single_view_models, write_awareness_figures
+
+    observe = load_npz(workspace.root / "observe" / "observation_models.npz")
+    single = single_view_models(observe)
+    for name, t in zip(observe["models"].tolist(), observe["temperatures"].tolist(),
+                       strict=True):
+        assert np.allclose(temper(single[name], t), observe[name], atol=1e-9)
+    with open(workspace.root / "observe" / "quality.csv") as handle:
+        table = {r["model"]: r for r in csv.DictReader(handle)}
+    for name in ("ra", "classifier", "blackbox"):
+        measured = awareness_quality(ObservationModel(single[name], ["bicycle", "teapot"]),
+                                     observe["test_labels"], observe["test_predictions"])
+        assert measured["log_likelihood"] == pytest.approx(
+            float(table[name]["log_likelihood"]), abs=1e-9)
+    rel, hemi = write_awareness_figures(workspace.root / "observe", "teapot", tmp_path)
+    assert rel.stat().st_size > 1000 and hemi.name == "awareness_hemisphere_teapot.png"
+    with pytest.raises(Exception, match="class 'unicycle' is not in the observe stage"):
+        write_awareness_figures(workspace.root / "observe", "unicycle", tmp_path)

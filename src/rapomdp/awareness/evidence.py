@@ -35,6 +35,7 @@ RA_VARIANTS = {
     "area": ("area", False),  # the salient area seen (Eq. 6's sum), one calibration
     "class_area": ("area", True),  # the salient area seen + per-class intercepts
     "contrastive": ("contrastive", True),  # a class against its most confused (observe.contrastive)
+    "viewpoint": ("area", True),  # + the held-out per-viewpoint evidence, stacked
 }
 """RA variant -> (viewpoint score it calibrates, per-class intercepts?)."""
 
@@ -64,24 +65,118 @@ class Evidence:
                    np.concatenate([p.groups for p in parts]))
 
 
+VIEWPOINT_BANDWIDTH_DEG = 20.0
+"""Kernel width over viewpoints of the per-viewpoint evidence ``ra_viewpoint`` stacks (fixed a
+priori: about two neighbours' spacing on X_rho, not tuned)."""
+VIEWPOINT_PRIOR = 2.0
+"""Pseudo-observations of the class's accuracy added to each viewpoint's kernel count."""
+
+
+def viewpoint_logit(labels: np.ndarray, predicted: np.ndarray, classes: int,
+                    directions: np.ndarray) -> np.ndarray:
+    """Logit (C, V) of the classifier's accuracy at each (class, viewpoint) on the evidence,
+    kernel-smoothed over neighbouring viewpoints (Gaussian in the angle) and shrunk to the
+    class's accuracy by :data:`VIEWPOINT_PRIOR` pseudo-observations."""
+    d = np.asarray(directions, dtype=np.float64)
+    angle = np.degrees(np.arccos(np.clip(d @ d.T, -1.0, 1.0)))
+    kernel = np.exp(-0.5 * (angle / VIEWPOINT_BANDWIDTH_DEG) ** 2)  # (V, V)
+    onehot = np.eye(classes)[labels]  # (N, C)
+    right = onehot.T @ (predicted == labels[:, None]).astype(np.float64)  # (C, V)
+    seen = np.broadcast_to(onehot.sum(axis=0)[:, None], right.shape)
+    accuracy = (right.sum(axis=1) + 0.5) / (seen.sum(axis=1) + 1.0)  # (C,)
+    q = (right @ kernel.T + VIEWPOINT_PRIOR * accuracy[:, None]) / (
+        seen @ kernel.T + VIEWPOINT_PRIOR)
+    q = np.clip(q, 1e-3, 1 - 1e-3)
+    return np.log(q / (1 - q))
+
+
+@dataclass
+class FixedCorrectness:
+    """P(correct) (C, V) fitted beforehand (a calibration whose input is already used):
+    ``sigmoid(a_c + b * score + e * viewpoint logit)`` for ``ra_viewpoint``."""
+
+    correct: np.ndarray
+    intercepts: np.ndarray
+    weights: np.ndarray
+    method: str = "logistic_score_and_viewpoint_evidence"
+
+    def __call__(self, scores: np.ndarray) -> np.ndarray:
+        return np.clip(self.correct, 1e-3, 1 - 1e-3)
+
+    def to_dict(self) -> dict[str, object]:
+        return {"method": self.method, "intercepts": self.intercepts.tolist(),
+                "score_weight": float(self.weights[0]),
+                "viewpoint_weight": float(self.weights[1])}
+
+
+def _newton_logistic(x: np.ndarray, y: np.ndarray, ridge: float) -> np.ndarray:
+    w = np.zeros(x.shape[1])
+    for _ in range(50):
+        p = 1.0 / (1.0 + np.exp(-(x @ w)))
+        step = np.linalg.solve((x * (p * (1 - p))[:, None]).T @ x + ridge * np.eye(x.shape[1]),
+                               x.T @ (p - y) + ridge * w)
+        w = w - step
+        if np.max(np.abs(step)) < 1e-10:
+            break
+    return w
+
+
+def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: int,
+                              directions: np.ndarray) -> FixedCorrectness | None:
+    """``ra_viewpoint``: the saliency score and the held-out per-viewpoint evidence together.
+    The weights are fitted by stacking — each group's rows see the viewpoint logit computed
+    from the *other* groups only — so the evidence is never scored on itself; the final
+    logit uses every group. None with a single group (nothing to stack on)."""
+    groups = np.unique(evidence.groups)
+    if groups.size < 2:
+        return None
+    features, targets, class_of = [], [], []
+    for g in groups:
+        held, rest = evidence.subset(evidence.groups == g), evidence.subset(evidence.groups != g)
+        logit = viewpoint_logit(rest.labels, rest.predicted, classes, directions)
+        rows = np.broadcast_to(held.labels[:, None], held.predicted.shape)
+        features.append(np.stack([score[rows, np.arange(score.shape[1])],
+                                  logit[rows, np.arange(score.shape[1])]], -1).reshape(-1, 2))
+        targets.append(held.correct.ravel())
+        class_of.append(rows.ravel())
+    f, y, g_of = np.concatenate(features), np.concatenate(targets), np.concatenate(class_of)
+    x = np.zeros((y.size, classes + 2))
+    x[np.arange(y.size), g_of] = 1.0
+    x[:, classes:] = f
+    w = _newton_logistic(x, y.astype(np.float64), 1e-2)
+    while np.any(w[classes:] < 0):  # monotone in both: drop a falling feature, refit
+        x[:, classes + int(np.argmin(w[classes:]))] = 0.0
+        w = _newton_logistic(x, y.astype(np.float64), 1e-2)
+    final = viewpoint_logit(evidence.labels, evidence.predicted, classes, directions)
+    z = w[:classes, None] + w[classes] * score + w[classes + 1] * final
+    return FixedCorrectness(1.0 / (1.0 + np.exp(-z)), w[:classes].copy(), w[classes:].copy())
+
+
 def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
-                           classes: Sequence[str], cfg: ObserveConfig
+                           classes: Sequence[str], cfg: ObserveConfig,
+                           directions: np.ndarray | None = None
                            ) -> dict[str, ObservationModel]:
     """Every RA variant (``ra_<variant>``), the Classifier and the black-box model, fitted on
     ``evidence``; ``scores`` holds the per-class normalised viewpoint scores (C, V) by kind
-    (``mean``, ``area``)."""
+    (``mean``, ``area``). ``ra_viewpoint`` needs the viewpoints' ``directions`` and two
+    groups of evidence."""
     labels, predicted = evidence.labels, evidence.predicted
     rows = np.broadcast_to(labels[:, None], predicted.shape)
     correct = predicted == rows
     wrong = wrong_label_distribution(rows, predicted, len(classes), cfg.confusion_pseudo_count)
     models: dict[str, ObservationModel] = {}
     for variant, (kind, per_class) in RA_VARIANTS.items():
-        if kind not in scores:
+        if kind not in scores or variant == "viewpoint":
             continue
         s = scores[kind]
         calibration = (calibrate_per_class(s[labels], correct, rows, len(classes)) if per_class
                        else calibrate_correctness(s[labels], correct, cfg.calibration))
         models[f"ra_{variant}"] = RAObservationModel(s, calibration, wrong, classes)
+    if directions is not None:
+        kind = RA_VARIANTS["viewpoint"][0]
+        fused = fit_viewpoint_correctness(evidence, scores[kind], len(classes), directions)
+        if fused is not None:
+            models["ra_viewpoint"] = RAObservationModel(scores[kind], fused, wrong, classes)
     models["classifier"] = ClassifierObservationModel(labels, predicted, classes,
                                                       cfg.classifier_pseudo_count)
     models["blackbox"] = BlackBoxObservationModel(labels, predicted, classes,
@@ -98,7 +193,8 @@ def observed_probabilities(model: np.ndarray, labels: np.ndarray, predicted: np.
 
 
 def leave_one_group_out(evidence: Evidence, scores: dict[str, np.ndarray],
-                        classes: Sequence[str], cfg: ObserveConfig
+                        classes: Sequence[str], cfg: ObserveConfig,
+                        directions: np.ndarray | None = None
                         ) -> list[tuple[np.ndarray, dict[str, ObservationModel]]]:
     """For every group whose complement still covers every class: (its rows' mask, the models
     fitted on the other groups). Empty when there is one group only."""
@@ -108,7 +204,8 @@ def leave_one_group_out(evidence: Evidence, scores: dict[str, np.ndarray],
         rest = evidence.subset(~held)
         if held.all() or set(rest.labels.tolist()) != set(evidence.labels.tolist()):
             continue
-        out.append((held, fit_observation_models(rest, scores, classes, cfg)))
+        models = fit_observation_models(rest, scores, classes, cfg, directions)
+        out.append((held, models))
     return out
 
 
@@ -120,7 +217,7 @@ def validation_quality(evidence: Evidence,
     if not folds:
         return []
     rows = []
-    for name in folds[0][1]:
+    for name in (n for n in folds[0][1] if all(n in models for _, models in folds)):
         observed, p_correct, correct = [], [], []
         for held, models in folds:
             part = evidence.subset(held)
@@ -283,7 +380,7 @@ def held_out_temperatures(evidence: Evidence,
     walks = random_walks(directions, starts, length, neighbours, rng)
     true = evidence.labels[walk_row]
     temperatures, calibration = {}, {}
-    for name in folds[0][1]:
+    for name in (n for n in folds[0][1] if all(n in m for _, m in folds)):
         models = [m[name].probabilities for _, m in folds]
         t = fit_temperature(models, row_model, evidence.labels, evidence.predicted, walks,
                             walk_row)

@@ -1,4 +1,6 @@
-"""Fig. 1 and Fig. 2 from a workspace's stages (the ``rapomdp figure`` commands)."""
+"""Fig. 1 and Fig. 2 from a workspace's stages (the ``rapomdp figure`` commands), and the
+report's self-awareness figures (predicted against observed P(correct) on the test models; one
+class's predicted and actual per-viewpoint accuracy)."""
 
 from __future__ import annotations
 
@@ -7,7 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.figures import fig1, fig2
+from rapomdp.awareness.evidence import temper
+from rapomdp.awareness.figures import fig1, fig2, hemisphere_pair_figure, reliability_figure
+from rapomdp.awareness.quality import reliability
 from rapomdp.awareness.stage import OBSERVATION_FILE, load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.config import Config
@@ -70,3 +74,45 @@ def write_fig2(config: Config, ws: Workspace, target: str, against: Sequence[str
     titles.append(f"all {len(classes)} classes")
     out = ws.root / FIGURES_DIR
     return fig2(volumes, titles, target, out / "fig2.png", out / "fig2.html")
+
+
+def single_view_models(observe: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The observe stage's models before the belief's temperature (the single-view models the
+    quality table scores): tempering by t is undone by tempering by 1 / t."""
+    names = [str(n) for n in observe["models"]]
+    temperatures = observe["temperatures"] if "temperatures" in observe else np.ones(len(names))
+    return {n: temper(observe[n], 1.0 / float(t)) for n, t in zip(names, temperatures,
+                                                                   strict=True)}
+
+
+def write_awareness_figures(observe_dir: Path, class_name: str, out_dir: Path,
+                            models: Sequence[str] = ("ra", "classifier", "blackbox")
+                            ) -> tuple[Path, Path]:
+    """``awareness_reliability.png`` (predicted against observed P(correct) on the test
+    models, per model) and ``awareness_hemisphere_<class>.png`` (the RA and Classifier models'
+    predicted per-viewpoint accuracy of ``class_name`` beside the test models' actual one)."""
+    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+    classes = [str(c) for c in observe["classes"]]
+    if class_name not in classes:
+        raise StageError(f"class '{class_name}' is not in the observe stage's classes")
+    single = single_view_models(observe)
+    labels, predicted = observe["test_labels"], observe["test_predictions"]
+    correct = predicted == labels[:, None]
+    curves = {}
+    for name in (m for m in models if m in single):
+        p_correct = np.diagonal(single[name], axis1=1, axis2=2)  # (V, C)
+        curves[name] = reliability(p_correct.T[labels], correct, 10)
+    out = Path(out_dir)
+    rel = reliability_figure(curves, out / "awareness_reliability.png")
+    c = classes.index(class_name)
+    mine = labels == c
+    actual = correct[mine].mean(axis=0) if mine.any() else np.full(correct.shape[1], np.nan)
+    shown = [m for m in ("ra", "classifier") if m in single]
+    values = [np.diagonal(single[m], axis1=1, axis2=2)[:, c] for m in shown] + [actual]
+    titles = [f"{m}: predicted P(correct)" for m in shown] + [
+        f"actual accuracy ({int(mine.sum())} test model(s))"]
+    hemi = hemisphere_pair_figure(observe["directions"], values, titles,
+                                  f"class {class_name}: predicted and actual accuracy per "
+                                  f"viewpoint of X_rho (seen from above)",
+                                  out / f"awareness_hemisphere_{class_name}.png")
+    return rel, hemi

@@ -303,12 +303,16 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         scores["contrastive"] = contrastive_scores(config, views, classifier, evidence, cache)
     scores_s = time.perf_counter() - start
     # RA-POMDP's model and the belief's temperature: chosen / fitted on held-out groups
-    folds = leave_one_group_out(evidence, scores, classes, cfg)
+    directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
+    folds = leave_one_group_out(evidence, scores, classes, cfg, directions)
     validation = validation_quality(evidence, folds)
     variant = choose_ra_variant(validation, cfg.ra_model)
     if variant == "contrastive" and not cfg.contrastive:
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
-    fitted = fit_observation_models(evidence, scores, classes, cfg)
+    if variant == "viewpoint" and len(np.unique(evidence.groups)) < 2:
+        raise StageError("observe.ra_model 'viewpoint' stacks over groups of held-out "
+                         "evidence: set observe.evidence to crossfit or both")
+    fitted = fit_observation_models(evidence, scores, classes, cfg, directions)
     levels = {name: 0.0 for name in fitted}
     if (evidence.groups > 0).any() and (evidence.groups == 0).any():
         # cross-fitted classifiers train on less data and err more: each model's P(correct)
@@ -321,7 +325,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     levels["ra"] = levels[f"ra_{variant}"]
     temperatures = {name: 1.0 for name in single_view}
     held, belief_calibration = held_out_temperatures(
-        evidence, folds, fibonacci_directions(config.viewpoints.count, hemisphere=True),
+        evidence, folds, directions,
         TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
         class_seed(config.seed, "observe/temperature"))
     if cfg.belief_correction == "temperature":

@@ -18,12 +18,15 @@ baseline). A missing file gives a line saying what is missing and which command 
 
 from __future__ import annotations
 
+import csv
 import html
 import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from rapomdp.awareness.report import FIGURES_DIR, write_fig1
 from rapomdp.config import Config
@@ -343,8 +346,48 @@ def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name:
                     "the test models over X_rho:"))
     b.markdown(inputs["observe"] / "quality.md", observe_how)
     b.figure(inputs["observe"] / "calibration.png",
-             "Calibration: the classifier's accuracy per viewpoint-score bin on the volume "
-             "models, and the fitted score-to-correctness map.", observe_how)
+             "Calibration: the classifier's accuracy per viewpoint-score bin on the held-out "
+             "evidence, and the fitted score-to-correctness map of RA-POMDP's model.",
+             observe_how)
+    _self_awareness(b, inputs, class_name, observe_how)
+
+
+def _self_awareness(b: _Builder, inputs: dict[str, Path], class_name: str, how: str) -> None:
+    """Held-out validation, predicted vs observed P(correct), one class's hemispheres and the
+    calibration of every method's final belief."""
+    from rapomdp.awareness.quality import expected_calibration_error
+    from rapomdp.awareness.report import write_awareness_figures
+
+    observe = inputs["observe"]
+    if (observe / "validation.md").exists():
+        b.add(Paragraph("Held-out validation (what chose RA-POMDP's model): each group of the "
+                        "held-out evidence scored by the models fitted without it:"))
+        b.markdown(observe / "validation.md", how)
+    try:
+        rel, hemi = write_awareness_figures(observe, class_name, b.out)
+    except (StageError, ArtefactError, KeyError) as exc:
+        b.missing(f"the self-awareness figures could not be made ({exc})", how)
+    else:
+        b.figure(rel, "Predicted against observed P(correct) on the test models, per "
+                      "observation model (single view, before the belief's temperature).",
+                 how, rel.name)
+        b.figure(hemi, f"Class {class_name}: predicted P(correct) per viewpoint (RA, "
+                       f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
+    episodes = inputs["evaluate"] / "episodes.csv"
+    if episodes.exists():
+        with open(episodes) as handle:
+            records = list(csv.DictReader(handle))
+        rows = []
+        for method in dict.fromkeys(r["method"] for r in records):
+            belief = np.array([float(r["belief"]) for r in records if r["method"] == method])
+            right = np.array([int(r["correct"]) for r in records if r["method"] == method])
+            rows.append([method, _fmt(float(right.mean())), _fmt(float(belief.mean())),
+                         _fmt(float(belief.mean() - right.mean())),
+                         _fmt(expected_calibration_error(belief, right))])
+        b.add(Paragraph("Calibration of every method's final belief in the closed loop "
+                        "(ECE: 10 equal-width bins):"))
+        b.add(Table(["method", "accuracy", "mean final belief", "belief − accuracy", "ECE"],
+                    rows))
 
 
 def _classifier(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
