@@ -24,6 +24,7 @@ from rapomdp.awareness.observation import (
     RAObservationModel,
     calibrate_correctness,
     calibrate_per_class,
+    newton_logistic,
     wrong_label_distribution,
 )
 from rapomdp.awareness.quality import expected_calibration_error, quality_from_probabilities
@@ -109,18 +110,6 @@ class FixedCorrectness:
                 "viewpoint_weight": float(self.weights[1])}
 
 
-def _newton_logistic(x: np.ndarray, y: np.ndarray, ridge: float) -> np.ndarray:
-    w = np.zeros(x.shape[1])
-    for _ in range(50):
-        p = 1.0 / (1.0 + np.exp(-(x @ w)))
-        step = np.linalg.solve((x * (p * (1 - p))[:, None]).T @ x + ridge * np.eye(x.shape[1]),
-                               x.T @ (p - y) + ridge * w)
-        w = w - step
-        if np.max(np.abs(step)) < 1e-10:
-            break
-    return w
-
-
 def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: int,
                               directions: np.ndarray) -> FixedCorrectness | None:
     """``ra_viewpoint``: the saliency score and the held-out per-viewpoint evidence together.
@@ -143,10 +132,10 @@ def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: in
     x = np.zeros((y.size, classes + 2))
     x[np.arange(y.size), g_of] = 1.0
     x[:, classes:] = f
-    w = _newton_logistic(x, y.astype(np.float64), 1e-2)
+    w = newton_logistic(x, y.astype(np.float64), 1e-2)
     while np.any(w[classes:] < 0):  # monotone in both: drop a falling feature, refit
         x[:, classes + int(np.argmin(w[classes:]))] = 0.0
-        w = _newton_logistic(x, y.astype(np.float64), 1e-2)
+        w = newton_logistic(x, y.astype(np.float64), 1e-2)
     final = viewpoint_logit(evidence.labels, evidence.predicted, classes, directions)
     z = w[:classes, None] + w[classes] * score + w[classes + 1] * final
     return FixedCorrectness(1.0 / (1.0 + np.exp(-z)), w[:classes].copy(), w[classes:].copy())
