@@ -303,6 +303,15 @@ def volume(workspace: WorkspaceOption, config: ConfigOption = None, force: Force
 
 
 @app.command()
+def crossfit(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+             reconfigure: ReconfigureOption = False, overrides: OverridesArgument = None,
+             threads: ThreadsOption = None) -> None:
+    """Held-out evidence: k small classifiers label the training models they did not see."""
+    _run(config, workspace, "crossfit", ["crossfit"] if force else [], _context(threads),
+         overrides, reconfigure)
+
+
+@app.command()
 def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
             reconfigure: ReconfigureOption = False, overrides: OverridesArgument = None,
             threads: ThreadsOption = None) -> None:

@@ -200,6 +200,22 @@ class ObserveConfig(Section):
         0.1, gt=0, description="Classifier model: pseudo-count per (viewpoint, class, label)")
     confusion_pseudo_count: float = Field(
         1.0, ge=0, description="RA / black-box: pseudo-count per (class, label) of the confusion")
+    evidence: Literal["volume", "crossfit", "both"] = Field(
+        "both", description="held-out evidence the models are fitted on: the volume models "
+        "under the classifier (the paper's), cross-fitted training models, or both")
+    crossfit_folds: int = Field(3, ge=2, description="cross-fitting folds over training models")
+    crossfit_epochs: int = Field(
+        6, ge=1, description="epochs of each fold's classifier (the demo's time budget)")
+    contrastive: bool = Field(
+        False, description="also fit ra_contrastive: each class's saliency volume against its "
+        "most confused class (one more mask per volume-model view)")
+    ra_model: Literal["auto", "paper", "class", "area", "class_area", "contrastive",
+                      "viewpoint"] = Field(
+        "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
+        "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")
+    belief_correction: Literal["none", "temperature"] = Field(
+        "temperature", description="temperature: every model's likelihoods raised to a power "
+        "fitted on held-out multi-view episodes (correlated views count less than independent)")
 
 
 Vector3 = tuple[float, float, float]

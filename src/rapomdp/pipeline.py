@@ -9,9 +9,12 @@ from rapomdp.awareness.artefacts import volume_file
 from rapomdp.awareness.figures import fig2
 from rapomdp.awareness.report import FIGURES_DIR
 from rapomdp.awareness.stage import (
+    CROSSFIT_SECTIONS,
     OBSERVE_SECTIONS,
     SALIENCY_SECTIONS,
     VOLUME_SECTIONS,
+    crossfit_fingerprint,
+    run_crossfit_stage,
     run_observe_stage,
     run_saliency_stage,
     run_volume_stage,
@@ -84,10 +87,18 @@ STAGES: list[Stage] = [
         description="Panda IK, reachability and manipulability per test viewpoint; energy E_M",
     ),
     Stage(
+        name="crossfit",
+        run=run_crossfit_stage,
+        sections=CROSSFIT_SECTIONS,
+        inputs=("dataset", "render"),
+        fingerprint=crossfit_fingerprint,
+        description="held-out evidence: k classifiers label the training models they did not see",
+    ),
+    Stage(
         name="observe",
         run=run_observe_stage,
         sections=OBSERVE_SECTIONS,
-        inputs=("dataset", "train", "volume"),
+        inputs=("dataset", "render", "train", "volume", "crossfit"),
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
     Stage(

@@ -20,6 +20,8 @@ from tests.conftest import SMALL_SPLIT, TEST_CONTEXT, TINY_PIPELINE
 
 TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"], "split": SMALL_SPLIT},
         "viewpoints": {"count": 10}}
+MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint", "classifier",
+          "blackbox")
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +57,7 @@ def test_one_volume_per_class_with_empty_voxels_marked(workspace):
 def test_observation_models_follow_the_planner_contract(workspace):
     data = load_npz(workspace.root / "observe" / "observation_models.npz")
     assert list(data["classes"]) == ["bicycle", "teapot"]
-    assert list(data["models"]) == ["ra", "ra_class", "classifier", "blackbox"]
+    assert list(data["models"]) == list(MODELS)
     for name in data["models"]:
         p = data[name]
         assert p.shape == (10, 2, 2) and np.allclose(p.sum(axis=2), 1) and np.all(p > 0)
@@ -63,10 +65,10 @@ def test_observation_models_follow_the_planner_contract(workspace):
     assert data["scores"].min() >= 0 and data["scores"].max() <= 1
     assert data["directions"].shape == (10, 3) and np.all(data["directions"][:, 2] >= 0)
     models = load_observation_models(workspace.root / "observe" / "observation_models.npz")
-    assert set(models) == {"ra", "ra_class", "classifier", "blackbox"}
+    assert set(models) == set(MODELS)
     with open(workspace.root / "observe" / "quality.csv") as handle:
         rows = list(csv.DictReader(handle))
-    assert [r["model"] for r in rows] == ["ra", "ra_class", "classifier", "blackbox"]
+    assert [r["model"] for r in rows] == list(MODELS)
     assert all(float(r["log_likelihood"]) <= 0 for r in rows)
 
 
@@ -94,7 +96,7 @@ def test_solve_stage_plans_on_the_observation_models_and_robot(workspace):
 
     config = config_from_dict({**TINY, "solve": {"timeout_s": 2.0}})
     results = run_pipeline(config, workspace, until="solve", context=TEST_CONTEXT)
-    assert [r.name for r in results][-4:] == ["robot", "observe", "vptree", "solve"]
+    assert [r.name for r in results][-5:] == ["robot", "crossfit", "observe", "vptree", "solve"]
     summary = read_json(workspace.root / "solve" / "solve_summary.json")
     assert set(summary) == {"ra", "classifier", "vptree"}  # the default solve.models
     reachable = load_npz(workspace.root / "robot" / "robot.npz")["reachable"]
@@ -121,3 +123,71 @@ def test_saliency_maps_do_not_depend_on_the_number_of_processes(workspace, tmp_p
         spread = load_npz(tmp_path / "maps" / name / f"{model}.npz")
         assert np.array_equal(serial["saliency"], spread["saliency"])
     assert read_json(tmp_path / "saliency.json")["processes"] == 2
+
+
+def test_crossfit_never_lets_a_classifier_see_a_model_it_is_evaluated_on(workspace):
+    from rapomdp.awareness.crossfit import CrossfitOutcomes, model_key
+    from rapomdp.data.dataset import load_dataset
+
+    dataset = load_dataset(workspace.root / "dataset")
+    train = sorted(model_key(m) for m in dataset.with_role("train"))
+    out = CrossfitOutcomes.load(workspace.root / "crossfit" / "outcomes.npz")
+    assert sorted(out.keys.tolist()) == train  # every training model labelled once
+    assert out.predicted.shape == (len(train), 10) and len(out.trained_on) == 3
+    for fold, seen in enumerate(out.trained_on):
+        evaluated = set(out.keys[out.folds == fold].tolist())
+        assert evaluated and not evaluated & set(seen.tolist())
+        assert evaluated | set(seen.tolist()) == set(train)  # trained on every other model
+        # one model per class held out in each fold (3 training models per class, 3 folds)
+        assert sorted(k.split("/")[0] for k in evaluated) == ["bicycle", "teapot"]
+    leaked = CrossfitOutcomes(out.keys, out.labels, out.folds, out.predicted,
+                              [out.keys, *out.trained_on[1:]])
+    with pytest.raises(ValueError, match="fold 0: its classifier trained on models it is "
+                                         "evaluated on"):
+        leaked.check_held_out()
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
+    assert np.array_equal(np.unique(data["evidence_groups"]), [0, 1, 2, 3])  # volume + folds
+    assert data["evidence_predictions"].shape == (2 + len(train), 10)
+    temperatures = dict(zip(data["models"].tolist(), data["temperatures"].tolist(), strict=True))
+    assert all(0.05 <= t <= 2.0 for t in temperatures.values())
+
+
+def test_contrastive_variant_joins_the_table_and_the_held_out_belief_is_reported(workspace):
+    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "contrastive": True,
+                                                   "ra_model": "contrastive"}})
+    results = run_pipeline(config, workspace, until="observe", context=TEST_CONTEXT)
+    assert {r.name: r.cached for r in results}["crossfit"]  # observe keys do not retrain
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
+    assert "ra_contrastive" in data["models"].tolist()
+    assert np.allclose(data["ra"], data["ra_contrastive"])  # the configured RA-POMDP model
+    calibration = read_json(workspace.root / "observe" / "calibration.json")
+    assert calibration["ra_model"] == "contrastive"
+    held = calibration["held_out_belief"]["ra_contrastive"]
+    assert 0 <= held["ece_last_tempered"] <= 1 and 0 <= held["accuracy_last"] <= 1
+    # back to the default
+    run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
+
+
+def test_report_figures_read_the_single_view_models_the_quality_table_scores(workspace,
+                                                                              tmp_path):
+    from rapomdp.awareness.evidence import temper
+    from rapomdp.awareness.observation import ObservationModel
+    from rapomdp.awareness.quality import awareness_quality
+    from rapomdp.awareness.report import single_view_models, write_awareness_figures
+
+    observe = load_npz(workspace.root / "observe" / "observation_models.npz")
+    single = single_view_models(observe)
+    for name, t in zip(observe["models"].tolist(), observe["temperatures"].tolist(),
+                       strict=True):
+        assert np.allclose(temper(single[name], t), observe[name], atol=1e-9)
+    with open(workspace.root / "observe" / "quality.csv") as handle:
+        table = {r["model"]: r for r in csv.DictReader(handle)}
+    for name in ("ra", "classifier", "blackbox"):
+        measured = awareness_quality(ObservationModel(single[name], ["bicycle", "teapot"]),
+                                     observe["test_labels"], observe["test_predictions"])
+        assert measured["log_likelihood"] == pytest.approx(
+            float(table[name]["log_likelihood"]), abs=1e-9)
+    rel, hemi = write_awareness_figures(workspace.root / "observe", "teapot", tmp_path)
+    assert rel.stat().st_size > 1000 and hemi.name == "awareness_hemisphere_teapot.png"
+    with pytest.raises(Exception, match="class 'unicycle' is not in the observe stage"):
+        write_awareness_figures(workspace.root / "observe", "unicycle", tmp_path)

@@ -21,6 +21,8 @@ VOLUME_FILE = "volume.json"
 OBSERVATION_FILE = "observation_models.npz"
 QUALITY_CSV = "quality.csv"
 QUALITY_MD = "quality.md"
+VALIDATION_CSV = "validation.csv"
+VALIDATION_MD = "validation.md"
 CALIBRATION_FILE = "calibration.json"
 CALIBRATION_FIGURE = "calibration.png"
 TIMING_FILE = "timing.json"
@@ -38,10 +40,10 @@ def volume_file(class_name: str) -> str:
     return f"{class_name}.npz"
 
 
-def load_quality(folder: str | Path) -> list[dict[str, float | str]]:
-    """The observe stage's self-awareness table (``quality.csv``): one row per observation
-    model, its scores as floats."""
-    path = Path(folder) / QUALITY_CSV
+def load_quality(folder: str | Path, name: str = QUALITY_CSV) -> list[dict[str, float | str]]:
+    """The observe stage's self-awareness table (``quality.csv``, or its held-out validation
+    ``validation.csv``): one row per observation model, its scores as floats."""
+    path = Path(folder) / name
     try:
         with open(path, newline="") as handle:
             rows = list(csv.DictReader(handle))

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from rapomdp.awareness.observation import ScoreCalibration
+from rapomdp.awareness.observation import ClassScoreCalibration, ScoreCalibration
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.geometry.viewsphere import azimuth_zenith
 from rapomdp.io import atomic_path, save_png
@@ -24,9 +24,11 @@ def _save_html(fig, path: Path) -> Path:  # noqa: ANN001 - a plotly Figure
     return path
 
 
-def calibration_figure(scores: np.ndarray, correct: np.ndarray, calibration: ScoreCalibration,
+def calibration_figure(scores: np.ndarray, correct: np.ndarray,
+                       calibration: object,
                        path: Path, bins: int = 10) -> Path:
-    """Accuracy of the classifier per score bin on the volume models, and the fitted map."""
+    """Accuracy of the classifier per score bin on the held-out evidence, and the fitted map
+    (a curve per class for a per-class fit; none for a fit on more than the score)."""
     s, y = np.asarray(scores).ravel(), np.asarray(correct, dtype=float).ravel()
     edges = np.linspace(0, 1, bins + 1)
     which = np.clip(np.digitize(s, edges) - 1, 0, bins - 1)
@@ -37,9 +39,15 @@ def calibration_figure(scores: np.ndarray, correct: np.ndarray, calibration: Sco
     ax = fig.subplots()
     seen = count > 0
     ax.scatter(centres[seen], hits[seen] / count[seen], s=10 + 40 * count[seen] / count.max(),
-               label="volume models: accuracy per score bin")
+               label="held-out evidence: accuracy per score bin")
     grid = np.linspace(0, 1, 200)
-    ax.plot(grid, calibration(grid), color="C3", label=f"{calibration.method} fit (RA)")
+    if isinstance(calibration, ClassScoreCalibration):  # one curve per class
+        curves = calibration(np.broadcast_to(grid, (len(calibration.intercepts), grid.size)))
+        for curve in curves:
+            ax.plot(grid, curve, color="C3", alpha=0.25, lw=0.8)
+        ax.plot(grid, curves.mean(axis=0), color="C3", label="per-class fit (RA), class mean")
+    elif isinstance(calibration, ScoreCalibration):
+        ax.plot(grid, calibration(grid), color="C3", label=f"{calibration.method} fit (RA)")
     ax.set(xlabel="normalised viewpoint saliency score (Eq. 6)", ylabel="P(classifier right)",
            ylim=(0, 1.02), title="score -> P(correct) calibration")
     ax.legend(fontsize=8)
@@ -146,3 +154,38 @@ def fig2(volumes: Sequence[SaliencyVolume], titles: Sequence[str], class_name: s
                        height=520, width=420 * n)
     page.update_scenes(aspectmode="data")
     return png, _save_html(page, html)
+
+
+def reliability_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+                       path: Path) -> Path:
+    """Predicted against observed P(correct) on the test models, one line per observation
+    model: ``curves[name] = (mean predicted, observed accuracy, count)`` per bin."""
+    fig = Figure(figsize=(5, 4))
+    ax = fig.subplots()
+    ax.plot([0, 1], [0, 1], color="0.6", lw=0.8, ls="--", label="perfectly calibrated")
+    for i, (name, (predicted, observed, count)) in enumerate(curves.items()):
+        seen = count > 0
+        ax.plot(predicted[seen], observed[seen], marker="o", ms=3, color=f"C{i}", label=name)
+    ax.set(xlabel="predicted P(classifier right) at (class, viewpoint)",
+           ylabel="observed accuracy on the test models", xlim=(0, 1), ylim=(0, 1.02),
+           title="self-awareness on unseen objects (10 bins)")
+    ax.legend(fontsize=7)
+    return save_png(fig, path)
+
+
+def hemisphere_pair_figure(directions: np.ndarray, values: Sequence[np.ndarray],
+                           titles: Sequence[str], suptitle: str, path: Path) -> Path:
+    """Per-viewpoint values in [0, 1] side by side on the upper hemisphere seen from above
+    (polar: azimuth, angle from the zenith)."""
+    azimuth, zenith = azimuth_zenith(directions)
+    fig = Figure(figsize=(4.2 * len(values), 4.2))
+    axes = fig.subplots(1, len(values), subplot_kw={"projection": "polar"})
+    for ax, value, title in zip(np.atleast_1d(axes), values, titles, strict=True):
+        points = ax.scatter(azimuth, np.degrees(zenith), c=value, cmap="viridis", vmin=0.0,
+                            vmax=1.0, s=50, edgecolors="k", linewidths=0.3)
+        ax.set_ylim(0, 90)
+        ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=7)
+        ax.set_title(title, fontsize=9, pad=12)
+        fig.colorbar(points, ax=ax, fraction=0.046, pad=0.1)
+    fig.suptitle(suptitle, fontsize=9, y=1.03)
+    return save_png(fig, path)

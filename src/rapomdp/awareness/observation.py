@@ -86,18 +86,23 @@ class ScoreCalibration:
                 "knots_x": self.knots_x.tolist(), "knots_y": self.knots_y.tolist()}
 
 
-def _fit_logistic(s: np.ndarray, y: np.ndarray, ridge: float = 1e-3) -> tuple[float, float]:
-    """Maximum-likelihood (a, b) of sigmoid(a + b s) with b >= 0 (Newton, 50 steps at most)."""
-    x = np.stack([np.ones_like(s), s], axis=1)
-    w = np.zeros(2)
+def newton_logistic(x: np.ndarray, y: np.ndarray, ridge: float) -> np.ndarray:
+    """Ridge-penalised maximum-likelihood weights of sigmoid(x @ w) (Newton, 50 steps at most)."""
+    w = np.zeros(x.shape[1])
     for _ in range(50):
         p = 1.0 / (1.0 + np.exp(-(x @ w)))
         grad = x.T @ (p - y) + ridge * w
-        hess = (x * (p * (1 - p))[:, None]).T @ x + ridge * np.eye(2)
+        hess = (x * (p * (1 - p))[:, None]).T @ x + ridge * np.eye(x.shape[1])
         step = np.linalg.solve(hess, grad)
         w = w - step
         if np.max(np.abs(step)) < 1e-10:
             break
+    return w
+
+
+def _fit_logistic(s: np.ndarray, y: np.ndarray, ridge: float = 1e-3) -> tuple[float, float]:
+    """Maximum-likelihood (a, b) of sigmoid(a + b s) with b >= 0."""
+    w = newton_logistic(np.stack([np.ones_like(s), s], axis=1), y, ridge)
     if w[1] < 0:  # monotone: the best non-increasing fit is a constant
         mean = float(np.clip(y.mean(), 1e-6, 1 - 1e-6))
         return float(np.log(mean / (1 - mean))), 0.0
@@ -134,15 +139,7 @@ def calibrate_per_class(scores: np.ndarray, correct: np.ndarray, classes: np.nda
     x = np.zeros((s.size, count + 1))
     x[np.arange(s.size), g] = 1.0
     x[:, count] = s
-    w = np.zeros(count + 1)
-    for _ in range(50):
-        p = 1.0 / (1.0 + np.exp(-(x @ w)))
-        grad = x.T @ (p - y) + ridge * w
-        hess = (x * (p * (1 - p))[:, None]).T @ x + ridge * np.eye(count + 1)
-        step = np.linalg.solve(hess, grad)
-        w = w - step
-        if np.max(np.abs(step)) < 1e-10:
-            break
+    w = newton_logistic(x, y, ridge)
     if w[count] < 0:  # monotone in the score: refit the intercepts alone
         rate = np.clip((np.bincount(g, weights=y, minlength=count) + 0.5)
                        / (np.bincount(g, minlength=count) + 1.0), 1e-6, 1 - 1e-6)

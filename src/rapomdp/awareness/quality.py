@@ -31,6 +31,20 @@ def roc_auc(scores: np.ndarray, positive: np.ndarray) -> float:
     return float((ranks[positive].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
 
 
+def quality_from_probabilities(p_observed: np.ndarray, p_correct: np.ndarray,
+                               correct: np.ndarray) -> dict[str, float]:
+    """The table's measures from per-outcome P(observed label), P(correct) and rightness."""
+    p_observed, p_correct = np.ravel(p_observed), np.ravel(p_correct)
+    correct = np.ravel(correct).astype(bool)
+    return {
+        "log_likelihood": float(np.mean(np.log(np.maximum(p_observed, 1e-300)))),
+        "brier": float(np.mean((p_correct - correct) ** 2)),
+        "auc": roc_auc(p_correct, correct),
+        "mean_p_correct": float(p_correct.mean()),
+        "accuracy": float(correct.mean()),
+    }
+
+
 def awareness_quality(model: ObservationModel, true_labels: np.ndarray,
                       predicted: np.ndarray) -> dict[str, float]:
     """Quality of ``model`` on test outcomes: true labels (M,), predicted labels (M, V)."""
@@ -41,16 +55,29 @@ def awareness_quality(model: ObservationModel, true_labels: np.ndarray,
         raise ValueError(f"{predicted.shape[1]} viewpoints of outcomes, model has {p.shape[0]}")
     x = np.broadcast_to(np.arange(p.shape[0])[None], predicted.shape)
     t = np.broadcast_to(true_labels[:, None], predicted.shape)
-    p_observed = p[x, t, predicted]
-    p_correct = p[x, t, t]
-    correct = predicted == t
-    return {
-        "log_likelihood": float(np.mean(np.log(np.maximum(p_observed, 1e-300)))),
-        "brier": float(np.mean((p_correct - correct) ** 2)),
-        "auc": roc_auc(p_correct, correct),
-        "mean_p_correct": float(p_correct.mean()),
-        "accuracy": float(correct.mean()),
-    }
+    return quality_from_probabilities(p[x, t, predicted], p[x, t, t], predicted == t)
+
+
+def reliability(confidence: np.ndarray, correct: np.ndarray, bins: int = 10
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Reliability diagram: per equal-width confidence bin, the mean confidence, the accuracy
+    and the count (empty bins NaN, 0)."""
+    confidence = np.clip(np.ravel(confidence).astype(np.float64), 0.0, 1.0)
+    correct = np.ravel(correct).astype(np.float64)
+    which = np.minimum((confidence * bins).astype(np.int64), bins - 1)
+    count = np.bincount(which, minlength=bins).astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_conf = np.bincount(which, weights=confidence, minlength=bins) / count
+        accuracy = np.bincount(which, weights=correct, minlength=bins) / count
+    return mean_conf, accuracy, count
+
+
+def expected_calibration_error(confidence: np.ndarray, correct: np.ndarray,
+                               bins: int = 10) -> float:
+    """ECE: the count-weighted mean |accuracy − confidence| over the reliability bins."""
+    mean_conf, accuracy, count = reliability(confidence, correct, bins)
+    used = count > 0
+    return float(np.sum(count[used] * np.abs(accuracy[used] - mean_conf[used])) / count.sum())
 
 
 def quality_table(models: dict[str, ObservationModel], true_labels: np.ndarray,

@@ -1,14 +1,19 @@
-"""Fig. 1 from a workspace's stages (``rapomdp figure fig1``); Fig. 2, which runs pipelines of
-its own, is :func:`rapomdp.pipeline.write_fig2`."""
+"""Fig. 1 from a workspace's stages (``rapomdp figure fig1``; Fig. 2, which runs pipelines of
+its own, is :func:`rapomdp.pipeline.write_fig2`), and the report's self-awareness figures
+(predicted against observed P(correct) on the test models; one class's predicted and actual
+per-viewpoint accuracy)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE, volume_file
-from rapomdp.awareness.figures import fig1
+from rapomdp.awareness.evidence import temper
+from rapomdp.awareness.figures import fig1, hemisphere_pair_figure, reliability_figure
+from rapomdp.awareness.quality import reliability
 from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
@@ -41,3 +46,45 @@ def write_fig1(ws: Workspace, class_name: str | None = None, view: int | None = 
     out = Path(out_dir) if out_dir is not None else ws.root / FIGURES_DIR
     return fig1(depth[view], maps[view], volume, observe["directions"], observe["scores"][c],
                 class_name, out / f"fig1_{class_name}.png", out / f"fig1_{class_name}.html")
+
+
+def single_view_models(observe: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The observe stage's models before the belief's temperature (the single-view models the
+    quality table scores): tempering by t is undone by tempering by 1 / t."""
+    names = [str(n) for n in observe["models"]]
+    temperatures = observe["temperatures"] if "temperatures" in observe else np.ones(len(names))
+    return {n: temper(observe[n], 1.0 / float(t)) for n, t in zip(names, temperatures,
+                                                                   strict=True)}
+
+
+def write_awareness_figures(observe_dir: Path, class_name: str, out_dir: Path,
+                            models: Sequence[str] = ("ra", "classifier", "blackbox")
+                            ) -> tuple[Path, Path]:
+    """``awareness_reliability.png`` (predicted against observed P(correct) on the test
+    models, per model) and ``awareness_hemisphere_<class>.png`` (the RA and Classifier models'
+    predicted per-viewpoint accuracy of ``class_name`` beside the test models' actual one)."""
+    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+    classes = [str(c) for c in observe["classes"]]
+    if class_name not in classes:
+        raise StageError(f"class '{class_name}' is not in the observe stage's classes")
+    single = single_view_models(observe)
+    labels, predicted = observe["test_labels"], observe["test_predictions"]
+    correct = predicted == labels[:, None]
+    curves = {}
+    for name in (m for m in models if m in single):
+        p_correct = np.diagonal(single[name], axis1=1, axis2=2)  # (V, C)
+        curves[name] = reliability(p_correct.T[labels], correct, 10)
+    out = Path(out_dir)
+    rel = reliability_figure(curves, out / "awareness_reliability.png")
+    c = classes.index(class_name)
+    mine = labels == c
+    actual = correct[mine].mean(axis=0) if mine.any() else np.full(correct.shape[1], np.nan)
+    shown = [m for m in ("ra", "classifier") if m in single]
+    values = [np.diagonal(single[m], axis1=1, axis2=2)[:, c] for m in shown] + [actual]
+    titles = [f"{m}: predicted P(correct)" for m in shown] + [
+        f"actual accuracy ({int(mine.sum())} test model(s))"]
+    hemi = hemisphere_pair_figure(observe["directions"], values, titles,
+                                  f"class {class_name}: predicted and actual accuracy per "
+                                  f"viewpoint of X_rho (seen from above)",
+                                  out / f"awareness_hemisphere_{class_name}.png")
+    return rel, hemi

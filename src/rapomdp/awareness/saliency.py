@@ -144,6 +144,10 @@ class PerturbationMask(Attribution):
     def upsample(self, mask: torch.Tensor, size: int) -> torch.Tensor:
         return F.interpolate(mask, size=(size, size), mode="bilinear", align_corners=False)
 
+    def score(self, logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """What the perturbation drives down (n,): the target class's probability."""
+        return torch.softmax(logits, dim=1).gather(1, target[:, None])[:, 0]
+
     def attribute(self, inputs: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         p = self.params
         x, t = self._prepare(inputs, target, self._device())
@@ -168,8 +172,7 @@ class PerturbationMask(Attribution):
                                            generator=generator).tolist()
                     perturbed = torch.roll(perturbed, shifts=(dy, dx), dims=(2, 3))
                 perturbed = perturbed.contiguous(memory_format=torch.channels_last)
-                probs = torch.softmax(self.network(perturbed), dim=1)
-                score = probs.gather(1, t[:, None])[:, 0]
+                score = self.score(self.network(perturbed), t)
                 loss = (score + p.l1 * (1.0 - mask).abs().flatten(1).mean(dim=1)
                         + p.tv * total_variation(mask, p.tv_beta)).sum()
                 optimiser.zero_grad(set_to_none=True)
@@ -179,13 +182,34 @@ class PerturbationMask(Attribution):
                     mask.clamp_(0.0, 1.0)
             with torch.no_grad():
                 up = self.upsample(mask, size)
-                final = torch.softmax(self.network(up * x + (1.0 - up) * blurred), dim=1)
-                self.last_probability = final.gather(1, t[:, None])[:, 0]
+                self.last_probability = self.score(self.network(up * x + (1.0 - up) * blurred),
+                                                   t)
         finally:
             self.network.to(memory_format=torch.contiguous_format)
             for q, flag in zip(params, trainable, strict=True):
                 q.requires_grad_(flag)
         return (1.0 - up[:, 0]).clamp(0.0, 1.0).detach()
+
+
+class ContrastiveMask(PerturbationMask):
+    """The perturbation mask of a class *against* another (the paper's Fig. 2 idea: the bicycle
+    against the motorbike points at what tells them apart). The perturbation drives down
+    P(target | target or against) = sigmoid(logit_target - logit_against), so what it deletes
+    is the evidence that separates the two classes, not what they share."""
+
+    name = "contrastive_mask"
+
+    def __init__(self, network: nn.Module, params: MaskParams, against: int | torch.Tensor,
+                 seed: int = 0) -> None:
+        super().__init__(network, params, seed)
+        self.against = against
+
+    def score(self, logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        against = torch.as_tensor(self.against, device=logits.device).expand_as(target)
+        if bool((against == target).any()):
+            raise ValueError("a class cannot be contrasted against itself")
+        pair = logits.gather(1, target[:, None])[:, 0] - logits.gather(1, against[:, None])[:, 0]
+        return torch.sigmoid(pair)
 
 
 class _CaptumMethod(Attribution):

@@ -33,37 +33,48 @@ from rapomdp.awareness.artefacts import (
     QUALITY_MD,
     SALIENCY_FILE,
     TIMING_FILE,
+    VALIDATION_CSV,
+    VALIDATION_MD,
     VOLUME_FILE,
     saliency_map_file,
     volume_file,
 )
+from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit_outcomes
+from rapomdp.awareness.evidence import (
+    RA_VARIANTS,
+    Evidence,
+    choose_ra_variant,
+    fit_level,
+    fit_observation_models,
+    held_out_temperatures,
+    leave_one_group_out,
+    shift_level,
+    temper,
+    validation_quality,
+)
 from rapomdp.awareness.observation import (
-    BlackBoxObservationModel,
-    ClassifierObservationModel,
+    ClassScoreCalibration,
     ObservationModel,
-    RAObservationModel,
     ScoreCalibration,
-    calibrate_correctness,
-    calibrate_per_class,
     wrong_label_distribution,
 )
 from rapomdp.awareness.quality import quality_table, write_quality
-from rapomdp.awareness.saliency import PerturbationMask, make_attribution
-from rapomdp.awareness.scores import normalise_scores, viewpoint_scores
+from rapomdp.awareness.saliency import ContrastiveMask, PerturbationMask, make_attribution
+from rapomdp.awareness.scores import normalise_scores, viewpoint_salient_area, viewpoint_scores
 from rapomdp.awareness.visibility import visibility_from_depth
 from rapomdp.awareness.volume import SaliencyVolume, object_grid, saliency_volume
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.splits import class_seed
-from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
-from rapomdp.data.training_views import load_training_views
+from rapomdp.data.test_views import CROSSFIT_STREAM, TEST_STREAM, VOLUME_STREAM, xrho_renders
+from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.geometry.viewsphere import fibonacci_directions
-from rapomdp.io import load_npz, save_npz, write_json_atomic
+from rapomdp.io import load_npz, save_npz, stable_hash, write_json_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
-from rapomdp.recognition.classifier import Classifier
+from rapomdp.recognition.classifier import Classifier, configure_torch
 from rapomdp.recognition.preprocess import input_to_image
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
 from rapomdp.workspace import StageError
@@ -71,11 +82,18 @@ from rapomdp.workspace import StageError
 SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency")
 VOLUME_SECTIONS = ("volume",)
 OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
+CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
+TEMPERATURE_WALK_LENGTH = 6
+"""Views per held-out walk the temperature is fitted on (an active episode's few moves)."""
+TEMPERATURE_WALKS_PER_ROW = 16
+TEMPERATURE_NEIGHBOURS = 8
 
 
 def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, method: str,
-                  cfg: object, seed: int, batch_size: int = 128) -> dict[str, np.ndarray]:
-    """2D saliency (views, H, W) of depth images w.r.t. class ``label``, on the image's pixels.
+                  cfg: object, seed: int, batch_size: int = 128,
+                  against: int | None = None) -> dict[str, np.ndarray]:
+    """2D saliency (views, H, W) of depth images w.r.t. class ``label``, on the image's pixels
+    (with ``against``: the mask of ``label`` against that class, :class:`ContrastiveMask`).
 
     Views are attributed ``batch_size`` at a time (the mask optimises a whole batch at once).
     """
@@ -84,6 +102,10 @@ def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, metho
     attribution = make_attribution(method, classifier.network,
                                    classifier.preprocessing.input_size_px, cfg, seed,
                                    baseline=classifier.preprocessing.background)
+    if against is not None:
+        if not isinstance(attribution, PerturbationMask):
+            raise ValueError(f"contrastive saliency needs the mask, not {method!r}")
+        attribution = ContrastiveMask(attribution.network, attribution.params, against, seed)
     prep = classifier.preprocess(depth_m)
     maps = np.empty((n, h, w), dtype=np.float32)
     perturbed = np.full(n, np.nan, dtype=np.float32)
@@ -215,20 +237,33 @@ class Observation:
     models: dict[str, ObservationModel]
     raw_scores: np.ndarray
     scores: np.ndarray
-    calibration: ScoreCalibration
+    area_scores: np.ndarray
+    calibration: ScoreCalibration | ClassScoreCalibration
     volume_labels: np.ndarray
     volume_predictions: np.ndarray
+    evidence: Evidence
     test_labels: np.ndarray
     test_predictions: np.ndarray
     quality: list[dict[str, float | str]]
+    validation: list[dict[str, float | str]] = field(default_factory=list)
+    ra_variant: str = "paper"
+    temperatures: dict[str, float] = field(default_factory=dict)
+    single_view: dict[str, ObservationModel] = field(default_factory=dict)
+    levels: dict[str, float] = field(default_factory=dict)
+    belief_calibration: dict[str, dict[str, float]] = field(default_factory=dict)
+    score_kinds: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
             volumes: dict[str, SaliencyVolume],
-            cache: dict[str, XrhoOutcomes] | None = None, progress: bool = True) -> Observation:
+            cache: dict[str, XrhoOutcomes] | None = None,
+            crossfit: CrossfitOutcomes | None = None,
+            views: TrainingViews | None = None, progress: bool = True) -> Observation:
     """Viewpoint scores, observation models and their quality on the test models.
 
+    The models are fitted on the held-out evidence ``observe.evidence`` names: the volume
+    models under ``classifier`` and/or the cross-fitted training models (``crossfit``).
     ``cache`` ("class/model id" -> :class:`XrhoOutcomes`) lets callers that try several volumes (the
     voxel-resolution sweep) render and classify each model at X_rho once.
     """
@@ -245,49 +280,175 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         return cache[key]
 
     raw = np.zeros((len(classes), config.viewpoints.count))
+    area = np.zeros_like(raw)
     vol_labels, vol_pred = [], []
     for c, class_name in enumerate(track(classes, "observe: volume models at X_rho", progress)):
         volume = volumes[class_name]
-        per_model = []
+        per_model, per_model_area = [], []
         for model in (m for m in dataset.with_role("volume") if m.class_name == class_name):
             seen = outcomes(model, VOLUME_STREAM)
             vis = visibility_from_depth(seen.clean, seen.poses, intrinsics, volume.grid)
             per_model.append(viewpoint_scores(vis, volume.flat_scores()))
+            per_model_area.append(viewpoint_salient_area(vis, volume.flat_scores()))
             vol_pred.append(seen.predicted)
             vol_labels.append(c)
         raw[c] = np.nanmean(np.stack(per_model), axis=0)
-    scores_s = time.perf_counter() - start
-    scores = normalise_scores(raw)
+        area[c] = np.mean(np.stack(per_model_area), axis=0)
+    scores = {"mean": normalise_scores(raw), "area": normalise_scores(area)}
     labels, predicted = np.array(vol_labels), np.stack(vol_pred)
-    correct = predicted == labels[:, None]
-    calibration = calibrate_correctness(scores[labels], correct, cfg.calibration)
-    wrong = wrong_label_distribution(np.broadcast_to(labels[:, None], predicted.shape),
-                                     predicted, len(classes), cfg.confusion_pseudo_count)
+    evidence = observation_evidence(cfg.evidence, labels, predicted, crossfit)
+    if cfg.contrastive:
+        if views is None:
+            raise StageError("observe.contrastive needs the training renders (render stage)")
+        scores["contrastive"] = contrastive_scores(config, views, classifier, evidence, cache,
+                                                   progress)
+    scores_s = time.perf_counter() - start
+    # RA-POMDP's model and the belief's temperature: chosen / fitted on held-out groups
+    directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
+    folds = leave_one_group_out(evidence, scores, classes, cfg, directions)
+    validation = validation_quality(evidence, folds)
+    variant = choose_ra_variant(validation, cfg.ra_model)
+    if variant == "contrastive" and not cfg.contrastive:
+        raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
+    if variant == "viewpoint" and len(np.unique(evidence.groups)) < 2:
+        raise StageError("observe.ra_model 'viewpoint' stacks over groups of held-out "
+                         "evidence: set observe.evidence to crossfit or both")
+    fitted = fit_observation_models(evidence, scores, classes, cfg, directions)
+    levels = {name: 0.0 for name in fitted}
+    if (evidence.groups > 0).any() and (evidence.groups == 0).any():
+        # cross-fitted classifiers train on less data and err more: each model's P(correct)
+        # is moved to the level of the modelled classifier on its own held-out objects
+        volume = evidence.subset(evidence.groups == 0)
+        levels = {name: fit_level(m.probabilities, volume.labels, volume.predicted)
+                  for name, m in fitted.items()}
+        fitted = {name: _relevel(m, levels[name]) for name, m in fitted.items()}
+    single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
+    levels["ra"] = levels[f"ra_{variant}"]
+    temperatures = {name: 1.0 for name in single_view}
+    held, belief_calibration = held_out_temperatures(
+        evidence, folds, directions,
+        TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+        class_seed(config.seed, "observe/temperature"))
+    if cfg.belief_correction == "temperature":
+        temperatures.update(held)
+        if f"ra_{variant}" in held:
+            temperatures["ra"] = held[f"ra_{variant}"]
     models: dict[str, ObservationModel] = {
-        "ra": RAObservationModel(scores, calibration, wrong, classes),
-        "ra_class": RAObservationModel(
-            scores, calibrate_per_class(scores[labels], correct,
-                                        np.broadcast_to(labels[:, None], correct.shape),
-                                        len(classes)), wrong, classes),
-        "classifier": ClassifierObservationModel(labels, predicted, classes,
-                                                 cfg.classifier_pseudo_count),
-        "blackbox": BlackBoxObservationModel(labels, predicted, classes,
-                                             cfg.confusion_pseudo_count),
-    }
+        name: ObservationModel(temper(m.probabilities, temperatures[name]), classes)
+        for name, m in single_view.items()}
     models_s = time.perf_counter() - start
     test_models = dataset.with_role("test")
     test_labels = np.array([dataset.label(m) for m in test_models])
     test_pred = np.stack([outcomes(m, TEST_STREAM).predicted
                           for m in track(test_models, "observe: test models at X_rho", progress)])
-    rows = quality_table(models, test_labels, test_pred)
-    return Observation(models, raw, scores, calibration, labels, predicted, test_labels,
-                       test_pred, rows, {"scores_s": scores_s, "observation_models_s": models_s,
-                                         "total_s": time.perf_counter() - start})
+    rows = quality_table(single_view, test_labels, test_pred)
+    calibration = single_view["ra"].calibration  # type: ignore[attr-defined]
+    return Observation(models, raw, scores["mean"], scores["area"], calibration, labels,
+                       predicted, evidence, test_labels, test_pred, rows, validation, variant,
+                       temperatures, single_view, levels, belief_calibration, scores,
+                       {"scores_s": scores_s, "observation_models_s": models_s,
+                        "total_s": time.perf_counter() - start})
+
+
+def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
+    """Each class's most frequent wrong label on the held-out evidence (C,) (ties: lowest)."""
+    rows = np.broadcast_to(evidence.labels[:, None], evidence.predicted.shape)
+    return wrong_label_distribution(rows, evidence.predicted, classes, 0.0).argmax(axis=1)
+
+
+def contrastive_scores(config: Config, views: TrainingViews, classifier: Classifier,
+                       evidence: Evidence, cache: dict[str, XrhoOutcomes],
+                       progress: bool = True) -> np.ndarray:
+    """Normalised viewpoint scores (C, V) of contrastive volumes: each class's volume model
+    attributed against its most confused class (the mask, ``saliency`` settings), fused into a
+    volume as the volume stage does, seen from X_rho as Eq. 6 sees the class's volume."""
+    dataset = views.dataset
+    classes = dataset.classes
+    intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
+    against = most_confused(evidence, len(classes))
+    raw = np.zeros((len(classes), config.viewpoints.count))
+    for c, class_name in enumerate(track(classes, "observe: contrastive volumes", progress)):
+        models = [m for m in dataset.with_role("volume") if m.class_name == class_name]
+        depth, poses, maps = [], [], []
+        for model in models:
+            d, p = views.load(model)
+            depth.append(d)
+            poses.append(p)
+            maps.append(saliency_maps(classifier, d, c, "mask", config.saliency, config.seed,
+                                      config.saliency.batch_size, int(against[c]))["saliency"])
+        meshes = [dataset.mesh(m) for m in models]
+        grid = object_grid(np.min([m.bounds[0] for m in meshes], axis=0),
+                           np.max([m.bounds[1] for m in meshes], axis=0),
+                           config.volume.resolution)
+        volume = saliency_volume(np.concatenate(depth), np.concatenate(poses),
+                                 np.concatenate(maps), views.intrinsics, grid)
+        per_model = []
+        for model in models:
+            seen = cache[f"{model.class_name}/{model.id}"]
+            vis = visibility_from_depth(seen.clean, seen.poses, intrinsics, volume.grid)
+            per_model.append(viewpoint_scores(vis, volume.flat_scores()))
+        raw[c] = np.nanmean(np.stack(per_model), axis=0)
+    return normalise_scores(raw)
+
+
+def _relevel(model: ObservationModel, shift: float) -> ObservationModel:
+    out = ObservationModel(shift_level(model.probabilities, shift), model.classes)
+    out.calibration = getattr(model, "calibration", None)  # type: ignore[attr-defined]
+    return out
+
+
+def observation_evidence(kind: str, volume_labels: np.ndarray, volume_predicted: np.ndarray,
+                         crossfit: CrossfitOutcomes | None) -> Evidence:
+    """The held-out evidence ``observe.evidence`` names (group 0: the volume models, f + 1:
+    cross-fitting fold f)."""
+    volume = Evidence(volume_labels, volume_predicted, np.zeros(len(volume_labels), np.int64))
+    if kind == "volume":
+        return volume
+    if crossfit is None or len(crossfit.labels) == 0:
+        raise StageError(f"observe.evidence is '{kind}' but there are no cross-fitted "
+                         "outcomes: run the crossfit stage")
+    folded = Evidence(crossfit.labels, crossfit.predicted, crossfit.folds + 1)
+    return folded if kind == "crossfit" else Evidence.concatenate([volume, folded])
+
+
+def run_crossfit_stage(config: Config, inputs: dict[str, Path], out: Path,
+                       context: RunContext) -> None:
+    """k classifiers, each labelling at X_rho the training models it did not train on (nothing
+    is trained when ``observe.evidence`` is ``volume``: the paper's protocol)."""
+    start = time.perf_counter()
+    views = load_training_views(inputs["render"], inputs["dataset"])
+    dataset = views.dataset
+    if config.observe.evidence == "volume":
+        result = CrossfitOutcomes(np.zeros(0, dtype=str), np.zeros(0, np.int64),
+                                  np.zeros(0, np.int64),
+                                  np.zeros((0, config.viewpoints.count), np.int64), [])
+    else:
+        device = configure_torch(config.train.device, context.threads)
+        result = crossfit_outcomes(
+            config, views, device,
+            lambda m: xrho_renders(dataset, m, config, CROSSFIT_STREAM)[1])
+    result.save(out / CROSSFIT_FILE)
+    correct = result.predicted == result.labels[:, None]
+    write_json_atomic(out / "crossfit.json", {
+        "folds": config.observe.crossfit_folds if len(result.labels) else 0,
+        "epochs": config.observe.crossfit_epochs, "models": len(result.labels),
+        "held_out_accuracy": float(correct.mean()) if correct.size else None,
+        "seconds": time.perf_counter() - start,
+    })
+
+
+def crossfit_fingerprint(config: Config) -> str:
+    """The crossfit stage reads these ``observe`` keys only (the rest would retrain for
+    nothing)."""
+    cfg = config.observe
+    return stable_hash({"crossfit": cfg.evidence != "volume", "folds": cfg.crossfit_folds,
+                        "epochs": cfg.crossfit_epochs})
 
 
 def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path,
                       context: RunContext) -> None:
-    """Viewpoint scores, the RA / Classifier / black-box observation models and their quality."""
+    """Viewpoint scores, the RA variants / Classifier / black-box observation models fitted on
+    held-out evidence, their held-out validation and their quality on the test models."""
     from rapomdp.awareness.figures import calibration_figure
 
     dataset = load_dataset(inputs["dataset"])
@@ -295,22 +456,43 @@ def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path,
                                        context.threads)
     volumes = {name: SaliencyVolume.load(inputs["volume"] / volume_file(name))
                for name in dataset.classes}
-    result = observe(config, dataset, classifier, volumes, progress=context.progress)
+    crossfit = (CrossfitOutcomes.load(inputs["crossfit"] / CROSSFIT_FILE)
+                if "crossfit" in inputs else None)
+    views = (load_training_views(inputs["render"], inputs["dataset"])
+             if "render" in inputs else None)
+    result = observe(config, dataset, classifier, volumes, crossfit=crossfit, views=views,
+                     progress=context.progress)
     write_quality(result.quality, out / QUALITY_CSV, out / QUALITY_MD)
+    if result.validation:
+        write_quality(result.validation, out / VALIDATION_CSV, out / VALIDATION_MD)
     directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
+    ev = result.evidence
     save_npz(out / OBSERVATION_FILE,
              **{name: m.probabilities for name, m in result.models.items()},
              models=np.array(list(result.models)), classes=np.array(dataset.classes),
-             scores=result.scores, raw_scores=result.raw_scores, directions=directions,
+             temperatures=np.array([result.temperatures[n] for n in result.models]),
+             scores=result.scores, raw_scores=result.raw_scores, area_scores=result.area_scores,
+             directions=directions,
              volume_labels=result.volume_labels, volume_predictions=result.volume_predictions,
+             evidence_labels=ev.labels, evidence_predictions=ev.predicted,
+             evidence_groups=ev.groups,
              test_labels=result.test_labels, test_predictions=result.test_predictions)
-    correct = result.volume_predictions == result.volume_labels[:, None]
+    correct = ev.correct
     write_json_atomic(out / CALIBRATION_FILE, {
+        "ra_model": result.ra_variant, "ra_model_configured": config.observe.ra_model,
         **result.calibration.to_dict(),
-        "per_class": result.models["ra_class"].calibration.to_dict(),
-        "volume_accuracy": float(correct.mean()),
+        "variants": {name: m.calibration.to_dict()  # type: ignore[attr-defined]
+                     for name, m in result.single_view.items() if name.startswith("ra_")},
+        "temperatures": result.temperatures,
+        "level_shifts": result.levels,
+        "held_out_belief": result.belief_calibration,
+        "evidence": config.observe.evidence,
+        "evidence_accuracy": float(correct.mean()),
+        "volume_accuracy": float((result.volume_predictions
+                                  == result.volume_labels[:, None]).mean()),
         "pairs": int(correct.size),
     })
-    calibration_figure(result.scores[result.volume_labels], correct, result.calibration,
+    figure_scores = result.score_kinds[RA_VARIANTS[result.ra_variant][0]]
+    calibration_figure(figure_scores[ev.labels], correct, result.calibration,
                        out / CALIBRATION_FIGURE)
     write_json_atomic(out / TIMING_FILE, result.seconds)

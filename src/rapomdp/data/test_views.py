@@ -25,6 +25,8 @@ from rapomdp.geometry.camera import xtion_intrinsics
 VOLUME_STREAM = "observe/volume"
 #: The noise stream of the test models' renders at X_rho (single-view accuracy, quality tables).
 TEST_STREAM = "classifier_eval"
+#: The noise stream of the training models the cross-fitted classifiers label at X_rho.
+CROSSFIT_STREAM = "crossfit"
 
 
 def xrho_noise_rng(seed: int, purpose: str, model: ModelEntry) -> np.random.Generator:

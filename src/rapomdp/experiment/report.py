@@ -26,7 +26,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
-from rapomdp.awareness.artefacts import CALIBRATION_FIGURE, QUALITY_CSV, load_quality
+from rapomdp.awareness.artefacts import (
+    CALIBRATION_FIGURE,
+    QUALITY_CSV,
+    VALIDATION_CSV,
+    load_quality,
+)
 from rapomdp.awareness.quality import quality_cells
 from rapomdp.awareness.report import FIGURES_DIR, write_fig1
 from rapomdp.config import Config
@@ -323,8 +328,50 @@ def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name:
     if quality is not None:
         b.add(Table(*quality_cells(quality)))
     b.figure(inputs["observe"] / CALIBRATION_FIGURE,
-             "Calibration: the classifier's accuracy per viewpoint-score bin on the volume "
-             "models, and the fitted score-to-correctness map.", observe_how)
+             "Calibration: the classifier's accuracy per viewpoint-score bin on the held-out "
+             "evidence, and the fitted score-to-correctness map of RA-POMDP's model.",
+             observe_how)
+    _self_awareness(b, inputs, class_name, observe_how)
+
+
+def _self_awareness(b: _Builder, inputs: dict[str, Path], class_name: str, how: str) -> None:
+    """Held-out validation, predicted vs observed P(correct), one class's hemispheres and the
+    calibration of every method's final belief."""
+    from rapomdp.awareness.quality import expected_calibration_error
+    from rapomdp.awareness.report import write_awareness_figures
+
+    observe = inputs["observe"]
+    if (observe / VALIDATION_CSV).exists():
+        b.add(Paragraph("Held-out validation (what chose RA-POMDP's model): each group of the "
+                        "held-out evidence scored by the models fitted without it:"))
+        validation = b.load(observe / VALIDATION_CSV,
+                            lambda p: load_quality(p.parent, VALIDATION_CSV), how)
+        if validation is not None:
+            b.add(Table(*quality_cells(validation)))
+    try:
+        rel, hemi = write_awareness_figures(observe, class_name, b.out)
+    except (StageError, ArtefactError, KeyError) as exc:
+        b.missing(f"the self-awareness figures could not be made ({exc})", how)
+    else:
+        b.figure(rel, "Predicted against observed P(correct) on the test models, per "
+                      "observation model (single view, before the belief's temperature).",
+                 how, rel.name)
+        b.figure(hemi, f"Class {class_name}: predicted P(correct) per viewpoint (RA, "
+                       f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
+    episodes = inputs["evaluate"] / EPISODES_FILE
+    if episodes.exists():
+        table = EpisodeTable.load(episodes)
+        rows = []
+        for method in table.methods:
+            mine = table.method == method
+            belief, right = table.belief[mine], table.correct[mine].astype(float)
+            rows.append([method, _fmt(float(right.mean())), _fmt(float(belief.mean())),
+                         _fmt(float(belief.mean() - right.mean())),
+                         _fmt(expected_calibration_error(belief, right))])
+        b.add(Paragraph("Calibration of every method's final belief in the closed loop "
+                        "(ECE: 10 equal-width bins):"))
+        b.add(Table(["method", "accuracy", "mean final belief", "belief − accuracy", "ECE"],
+                    rows))
 
 
 def _classifier(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:

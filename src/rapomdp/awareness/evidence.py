@@ -1,0 +1,388 @@
+"""Fitting every observation model on held-out evidence, choosing among them on held-out data,
+and the likelihood temperature that keeps a multi-view belief calibrated.
+
+*Evidence* is the classifier's labels at X_rho on objects it did not train on: the volume models
+under the trained classifier (the paper's protocol) and, when cross-fitted
+(:mod:`rapomdp.awareness.crossfit`), the training models under classifiers that did not see them.
+Each row belongs to a *group* (the volume models are one, each cross-fitting fold another); the
+groups are the units of leave-one-group-out validation, which chooses RA-POMDP's model and fits
+the temperature without the test models.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from rapomdp.awareness.observation import (
+    BlackBoxObservationModel,
+    ClassifierObservationModel,
+    ObservationModel,
+    RAObservationModel,
+    calibrate_correctness,
+    calibrate_per_class,
+    newton_logistic,
+    wrong_label_distribution,
+)
+from rapomdp.awareness.quality import expected_calibration_error, quality_from_probabilities
+from rapomdp.config import ObserveConfig
+
+RA_VARIANTS = {
+    "paper": ("mean", False),  # Eq. 6 mean saliency seen, one calibration for every class
+    "class": ("mean", True),  # + one intercept per class (its difficulty), shared slope
+    "area": ("area", False),  # the salient area seen (Eq. 6's sum), one calibration
+    "class_area": ("area", True),  # the salient area seen + per-class intercepts
+    "contrastive": ("contrastive", True),  # a class against its most confused (observe.contrastive)
+    "viewpoint": ("area", True),  # + the held-out per-viewpoint evidence, stacked
+}
+"""RA variant -> (viewpoint score it calibrates, per-class intercepts?)."""
+
+TEMPERATURE_BOUNDS = (0.05, 2.0)
+
+
+@dataclass
+class Evidence:
+    """Held-out outcomes: true ``labels`` (N,), the classifier's ``predicted`` labels (N, V),
+    each row's ``groups`` (N,) (0: volume models, f + 1: cross-fitting fold f)."""
+
+    labels: np.ndarray
+    predicted: np.ndarray
+    groups: np.ndarray
+
+    def subset(self, mask: np.ndarray) -> Evidence:
+        return Evidence(self.labels[mask], self.predicted[mask], self.groups[mask])
+
+    @property
+    def correct(self) -> np.ndarray:
+        return self.predicted == self.labels[:, None]
+
+    @classmethod
+    def concatenate(cls, parts: Sequence[Evidence]) -> Evidence:
+        return cls(np.concatenate([p.labels for p in parts]),
+                   np.concatenate([p.predicted for p in parts]),
+                   np.concatenate([p.groups for p in parts]))
+
+
+VIEWPOINT_BANDWIDTH_DEG = 20.0
+"""Kernel width over viewpoints of the per-viewpoint evidence ``ra_viewpoint`` stacks (fixed a
+priori: about two neighbours' spacing on X_rho, not tuned)."""
+VIEWPOINT_PRIOR = 2.0
+"""Pseudo-observations of the class's accuracy added to each viewpoint's kernel count."""
+
+
+def viewpoint_logit(labels: np.ndarray, predicted: np.ndarray, classes: int,
+                    directions: np.ndarray) -> np.ndarray:
+    """Logit (C, V) of the classifier's accuracy at each (class, viewpoint) on the evidence,
+    kernel-smoothed over neighbouring viewpoints (Gaussian in the angle) and shrunk to the
+    class's accuracy by :data:`VIEWPOINT_PRIOR` pseudo-observations."""
+    d = np.asarray(directions, dtype=np.float64)
+    angle = np.degrees(np.arccos(np.clip(d @ d.T, -1.0, 1.0)))
+    kernel = np.exp(-0.5 * (angle / VIEWPOINT_BANDWIDTH_DEG) ** 2)  # (V, V)
+    onehot = np.eye(classes)[labels]  # (N, C)
+    right = onehot.T @ (predicted == labels[:, None]).astype(np.float64)  # (C, V)
+    seen = np.broadcast_to(onehot.sum(axis=0)[:, None], right.shape)
+    accuracy = (right.sum(axis=1) + 0.5) / (seen.sum(axis=1) + 1.0)  # (C,)
+    q = (right @ kernel.T + VIEWPOINT_PRIOR * accuracy[:, None]) / (
+        seen @ kernel.T + VIEWPOINT_PRIOR)
+    q = np.clip(q, 1e-3, 1 - 1e-3)
+    return np.log(q / (1 - q))
+
+
+@dataclass
+class FixedCorrectness:
+    """P(correct) (C, V) fitted beforehand (a calibration whose input is already used):
+    ``sigmoid(a_c + b * score + e * viewpoint logit)`` for ``ra_viewpoint``."""
+
+    correct: np.ndarray
+    intercepts: np.ndarray
+    weights: np.ndarray
+    method: str = "logistic_score_and_viewpoint_evidence"
+
+    def __call__(self, scores: np.ndarray) -> np.ndarray:
+        return np.clip(self.correct, 1e-3, 1 - 1e-3)
+
+    def to_dict(self) -> dict[str, object]:
+        return {"method": self.method, "intercepts": self.intercepts.tolist(),
+                "score_weight": float(self.weights[0]),
+                "viewpoint_weight": float(self.weights[1])}
+
+
+def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: int,
+                              directions: np.ndarray) -> FixedCorrectness | None:
+    """``ra_viewpoint``: the saliency score and the held-out per-viewpoint evidence together.
+    The weights are fitted by stacking — each group's rows see the viewpoint logit computed
+    from the *other* groups only — so the evidence is never scored on itself; the final
+    logit uses every group. None with a single group (nothing to stack on)."""
+    groups = np.unique(evidence.groups)
+    if groups.size < 2:
+        return None
+    features, targets, class_of = [], [], []
+    for g in groups:
+        held, rest = evidence.subset(evidence.groups == g), evidence.subset(evidence.groups != g)
+        logit = viewpoint_logit(rest.labels, rest.predicted, classes, directions)
+        rows = np.broadcast_to(held.labels[:, None], held.predicted.shape)
+        features.append(np.stack([score[rows, np.arange(score.shape[1])],
+                                  logit[rows, np.arange(score.shape[1])]], -1).reshape(-1, 2))
+        targets.append(held.correct.ravel())
+        class_of.append(rows.ravel())
+    f, y, g_of = np.concatenate(features), np.concatenate(targets), np.concatenate(class_of)
+    x = np.zeros((y.size, classes + 2))
+    x[np.arange(y.size), g_of] = 1.0
+    x[:, classes:] = f
+    w = newton_logistic(x, y.astype(np.float64), 1e-2)
+    while np.any(w[classes:] < 0):  # monotone in both: drop a falling feature, refit
+        x[:, classes + int(np.argmin(w[classes:]))] = 0.0
+        w = newton_logistic(x, y.astype(np.float64), 1e-2)
+    final = viewpoint_logit(evidence.labels, evidence.predicted, classes, directions)
+    z = w[:classes, None] + w[classes] * score + w[classes + 1] * final
+    return FixedCorrectness(1.0 / (1.0 + np.exp(-z)), w[:classes].copy(), w[classes:].copy())
+
+
+def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
+                           classes: Sequence[str], cfg: ObserveConfig,
+                           directions: np.ndarray | None = None
+                           ) -> dict[str, ObservationModel]:
+    """Every RA variant (``ra_<variant>``), the Classifier and the black-box model, fitted on
+    ``evidence``; ``scores`` holds the per-class normalised viewpoint scores (C, V) by kind
+    (``mean``, ``area``). ``ra_viewpoint`` needs the viewpoints' ``directions`` and two
+    groups of evidence."""
+    labels, predicted = evidence.labels, evidence.predicted
+    rows = np.broadcast_to(labels[:, None], predicted.shape)
+    correct = predicted == rows
+    wrong = wrong_label_distribution(rows, predicted, len(classes), cfg.confusion_pseudo_count)
+    models: dict[str, ObservationModel] = {}
+    for variant, (kind, per_class) in RA_VARIANTS.items():
+        if kind not in scores or variant == "viewpoint":
+            continue
+        s = scores[kind]
+        calibration = (calibrate_per_class(s[labels], correct, rows, len(classes)) if per_class
+                       else calibrate_correctness(s[labels], correct, cfg.calibration))
+        models[f"ra_{variant}"] = RAObservationModel(s, calibration, wrong, classes)
+    if directions is not None:
+        kind = RA_VARIANTS["viewpoint"][0]
+        fused = fit_viewpoint_correctness(evidence, scores[kind], len(classes), directions)
+        if fused is not None:
+            models["ra_viewpoint"] = RAObservationModel(scores[kind], fused, wrong, classes)
+    models["classifier"] = ClassifierObservationModel(labels, predicted, classes,
+                                                      cfg.classifier_pseudo_count)
+    models["blackbox"] = BlackBoxObservationModel(labels, predicted, classes,
+                                                  cfg.confusion_pseudo_count)
+    return models
+
+
+def observed_probabilities(model: np.ndarray, labels: np.ndarray, predicted: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """P(observed label) and P(correct) (N, V) under ``model`` (V, C, C) for outcomes."""
+    x = np.broadcast_to(np.arange(model.shape[0])[None], predicted.shape)
+    t = np.broadcast_to(labels[:, None], predicted.shape)
+    return model[x, t, predicted], model[x, t, t]
+
+
+def leave_one_group_out(evidence: Evidence, scores: dict[str, np.ndarray],
+                        classes: Sequence[str], cfg: ObserveConfig,
+                        directions: np.ndarray | None = None
+                        ) -> list[tuple[np.ndarray, dict[str, ObservationModel]]]:
+    """For every group whose complement still covers every class: (its rows' mask, the models
+    fitted on the other groups). Empty when there is one group only."""
+    out = []
+    for g in np.unique(evidence.groups):
+        held = evidence.groups == g
+        rest = evidence.subset(~held)
+        if held.all() or set(rest.labels.tolist()) != set(evidence.labels.tolist()):
+            continue
+        models = fit_observation_models(rest, scores, classes, cfg, directions)
+        out.append((held, models))
+    return out
+
+
+def validation_quality(evidence: Evidence,
+                       folds: list[tuple[np.ndarray, dict[str, ObservationModel]]]
+                       ) -> list[dict[str, float | str]]:
+    """Held-out quality of every model: each group scored by the models fitted without it,
+    pooled (the same measures as :mod:`rapomdp.awareness.quality`)."""
+    if not folds:
+        return []
+    rows = []
+    for name in (n for n in folds[0][1] if all(n in models for _, models in folds)):
+        observed, p_correct, correct = [], [], []
+        for held, models in folds:
+            part = evidence.subset(held)
+            o, pc = observed_probabilities(models[name].probabilities, part.labels,
+                                           part.predicted)
+            observed.append(o.ravel())
+            p_correct.append(pc.ravel())
+            correct.append(part.correct.ravel())
+        rows.append({"model": name, **quality_from_probabilities(
+            np.concatenate(observed), np.concatenate(p_correct), np.concatenate(correct))})
+    return rows
+
+
+def choose_ra_variant(validation: list[dict[str, float | str]], configured: str) -> str:
+    """The configured variant, or with ``auto`` the RA variant of best held-out log-likelihood
+    (the paper's when there is nothing to validate on)."""
+    if configured != "auto":
+        return configured
+    ra = [r for r in validation if str(r["model"]).startswith("ra_")]
+    if not ra:
+        return "paper"
+    best = max(ra, key=lambda r: float(r["log_likelihood"]))
+    return str(best["model"]).removeprefix("ra_")
+
+
+# -- the classifier's level ----------------------------------------------------------------
+
+def shift_level(probabilities: np.ndarray, shift: float) -> np.ndarray:
+    """The model with P(correct | c, x) moved by ``shift`` on the logit scale and the wrong
+    labels rescaled to the rest (their proportions kept). 0 returns the model."""
+    p = np.asarray(probabilities, dtype=np.float64)
+    if shift == 0.0:
+        return p.copy()
+    idx = np.arange(p.shape[1])
+    right = np.clip(p[:, idx, idx], 1e-12, 1 - 1e-12)  # (V, C)
+    moved = 1.0 / (1.0 + np.exp(-(np.log(right / (1 - right)) + shift)))
+    out = p * ((1.0 - moved) / (1.0 - right))[:, :, None]
+    out[:, idx, idx] = moved
+    return out
+
+
+def fit_level(probabilities: np.ndarray, labels: np.ndarray, predicted: np.ndarray,
+              bound: float = 6.0) -> float:
+    """The logit shift of P(correct) that maximises the likelihood of whether the classifier
+    was right on ``labels`` / ``predicted`` (the modelled classifier's own held-out objects)."""
+    idx = np.arange(probabilities.shape[1])
+    right = np.clip(probabilities[:, idx, idx], 1e-12, 1 - 1e-12)
+    x = np.broadcast_to(np.arange(right.shape[0])[None], predicted.shape)
+    z = np.log(right / (1 - right))[x, np.broadcast_to(labels[:, None], predicted.shape)]
+    y = (predicted == labels[:, None]).astype(np.float64)
+
+    def loss(shift: float) -> float:
+        return float(np.sum(np.logaddexp(0.0, -(z + shift)) * y
+                            + np.logaddexp(0.0, z + shift) * (1 - y)))
+
+    return float(minimize_scalar(loss, bounds=(-bound, bound), method="bounded",
+                                 options={"xatol": 1e-4}).x)
+
+
+# -- the belief's temperature ----------------------------------------------------------------
+
+def temper(probabilities: np.ndarray, temperature: float) -> np.ndarray:
+    """P(o | c, x) ** t, renormalised over o: a model whose evidence counts ``t`` times a
+    naive-Bayes update's (t < 1: correlated views count less). t = 1 returns the model."""
+    p = np.asarray(probabilities, dtype=np.float64)
+    if temperature == 1.0:
+        return p.copy()
+    log_p = temperature * np.log(np.maximum(p, 1e-300))
+    log_p -= log_p.max(axis=2, keepdims=True)
+    out = np.exp(log_p)
+    return out / out.sum(axis=2, keepdims=True)
+
+
+def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighbours: int,
+                 rng: np.random.Generator) -> np.ndarray:
+    """Viewpoint sequences (E, length): from each start, moves to a random one of the
+    ``neighbours`` nearest viewpoints not yet visited (the shape of an active episode)."""
+    d = np.asarray(directions, dtype=np.float64)
+    angle = np.arccos(np.clip(d @ d.T, -1.0, 1.0))
+    np.fill_diagonal(angle, np.inf)
+    near = np.argsort(angle, axis=1)[:, :neighbours]  # (V, k)
+    walks = np.empty((len(starts), length), dtype=np.int64)
+    walks[:, 0] = starts
+    visited = np.zeros((len(starts), d.shape[0]), dtype=bool)
+    rows = np.arange(len(starts))
+    visited[rows, starts] = True
+    for t in range(1, length):
+        candidates = near[walks[:, t - 1]]  # (E, k)
+        fresh = ~visited[rows[:, None], candidates]
+        keys = np.where(fresh, rng.random(candidates.shape), -1.0)
+        pick = candidates[rows, keys.argmax(axis=1)]
+        # a walk boxed in by visited neighbours stays where it is (no new evidence)
+        stuck = ~fresh.any(axis=1)
+        walks[:, t] = np.where(stuck, walks[:, t - 1], pick)
+        visited[rows, walks[:, t]] = True
+    return walks
+
+
+def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
+                     predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray
+                     ) -> np.ndarray:
+    """Log beliefs (E, L, C) after every step of every walk, from a uniform prior, updated by
+    Eq. 5 with the tempered models (row r of the outcomes uses ``models[row_model[r]]``). A
+    viewpoint a walk stays on adds no evidence (the sensor would see the same image)."""
+    loglik = np.empty(predicted.shape + (models[0].shape[1],))  # (N, V, C)
+    for m, p in enumerate(models):
+        rows = np.flatnonzero(row_model == m)
+        if rows.size == 0:
+            continue
+        log_p = np.log(np.maximum(temper(p, temperature), 1e-300))  # (V, C, O)
+        x = np.arange(p.shape[0])[None, :]
+        loglik[rows] = log_p[x, :, predicted[rows]]  # (R, V, C)
+    steps = loglik[walk_row[:, None], walks]  # (E, L, C)
+    repeat = np.zeros(walks.shape, dtype=bool)
+    repeat[:, 1:] = walks[:, 1:] == walks[:, :-1]
+    steps = np.where(repeat[..., None], 0.0, steps)
+    cumulative = np.cumsum(steps, axis=1)
+    cumulative -= cumulative.max(axis=2, keepdims=True)
+    return cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
+
+
+def belief_log_loss(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
+                    labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
+                    walk_row: np.ndarray) -> float:
+    """Mean −log belief in the true class after every step of every walk
+    (:func:`walk_log_beliefs`)."""
+    log_belief = walk_log_beliefs(temperature, models, row_model, predicted, walks, walk_row)
+    return float(-np.mean(log_belief[np.arange(len(walks)), :, labels[walk_row]]))
+
+
+def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels: np.ndarray,
+                    predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
+                    bounds: tuple[float, float] = TEMPERATURE_BOUNDS) -> float:
+    """The temperature that minimises :func:`belief_log_loss` on held-out walks (bounded 1-D
+    search). Evidence that is independent and drawn from the model gives ~1; evidence that
+    repeats itself gives less."""
+    result = minimize_scalar(belief_log_loss, bounds=bounds, method="bounded",
+                             args=(models, row_model, labels, predicted, walks, walk_row),
+                             options={"xatol": 1e-3})
+    return float(result.x)
+
+
+def held_out_temperatures(evidence: Evidence,
+                          folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
+                          directions: np.ndarray, length: int, starts_per_row: int,
+                          neighbours: int, rng: np.random.Generator
+                          ) -> tuple[dict[str, float], dict[str, dict[str, float]]]:
+    """One temperature per model, fitted on random walks over the held-out groups' outcomes,
+    each group's beliefs updated by the models fitted without it; and, per model, the
+    calibration of those held-out beliefs (max belief against a right argmax) after the first
+    and the last step, naive (t = 1) and tempered. Empty without folds."""
+    if not folds:
+        return {}, {}
+    row_model = np.full(len(evidence.labels), -1, dtype=np.int64)
+    for m, (held, _) in enumerate(folds):
+        row_model[held] = m
+    rows = np.flatnonzero(row_model >= 0)
+    walk_row = np.repeat(rows, starts_per_row)
+    starts = rng.integers(0, evidence.predicted.shape[1], size=walk_row.size)
+    walks = random_walks(directions, starts, length, neighbours, rng)
+    true = evidence.labels[walk_row]
+    temperatures, calibration = {}, {}
+    for name in (n for n in folds[0][1] if all(n in m for _, m in folds)):
+        models = [m[name].probabilities for _, m in folds]
+        t = fit_temperature(models, row_model, evidence.labels, evidence.predicted, walks,
+                            walk_row)
+        temperatures[name] = t
+        report: dict[str, float] = {"temperature": t}
+        for label, value in (("naive", 1.0), ("tempered", t)):
+            belief = np.exp(walk_log_beliefs(value, models, row_model, evidence.predicted,
+                                             walks, walk_row))
+            for step, at in (("first", 0), ("last", length - 1)):
+                confidence = belief[:, at].max(axis=1)
+                right = belief[:, at].argmax(axis=1) == true
+                report[f"ece_{step}_{label}"] = expected_calibration_error(confidence, right)
+                report[f"belief_{step}_{label}"] = float(confidence.mean())
+                report[f"accuracy_{step}"] = float(right.mean())
+        calibration[name] = report
+    return temperatures, calibration

@@ -1,0 +1,159 @@
+"""Held-out fitting: planted calibration curves, the belief's temperature, the variant choice."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rapomdp.awareness.evidence import (
+    Evidence,
+    belief_log_loss,
+    choose_ra_variant,
+    fit_observation_models,
+    fit_temperature,
+    leave_one_group_out,
+    random_walks,
+    temper,
+    validation_quality,
+)
+from rapomdp.awareness.observation import calibrate_correctness, calibrate_per_class
+from rapomdp.config import ObserveConfig
+from rapomdp.geometry.viewsphere import fibonacci_directions
+
+
+def _sigmoid(z: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-z))
+
+
+def test_logistic_calibration_recovers_a_planted_curve():
+    rng = np.random.default_rng(0)
+    s = rng.random(40_000)
+    correct = rng.random(s.size) < _sigmoid(-1.0 + 3.0 * s)
+    fit = calibrate_correctness(s, correct, "logistic")
+    assert fit.intercept == pytest.approx(-1.0, abs=0.08)
+    assert fit.slope == pytest.approx(3.0, abs=0.15)
+    grid = np.linspace(0, 1, 11)
+    assert np.max(np.abs(fit(grid) - _sigmoid(-1.0 + 3.0 * grid))) < 0.02
+
+
+def test_isotonic_calibration_recovers_a_planted_step():
+    rng = np.random.default_rng(1)
+    s = rng.random(20_000)
+    truth = np.where(s < 0.5, 0.3, 0.9)
+    fit = calibrate_correctness(s, rng.random(s.size) < truth, "isotonic")
+    assert np.abs(fit(np.array([0.2, 0.8])) - [0.3, 0.9]).max() < 0.03
+    assert np.all(np.diff(fit(np.linspace(0, 1, 50))) >= 0)
+
+
+def test_per_class_calibration_recovers_intercepts_and_the_shared_slope():
+    rng = np.random.default_rng(2)
+    intercepts = np.array([-1.5, 0.0, 1.0])
+    g = rng.integers(0, 3, 60_000)
+    s = rng.random(g.size)
+    correct = rng.random(g.size) < _sigmoid(intercepts[g] + 2.0 * s)
+    fit = calibrate_per_class(s, correct, g, 3)
+    assert np.abs(fit.intercepts - intercepts).max() < 0.12
+    assert fit.slope == pytest.approx(2.0, abs=0.15)
+
+
+def _planted_model(views: int, classes: int, rng: np.random.Generator) -> np.ndarray:
+    p = rng.dirichlet(np.ones(classes), size=(views, classes))
+    p = 0.4 * p + 0.6 * np.eye(classes)[None]
+    return p / p.sum(axis=2, keepdims=True)
+
+
+def _draw_labels(p: np.ndarray, labels: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    cdf = np.cumsum(p[:, labels], axis=2)  # (V, N, C)
+    u = rng.random(cdf.shape[:2])[..., None]
+    return (u > cdf).sum(axis=2).T.clip(max=p.shape[1] - 1)  # (N, V)
+
+
+def test_temperature_leaves_independent_evidence_alone_and_shrinks_duplicated_evidence():
+    rng = np.random.default_rng(3)
+    views, classes, rows = 20, 3, 400
+    p = _planted_model(views, classes, rng)
+    labels = rng.integers(0, classes, rows)
+    predicted = _draw_labels(p, labels, rng)
+    walk_row = np.repeat(np.arange(rows), 4)
+    walks = np.stack([rng.permutation(views)[:6] for _ in walk_row])
+    independent = fit_temperature([p], np.zeros(rows, np.int64), labels, predicted, walks,
+                                  walk_row)
+    assert independent == pytest.approx(1.0, abs=0.12)
+    # every odd viewpoint repeats the label of the even one before it; walks visit both
+    duplicated = predicted.copy()
+    duplicated[:, 1::2] = duplicated[:, 0::2]
+    pairs = np.stack([rng.permutation(views // 2)[:3] for _ in walk_row])
+    walks = np.stack([2 * pairs, 2 * pairs + 1], axis=2).reshape(len(walk_row), 6)
+    shrunk = fit_temperature([p], np.zeros(rows, np.int64), labels, duplicated, walks, walk_row)
+    assert 0.3 < shrunk < 0.75
+    loss = [belief_log_loss(t, [p], np.zeros(rows, np.int64), labels, duplicated, walks,
+                            walk_row) for t in (1.0, shrunk)]
+    assert loss[1] < loss[0]
+
+
+def test_temper_keeps_rows_normalised_and_flattens_them():
+    rng = np.random.default_rng(4)
+    p = _planted_model(5, 4, rng)
+    assert np.array_equal(temper(p, 1.0), p)
+    cooled = temper(p, 0.5)
+    assert np.allclose(cooled.sum(axis=2), 1.0)
+    entropy = [-(q * np.log(q)).sum(axis=2) for q in (p, cooled)]
+    assert np.all(entropy[1] > entropy[0])
+    assert np.allclose(temper(p, 0.5), np.sqrt(p) / np.sqrt(p).sum(axis=2, keepdims=True))
+
+
+def test_random_walks_move_to_near_unvisited_viewpoints():
+    directions = fibonacci_directions(64, hemisphere=True)
+    walks = random_walks(directions, np.arange(64), 5, 6, np.random.default_rng(5))
+    assert walks.shape == (64, 5) and np.array_equal(walks[:, 0], np.arange(64))
+    assert all(len(set(w)) == 5 for w in walks.tolist())
+    step = np.einsum("ij,ij->i", directions[walks[:, :-1]].reshape(-1, 3),
+                     directions[walks[:, 1:]].reshape(-1, 3))
+    assert np.degrees(np.arccos(np.clip(step, -1, 1))).max() < 35
+
+
+def test_held_out_validation_prefers_the_score_that_predicts_correctness():
+    """Planted: class 0 is right where its 'mean' score is high, whatever the 'area' score."""
+    rng = np.random.default_rng(6)
+    views, classes = 64, 2
+    mean = np.stack([np.linspace(0, 1, views), rng.random(views)])
+    area = rng.random((classes, views))
+    labels = np.repeat([0, 1], 6)
+    p_right = _sigmoid(-2.0 + 5.0 * mean[labels])
+    right = rng.random(p_right.shape) < p_right
+    predicted = np.where(right, labels[:, None], 1 - labels[:, None])
+    evidence = Evidence(labels, predicted, np.tile(np.arange(6), 2))
+    cfg = ObserveConfig()
+    folds = leave_one_group_out(evidence, {"mean": mean, "area": area}, ["a", "b"], cfg)
+    assert len(folds) == 6 and all(held.sum() == 2 for held, _ in folds)
+    rows = {r["model"]: r for r in validation_quality(evidence, folds)}
+    assert rows["ra_paper"]["log_likelihood"] > rows["ra_area"]["log_likelihood"]
+    assert rows["ra_paper"]["auc"] > 0.75 > rows["ra_area"]["auc"]
+    assert choose_ra_variant(list(rows.values()), "auto") in {"paper", "class"}
+    assert choose_ra_variant(list(rows.values()), "area") == "area"
+    assert choose_ra_variant([], "auto") == "paper"
+    models = fit_observation_models(evidence, {"mean": mean, "area": area}, ["a", "b"], cfg)
+    assert set(models) == {"ra_paper", "ra_class", "ra_area", "ra_class_area", "classifier",
+                           "blackbox"}
+
+
+def test_viewpoint_evidence_is_stacked_on_other_groups_and_finds_a_bad_patch():
+    from rapomdp.awareness.evidence import fit_viewpoint_correctness, viewpoint_logit
+
+    rng = np.random.default_rng(7)
+    directions = fibonacci_directions(64, hemisphere=True)
+    bad = directions[:, 0] > 0.5  # the classifier fails on class 0 seen from +x
+    labels = np.repeat([0, 1], 4)
+    p_right = np.where(bad[None] & (labels[:, None] == 0), 0.2, 0.9)
+    right = rng.random(p_right.shape) < p_right
+    predicted = np.where(right, labels[:, None], 1 - labels[:, None])
+    logit = viewpoint_logit(labels, predicted, 2, directions)
+    assert logit[0, bad].mean() < 0.0 < logit[0, ~bad].mean() - 1.2  # smoothed, still apart
+    assert abs(logit[1, bad].mean() - logit[1, ~bad].mean()) < 0.6
+    evidence = Evidence(labels, predicted, np.tile(np.arange(4), 2))
+    flat = np.full((2, 64), 0.5)  # a score that says nothing
+    fused = fit_viewpoint_correctness(evidence, flat, 2, directions)
+    assert fused is not None and fused.weights[1] > 0.5
+    assert fused.correct[0, bad].mean() < 0.45 < 0.75 < fused.correct[0, ~bad].mean()
+    single = Evidence(labels, predicted, np.zeros(8, np.int64))
+    assert fit_viewpoint_correctness(single, flat, 2, directions) is None
