@@ -168,8 +168,10 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
                           "robot.png"}
     for name in links:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # one <table> per markdown table: Table 1, per class, quality, provenance, classifier, solver
-    assert html.count("<table>") == len(re.findall(r"^\|---", text, flags=re.M)) == 6
+    # one <table> per markdown table: Table 1, per class, quality, the final beliefs'
+    # calibration, provenance, classifier, solver
+    assert html.count("<table>") == len(re.findall(r"^\|---", text, flags=re.M)) == 7
+    assert "| method | accuracy | mean final belief | belief − accuracy | ECE |" in text
     # optional inputs that are absent are named with the command that makes them
     assert "Fig. 2: one class" not in text
     assert "figures/fig2.png (not found) — made by `rapomdp figure fig2 -w" in text
