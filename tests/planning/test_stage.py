@@ -145,13 +145,13 @@ def test_solve_stage_records_the_memory_note_and_refuses_what_cannot_fit(
     out = tmp_path / "solve"
     out.mkdir()
     cfg = config_from_dict({"solve": {"models": ["ra"], "iterations": 3}})
-    run_solve_stage(cfg, inputs, out)
+    run_solve_stage(cfg, inputs, out, TEST_CONTEXT)
     assert read_json(out / "solve_summary.json")["ra"]["note"].startswith(
         "upper bound: grid up to resolution")
     tiny = config_from_dict({"solve": {"models": ["ra"], "memory_gb": 0.001}})
     with pytest.raises(StageError, match=r"^solve: the active-recognition problem \(10 "
                                          r"viewpoints x 3 classes, 9 move targets\) needs about "
                                          r"[\d.]+ MB, over the memory cap of 1 MB"):
-        run_solve_stage(tiny, inputs, out)
+        run_solve_stage(tiny, inputs, out, TEST_CONTEXT)
     with pytest.raises(ValueError, match="memory_gb"):
         config_from_dict({"solve": {"memory_gb": float("nan")}})
