@@ -112,7 +112,7 @@ def main() -> None:
                 class_names=classes)
             result = solve_active_recognition(problem, precision, config.solve.timeout_s,
                                               max_iterations=iterations)
-            methods[key] = POMDPPolicy(result.policy, observe[key],  # type: ignore[arg-type]
+            methods[key] = POMDPPolicy(result.policy, observe[key],
                                        METHOD_NAMES.get(key, key),
                                        revisit=config.evaluate.revisit)
             bounds[key] = (f"bounds [{result.lower:.4f}, {result.upper:.4f}] "

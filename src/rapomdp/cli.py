@@ -6,7 +6,7 @@ import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
 import typer
 from rich.console import Console
@@ -85,6 +85,13 @@ def _report(result: StageResult) -> None:
     console.print(f"[green]✓[/] {result.name:<10} {state}  ({len(result.files)} files)")
 
 
+def run_pipeline(config: Config, workspace: Workspace, **options: Any) -> list[StageResult]:
+    """:func:`rapomdp.pipeline.run_pipeline`, imported when a command first runs stages."""
+    from rapomdp.pipeline import run_pipeline as run
+
+    return run(config, workspace, **options)
+
+
 def _save_config(config: Config, workspace: Workspace) -> None:
     workspace.root.mkdir(parents=True, exist_ok=True)
     with atomic_path(workspace.root / "config.yaml") as tmp:
@@ -95,7 +102,6 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
          force: list[str]) -> None:
     def action() -> None:
         from rapomdp.config import load_config
-        from rapomdp.pipeline import run_pipeline
         from rapomdp.workspace import Workspace
 
         config = load_config(config_path)

@@ -7,11 +7,11 @@ import tracemalloc
 
 import numpy as np
 import pytest
-from planning_fixtures import grid_value
 
 from rapomdp.planning.ar_solver import ActiveRecognitionSolver, _Moves, solve_active_recognition
 from rapomdp.planning.memory import MemoryCapError
 from rapomdp.planning.momdp import benchmark_problem, update_beliefs
+from tests.planning.planning_fixtures import grid_value
 
 
 def test_forty_classes_solve_under_a_small_cap_without_the_grid_and_say_so() -> None:

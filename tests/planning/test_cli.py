@@ -6,12 +6,12 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from planning_fixtures import small_arrays
 from typer.testing import CliRunner
 
 from rapomdp.planning.cli import pomdp_app
 from rapomdp.planning.io_pomdp import read_pomdp
 from rapomdp.planning.policy import AlphaVectorPolicy
+from tests.planning.planning_fixtures import small_arrays
 
 runner = CliRunner()
 

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from planning_fixtures import grid_value
 
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.grid_bound import FreudenthalGrid, grid_size
 from rapomdp.planning.momdp import benchmark_problem
+from tests.planning.planning_fixtures import grid_value
 
 
 def test_grid_interpolation_reproduces_beliefs():

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from planning_fixtures import TIGER
 
 from rapomdp.planning.io_pomdp import PomdpParseError, format_pomdp, parse_pomdp, read_pomdp
 from rapomdp.planning.memory import MemoryCapError
+from tests.planning.planning_fixtures import TIGER
 
 HEAD = "discount: 0.9\nvalues: reward\nstates: 3\nactions: 2\nobservations: 2\n"
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from planning_fixtures import small_arrays
 
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import (
@@ -18,6 +17,7 @@ from rapomdp.planning.momdp import (
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.pomdp import belief_update
 from rapomdp.planning.sarsop import solve_pomdp
+from tests.planning.planning_fixtures import small_arrays
 
 
 def test_momdp_and_flat_solvers_agree():

@@ -8,9 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from planning_fixtures import TIGER
-
 import rapomdp.planning as planning
+from tests.planning.planning_fixtures import TIGER
 
 HEAVY = ("torch", "roboticstoolbox", "trimesh", "matplotlib", "rapomdp.pipeline",
          "rapomdp.robot", "rapomdp.recognition")

@@ -8,7 +8,6 @@ import time
 
 import numpy as np
 import pytest
-from planning_fixtures import TIGER
 
 from rapomdp.planning.bounds import EXACT_BLIND_STATES, flat_solver_bytes
 from rapomdp.planning.io_pomdp import parse_pomdp
@@ -16,6 +15,7 @@ from rapomdp.planning.memory import MemoryCapError
 from rapomdp.planning.policy import AlphaVectorPolicy
 from rapomdp.planning.pomdp import POMDP
 from rapomdp.planning.sarsop import FlatSarsop, solve_pomdp
+from tests.planning.planning_fixtures import TIGER
 
 
 def big_file(n_states: int) -> str:

@@ -6,13 +6,13 @@ import json
 
 import numpy as np
 import pytest
-from planning_fixtures import small_arrays
 
 from rapomdp.planning.momdp import (
     benchmark_problem,
 )
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.workspace import solve_workspace_problems
+from tests.planning.planning_fixtures import small_arrays
 
 
 def test_solve_workspace_problems_writes_one_policy_per_model(tmp_path):
