@@ -45,6 +45,9 @@ bench: $(STAMP)
 	$(PY) benchmarks/robot_ik.py --placements | tee benchmarks/results/robot_ik.txt
 	$(PY) benchmarks/planning_flat_benchmarks.py | tee benchmarks/results/planning_flat_benchmarks.txt
 	$(PY) benchmarks/planning_active_recognition.py | tee benchmarks/results/planning_active_recognition.txt
+	$(PY) benchmarks/planning_active_recognition.py --sizes 128x85 | tee benchmarks/results/planning_any_size.txt
+	$(PY) benchmarks/planning_flat_limits.py | tee benchmarks/results/planning_flat_limits.txt
+	$(PY) benchmarks/planning_startup.py | tee benchmarks/results/planning_startup.txt
 	$(PY) benchmarks/classifier_speed.py | tee benchmarks/results/classifier_speed.txt
 	$(PY) benchmarks/saliency_speed.py | tee benchmarks/results/saliency_speed.txt
 	$(VENV)/bin/rapomdp run --workspace $(DEMO_WORKSPACE)
