@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -14,7 +15,7 @@ from rapomdp.experiment.evaluation import ClosedLoop, EpisodeTable, start_viewpo
 from rapomdp.io import read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import TINY_PIPELINE
+from tests.conftest import TINY_PIPELINE, remote_references
 
 METHODS = ["static", "random", "vptree", "classifier", "ra"]
 TINY = {
@@ -140,3 +141,19 @@ def test_cli_prints_table1_from_the_cached_stage(workspace, tmp_path) -> None:
     bad.write_text("evaluate: {methods: [static, oracle]}\n")
     result = CliRunner().invoke(app, ["evaluate", "-w", str(ws.root), "-c", str(bad)])
     assert result.exit_code == 2 and "unknown method(s) ['oracle']" in result.output
+
+
+def test_every_html_the_pipeline_writes_works_offline(workspace) -> None:
+    """The whole pipeline (report included) writes HTML that fetches nothing: plotly.js is
+    inside each interactive figure, and the report links them by relative path."""
+    ws, _ = workspace
+    pages = sorted(ws.root.rglob("*.html"))
+    names = {p.name for p in pages}
+    assert {"report.html", "fig1_bicycle.html"} <= names
+    for page in pages:
+        text = page.read_text()
+        assert remote_references(text) == [], page
+        assert not re.search(r"<script[^>]*\bsrc=", text), page
+    report = (ws.root / "report" / "report.html").read_text()
+    assert '<a href="fig1_bicycle.html">' in report
+    assert (ws.root / "report" / "fig1_bicycle.html").stat().st_size > 1_000_000

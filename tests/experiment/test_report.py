@@ -132,7 +132,7 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
     assert "9/16 viewpoints reachable (56 %)" in text
     assert f"seed {config.seed}" in text and "Configuration hash" in text
     # every image the report links lies in its folder, as a PNG
-    links = re.findall(r"\]\(([^)]+)\)", text)
+    links = re.findall(r"!\[[^]]*\]\(([^)]+)\)", text)
     sources = re.findall(r'<img src="([^"]+)"', html)
     assert sorted(links) == sorted(sources)
     assert set(links) == {"fig3.png", "trajectories.png", "fig1_bicycle.png", "calibration.png",
@@ -144,7 +144,12 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
     assert html.count("<table>") == len(re.findall(r"^\|---", text, flags=re.M)) == 6
     # optional inputs that are absent are named with the command that makes them
     assert "Fig. 2: one class" not in text
-    assert "figures/fig2.png (not found) — made by `rapomdp figure fig2 -w" in text
+    # Fig. 2 is optional: said how to make, but not a missing figure
+    assert "Fig. 2 (one class's saliency volume in two-class problems) is optional: " \
+        "`rapomdp figure fig2 -w" in text and "fig2.png (not found)" not in text
+    # the interactive Fig. 1 is linked, relative to the report folder
+    assert "[fig1_bicycle.html](fig1_bicycle.html)" in text
+    assert '<a href="fig1_bicycle.html">fig1_bicycle.html</a>' in html
     assert "vptree/vptree.json not found" in text
     assert 'class="missing"' in html
 
@@ -153,15 +158,18 @@ def test_optional_inputs_are_shown_when_present(synthetic, tmp_path: Path) -> No
     ws, config = synthetic
     (ws.root / "figures").mkdir(exist_ok=True)
     _png(ws.root / "figures" / "fig2.png")
+    (ws.root / "figures" / "fig2.html").write_text("<html></html>")
     (ws.root / "vptree").mkdir(exist_ok=True)
     write_json_atomic(ws.root / "vptree" / "vptree.json", {"accuracy_test_xrho": 0.4167})
     try:
         _, md = write_report(config, _inputs(ws), tmp_path / "r", fig1=_fake_fig1([]))
     finally:
         (ws.root / "figures" / "fig2.png").unlink()
+        (ws.root / "figures" / "fig2.html").unlink()
         (ws.root / "vptree" / "vptree.json").unlink()
     text = md.read_text()
     assert "![Fig. 2: one class" in text and (tmp_path / "r" / "fig2.png").exists()
+    assert "[fig2.html](fig2.html)" in text and (tmp_path / "r" / "fig2.html").exists()
     assert "over X_rho: 0.417." in text and "vptree.json not found" not in text
 
 

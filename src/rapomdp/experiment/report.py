@@ -66,12 +66,22 @@ class Image:
 
 
 @dataclass(frozen=True)
+class Link:
+    """A line linking a file in the report folder (an interactive figure): ``text`` then the
+    link, labelled ``label``."""
+
+    text: str
+    file: str
+    label: str
+
+
+@dataclass(frozen=True)
 class Missing:
     what: str
     how: str  # the command (or reason) that makes it
 
 
-Block = Heading | Paragraph | Table | Image | Missing
+Block = Heading | Paragraph | Table | Image | Link | Missing
 
 
 def _split_row(line: str) -> list[str]:
@@ -154,6 +164,8 @@ def to_markdown(blocks: Sequence[Block]) -> str:
             parts.append("\n".join(lines))
         elif isinstance(block, Image):
             parts.append(f"![{block.caption}]({block.file})\n\n*{block.caption}*")
+        elif isinstance(block, Link):
+            parts.append(f"{block.text} [{block.label}]({block.file})")
         else:
             parts.append(f"> **Missing:** {block.what} — {block.how}")
     return "\n\n".join(parts) + "\n"
@@ -191,6 +203,9 @@ def to_html(blocks: Sequence[Block], title: str) -> str:
             parts.append(f"<p>{html.escape(block.text)}</p>")
         elif isinstance(block, Table):
             parts.append(table_html(block))
+        elif isinstance(block, Link):
+            parts.append(f'<p>{html.escape(block.text)} <a href="{html.escape(block.file)}">'
+                         f"{html.escape(block.label)}</a></p>")
         elif isinstance(block, Image):
             parts.append(f'<figure><img src="{html.escape(block.file)}" '
                          f'alt="{html.escape(block.caption)}"><figcaption>'
@@ -219,18 +234,28 @@ class _Builder:
     def missing(self, what: str, how: str) -> None:
         self.blocks.append(Missing(what, how))
 
+    def copy(self, source: Path, name: str | None = None) -> str:
+        """Copy ``source`` into the report folder (as ``name``); returns the name there."""
+        name = name or source.name
+        target = self.out / name
+        if source.resolve() != target.resolve():
+            with atomic_path(target) as tmp:
+                shutil.copyfile(source, tmp)
+        return name
+
     def figure(self, source: Path, caption: str, how: str, name: str | None = None) -> None:
         """Copy ``source`` into the report (as ``name``) with its caption, or say it is
         missing and how to make it."""
         if not source.is_file():
             self.missing(f"{self._shown(source)} (not found)", how)
             return
-        name = name or source.name
-        target = self.out / name
-        if source.resolve() != target.resolve():
-            with atomic_path(target) as tmp:
-                shutil.copyfile(source, tmp)
-        self.blocks.append(Image(name, caption))
+        self.blocks.append(Image(self.copy(source, name), caption))
+
+    def interactive(self, source: Path, what: str) -> None:
+        """Link a self-contained interactive HTML figure (copied into the report folder)."""
+        if source.is_file():
+            self.add(Link(f"Interactive 3D version of {what} (self-contained, works offline):",
+                          self.copy(source), source.name))
 
     def markdown(self, source: Path, how: str) -> None:
         """The tables (and text) of a markdown file, or a missing line."""
@@ -332,12 +357,17 @@ def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name:
         b.figure(png, f"Fig. 1, class {class_name}: (a) a depth view of its volume model, "
                       f"(b) the 2D saliency of that view, (c) the 3D dense saliency volume, "
                       f"(d) the normalised viewpoint scores on X_rho.", fig1_how, png.name)
-        b.add(Paragraph(f"Interactive 3D version: {page.name} (in this folder)."))
+        b.interactive(page, "Fig. 1")
     fig2 = b.root / FIGURES_DIR / "fig2.png"
-    b.figure(fig2, "Fig. 2: one class's saliency volume in two-class problems and in the "
-                   "all-class problem.",
-             f"made by `{cmd} figure fig2 -w {b.root}` (trains three two-class classifiers, "
-             f"so the report does not make it)")
+    fig2_how = (f"`{cmd} figure fig2 -w {b.root}` or `{cmd} report --fig2 -w {b.root}` makes "
+                f"it (it trains three two-class classifiers, so the report does not by default)")
+    if fig2.is_file():
+        b.figure(fig2, "Fig. 2: one class's saliency volume in two-class problems and in the "
+                       "all-class problem, all seen from one camera.", fig2_how)
+        b.interactive(fig2.with_suffix(".html"), "Fig. 2")
+    else:  # optional: not asked for, so not a missing figure
+        b.add(Paragraph(f"Fig. 2 (one class's saliency volume in two-class problems) is "
+                        f"optional: {fig2_how}."))
     observe_how = f"made by `{cmd} observe -w {b.root}`"
     b.add(Paragraph("How well each observation model predicts the classifier's correctness on "
                     "the test models over X_rho:"))
