@@ -8,43 +8,17 @@ import re
 import numpy as np
 import pytest
 
-from rapomdp import parallel
-from rapomdp.config import config_from_dict
 from rapomdp.experiment import evaluation
 from rapomdp.experiment.evaluation import ClosedLoop, EpisodeTable, start_viewpoints
 from rapomdp.io import read_json
-from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import TINY_PIPELINE, remote_references
-
-METHODS = ["static", "random", "vptree", "classifier", "ra"]
-TINY = {
-    **TINY_PIPELINE,
-    "seed": 5,
-    "dataset": {"classes": ["cup", "bicycle", "teapot"]},
-    "viewpoints": {"count": 16},
-    "solve": {"timeout_s": 2.0},
-    "evaluate": {"methods": METHODS, "starts_per_model": 3, "max_moves": 6},
-}
+from tests.conftest import remote_references
+from tests.experiment.conftest import METHODS
 
 
 @pytest.fixture(scope="module")
-def workspace(tmp_path_factory):
-    import torch
-
-    from rapomdp.progress import set_progress
-    from rapomdp.recognition import stage
-
-    set_progress(False)
-    torch.set_num_threads(1)
-    previous, stage.threads = stage.threads, 1
-    parallel.workers = 1
-    config = config_from_dict(TINY)
-    ws = Workspace(tmp_path_factory.mktemp("ws"))
-    run_pipeline(config, ws)
-    yield ws, config
-    stage.threads = previous
-    parallel.workers = None
+def workspace(pipeline_workspace):
+    return pipeline_workspace
 
 
 def _inputs(ws: Workspace) -> dict:
