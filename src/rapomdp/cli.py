@@ -40,6 +40,21 @@ dataset_app = typer.Typer(
 app.add_typer(dataset_app, name="dataset")
 app.add_typer(pomdp_app, name="pomdp")
 
+
+def _print_version(value: bool) -> None:
+    if value:
+        from rapomdp import __version__
+
+        sys.stdout.write(f"rapomdp {__version__}\n")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: Annotated[bool, typer.Option(
+        "--version", callback=_print_version, is_eager=True,
+        help="Print the version and exit.")] = False) -> None:
+    """Active object recognition on depth images with recognition self-awareness."""
+
 console = Console(stderr=True)
 USER_ERRORS = (
     ConfigError,
@@ -59,7 +74,7 @@ ConfigOption = Annotated[
 WorkspaceOption = Annotated[
     Path, typer.Option("--workspace", "-w", help="Workspace folder for the artefacts.")
 ]
-ForceOption = Annotated[bool, typer.Option("--force", help="Redo the stage even if cached.")]
+ForceOption = Annotated[bool, typer.Option("--force", "-f", help="Redo the stage even if cached.")]
 
 
 def _guard(action: Callable[[], T]) -> T:
@@ -72,6 +87,16 @@ def _guard(action: Callable[[], T]) -> T:
     except KeyError as exc:
         console.print(f"[bold red]error:[/] {exc.args[0]}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
+
+
+def _require_existing(workspace: Path) -> None:
+    """Exit 2 with a clear message when a command that only reads a workspace is given a
+    folder that does not exist (a mistyped path), instead of reporting it empty."""
+    if not Path(workspace).is_dir():
+        console.print(f"[bold red]error:[/] workspace {workspace} does not exist (or is not a "
+                      f"folder); `rapomdp run -w {workspace}` makes one", highlight=False,
+                      soft_wrap=True)
+        raise typer.Exit(2)
 
 
 def _report(result: StageResult) -> None:
@@ -100,9 +125,13 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
 def run(
     workspace: WorkspaceOption,
     config: ConfigOption = None,
-    force: Annotated[
+    force: Annotated[bool, typer.Option(
+        "--force", "-f", help="Redo every stage it runs even if cached (as --force on a "
+                              "stage's command redoes that stage).")] = False,
+    redo: Annotated[
         list[str] | None,
-        typer.Option("--force", "-f", help=f"Redo a stage ({', '.join(STAGE_NAMES)}); repeatable."),
+        typer.Option("--redo", help=f"Redo this stage ({', '.join(STAGE_NAMES)}) even if "
+                                    f"cached; repeatable."),
     ] = None,
     until: Annotated[
         str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
@@ -111,7 +140,7 @@ def run(
 ) -> None:
     """Run every stage in order, skipping those whose inputs are unchanged; prints Table 1."""
     _set_workers(workers)
-    _run(config, workspace, until, list(force or []))
+    _run(config, workspace, until, list(STAGE_NAMES) if force else list(redo or []))
     if until is None:
         _print_table1(workspace)
 
@@ -142,6 +171,8 @@ def dataset_preview(
     elevation_deg: Annotated[float, typer.Option(help="Camera elevation above the floor.")] = 30.0,
 ) -> None:
     """Write a labelled contact sheet: one depth render per model of the workspace's dataset."""
+
+    _require_existing(workspace)
 
     def action() -> Path:
         from rapomdp.data.dataset import load_dataset
@@ -186,9 +217,10 @@ def train(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceO
     _run(config, workspace, "train", ["train"] if force else [])
 
 
-@app.command("evaluate-classifier")
-def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
-                        force: ForceOption = False, threads: ThreadsOption = None) -> None:
+@app.command("classifier_eval")
+@app.command("evaluate-classifier", hidden=True)  # its former name, kept as an alias
+def classifier_eval(workspace: WorkspaceOption, config: ConfigOption = None,
+                    force: ForceOption = False, threads: ThreadsOption = None) -> None:
     """Single-view accuracy on the test models: per class, confusion, per viewpoint."""
     _set_threads(threads)
     _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [])
@@ -401,15 +433,20 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
 
 
 @app.command("config")
-def show_config(config: ConfigOption = None) -> None:
-    """Print the resolved configuration as YAML (the default when no file is given)."""
+def show_config(config: ConfigOption = None,
+                plain: Annotated[bool, typer.Option(
+                    "--plain", help="Without the comments (descriptions, units).")] = False
+                ) -> None:
+    """Print the resolved configuration as YAML (the default when no file is given), each
+    section and key with a short comment and its unit."""
     resolved = _guard(lambda: load_config(config))
-    sys.stdout.write(resolved.to_yaml())
+    sys.stdout.write(resolved.to_yaml() if plain else resolved.to_commented_yaml())
 
 
 @app.command()
 def status(workspace: WorkspaceOption) -> None:
     """Show which stages a workspace holds, and when they ran."""
+    _require_existing(workspace)
     manifest = _guard(lambda: Workspace(workspace).manifest())
     table = Table(title=str(workspace))
     for column in ("stage", "files", "seconds", "finished", "key"):

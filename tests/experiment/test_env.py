@@ -84,10 +84,13 @@ def test_check_env_passes_for_20_seeds_with_unreachable_viewpoints(tiny) -> None
 def test_gym_make_builds_the_registered_environment(tiny) -> None:
     import gymnasium
 
-    from rapomdp.experiment import ENV_ID
+    from rapomdp.experiment.env import ENV_ID
 
     assert ENV_ID == "rapomdp/ActiveRecognition-v0" and ENV_ID in gymnasium.registry
     env = gymnasium.make(ENV_ID, workspace=tiny[0].root, max_moves=4, render_mode="rgb_array")
+    # the module:id form imports the module itself
+    again = gymnasium.make(f"rapomdp.experiment.env:{ENV_ID}", workspace=tiny[0].root)
+    assert isinstance(again.unwrapped, ActiveRecognitionEnv)
     assert isinstance(env.unwrapped, ActiveRecognitionEnv)
     assert env.unwrapped.max_moves == 4 and env.render_mode == "rgb_array"
     obs, _ = env.reset(seed=0)

@@ -15,8 +15,10 @@ or to the current one) is a no-op: the camera stays, the observation is unchange
 actions so that a learned policy can mask them. The ground truth reaches the agent only in the
 final ``info`` (at termination and at truncation, like a scorer).
 
-Registered with gymnasium as ``rapomdp/ActiveRecognition-v0`` (on import of
-:mod:`rapomdp.experiment`): ``gymnasium.make("rapomdp/ActiveRecognition-v0", workspace=W)``.
+Importing this module registers it with gymnasium as :data:`ENV_ID`
+(``gymnasium.make("rapomdp/ActiveRecognition-v0", workspace=W)``); without the import,
+``gymnasium.make("rapomdp.experiment.env:rapomdp/ActiveRecognition-v0", workspace=W)`` imports
+it.
 """
 
 from __future__ import annotations
@@ -31,7 +33,6 @@ from gymnasium import spaces
 
 from rapomdp.config import load_config
 from rapomdp.data.dataset import load_dataset
-from rapomdp.experiment import ENV_ID
 from rapomdp.experiment.episode import Motion, Scene
 from rapomdp.geometry.viewsphere import azimuth_zenith, fibonacci_directions
 from rapomdp.planning.policy import ARAction
@@ -39,6 +40,8 @@ from rapomdp.robot.stage import load_robot
 from rapomdp.workspace import StageError, Workspace
 
 Observation = dict[str, Any]
+#: The gymnasium id this module registers on import.
+ENV_ID = "rapomdp/ActiveRecognition-v0"
 
 
 class ActiveRecognitionEnv(gymnasium.Env):
@@ -358,5 +361,8 @@ def make_env(workspace: str | Path, **kwargs: Any) -> ActiveRecognitionEnv:
     are :meth:`ActiveRecognitionEnv.from_workspace`'s."""
     return ActiveRecognitionEnv.from_workspace(workspace, **kwargs)
 
+
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(ENV_ID, entry_point="rapomdp.experiment.env:make_env")
 
 __all__ = ["ENV_ID", "ActiveRecognitionEnv", "make_env"]

@@ -379,7 +379,7 @@ def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name:
 
 def _classifier(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
     b.add(Heading("Single-view classifier"))
-    how = f"made by `{cmd} evaluate-classifier -w {b.root}`"
+    how = f"made by `{cmd} classifier_eval -w {b.root}`"
     metrics = b.json(inputs["classifier_eval"] / "metrics.json", how)
     if metrics is not None:
         rows = []
