@@ -254,8 +254,8 @@ class Config(Section):
 
 
 #: Units by name suffix (the configuration's naming convention).
-UNIT_SUFFIXES = {"_m_per_rad": "metres per radian", "_m": "metres", "_deg": "degrees", "_rad": "radians", "_s": "seconds",
-                 "_px": "pixels"}
+UNIT_SUFFIXES = {"_m_per_rad": "metres per radian", "_m": "metres", "_deg": "degrees",
+                 "_rad": "radians", "_s": "seconds", "_px": "pixels"}
 
 
 def _field_comment(name: str, description: str | None) -> str:
