@@ -17,7 +17,7 @@ from rapomdp.data.layouts import DatasetLayoutError
 from rapomdp.data.meshes import MeshLoadError
 from rapomdp.data.splits import TooFewModelsError
 from rapomdp.io import ArtefactError, atomic_path
-from rapomdp.pipeline import STAGE_NAMES, STAGES, run_pipeline
+from rapomdp.pipeline import STAGES, run_pipeline
 from rapomdp.planning.cli import pomdp_app
 from rapomdp.recognition.classifier import CheckpointError
 from rapomdp.workspace import StageError, StageResult, Workspace
@@ -130,8 +130,8 @@ def run(
                               "stage's command redoes that stage).")] = False,
     redo: Annotated[
         list[str] | None,
-        typer.Option("--redo", help=f"Redo this stage ({', '.join(STAGE_NAMES)}) even if "
-                                    f"cached; repeatable."),
+        typer.Option("--redo", help="Redo this stage (by name, as `rapomdp status` lists "
+                     "them) even if cached; repeatable."),
     ] = None,
     until: Annotated[
         str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
@@ -140,7 +140,9 @@ def run(
 ) -> None:
     """Run every stage in order, skipping those whose inputs are unchanged; prints Table 1."""
     _set_workers(workers)
-    _run(config, workspace, until, list(STAGE_NAMES) if force else list(redo or []))
+    if force:
+        from rapomdp.pipeline import STAGE_NAMES as every_stage
+    _run(config, workspace, until, list(every_stage) if force else list(redo or []))
     if until is None:
         _print_table1(workspace)
 

@@ -124,8 +124,9 @@ def _image_panel(fig: Any, ax: Any, image: np.ndarray, cmap: str, label: str, ti
     shown = ax.imshow(image, cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
     ax.set_title(title)
     ax.set_axis_off()
-    ax.set_anchor("E")  # the image next to its colour bar, not centred in a wide cell
-    fig.colorbar(shown, ax=ax, shrink=0.85, label=label)
+    # the bar beside the image itself (axes coordinates follow the equal-aspect image), not at
+    # the edge of a wider cell
+    fig.colorbar(shown, cax=ax.inset_axes((1.04, 0.0, 0.05, 1.0)), label=label)
 
 
 def _volume_panel(fig: Any, ax: Any, volume: SaliencyVolume, title: str,

@@ -100,7 +100,7 @@ def _plot_robot(path: str | Path, viewpoints_m: np.ndarray, reachable: np.ndarra
     ax2d.set_title("top view")
     ax2d.grid(alpha=0.3)
     figure.colorbar(scatter, ax=ax2d, shrink=0.8,
-                    label="manipulability sqrt(det(J Jᵀ))")
+                    label=r"manipulability $\sqrt{\det(J J^\top)}$")
     handles, labels = ax3d.get_legend_handles_labels()
     figure.legend(handles, labels, loc="outside lower center", ncol=3, frameon=False)
     if title:
