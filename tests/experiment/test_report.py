@@ -68,7 +68,8 @@ def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ..
 
 EVALUATE = {"episodes": 30, "images": 171, "images_per_s": 412.5,
             "methods": ["Static", "Random", "Classifier", "RA-POMDP"],
-            "figure_class": "bicycle", "seconds": {"render": 0.4, "total": 2.5}}
+            "figure_class": "bicycle", "workers": 2,
+            "seconds": {"episodes_cpu": 1.94, "episodes_wall": 1.2, "total": 2.5}}
 SYNTHETIC = {
     "train": _writer({}, {"metrics.json": {}}, ("training.png",)),
     "classifier_eval": _writer({}, {"metrics.json": {
@@ -126,7 +127,18 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
                 "| bicycle | 0.4 | 1.0 |", "| ra | -0.412 | 0.131 |"):
         assert row in text
     assert "<td>RA-POMDP</td><td>1.000</td><td>0.771</td>" in html
-    assert "30 episodes" in text and "171 depth images" in text and "412.5 images/s" in text
+    assert "30 episodes" in text and "171 depth images" in text
+    assert "(412.5 images per CPU second)" in text
+    assert ("Time: the episodes took 1.9 s of CPU time, 1.2 s of wall time over 2 worker(s), "
+            "the stage 2.5 s in all.") in text and "episodes_cpu" not in text
+    # Table 1's columns are defined right after it
+    assert text.index("Columns: Accuracy — the fraction of episodes") > text.index("| Static |")
+    assert "# steps — the moves made" in text and "Belief — the method's final belief" in text
+    # every stage the workspace ran is in the stage table, the configuration is shown
+    for stage in ("dataset", "train", "classifier_eval", "robot", "solve", "evaluate"):
+        assert re.search(rf"^\| {stage} \| [0-9a-f]{{12}} \|", text, flags=re.M), stage
+    assert "```yaml\nseed: 3\n" in text and "wrong_declaration_cost_m: 2.0  # lambda" in text
+    assert "<details><summary>The configuration of this run" in html
     assert "| test viewpoints X_rho | 48 | 0.646 | 0.333 |" in text
     assert "| ra | -3.2100 | -3.2000 | 1.5 | 40 |" in text
     assert "9/16 viewpoints reachable (56 %)" in text

@@ -76,12 +76,20 @@ class Link:
 
 
 @dataclass(frozen=True)
+class Code:
+    """Preformatted text (the configuration), folded under ``summary`` in the HTML page."""
+
+    text: str
+    summary: str
+
+
+@dataclass(frozen=True)
 class Missing:
     what: str
     how: str  # the command (or reason) that makes it
 
 
-Block = Heading | Paragraph | Table | Image | Link | Missing
+Block = Heading | Paragraph | Table | Image | Link | Code | Missing
 
 
 def _split_row(line: str) -> list[str]:
@@ -166,6 +174,8 @@ def to_markdown(blocks: Sequence[Block]) -> str:
             parts.append(f"![{block.caption}]({block.file})\n\n*{block.caption}*")
         elif isinstance(block, Link):
             parts.append(f"{block.text} [{block.label}]({block.file})")
+        elif isinstance(block, Code):
+            parts.append(f"{block.summary}:\n\n```yaml\n{block.text.rstrip()}\n```")
         else:
             parts.append(f"> **Missing:** {block.what} — {block.how}")
     return "\n\n".join(parts) + "\n"
@@ -206,6 +216,9 @@ def to_html(blocks: Sequence[Block], title: str) -> str:
         elif isinstance(block, Link):
             parts.append(f'<p>{html.escape(block.text)} <a href="{html.escape(block.file)}">'
                          f"{html.escape(block.label)}</a></p>")
+        elif isinstance(block, Code):
+            parts.append(f"<details><summary>{html.escape(block.summary)}</summary>"
+                         f"<pre>{html.escape(block.text)}</pre></details>")
         elif isinstance(block, Image):
             parts.append(f'<figure><img src="{html.escape(block.file)}" '
                          f'alt="{html.escape(block.caption)}"><figcaption>'
@@ -305,9 +318,13 @@ def figure_class(evaluation: dict[str, Any] | None, config: Config,
 def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> None:
     builder.add(Paragraph(
         f"Configuration hash {stable_hash(config.model_dump(mode='json'))[:12]}, "
-        f"seed {config.seed}, workspace {builder.root}."))
+        f"seed {config.seed}, workspace {builder.root}. Every stage the workspace holds, in "
+        f"the order it ran (key: the hash of its configuration sections and inputs):"))
+    ran = Workspace(builder.root).manifest().get("stages", {})
+    folders = {name: builder.root / name for name in ran if name != "report"}
+    folders.update({name: folder for name, folder in inputs.items() if name not in folders})
     rows = []
-    for name, folder in inputs.items():
+    for name, folder in folders.items():
         try:
             record = read_stage_record(folder)
         except StageError:
@@ -316,6 +333,35 @@ def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> N
         rows.append([name, str(record.get("key", "-"))[:12], str(record.get("finished", "-")),
                      _fmt(record.get("seconds", "-"), 1)])
     builder.add(Table(["stage", "key", "finished", "seconds"], rows))
+    builder.add(Code(config.to_commented_yaml(),
+                     "The configuration of this run (as `rapomdp config` prints it)"))
+
+
+#: What Table 1's columns mean (metrics.table1_markdown writes them).
+TABLE1_COLUMNS = (
+    "Columns: Accuracy — the fraction of episodes whose declared class is the test model's "
+    "true class, with Wilson's 95 % score interval; Belief — the method's final belief in the "
+    "true class; # steps — the moves made (images after the first); Distance — the camera's "
+    "path along the sphere of radius ρ, in metres; Energy — the summed movement energy E_M of "
+    "Eq. 3, in metres; each as mean ± the half-width of Student's 95 % interval; — where a "
+    "method never moves. Episodes — test models × start viewpoints (those that hit the step "
+    "budget had to declare there). The intervals treat episodes as independent draws: they "
+    "describe the spread over this protocol's starts and classes, not over unseen objects.")
+
+
+def _timing(seconds: Any, workers: Any) -> str:
+    """The evaluate stage's times in words."""
+    if not isinstance(seconds, dict):
+        return f"Time: {_fmt(seconds, 1)} s." if seconds is not None else ""
+    parts = []
+    if "episodes_cpu" in seconds:
+        parts.append(f"the episodes took {_fmt(seconds['episodes_cpu'], 1)} s of CPU time")
+    if "episodes_wall" in seconds:
+        over = f" over {workers} worker(s)" if isinstance(workers, int) else ""
+        parts.append(f"{_fmt(seconds['episodes_wall'], 1)} s of wall time{over}")
+    if "total" in seconds:
+        parts.append(f"the stage {_fmt(seconds['total'], 1)} s in all")
+    return ("Time: " + ", ".join(parts) + ".") if parts else ""
 
 
 def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
@@ -323,16 +369,15 @@ def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
     b.add(Heading("Closed-loop recognition (Table 1)"))
     data = b.json(folder / "evaluate.json", how)
     if data is not None:
-        seconds = data.get("seconds", {})
-        timing = ", ".join(f"{k} {_fmt(v, 1)} s" for k, v in seconds.items()) \
-            if isinstance(seconds, dict) else _fmt(seconds)
         methods = data.get("methods", [])
         b.add(Paragraph(
             f"{data.get('episodes', '?')} episodes of the methods "
             f"{', '.join(map(str, methods)) if isinstance(methods, list) else methods}; "
             f"{data.get('images', '?')} depth images rendered and classified "
-            f"({_fmt(data.get('images_per_s', '?'), 1)} images/s). Time: {timing or '-'}."))
+            f"({_fmt(data.get('images_per_s', '?'), 1)} images per CPU second). "
+            f"{_timing(data.get('seconds'), data.get('workers'))}"))
     b.markdown(folder / "table1.md", how)
+    b.add(Paragraph(TABLE1_COLUMNS))
     b.add(Paragraph("Per class:"))
     b.markdown(folder / "per_class.md", how)
     figure = (data or {}).get("figure_class", "the figure class")
