@@ -318,10 +318,12 @@ def figure_class(evaluation: dict[str, Any] | None, config: Config,
 def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> None:
     builder.add(Paragraph(
         f"Configuration hash {stable_hash(config.model_dump(mode='json'))[:12]}, "
-        f"seed {config.seed}, workspace {builder.root}. Every stage the workspace holds, in "
-        f"the order it ran (key: the hash of its configuration sections and inputs):"))
+        f"seed {config.seed}, workspace {builder.root}. Every stage the workspace holds, by "
+        f"when it last finished (key: the hash of its configuration sections and inputs):"))
     ran = Workspace(builder.root).manifest().get("stages", {})
-    folders = {name: builder.root / name for name in ran if name != "report"}
+    order = sorted((str(record.get("finished", "")), name) for name, record in ran.items()
+                   if name != "report" and isinstance(record, dict))
+    folders = {name: builder.root / name for _, name in order}
     folders.update({name: folder for name, folder in inputs.items() if name not in folders})
     rows = []
     for name, folder in folders.items():
