@@ -83,7 +83,9 @@ def _fig1_inputs() -> dict:
 
 def test_fig1_panels_have_colour_bars_with_units_and_one_camera() -> None:
     fig = figures.fig1_figure(**_fig1_inputs())
-    labels = [ax.get_ylabel() for ax in fig.axes if ax.get_label() == "<colorbar>"]
+    insets = [child for ax in fig.axes for child in ax.child_axes]  # the images' bars
+    every = insets + [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+    labels = [ax.get_ylabel() for ax in every]
     assert labels == [figures.DEPTH_LABEL, figures.SALIENCY_LABEL, figures.VOXEL_LABEL,
                       figures.SCORE_LABEL]
     assert "(m" in figures.DEPTH_LABEL and "0-1" in figures.SALIENCY_LABEL
@@ -92,7 +94,7 @@ def test_fig1_panels_have_colour_bars_with_units_and_one_camera() -> None:
     assert (volume_axes.elev, volume_axes.azim) == pytest.approx((elevation, azimuth))
     assert azimuth == pytest.approx(90.0)
     # the depth colour bar spans the object's depths, not the background's 0
-    depth_bar = next(ax for ax in fig.axes if ax.get_ylabel() == figures.DEPTH_LABEL)
+    depth_bar = next(ax for ax in every if ax.get_ylabel() == figures.DEPTH_LABEL)
     assert depth_bar.get_ylim() == pytest.approx((0.5, 0.6))
 
 

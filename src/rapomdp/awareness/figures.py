@@ -226,7 +226,8 @@ def _scene_camera(view_deg: tuple[float, float], distance: float = 1.8) -> dict[
     elevation, azimuth = np.radians(view_deg)
     eye = distance * np.array([np.cos(elevation) * np.cos(azimuth),
                                np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
-    return {"eye": dict(zip("xyz", eye.tolist(), strict=True)), "up": {"x": 0, "y": 0, "z": 1}}
+    return {"eye": dict(zip("xyz", eye.tolist(), strict=True)), "up": {"x": 0, "y": 0, "z": 1},
+            "projection": {"type": "orthographic"}}  # as the PNG's volume panels
 
 
 def _colour_bar(title: str, x: float, y: float, length: float) -> dict[str, Any]:
