@@ -61,3 +61,15 @@ def config() -> Config:
 @pytest.fixture
 def workspace_dir(tmp_path: Path) -> Path:
     return tmp_path / "ws"
+
+
+def remote_references(page: str) -> list[str]:
+    """The ``src``/``href`` values of an HTML page's tags that point off the machine (a scheme
+    such as http: or a protocol-relative //host). Script bodies are skipped: an embedded
+    library's code holds URLs in strings that nothing fetches."""
+    import re
+
+    tags = re.sub(r"(<script\b[^>]*>).*?</script>", r"\1", page, flags=re.S | re.I)
+    values = re.findall(r"""\b(?:src|href)\s*=\s*["']?([^"'\s>]+)""", tags, flags=re.I)
+    return [v for v in values if re.match(r"^(?:[a-z][a-z0-9+.-]*:|//)", v, flags=re.I)
+            and not v.lower().startswith(("data:", "#"))]

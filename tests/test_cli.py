@@ -14,6 +14,67 @@ def test_config_prints_the_default() -> None:
     result = runner.invoke(app, ["config"])
     assert result.exit_code == 0
     assert Config.model_validate(yaml.safe_load(result.stdout)) == Config()
+    plain = runner.invoke(app, ["config", "--plain"])
+    assert plain.stdout == Config().to_yaml() and "#" not in plain.stdout
+
+
+def test_config_comments_say_what_each_key_is_and_its_unit() -> None:
+    lines = runner.invoke(app, ["config"]).stdout.splitlines()
+    assert "  radius_m: 0.2  # bounding-sphere radius after normalisation; unit: metres" in lines
+    assert any(line.startswith("  wrong_declaration_cost_m: 2.0  # lambda (Eq. 1)")
+               for line in lines)
+    assert "    missing_start_deg: 70.0  # unit: degrees" in lines
+    assert any(line.startswith("    joint_weight_m_per_rad: 0.0") and
+               line.endswith("unit: metres per radian") for line in lines)
+    # a section's comment is its docstring's first paragraph, above its key
+    camera = lines.index("camera:")
+    assert lines[camera - 1] == ("# The depth camera: an Asus Xtion Pro Live rendered at "
+                                 "width x height.")
+
+
+def test_version_and_command_names_are_the_stage_names() -> None:
+    from rapomdp import __version__
+    from rapomdp.pipeline import STAGE_NAMES
+
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0 and result.stdout == f"rapomdp {__version__}\n"
+    import typer.main
+
+    group = typer.main.get_command(app)
+    shown = {name for name, command in group.commands.items() if not command.hidden}
+    assert set(STAGE_NAMES) <= shown
+    # the former spelling still runs the same command, but is not listed
+    assert group.commands["evaluate-classifier"].hidden
+    alias, command = group.commands["evaluate-classifier"], group.commands["classifier_eval"]
+    assert alias.callback.__wrapped__ is command.callback.__wrapped__
+    assert "evaluate-classifier" not in runner.invoke(app, ["--help"]).stdout
+
+
+def test_force_is_a_flag_everywhere_and_redo_names_a_stage(tmp_path: Path) -> None:
+    import typer.main
+
+    group = typer.main.get_command(app)
+    for name, command in group.commands.items():
+        for param in command.params:
+            if "--force" in param.opts:
+                assert param.is_flag, name
+    path = tmp_path / "tiny.yaml"
+    path.write_text(tiny_config().to_yaml())
+    base = ["run", "-w", str(tmp_path / "ws"), "-c", str(path), "--until", "render"]
+    assert runner.invoke(app, base).exit_code == 0
+    cached = runner.invoke(app, base).output
+    assert "dataset    cached" in cached and "render     cached" in cached
+    redo = runner.invoke(app, [*base, "--redo", "render"]).output
+    assert "dataset    cached" in redo and "render     done" in redo
+    forced = runner.invoke(app, [*base, "--force"]).output
+    assert "dataset    done" in forced and "render     done" in forced
+
+
+def test_status_of_a_missing_workspace_is_an_error(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["status", "-w", str(tmp_path / "mistyped")])
+    assert result.exit_code == 2
+    assert f"workspace {tmp_path / 'mistyped'} does not exist" in result.output
+    assert not (tmp_path / "mistyped").exists()
 
 
 def test_bad_config_exits_2_naming_the_key(tmp_path: Path) -> None:

@@ -43,6 +43,21 @@ dataset_app = typer.Typer(
 app.add_typer(dataset_app, name="dataset")
 app.add_typer(pomdp_app, name="pomdp")
 
+
+def _print_version(value: bool) -> None:
+    if value:
+        from rapomdp import __version__
+
+        sys.stdout.write(f"rapomdp {__version__}\n")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: Annotated[bool, typer.Option(
+        "--version", callback=_print_version, is_eager=True,
+        help="Print the version and exit.")] = False) -> None:
+    """Active object recognition on depth images with recognition self-awareness."""
+
 console = Console(stderr=True)
 
 
@@ -88,7 +103,7 @@ SchedulerOption = Annotated[
                       "tasks (saliency, solve, evaluate); default: parallel.scheduler of the "
                       "configuration, else the local process pool. Same results either way."),
 ]
-ForceOption = Annotated[bool, typer.Option("--force", help="Redo the stage even if cached.")]
+ForceOption = Annotated[bool, typer.Option("--force", "-f", help="Redo the stage even if cached.")]
 
 
 def _fail(message: str) -> typer.Exit:
@@ -111,6 +126,14 @@ def _guard(action: Callable[[], T]) -> T:
         raise _fail("out of memory: a setting asks for more than this machine has (smaller "
                     "camera, fewer views or viewpoints?); the earlier artefacts are intact"
                     ) from None
+
+
+def _require_existing(workspace: Path) -> None:
+    """Exit 2 with a clear message when a command that only reads a workspace is given a
+    folder that does not exist (a mistyped path), instead of reporting it empty."""
+    if not Path(workspace).is_dir():
+        raise _fail(f"workspace {workspace} does not exist (or is not a folder); "
+                    f"`rapomdp run -w {workspace}` makes one")
 
 
 def _report(result: StageResult, workspace: Workspace | None = None) -> None:
@@ -166,10 +189,13 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
 def run(
     workspace: WorkspaceOption,
     config: ConfigOption = None,
-    force: Annotated[
+    force: Annotated[bool, typer.Option(
+        "--force", "-f", help="Redo every stage it runs even if cached (as --force on a "
+                              "stage's command redoes that stage).")] = False,
+    redo: Annotated[
         list[str] | None,
-        typer.Option("--force", "-f", help="Redo a stage (by name, as `rapomdp status` lists "
-                     "them); repeatable."),
+        typer.Option("--redo", help="Redo this stage (by name, as `rapomdp status` lists "
+                     "them) even if cached; repeatable."),
     ] = None,
     until: Annotated[
         str | None, typer.Option(help="Stop after this stage (and the stages it needs).")
@@ -185,8 +211,10 @@ def run(
     The workspace keeps its configuration (W/config.yaml): `rapomdp run -w W` reruns what
     changed, `rapomdp run -w W train.epochs=5` changes one value.
     """
-    _run(config, workspace, until, list(force or []), _context(threads, workers, scheduler),
-         overrides, reconfigure)
+    if force:
+        from rapomdp.pipeline import STAGE_NAMES as every_stage
+    _run(config, workspace, until, list(every_stage) if force else list(redo or []),
+         _context(threads, workers, scheduler), overrides, reconfigure)
     if until is None:
         _print_table1(workspace)
 
@@ -218,6 +246,8 @@ def dataset_preview(
     elevation_deg: Annotated[float, typer.Option(help="Camera elevation above the floor.")] = 30.0,
 ) -> None:
     """Write a labelled contact sheet: one depth render per model of the workspace's dataset."""
+
+    _require_existing(workspace)
 
     def action() -> Path:
         from rapomdp.data.dataset import load_dataset
@@ -266,11 +296,12 @@ def train(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceO
          reconfigure)
 
 
-@app.command("evaluate-classifier")
-def evaluate_classifier(workspace: WorkspaceOption, config: ConfigOption = None,
-                        force: ForceOption = False, reconfigure: ReconfigureOption = False,
-                        overrides: OverridesArgument = None,
-                        threads: ThreadsOption = None) -> None:
+@app.command("classifier_eval")
+@app.command("evaluate-classifier", hidden=True)  # its former name, kept as an alias
+def classifier_eval(workspace: WorkspaceOption, config: ConfigOption = None,
+                    force: ForceOption = False, reconfigure: ReconfigureOption = False,
+                    overrides: OverridesArgument = None,
+                    threads: ThreadsOption = None) -> None:
     """Single-view accuracy on the test models: per class, confusion, per viewpoint."""
     _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [],
          _context(threads), overrides, reconfigure)
@@ -528,9 +559,12 @@ def show_config(
     workspace: Annotated[Path | None, typer.Option(
         "--workspace", "-w", help="Show this workspace's configuration.")] = None,
     overrides: OverridesArgument = None,
+    plain: Annotated[bool, typer.Option(
+        "--plain", help="Without the comments (descriptions, units).")] = False,
 ) -> None:
     """Print the resolved configuration as YAML: the file's, else the workspace's, else the
-    default, with any KEY=VALUE overrides; nothing is written."""
+    default, with any KEY=VALUE overrides, each section and key with a short comment and its
+    unit; nothing is written."""
 
     def action() -> Config:
         from rapomdp.config import apply_overrides, config_from_dict, read_config_data
@@ -542,7 +576,8 @@ def show_config(
             return config_from_dict(apply_overrides(data, overrides or ()), str(config))
         return resolve_config(Workspace(workspace), config, overrides or (), True)[0]
 
-    sys.stdout.write(_guard(action).to_yaml())
+    resolved = _guard(action)
+    sys.stdout.write(resolved.to_yaml() if plain else resolved.to_commented_yaml())
 
 
 @app.command()
@@ -553,6 +588,8 @@ def status(workspace: WorkspaceOption) -> None:
     from rapomdp.config import Config
     from rapomdp.pipeline import STAGES
     from rapomdp.workspace import Workspace
+
+    _require_existing(workspace)
 
     def action() -> tuple[dict, dict[str, list[str]], bool]:
         ws = Workspace(workspace)

@@ -450,6 +450,50 @@ class Config(Section):
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
 
+    def to_commented_yaml(self) -> str:
+        """The YAML of :meth:`to_yaml` (it loads back to the same configuration) with a short
+        comment per section (its docstring's first line) and per key (its Field description
+        and the unit its name ends with, e.g. ``_m``: metres)."""
+        return "\n".join(_commented_lines(self, 0)) + "\n"
+
+
+#: Units by name suffix (the configuration's naming convention).
+UNIT_SUFFIXES = {"_m_per_rad": "metres per radian", "_m": "metres", "_deg": "degrees",
+                 "_rad": "radians", "_s": "seconds", "_px": "pixels"}
+
+
+def _field_comment(name: str, description: str | None) -> str:
+    unit = next((u for suffix, u in UNIT_SUFFIXES.items() if name.endswith(suffix)), None)
+    parts = [description] if description else []
+    if unit and not (description and unit in description):
+        parts.append(f"unit: {unit}")
+    return "; ".join(parts)
+
+
+def _flow(value: Any) -> str:
+    """One value as a YAML flow scalar or collection (on one line)."""
+    text = yaml.safe_dump(value, default_flow_style=True, width=10**9, sort_keys=False)
+    return text.removesuffix("...\n").strip()
+
+
+def _commented_lines(model: BaseModel, indent: int) -> list[str]:
+    pad = " " * indent
+    lines = []
+    dumped = model.model_dump(mode="json")
+    for name, field in type(model).model_fields.items():
+        value = getattr(model, name)
+        if isinstance(value, BaseModel):
+            paragraph = " ".join((type(value).__doc__ or "").strip().split("\n\n")[0].split())
+            if paragraph:
+                lines.append(f"{pad}# {paragraph.replace('``', '')}")
+            lines.append(f"{pad}{name}:")
+            lines.extend(_commented_lines(value, indent + 2))
+            continue
+        comment = _field_comment(name, field.description)
+        line = f"{pad}{name}: {_flow(dumped[name])}"
+        lines.append(f"{line}  # {comment}" if comment else line)
+    return lines
+
 
 #: Bounds of a configuration document: bytes, YAML aliases, and nodes once aliases are expanded
 #: (a "billion laughs" document is a few hundred bytes that expand to 10^9 nodes).

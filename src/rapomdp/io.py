@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+    pass
 
 
 def _default_file_mode() -> int:
@@ -222,13 +222,6 @@ def fingerprint_files(paths: Sequence[Path]) -> str:
         stat = path.stat()
         entries.append([str(path), stat.st_size, stat.st_mtime_ns])
     return stable_hash(entries)
-
-
-def save_png(figure: Figure, path: Path, dpi: int = 120) -> Path:
-    """Write a matplotlib figure as PNG atomically (tight bounding box)."""
-    with atomic_path(path) as tmp:
-        figure.savefig(tmp, format="png", dpi=dpi, bbox_inches="tight")
-    return path
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:

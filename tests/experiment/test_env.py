@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -63,16 +64,85 @@ def test_from_workspace_builds_the_test_models_and_the_robot_motion(tiny, env) -
                                                        env.motion.reachable)]))
 
 
-def test_check_env_passes(tiny) -> None:
-    base = ActiveRecognitionEnv.from_workspace(tiny[0].root, seed=7)
-    # check_env samples actions blindly and an invalid move raises by design: with every
-    # viewpoint reachable only a move to the current one is invalid, and the seeded action
-    # space (the run is deterministic) samples valid actions.
-    motion = Motion(base.motion.distance_m, base.motion.distance_m, np.ones(16, dtype=bool))
-    env = ActiveRecognitionEnv(base.scenes, base.true_classes, base.class_names, motion, 2.0,
-                               max_moves=5, seed=7)
-    env.action_space.seed(0)
-    check_env(env, skip_render_check=True)
+def test_check_env_passes_for_20_seeds_with_unreachable_viewpoints(tiny) -> None:
+    """gymnasium's checker samples actions blindly: with some viewpoints unreachable, the
+    no-op rule for actions outside the mask keeps every sample legal."""
+    import warnings
+
+    import gymnasium
+
+    for seed in range(20):
+        env = gymnasium.make("rapomdp/ActiveRecognition-v0", workspace=tiny[0].root,
+                             max_moves=5, seed=seed, render_mode="rgb_array").unwrapped
+        assert not env.motion.reachable.all()
+        env.action_space.seed(seed)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("error")  # any checker warning fails the test, but
+            warnings.filterwarnings("ignore", ".*Box observation space maximum value is inf")
+            check_env(env)
+
+
+def test_gym_make_builds_the_registered_environment(tiny) -> None:
+    import gymnasium
+
+    from rapomdp.experiment.env import ENV_ID
+
+    assert ENV_ID == "rapomdp/ActiveRecognition-v0" and ENV_ID in gymnasium.registry
+    env = gymnasium.make(ENV_ID, workspace=tiny[0].root, max_moves=4, render_mode="rgb_array")
+    # the module:id form imports the module itself
+    again = gymnasium.make(f"rapomdp.experiment.env:{ENV_ID}", workspace=tiny[0].root)
+    assert isinstance(again.unwrapped, ActiveRecognitionEnv)
+    assert isinstance(env.unwrapped, ActiveRecognitionEnv)
+    assert env.unwrapped.max_moves == 4 and env.render_mode == "rgb_array"
+    obs, _ = env.reset(seed=0)
+    assert obs["depth"].shape == (30, 40)
+    with pytest.raises(ValueError, match="render_mode 'human' is not one of"):
+        ActiveRecognitionEnv.from_workspace(tiny[0].root, render_mode="human")
+
+
+def test_sampled_actions_never_raise_and_invalid_ones_are_penalised_no_ops(env) -> None:
+    env.action_space.seed(3)
+    invalid_seen = 0
+    for episode in range(15):
+        obs, info = env.reset(seed=episode)
+        while True:
+            action = int(env.action_space.sample())
+            before, mask = obs, info["action_mask"]
+            obs, reward, terminated, truncated, info = env.step(action)
+            assert info["invalid"] == (not mask[action])
+            if info["invalid"]:
+                invalid_seen += 1
+                assert reward == -env.invalid_penalty and not terminated
+                assert obs["viewpoint"] == before["viewpoint"]
+                np.testing.assert_array_equal(obs["depth"], before["depth"])
+                assert "cannot reach it" in info["invalid_reason"] or \
+                    "already there" in info["invalid_reason"]
+            if terminated or truncated:
+                break
+        assert info["steps"] <= 3 and "true_class" in info
+    assert invalid_seen > 0
+    # the default penalty is the most a valid move costs: an invalid action never pays
+    reach = env.motion.reachable
+    assert env.invalid_penalty == pytest.approx(
+        np.max(env.motion.energy[np.ix_(reach, reach)][np.isfinite(
+            env.motion.energy[np.ix_(reach, reach)])]))
+
+
+def test_render_shows_the_depth_image_and_the_current_viewpoint(tiny) -> None:
+    env = ActiveRecognitionEnv.from_workspace(tiny[0].root, seed=0, render_mode="rgb_array")
+    obs, info = env.reset(seed=0, options={"model": 0})
+    frame = env.render()
+    assert frame.dtype == np.uint8 and frame.shape == (120, 160 + 120, 3)  # 40x30 scaled x4
+    hit = np.repeat(np.repeat(obs["depth"] > 0, 4, axis=0), 4, axis=1)
+    depth_part = frame[:, :160]
+    assert (depth_part[~hit] == 255).all() and (depth_part[hit] != 255).any(axis=-1).all()
+    orange = np.array([230, 159, 0], dtype=np.uint8)
+    assert (frame[:, 160:] == orange).all(axis=-1).any()  # the current viewpoint is drawn
+    move = int(np.flatnonzero(info["action_mask"][: env.viewpoints])[0])
+    env.step(move)
+    blue = np.array([0, 114, 178], dtype=np.uint8)
+    assert (env.render()[:, 160:] == blue).all(axis=-1).any()  # the start, now visited
+    assert ActiveRecognitionEnv.from_workspace(tiny[0].root).render() is None
 
 
 def test_seeded_reset_is_reproducible_and_draws_a_reachable_start(env) -> None:
@@ -123,6 +193,7 @@ def test_right_declaration_gives_zero_and_a_wrong_one_minus_lambda(env) -> None:
     obs2, reward, terminated, truncated, info = env.step(env.viewpoints + truth)
     assert (reward, terminated, truncated) == (0.0, True, False)
     assert info["declared"] == truth and info["correct"] is True and info["true_class"] == truth
+    assert info["steps"] == 1 and info["invalid"] is False
     np.testing.assert_array_equal(obs2["depth"], obs["depth"])
     assert not info["action_mask"].any()
     with pytest.raises(RuntimeError, match="episode is over"):
@@ -134,13 +205,8 @@ def test_right_declaration_gives_zero_and_a_wrong_one_minus_lambda(env) -> None:
     assert info["declared"] == wrong and info["true_class"] == truth
 
 
-def test_invalid_moves_raise_with_their_reason(env) -> None:
-    unreachable = int(np.flatnonzero(~env.motion.reachable)[0])
-    obs, _ = env.reset(seed=0)
-    with pytest.raises(ValueError, match=f"viewpoint {unreachable}: the arm cannot reach it"):
-        env.step(unreachable)
-    with pytest.raises(ValueError, match="the camera is already there"):
-        env.step(obs["viewpoint"])
+def test_actions_outside_the_space_raise(env) -> None:
+    env.reset(seed=0)
     with pytest.raises(ValueError, match=r"action 19 is not in \[0, 19\)"):
         env.step(19)
     with pytest.raises(ValueError, match="action -1"):
@@ -153,9 +219,21 @@ def test_action_mask_excludes_unreachable_and_current_viewpoints(env) -> None:
     expected = np.concatenate([env.motion.reachable, np.ones(3, dtype=bool)])
     expected[obs["viewpoint"]] = False
     np.testing.assert_array_equal(mask, expected)
-    for action in np.flatnonzero(~mask):  # every masked action is refused
-        with pytest.raises(ValueError):
-            env.step(int(action))
+    unreachable = int(np.flatnonzero(~env.motion.reachable)[0])
+    _, _, _, _, info = env.step(unreachable)
+    assert info["invalid"] and info["invalid_reason"] == (
+        f"move to viewpoint {unreachable}: the arm cannot reach it")
+    _, _, _, _, info = env.step(obs["viewpoint"])
+    assert info["invalid"] and "the camera is already there" in info["invalid_reason"]
+    assert info["moves"] == 0 and info["steps"] == 2 and info["energy"] == 0.0
+
+
+def test_planner_actions_convert_both_ways(env) -> None:
+    from rapomdp.planning.policy import ARAction
+
+    assert env.action_index(ARAction("move", 5)) == 5
+    assert env.action_index(ARAction("declare", 2)) == 16 + 2
+    assert env.ar_action(18) == ARAction("declare", 2) and env.ar_action(3) == ARAction("move", 3)
 
 
 def test_truncated_after_max_moves(env) -> None:
@@ -166,7 +244,9 @@ def test_truncated_after_max_moves(env) -> None:
             _first_valid_move(env, info["action_mask"]))
         total -= reward
         assert not terminated and truncated == (move == 3)
+        assert ("true_class" in info) == truncated  # the truth only once the episode ends
     assert info["moves"] == 3 and info["energy"] == pytest.approx(total)
+    assert info["true_class"] == env.true_classes[info["model"]]
     with pytest.raises(RuntimeError, match="call reset"):
         env.step(env.viewpoints)
 
@@ -212,3 +292,33 @@ def test_from_workspace_needs_the_robot_stage(tmp_path: Path) -> None:
     (ws.root / "config.yaml").write_text(config.to_yaml())
     with pytest.raises(StageError, match="stage 'robot' has not been run"):
         ActiveRecognitionEnv.from_workspace(ws.root)
+
+
+def _docs_env_blocks() -> list[str]:
+    """The python code blocks of docs/experiment.md's environment section."""
+    text = (Path(__file__).parents[2] / "docs" / "experiment.md").read_text()
+    section = text.split("## Gymnasium environment", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"```python\n(.*?)```", section, flags=re.S)
+
+
+def test_the_docs_loops_run_as_written(pipeline_workspace, capsys) -> None:
+    """The random-agent and the policy-driven loops of the docs, on a whole tiny workspace
+    (its Panda reaches only some viewpoints)."""
+    ws, _ = pipeline_workspace
+    blocks = _docs_env_blocks()
+    assert len(blocks) == 2 and "action_space.sample()" in blocks[0]
+    assert "forbidden=visited" in blocks[1]
+    for block in blocks:
+        assert block.count('"runs/exp1"') == 1
+        namespace: dict = {}
+        exec(compile(block.replace('"runs/exp1"', repr(str(ws.root))), "docs", "exec"),
+             namespace)
+        printed = capsys.readouterr().out.split()
+        env = namespace["env"].unwrapped
+        assert namespace["terminated"] or namespace["truncated"]
+        assert namespace["info"]["true_class"] in range(env.classes)
+        assert len(printed) == (5 if block is blocks[0] else 4)
+    # the policy loop never revisited a viewpoint and moved only where the arm reaches
+    path = env._path
+    assert len(set(path)) == len(path) and env.motion.reachable[path].all()
+    assert printed[0] in env.class_names

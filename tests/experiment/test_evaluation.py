@@ -4,38 +4,24 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import re
 
 import numpy as np
 import pytest
 
-from rapomdp.config import config_from_dict
 from rapomdp.context import RunContext
 from rapomdp.experiment import evaluation
 from rapomdp.experiment.episode_table import EpisodeTable
 from rapomdp.experiment.evaluation import ClosedLoop, start_viewpoints
 from rapomdp.io import read_json
-from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import SMALL_SPLIT, TEST_CONTEXT, TINY_PIPELINE
-
-METHODS = ["static", "random", "vptree", "classifier", "ra"]
-TINY = {
-    **TINY_PIPELINE,
-    "seed": 5,
-    "dataset": {"classes": ["cup", "bicycle", "teapot"], "split": SMALL_SPLIT},
-    "viewpoints": {"count": 16},
-    "solve": {"timeout_s": 2.0},
-    "evaluate": {"methods": METHODS, "starts_per_model": 3, "max_moves": 6,
-                 "lambdas": [1.0, 2.0, 6.0], "random_thresholds": [0.6]},
-}
+from tests.conftest import TEST_CONTEXT, remote_references
+from tests.experiment.conftest import METHODS
 
 
 @pytest.fixture(scope="module")
-def workspace(tmp_path_factory):
-    config = config_from_dict(TINY)
-    ws = Workspace(tmp_path_factory.mktemp("ws"))
-    run_pipeline(config, ws, context=TEST_CONTEXT)
-    return ws, config
+def workspace(pipeline_workspace):
+    return pipeline_workspace
 
 
 def _inputs(ws: Workspace) -> dict:
@@ -213,3 +199,19 @@ def test_episodes_on_a_dask_cluster_are_the_local_pools(workspace) -> None:
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), name
         else:
             assert a == b, name
+
+
+def test_every_html_the_pipeline_writes_works_offline(workspace) -> None:
+    """The whole pipeline (report included) writes HTML that fetches nothing: plotly.js is
+    inside each interactive figure, and the report links them by relative path."""
+    ws, _ = workspace
+    pages = sorted(ws.root.rglob("*.html"))
+    names = {p.name for p in pages}
+    assert {"report.html", "fig1_bicycle.html"} <= names
+    for page in pages:
+        text = page.read_text()
+        assert remote_references(text) == [], page
+        assert not re.search(r"<script[^>]*\bsrc=", text), page
+    report = (ws.root / "report" / "report.html").read_text()
+    assert '<a href="fig1_bicycle.html">' in report
+    assert (ws.root / "report" / "fig1_bicycle.html").stat().st_size > 1_000_000

@@ -92,7 +92,8 @@ def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ..
 
 EVALUATE = {"episodes": 30, "images": 171, "images_per_s": 412.5,
             "methods": ["Static", "Random", "Classifier", "RA-POMDP"],
-            "figure_class": "bicycle", "seconds": {"render": 0.4, "total": 2.5}}
+            "figure_class": "bicycle", "workers": 2,
+            "seconds": {"episodes_cpu": 1.94, "episodes_wall": 1.2, "total": 2.5}}
 SYNTHETIC = {
     "train": _writer({}, {"metrics.json": {}}, ("training.png",)),
     "classifier_eval": _writer({}, {"metrics.json": {
@@ -154,13 +155,24 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
         assert row in text
     assert "| RA-POMDP | 1.000 [" in text and "| 4.000 ± 0.000 | 0.800 ± 0.000 |" in text
     assert "<td>RA-POMDP</td><td>1.000 [" in html
-    assert "30 episodes" in text and "171 depth images" in text and "412.5 images/s" in text
+    assert "30 episodes" in text and "171 depth images" in text
+    assert "(412.5 images per CPU second)" in text
+    assert ("Time: the episodes took 1.9 s of CPU time, 1.2 s of wall time over 2 worker(s), "
+            "the stage 2.5 s in all.") in text and "episodes_cpu" not in text
+    # Table 1's columns are defined right after it
+    assert text.index("Columns: Accuracy — the fraction of episodes") > text.index("| Static |")
+    assert "# steps — the moves made" in text and "Belief — the method's final belief" in text
+    # every stage the workspace ran is in the stage table, the configuration is shown
+    for stage in ("dataset", "train", "classifier_eval", "robot", "solve", "evaluate"):
+        assert re.search(rf"^\| {stage} \| [0-9a-f]{{12}} \|", text, flags=re.M), stage
+    assert "```yaml\nseed: 3\n" in text and "wrong_declaration_cost_m: 2.0  # lambda" in text
+    assert "<details><summary>The configuration of this run" in html
     assert "| test viewpoints X_rho | 48 | 0.646 | 0.333 |" in text
     assert "| ra | -3.2100 | -3.2000 | 1.5 | 40 |" in text
     assert "9/16 viewpoints reachable (56 %)" in text
     assert f"seed {config.seed}" in text and "Configuration hash" in text
     # every image the report links lies in its folder, as a PNG
-    links = re.findall(r"\]\(([^)]+)\)", text)
+    links = re.findall(r"!\[[^]]*\]\(([^)]+)\)", text)
     sources = re.findall(r'<img src="([^"]+)"', html)
     assert sorted(links) == sorted(sources)
     assert set(links) == {"fig3.png", "trajectories.png", "fig1_bicycle.png", "calibration.png",
@@ -174,7 +186,12 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
     assert "| method | accuracy | mean final belief | belief − accuracy | ECE |" in text
     # optional inputs that are absent are named with the command that makes them
     assert "Fig. 2: one class" not in text
-    assert "figures/fig2.png (not found) — made by `rapomdp figure fig2 -w" in text
+    # Fig. 2 is optional: said how to make, but not a missing figure
+    assert "Fig. 2 (one class's saliency volume in two-class problems) is optional: " \
+        "`rapomdp figure fig2 -w" in text and "fig2.png (not found)" not in text
+    # the interactive Fig. 1 is linked, relative to the report folder
+    assert "[fig1_bicycle.html](fig1_bicycle.html)" in text
+    assert '<a href="fig1_bicycle.html">fig1_bicycle.html</a>' in html
     assert "vptree/vptree.json not found" in text
     assert 'class="missing"' in html
 
@@ -183,15 +200,18 @@ def test_optional_inputs_are_shown_when_present(synthetic, tmp_path: Path) -> No
     ws, config = synthetic
     (ws.root / "figures").mkdir(exist_ok=True)
     _png(ws.root / "figures" / "fig2.png")
+    (ws.root / "figures" / "fig2.html").write_text("<html></html>")
     (ws.root / "vptree").mkdir(exist_ok=True)
     write_json_atomic(ws.root / "vptree" / "vptree.json", {"accuracy_test_xrho": 0.4167})
     try:
         _, md = write_report(config, _inputs(ws), tmp_path / "r", fig1=_fake_fig1([]))
     finally:
         (ws.root / "figures" / "fig2.png").unlink()
+        (ws.root / "figures" / "fig2.html").unlink()
         (ws.root / "vptree" / "vptree.json").unlink()
     text = md.read_text()
     assert "![Fig. 2: one class" in text and (tmp_path / "r" / "fig2.png").exists()
+    assert "[fig2.html](fig2.html)" in text and (tmp_path / "r" / "fig2.html").exists()
     assert "over X_rho: 0.417." in text and "vptree.json not found" not in text
 
 

@@ -1,16 +1,16 @@
-"""A labelled contact sheet: one depth render per model, one row per class."""
+"""A labelled contact sheet: one depth render per model, one row per class (matplotlib,
+object API)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from rapomdp.data.dataset import Dataset
 from rapomdp.data.renderer import DepthRenderer
 from rapomdp.geometry.camera import Intrinsics, look_at
-from rapomdp.io import atomic_path
+from rapomdp.plots import save_png, style
 
 
 def preview_pose(centre: np.ndarray, radius_m: float, elevation_deg: float,
@@ -30,31 +30,41 @@ def contact_sheet(
     azimuth_deg: float = -60.0,
 ) -> Path:
     """Write the sheet; each tile is titled with the model's id and role."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     by_class = {c: [m for m in dataset.models if m.class_name == c] for c in dataset.classes}
     rows = len(by_class)
     cols = max(len(models) for models in by_class.values())
-    fig = Figure(figsize=(1.9 * cols, 1.55 * rows))
-    axes = fig.subplots(rows, cols, squeeze=False)
-    for ax in axes.ravel():
-        ax.axis("off")
-    for r, (class_name, models) in enumerate(by_class.items()):
-        for c, model in enumerate(models):
-            pose = preview_pose(model.centroid, radius_m, elevation_deg, azimuth_deg)
-            depth = DepthRenderer(dataset.mesh(model), intrinsics).render(pose)
-            shown = np.ma.masked_equal(depth, 0.0)
-            ax = axes[r, c]
-            ax.imshow(shown, cmap="viridis_r", interpolation="nearest")
-            ax.set_title(f"{model.id} ({model.role})", fontsize=7)
-            if c == 0:
-                ax.text(-0.08, 0.5, class_name, transform=ax.transAxes, rotation=90,
-                        ha="right", va="center", fontsize=9, fontweight="bold")
-    fig.suptitle(
-        f"{len(dataset.models)} models, {rows} classes: depth from elevation "
-        f"{elevation_deg:.0f} deg, radius {radius_m} m (near = yellow)",
-        fontsize=10,
-    )
-    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - 0.35 / rows))
-    out_png = Path(out_png)
-    with atomic_path(out_png) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    return out_png
+    with style():
+        # one tile per model: the sheet grows with the dataset (it is not shown in the report)
+        fig = Figure(figsize=(1.9 * cols + 1.2, 1.55 * rows + 0.5), layout="constrained")
+        FigureCanvasAgg(fig)
+        axes = fig.subplots(rows, cols, squeeze=False)
+        for ax in axes.ravel():
+            ax.set_axis_off()
+        shown = None
+        near, far = np.inf, 0.0
+        images = {}
+        for r, models in enumerate(by_class.values()):
+            for c, model in enumerate(models):
+                pose = preview_pose(model.centroid, radius_m, elevation_deg, azimuth_deg)
+                depth = DepthRenderer(dataset.mesh(model), intrinsics).render(pose)
+                images[r, c] = np.ma.masked_equal(depth, 0.0)
+                if images[r, c].count():
+                    near = min(near, float(images[r, c].min()))
+                    far = max(far, float(images[r, c].max()))
+        for r, (class_name, models) in enumerate(by_class.items()):
+            for c, model in enumerate(models):
+                ax = axes[r, c]
+                shown = ax.imshow(images[r, c], cmap="viridis_r", interpolation="nearest",
+                                  vmin=near if far > 0 else None, vmax=far if far > 0 else None)
+                ax.set_title(f"{model.id} ({model.role})", fontsize=7)
+                if c == 0:
+                    ax.text(-0.08, 0.5, class_name, transform=ax.transAxes, rotation=90,
+                            ha="right", va="center", fontsize=9, fontweight="bold")
+        if shown is not None:
+            fig.colorbar(shown, ax=axes, shrink=min(0.9, 3.0 / rows), label="depth (m)")
+        fig.suptitle(f"{len(dataset.models)} models, {rows} classes: depth from elevation "
+                     f"{elevation_deg:.0f}°, radius {radius_m} m")
+        return save_png(fig, Path(out_png), dpi=110)

@@ -8,9 +8,18 @@ the sensor noise and the costs are those of the episode simulator
 (:class:`~rapomdp.data.test_views.TestViews`, :class:`~rapomdp.experiment.episode.Motion`), so an
 agent here sees what the methods of Table 1 see.
 
-An invalid move (out of range, to an unreachable viewpoint, or to the current one) raises
-``ValueError``; ``info["action_mask"]`` (V + C,) tells the valid actions so that a learned policy
-can mask them. The ground truth reaches the agent only in the final ``info`` (like a scorer).
+An action of ``action_space`` outside ``info["action_mask"]`` (a move to an unreachable viewpoint
+or to the current one) is a no-op: the camera stays, the observation is unchanged, the reward is
+``-invalid_penalty`` (default: the most a valid move costs, so it never pays) and
+``info["invalid"]`` is True; it counts as a step towards truncation, so a loop of
+``env.action_space.sample()`` always ends. ``info["action_mask"]`` (V + C,) tells the valid
+actions so that a learned policy can mask them. The ground truth reaches the agent only in the
+final ``info`` (at termination and at truncation, like a scorer).
+
+Importing this module registers it with gymnasium as :data:`ENV_ID`
+(``gymnasium.make("rapomdp/ActiveRecognition-v0", workspace=W)``); without the import,
+``gymnasium.make("rapomdp.experiment.env:rapomdp/ActiveRecognition-v0", workspace=W)`` imports
+it.
 """
 
 from __future__ import annotations
@@ -26,27 +35,34 @@ from gymnasium import spaces
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.test_views import TestViews
 from rapomdp.experiment.episode import Motion
+from rapomdp.geometry.viewsphere import azimuth_zenith, fibonacci_directions
+from rapomdp.planning.policy import ARAction
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, Workspace
 
 Observation = dict[str, Any]
+#: The gymnasium id this module registers on import.
+ENV_ID = "rapomdp/ActiveRecognition-v0"
 
 
 class ActiveRecognitionEnv(gymnasium.Env):
     """Active recognition of one test model per episode: move the camera, then declare a class.
 
     Observations are ``{"depth": (H, W) float32 metres, "viewpoint": int}``; actions are
-    ``Discrete(V + C)``. An episode is truncated after ``max_moves`` moves. ``reset`` takes
-    ``options={"model": i, "start": v}`` to fix the test model and the start viewpoint (each
-    drawn from the environment's RNG otherwise). The sensor noise draws from the same RNG, so
-    ``reset(seed=s)`` makes an episode reproducible.
+    ``Discrete(V + C)``. An episode is truncated after ``max_moves`` steps that did not
+    declare (moves and invalid actions). ``reset`` takes ``options={"model": i, "start": v}``
+    to fix the test model and the start viewpoint (each drawn from the environment's RNG
+    otherwise). The sensor noise draws from the same RNG, so ``reset(seed=s)`` makes an episode
+    reproducible. ``render_mode="rgb_array"``: :meth:`render` returns the depth image beside
+    the hemisphere seen from above with the current viewpoint and the path.
     """
 
-    metadata: dict[str, Any] = {"render_modes": []}
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}
 
     def __init__(self, scenes: Sequence[TestViews], true_classes: Sequence[int],
                  class_names: Sequence[str], motion: Motion, lambda_: float,
-                 max_moves: int = 30, seed: int | None = None) -> None:
+                 max_moves: int = 30, seed: int | None = None,
+                 render_mode: str | None = None, invalid_penalty: float | None = None) -> None:
         if not scenes:
             raise ValueError("ActiveRecognitionEnv needs at least one scene (test model)")
         if len(true_classes) != len(scenes):
@@ -70,6 +86,9 @@ class ActiveRecognitionEnv(gymnasium.Env):
         if not lambda_ > 0:
             raise ValueError(f"lambda_ (cost of a wrong declaration) must be positive, got "
                              f"{lambda_}")
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode {render_mode!r} is not one of "
+                             f"{self.metadata['render_modes']} (or None)")
         shapes = {scene.renderer.image_shape for scene in scenes}
         if len(shapes) != 1:
             raise ValueError(f"scenes render different image sizes: {sorted(shapes)}")
@@ -82,6 +101,14 @@ class ActiveRecognitionEnv(gymnasium.Env):
                              np.asarray(motion.reachable, dtype=bool))
         self.lambda_ = float(lambda_)
         self.max_moves = int(max_moves)
+        self.render_mode = render_mode
+        valid = self.motion.energy[np.ix_(self.motion.reachable, self.motion.reachable)]
+        valid = valid[np.isfinite(valid)]
+        most = float(valid.max()) if valid.size else 0.0
+        self.invalid_penalty = most if invalid_penalty is None else float(invalid_penalty)
+        if not (np.isfinite(self.invalid_penalty) and self.invalid_penalty >= 0):
+            raise ValueError(f"invalid_penalty must be finite and non-negative, got "
+                             f"{invalid_penalty}")
         self.observation_space = spaces.Dict({
             "depth": spaces.Box(0.0, np.inf, (height, width), np.float32),
             "viewpoint": spaces.Discrete(views),
@@ -93,9 +120,12 @@ class ActiveRecognitionEnv(gymnasium.Env):
         self._viewpoint = 0
         self._depth = np.zeros((height, width), dtype=np.float32)
         self._moves = 0
+        self._steps = 0
         self._energy = 0.0
         self._distance = 0.0
         self._done = True
+        self._path: list[int] = []
+        self._hemisphere_px: np.ndarray | None = None
 
     @property
     def viewpoints(self) -> int:
@@ -106,8 +136,9 @@ class ActiveRecognitionEnv(gymnasium.Env):
         return len(self.class_names)
 
     @classmethod
-    def from_workspace(cls, path: str | Path, max_moves: int = 30,
-                       seed: int | None = None) -> ActiveRecognitionEnv:
+    def from_workspace(cls, path: str | Path, max_moves: int = 30, seed: int | None = None,
+                       render_mode: str | None = None,
+                       invalid_penalty: float | None = None) -> ActiveRecognitionEnv:
         """The environment of a workspace whose dataset and robot stages have run.
 
         The scenes are its test models seen from X_rho (``viewpoints`` section) at the camera's
@@ -128,7 +159,21 @@ class ActiveRecognitionEnv(gymnasium.Env):
         scenes = [TestViews.of_model(config, dataset, m) for m in models]
         motion = Motion.from_robot(robot)
         return cls(scenes, [dataset.label(m) for m in models], dataset.classes, motion,
-                   config.solve.wrong_declaration_cost_m, max_moves=max_moves, seed=seed)
+                   config.solve.wrong_declaration_cost_m, max_moves=max_moves, seed=seed,
+                   render_mode=render_mode, invalid_penalty=invalid_penalty)
+
+    def action_index(self, action: ARAction) -> int:
+        """The action of this space for a planner's :class:`ARAction` (a policy's ``act``):
+        a move to viewpoint j is ``j``, declaring class k is ``V + k``."""
+        return int(action.target) + (self.viewpoints if action.is_declare else 0)
+
+    def ar_action(self, action: int) -> ARAction:
+        """The :class:`ARAction` of an action of this space (the inverse of
+        :meth:`action_index`)."""
+        action = int(action)
+        if action >= self.viewpoints:
+            return ARAction("declare", action - self.viewpoints)
+        return ARAction("move", action)
 
     def action_mask(self) -> np.ndarray:
         """(V + C,) bool: the moves to reachable viewpoints other than the current one, and
@@ -163,14 +208,17 @@ class ActiveRecognitionEnv(gymnasium.Env):
         elif not self.motion.reachable[start]:
             raise ValueError(f"reset: start viewpoint {start} is not reachable by the arm")
         self._model, self._viewpoint = int(model), int(start)
-        self._moves, self._energy, self._distance, self._done = 0, 0.0, 0.0, False
+        self._moves, self._steps, self._energy, self._distance = 0, 0, 0.0, 0.0
+        self._done = False
+        self._path = [self._viewpoint]
         self._depth = self._look()
         return self._observation(), self._info()
 
     def step(self, action: int) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
         """Move (``action < V``) or declare class ``action - V``; see the class docstring.
 
-        Raises ``ValueError`` for an action out of range or an invalid move, and
+        An action outside the mask is a no-op with ``-invalid_penalty`` and
+        ``info["invalid"]``. Raises ``ValueError`` for an action outside ``action_space`` and
         ``RuntimeError`` when the episode is over (call ``reset``)."""
         if self._model is None or self._done:
             raise RuntimeError("step: the episode is over (or never started); call reset()")
@@ -179,23 +227,80 @@ class ActiveRecognitionEnv(gymnasium.Env):
                              f"({self.viewpoints} moves, then {self.classes} declarations)")
         action = int(action)
         if action >= self.viewpoints:
-            declared = action - self.viewpoints
-            truth = self.true_classes[self._model]
-            self._done = True
-            info = self._info()
-            info.update(declared=declared, correct=declared == truth, true_class=truth,
-                        model=self._model)
-            reward = 0.0 if declared == truth else -self.lambda_
-            return self._observation(), reward, True, False, info
-        energy, distance_m = self.motion.move(self._viewpoint, action)
+            return self.declare(action - self.viewpoints)
+        if not self.action_mask()[action]:
+            return self.invalid(action)
+        return self.move(action)
+
+    def move(self, target: int) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
+        """A valid move to ``target``: pay E_M (the closed loop's :meth:`Motion.move`), render
+        the new view."""
+        energy, distance_m = self.motion.move(self._viewpoint, target)
         self._energy += energy
         self._distance += distance_m
         self._moves += 1
-        self._viewpoint = action
+        self._viewpoint = int(target)
+        self._path.append(self._viewpoint)
         self._depth = self._look()
-        truncated = self._moves >= self.max_moves
+        return self._after_step(-energy, invalid=False)
+
+    def invalid(self, action: int) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
+        """An action outside the mask: nothing moves, ``-invalid_penalty``."""
+        info_reason = self._invalid_reason(action)
+        observation, reward, terminated, truncated, info = self._after_step(
+            -self.invalid_penalty, invalid=True)
+        info["invalid_reason"] = info_reason
+        return observation, reward, terminated, truncated, info
+
+    def declare(self, declared: int) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
+        """Declare class ``declared``: 0 if right, ``-lambda_`` if wrong; the episode ends."""
+        truth = self.true_classes[self._model]
+        self._done = True
+        self._steps += 1
+        info = self._info()
+        info.update(declared=int(declared), correct=int(declared) == truth, true_class=truth,
+                    model=self._model, invalid=False)
+        reward = 0.0 if declared == truth else -self.lambda_
+        return self._observation(), reward, True, False, info
+
+    def _after_step(self, reward: float, invalid: bool
+                    ) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
+        self._steps += 1
+        truncated = self._steps >= self.max_moves
         self._done = truncated
-        return self._observation(), -energy, False, truncated, self._info()
+        info = self._info()
+        info["invalid"] = invalid
+        if truncated:  # the episode ends without a declaration: the scorer's view
+            info.update(true_class=self.true_classes[self._model], model=self._model)
+        return self._observation(), reward, False, truncated, info
+
+    def _invalid_reason(self, target: int) -> str:
+        try:
+            self.motion.check_move(self._viewpoint, target)
+        except ValueError as exc:
+            return str(exc)
+        return f"move to viewpoint {target}: not allowed"
+
+    def render(self) -> np.ndarray | None:
+        """``render_mode="rgb_array"``: (H', W', 3) uint8, the depth image (near = yellow,
+        no hit = white) beside the hemisphere seen from above (grey: reachable, pink:
+        unreachable, blue: visited, orange: the current viewpoint). None without a mode."""
+        if self.render_mode is None:
+            return None
+        scale = -(-96 // self._depth.shape[0])  # at least 96 px high
+        depth = np.repeat(np.repeat(self._depth, scale, axis=0), scale, axis=1)
+        return np.concatenate([_colourise_depth(depth), self._hemisphere(depth.shape[0])],
+                              axis=1)
+
+    def _hemisphere(self, side: int) -> np.ndarray:
+        if self._hemisphere_px is None or self._hemisphere_px.shape[0] != side:
+            self._hemisphere_px = _hemisphere_pixels(self.viewpoints, side)
+        state = np.where(self.motion.reachable, 2, 3)
+        state[self._path] = 4
+        state[self._viewpoint] = 5
+        which = self._hemisphere_px
+        codes = np.where(which >= 0, state[np.maximum(which, 0)], -which - 1)
+        return _PALETTE[codes]
 
     def _look(self) -> np.ndarray:
         depth = self.scenes[self._model].look(self._viewpoint, self.np_random)
@@ -206,4 +311,55 @@ class ActiveRecognitionEnv(gymnasium.Env):
 
     def _info(self) -> dict[str, Any]:
         return {"viewpoint": self._viewpoint, "action_mask": self.action_mask(),
-                "moves": self._moves, "energy": self._energy, "distance_m": self._distance}
+                "moves": self._moves, "steps": self._steps, "energy": self._energy,
+                "distance_m": self._distance}
+
+
+#: Colours of :meth:`ActiveRecognitionEnv.render`'s hemisphere: background, disc, reachable,
+#: unreachable, visited, current.
+_PALETTE = np.array([[255, 255, 255], [235, 235, 235], [130, 130, 130], [240, 170, 170],
+                     [0, 114, 178], [230, 159, 0]], dtype=np.uint8)
+
+
+def _hemisphere_pixels(viewpoints: int, side: int) -> np.ndarray:
+    """(side, side) int: the viewpoint drawn at each pixel of the hemisphere's top view, or
+    -1 (background) / -2 (the disc) where none is (the polar plot of the figures: radius =
+    angle from the zenith). Viewpoints are X_rho's directions (Fibonacci order)."""
+    azimuth, zenith = azimuth_zenith(fibonacci_directions(viewpoints, hemisphere=True))
+    radius = zenith / (np.pi / 2) * 0.46 * side
+    centres = np.stack([side / 2 - radius * np.sin(azimuth),
+                        side / 2 + radius * np.cos(azimuth)], axis=1)  # (row, col), +y up
+    from scipy.spatial import cKDTree
+
+    rows, cols = np.mgrid[0:side, 0:side] + 0.5
+    pixels = np.stack([rows.ravel(), cols.ravel()], axis=1)
+    distance, nearest = cKDTree(centres).query(pixels)
+    dot = max(1.5, 0.55 * side / np.sqrt(4 * viewpoints))
+    in_disc = np.linalg.norm(pixels - side / 2, axis=1) <= 0.48 * side
+    out = np.where(distance <= dot, nearest, np.where(in_disc, -2, -1))
+    return out.reshape(side, side)
+
+
+def _colourise_depth(depth: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8 of a depth image: viridis reversed over the hit pixels' range."""
+    from matplotlib import colormaps
+
+    hit = depth > 0
+    image = np.full((*depth.shape, 3), 255, dtype=np.uint8)
+    if hit.any():
+        near, far = float(depth[hit].min()), float(depth[hit].max())
+        level = (far - depth[hit]) / max(far - near, 1e-9)
+        image[hit] = (colormaps["viridis"](level)[:, :3] * 255).astype(np.uint8)
+    return image
+
+
+def make_env(workspace: str | Path, **kwargs: Any) -> ActiveRecognitionEnv:
+    """The entry point of ``gymnasium.make(ENV_ID, workspace=W, ...)``: keyword arguments
+    are :meth:`ActiveRecognitionEnv.from_workspace`'s."""
+    return ActiveRecognitionEnv.from_workspace(workspace, **kwargs)
+
+
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(ENV_ID, entry_point="rapomdp.experiment.env:make_env")
+
+__all__ = ["ENV_ID", "ActiveRecognitionEnv", "make_env"]

@@ -1,5 +1,5 @@
-"""Figures of the closed loop: Fig. 3 (belief in the true class against step), trajectories
-on the hemisphere seen from above, and accuracy against energy over the λ sweep."""
+"""Figures of the closed loop: Fig. 3 (belief in the true class against step) and trajectories
+on the hemisphere, seen from above (matplotlib, object API, colour-blind-safe colours)."""
 
 from __future__ import annotations
 
@@ -7,19 +7,30 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import matplotlib
 import numpy as np
-from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.ticker import MaxNLocator
 
 from rapomdp.config import METHOD_NAMES
 from rapomdp.geometry.viewsphere import azimuth_zenith
-from rapomdp.io import save_png
+from rapomdp.plots import OKABE_ITO, RIGHT_COLOUR, WRONG_COLOUR, new_figure, save_png, style
 
 if TYPE_CHECKING:
     from rapomdp.experiment.episode_table import EpisodeTable
     from rapomdp.experiment.metrics import TradeoffPoint
 
-
+#: Line styles and markers per method (with the colour cycle, so curves differ without colour).
+_LINES = (("-", "o"), ("--", "s"), ("-.", "^"), (":", "D"), ("-", "v"), ("--", "P"),
+          ("-.", "X"))
+#: Path colours of the trajectories: Okabe-Ito without the two outcome colours.
+_PATH_COLOURS = (OKABE_ITO[0], OKABE_ITO[1], OKABE_ITO[4], OKABE_ITO[6], OKABE_ITO[7],
+                 OKABE_ITO[3])
+#: Curve colours of the methods: Okabe-Ito without the yellow (too pale on white).
+_METHOD_COLOURS = (OKABE_ITO[0], OKABE_ITO[1], OKABE_ITO[2], OKABE_ITO[4], OKABE_ITO[5],
+                   OKABE_ITO[6], OKABE_ITO[7])
+WRONG_MEANS = "wrong: the declared class is not the test model's true class"
+#: Azimuth labels of the top views: world axes, not angles (the rings are angles).
+AZIMUTH_LABELS = ("+x", "+y", "−x", "−y")
 def belief_curves(table: EpisodeTable, methods: Sequence[str], class_index: int | None
                   ) -> dict[str, np.ndarray]:
     """Mean belief in the true class after each image (index 0: the start view), per method.
@@ -45,81 +56,110 @@ def belief_curves(table: EpisodeTable, methods: Sequence[str], class_index: int 
 def fig3(table: EpisodeTable, methods: Sequence[str], class_name: str, path: Path) -> Path:
     """Fig. 3: belief in the true class against step for ``class_name`` and over all classes."""
     c = table.classes.index(class_name)
-    fig = Figure(figsize=(10, 3.8))
-    axes = fig.subplots(1, 2, sharey=True)
-    for ax, which, title in ((axes[0], c, f"class {class_name}"),
-                             (axes[1], None, f"mean over {len(table.classes)} classes")):
-        for key, curve in belief_curves(table, methods, which).items():
-            ax.plot(np.arange(curve.size), curve, marker="o", markersize=3,
-                    label=METHOD_NAMES.get(key, key))
-        ax.set(xlabel="step (images after the first)", title=title, ylim=(0, 1.02))
-        ax.grid(alpha=0.3)
-    axes[0].set_ylabel("belief in the true class")
-    axes[1].legend(loc="lower right", fontsize=8)
-    fig.suptitle("Belief evolution during exploration (declared episodes keep their final "
-                 "belief)", fontsize=10)
-    return save_png(fig, path)
+    with style():
+        fig = new_figure(10.0, 4.2)
+        axes = fig.subplots(1, 2, sharey=True, sharex=True)
+        for ax, which, title in ((axes[0], c, f"test models of class {class_name}"),
+                                 (axes[1], None, f"mean over the {len(table.classes)} classes")):
+            for k, (key, curve) in enumerate(belief_curves(table, methods, which).items()):
+                line, marker = _LINES[k % len(_LINES)]
+                ax.plot(np.arange(curve.size), curve, linestyle=line, marker=marker,
+                        markersize=4, color=_METHOD_COLOURS[k % len(_METHOD_COLOURS)],
+                        label=METHOD_NAMES.get(key, key) if ax is axes[0] else None)
+            ax.set(xlabel="step (images after the first)", title=title, ylim=(0, 1.02))
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.grid(alpha=0.3)
+        axes[0].set_ylabel("mean belief in the true class")
+        fig.legend(loc="outside lower center", ncol=min(len(methods), 5), frameon=False)
+        fig.suptitle("Fig. 3: belief in the true class during exploration (an episode that "
+                     "has declared keeps its final belief)")
+        return save_png(fig, path)
 
 
 def trajectories(table: EpisodeTable, methods: Sequence[str], class_name: str,
                  directions: np.ndarray, reachable: np.ndarray, path: Path) -> Path:
-    """Each method's episodes on ``class_name`` drawn on the hemisphere, seen from above:
-    start (circle), moves (line), last view (green if the declaration was right, red if not)."""
+    """Each method's episodes on ``class_name`` drawn on the hemisphere, seen from above: the
+    start (hollow black square), the path (one colour per episode) and the outcome at the last
+    view (bluish-green disc: right; vermillion cross: wrong, see :data:`WRONG_MEANS`)."""
     c = table.classes.index(class_name)
     azimuth, zenith = azimuth_zenith(directions)
     zenith_deg = np.degrees(zenith)
-    fig = Figure(figsize=(3.6 * len(methods), 4.0))
-    axes = fig.subplots(1, len(methods), subplot_kw={"projection": "polar"})
-    colours = matplotlib.colormaps["tab10"]
-    for ax, key in zip(np.atleast_1d(axes), methods, strict=True):
-        ax.scatter(azimuth[reachable], zenith_deg[reachable], s=8, c="0.6", zorder=1)
-        ax.scatter(azimuth[~reachable], zenith_deg[~reachable], s=10, c="0.8", marker="x",
-                   zorder=1)
-        episodes = np.flatnonzero((table.method == key) & (table.class_index == c))
-        for n, i in enumerate(episodes):
-            views = table.viewpoints_of(i)
-            colour = colours(n % 10)
-            ax.plot(azimuth[views], zenith_deg[views], "-", color=colour, lw=1.2, zorder=2)
-            ax.scatter(azimuth[views[0]], zenith_deg[views[0]], s=36, facecolors="none",
-                       edgecolors=colour, linewidths=1.5, zorder=3)
-            ax.scatter(azimuth[views[-1]], zenith_deg[views[-1]], s=22, zorder=4,
-                       c="tab:green" if table.correct[i] else "tab:red")
-        ax.set_ylim(0, 90)
-        ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=7)
-        ax.set_xticklabels([])
-        right = int(table.correct[episodes].sum())
-        ax.set_title(f"{METHOD_NAMES.get(key, key)}\n{right}/{episodes.size} right", fontsize=9)
-    fig.suptitle(f"Trajectories on {class_name} (seen from above; radius = angle from the "
-                 "zenith; grey x: unreachable; ring: start; dot: last view, green = right)",
-                 fontsize=9)
-    return save_png(fig, path)
+    rows = -(-len(methods) // 4)
+    cols = -(-len(methods) // rows)
+    with style():
+        fig = new_figure(10.0, 2.9 * rows + 1.1)
+        axes = fig.subplots(rows, cols, subplot_kw={"projection": "polar"}, squeeze=False)
+        for ax in axes.ravel()[len(methods):]:
+            ax.set_visible(False)
+        for ax, key in zip(axes.ravel(), methods, strict=False):
+            ax.scatter(azimuth[reachable], zenith_deg[reachable], s=7, c="0.55", zorder=1)
+            ax.scatter(azimuth[~reachable], zenith_deg[~reachable], s=12, c="0.75",
+                       marker="x", linewidths=0.8, zorder=1)
+            episodes = np.flatnonzero((table.method == key) & (table.class_index == c))
+            for n, i in enumerate(episodes):
+                views = table.viewpoints_of(i)
+                ax.plot(azimuth[views], zenith_deg[views], "-", lw=1.4, zorder=2,
+                        color=_PATH_COLOURS[n % len(_PATH_COLOURS)])
+                ax.scatter(azimuth[views[0]], zenith_deg[views[0]], s=46, marker="s",
+                           facecolors="none", edgecolors="black", linewidths=1.2, zorder=3)
+                right = bool(table.correct[i])
+                ax.scatter(azimuth[views[-1]], zenith_deg[views[-1]], zorder=4,
+                           s=30 if right else 48, marker="o" if right else "X",
+                           c=RIGHT_COLOUR if right else WRONG_COLOUR, edgecolors="white",
+                           linewidths=0.5)
+            ax.set_ylim(0, 90)
+            ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=8)
+            ax.set_rlabel_position(112.5)
+            ax.set_xticks(np.radians([0, 90, 180, 270]), AZIMUTH_LABELS, fontsize=8)
+            right = int(table.correct[episodes].sum())
+            ax.set_title(f"{METHOD_NAMES.get(key, key)}: {right}/{episodes.size} right")
+        handles = [
+            Line2D([], [], ls="", marker="o", ms=4, color="0.55", label="reachable viewpoint"),
+            Line2D([], [], ls="", marker="x", ms=5, color="0.75", label="unreachable"),
+            Line2D([], [], ls="", marker="s", ms=7, mfc="none", mec="black", label="start"),
+            Line2D([], [], color=_PATH_COLOURS[0], lw=1.4, label="path (colour: episode)"),
+            Line2D([], [], ls="", marker="o", ms=6, color=RIGHT_COLOUR, label="last view: right"),
+            Line2D([], [], ls="", marker="X", ms=7, color=WRONG_COLOUR, label="last view: wrong"),
+        ]
+        spare = axes.ravel()[len(methods):]
+        if spare.size:  # the legend in the first empty panel, else below the panels
+            spare[0].set_visible(True)
+            spare[0].set_axis_off()
+            spare[0].legend(handles=handles, loc="center", frameon=False)
+        else:
+            fig.legend(handles=handles, loc="outside lower center", ncol=3, frameon=False)
+        fig.suptitle(f"Trajectories on the test models of class {class_name}, seen from above "
+                     f"(rings: angle from the zenith)\n{WRONG_MEANS}")
+        return save_png(fig, path)
 
 
 def tradeoff(points: Sequence[TradeoffPoint], path: Path) -> Path:
     """Accuracy against mean movement energy: one curve per method over its settings (POMDPs:
     the wrong-declaration cost λ; Random: its stop belief), Static one point; Table 1's
     settings ringed."""
-    fig = Figure(figsize=(6.4, 4.4))
-    ax = fig.subplots()
-    for key in dict.fromkeys(p.method for p in points):
-        mine = sorted((p for p in points if p.method == key),
-                      key=lambda p: p.summary.means["energy"])
-        energy = np.array([p.summary.means["energy"] for p in mine])
-        accuracy = np.array([p.summary.accuracy for p in mine])
-        errors = np.array([[p.summary.accuracy - p.summary.accuracy_low for p in mine],
-                           [p.summary.accuracy_high - p.summary.accuracy for p in mine]])
-        line = ax.errorbar(energy, accuracy, yerr=errors, marker="o", markersize=4, capsize=2,
-                           label=METHOD_NAMES.get(key, key))
-        for p, x, y in zip(mine, energy, accuracy, strict=True):
-            if p.configured:
-                ax.plot(x, y, marker="o", markersize=10, fillstyle="none",
-                        color=line[0].get_color())
-            if p.parameter != "none":
-                ax.annotate(f"{p.value:g}", (x, y), textcoords="offset points", xytext=(4, -9),
-                            fontsize=6, color=line[0].get_color())
-    ax.set(xlabel="mean movement energy per episode (m)", ylabel="accuracy",
-           title="Accuracy against energy (labels: λ in m, Random: stop belief; ring: Table 1)")
-    ax.title.set_fontsize(9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
-    return save_png(fig, path)
+    with style():
+        fig = new_figure(7.0, 4.8)
+        ax = fig.subplots()
+        for i, key in enumerate(dict.fromkeys(p.method for p in points)):
+            mine = sorted((p for p in points if p.method == key),
+                          key=lambda p: p.summary.means["energy"])
+            energy = np.array([p.summary.means["energy"] for p in mine])
+            accuracy = np.array([p.summary.accuracy for p in mine])
+            errors = np.array([[p.summary.accuracy - p.summary.accuracy_low for p in mine],
+                               [p.summary.accuracy_high - p.summary.accuracy for p in mine]])
+            colour = _METHOD_COLOURS[i % len(_METHOD_COLOURS)]
+            line, marker = _LINES[i % len(_LINES)]
+            ax.errorbar(energy, accuracy, yerr=errors, linestyle=line, marker=marker,
+                        markersize=5, capsize=2, color=colour, label=METHOD_NAMES.get(key, key))
+            for p, x, y in zip(mine, energy, accuracy, strict=True):
+                if p.configured:
+                    ax.plot(x, y, marker="o", markersize=12, fillstyle="none", color=colour)
+                if p.parameter != "none":
+                    ax.annotate(f"{p.value:g}", (x, y), textcoords="offset points",
+                                xytext=(5, -10), fontsize=9, color=colour)
+        ax.set(xlabel="mean movement energy per episode (m)", ylabel="accuracy (95 % CI)",
+               title="Accuracy against energy (labels: λ in m; Random: stop belief; "
+                     "ring: Table 1)")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="lower right")
+        return save_png(fig, path)

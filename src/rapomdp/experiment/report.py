@@ -99,12 +99,30 @@ class Image:
 
 
 @dataclass(frozen=True)
+class Link:
+    """A line linking a file in the report folder (an interactive figure): ``text`` then the
+    link, labelled ``label``."""
+
+    text: str
+    file: str
+    label: str
+
+
+@dataclass(frozen=True)
+class Code:
+    """Preformatted text (the configuration), folded under ``summary`` in the HTML page."""
+
+    text: str
+    summary: str
+
+
+@dataclass(frozen=True)
 class Missing:
     what: str
     how: str  # the command (or reason) that makes it
 
 
-Block = Heading | Paragraph | Table | Image | Missing
+Block = Heading | Paragraph | Table | Image | Link | Code | Missing
 
 
 def _md_cell(text: str) -> str:
@@ -126,6 +144,10 @@ def to_markdown(blocks: Sequence[Block]) -> str:
             parts.append("\n".join(lines))
         elif isinstance(block, Image):
             parts.append(f"![{block.caption}]({block.file})\n\n*{block.caption}*")
+        elif isinstance(block, Link):
+            parts.append(f"{block.text} [{block.label}]({block.file})")
+        elif isinstance(block, Code):
+            parts.append(f"{block.summary}:\n\n```yaml\n{block.text.rstrip()}\n```")
         else:
             parts.append(f"> **Missing:** {block.what} — {block.how}")
     return "\n\n".join(parts) + "\n"
@@ -163,6 +185,12 @@ def to_html(blocks: Sequence[Block], title: str) -> str:
             parts.append(f"<p>{html.escape(block.text)}</p>")
         elif isinstance(block, Table):
             parts.append(table_html(block))
+        elif isinstance(block, Link):
+            parts.append(f'<p>{html.escape(block.text)} <a href="{html.escape(block.file)}">'
+                         f"{html.escape(block.label)}</a></p>")
+        elif isinstance(block, Code):
+            parts.append(f"<details><summary>{html.escape(block.summary)}</summary>"
+                         f"<pre>{html.escape(block.text)}</pre></details>")
         elif isinstance(block, Image):
             parts.append(f'<figure><img src="{html.escape(block.file)}" '
                          f'alt="{html.escape(block.caption)}"><figcaption>'
@@ -191,18 +219,28 @@ class _Builder:
     def missing(self, what: str, how: str) -> None:
         self.blocks.append(Missing(what, how))
 
+    def copy(self, source: Path, name: str | None = None) -> str:
+        """Copy ``source`` into the report folder (as ``name``); returns the name there."""
+        name = name or source.name
+        target = self.out / name
+        if source.resolve() != target.resolve():
+            with atomic_path(target) as tmp:
+                shutil.copyfile(source, tmp)
+        return name
+
     def figure(self, source: Path, caption: str, how: str, name: str | None = None) -> None:
         """Copy ``source`` into the report (as ``name``) with its caption, or say it is
         missing and how to make it."""
         if not source.is_file():
             self.missing(f"{self._shown(source)} (not found)", how)
             return
-        name = name or source.name
-        target = self.out / name
-        if source.resolve() != target.resolve():
-            with atomic_path(target) as tmp:
-                shutil.copyfile(source, tmp)
-        self.blocks.append(Image(name, caption))
+        self.blocks.append(Image(self.copy(source, name), caption))
+
+    def interactive(self, source: Path, what: str) -> None:
+        """Link a self-contained interactive HTML figure (copied into the report folder)."""
+        if source.is_file():
+            self.add(Link(f"Interactive 3D version of {what} (self-contained, works offline):",
+                          self.copy(source), source.name))
 
     def load(self, source: Path, reader: Callable[[Path], T], how: str) -> T | None:
         """``reader(source)`` (an artefact's typed loader), or a missing line saying why not."""
@@ -253,9 +291,15 @@ def figure_class(evaluation: dict[str, Any] | None, config: Config,
 def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> None:
     builder.add(Paragraph(
         f"Configuration hash {stable_hash(config.model_dump(mode='json'))[:12]}, "
-        f"seed {config.seed}, workspace {builder.root}."))
+        f"seed {config.seed}, workspace {builder.root}. Every stage the workspace holds, by "
+        f"when it last finished (key: the hash of its configuration sections and inputs):"))
+    ran = Workspace(builder.root).manifest().get("stages", {})
+    order = sorted((str(record.get("finished", "")), name) for name, record in ran.items()
+                   if name != "report" and isinstance(record, dict))
+    folders = {name: builder.root / name for _, name in order}
+    folders.update({name: folder for name, folder in inputs.items() if name not in folders})
     rows = []
-    for name, folder in inputs.items():
+    for name, folder in folders.items():
         try:
             record = read_stage_record(folder)
         except StageError:
@@ -264,6 +308,35 @@ def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> N
         rows.append([name, str(record.get("key", "-"))[:12], str(record.get("finished", "-")),
                      _fmt(record.get("seconds", "-"), 1)])
     builder.add(Table(["stage", "key", "finished", "seconds"], rows))
+    builder.add(Code(config.to_commented_yaml(),
+                     "The configuration of this run (as `rapomdp config` prints it)"))
+
+
+#: What Table 1's columns mean (metrics.table1_markdown writes them).
+TABLE1_COLUMNS = (
+    "Columns: Accuracy — the fraction of episodes whose declared class is the test model's "
+    "true class, with Wilson's 95 % score interval; Belief — the method's final belief in the "
+    "true class; # steps — the moves made (images after the first); Distance — the camera's "
+    "path along the sphere of radius ρ, in metres; Energy — the summed movement energy E_M of "
+    "Eq. 3, in metres; each as mean ± the half-width of Student's 95 % interval; — where a "
+    "method never moves. Episodes — test models × start viewpoints (those that hit the step "
+    "budget had to declare there). The intervals treat episodes as independent draws: they "
+    "describe the spread over this protocol's starts and classes, not over unseen objects.")
+
+
+def _timing(seconds: Any, workers: Any) -> str:
+    """The evaluate stage's times in words."""
+    if not isinstance(seconds, dict):
+        return f"Time: {_fmt(seconds, 1)} s." if seconds is not None else ""
+    parts = []
+    if "episodes_cpu" in seconds:
+        parts.append(f"the episodes took {_fmt(seconds['episodes_cpu'], 1)} s of CPU time")
+    if "episodes_wall" in seconds:
+        over = f" over {workers} worker(s)" if isinstance(workers, int) else ""
+        parts.append(f"{_fmt(seconds['episodes_wall'], 1)} s of wall time{over}")
+    if "total" in seconds:
+        parts.append(f"the stage {_fmt(seconds['total'], 1)} s in all")
+    return ("Time: " + ", ".join(parts) + ".") if parts else ""
 
 
 def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
@@ -271,18 +344,17 @@ def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
     b.add(Heading("Closed-loop recognition (Table 1)"))
     data = b.json(folder / SUMMARY_FILE, how)
     if data is not None:
-        seconds = data.get("seconds", {})
-        timing = ", ".join(f"{k} {_fmt(v, 1)} s" for k, v in seconds.items()) \
-            if isinstance(seconds, dict) else _fmt(seconds)
         methods = data.get("methods", [])
         b.add(Paragraph(
             f"{data.get('episodes', '?')} episodes of the methods "
             f"{', '.join(map(str, methods)) if isinstance(methods, list) else methods}; "
             f"{data.get('images', '?')} depth images rendered and classified "
-            f"({_fmt(data.get('images_per_s', '?'), 1)} images/s). Time: {timing or '-'}."))
+            f"({_fmt(data.get('images_per_s', '?'), 1)} images per CPU second). "
+            f"{_timing(data.get('seconds'), data.get('workers'))}"))
     table = b.load(folder / EPISODES_FILE, EpisodeTable.load, how)
     if table is not None:
         b.add(Table(*table1_cells(table1(table, table.methods))))
+        b.add(Paragraph(TABLE1_COLUMNS))
         b.add(Paragraph("Per class:"), Paragraph(PER_CLASS_NOTE),
               Table(*per_class_cells(per_class(table, table.methods), table.methods)))
     figure = (data or {}).get("figure_class", "the figure class")
@@ -314,12 +386,17 @@ def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name:
         b.figure(png, f"Fig. 1, class {class_name}: (a) a depth view of its volume model, "
                       f"(b) the 2D saliency of that view, (c) the 3D dense saliency volume, "
                       f"(d) the normalised viewpoint scores on X_rho.", fig1_how, png.name)
-        b.add(Paragraph(f"Interactive 3D version: {page.name} (in this folder)."))
+        b.interactive(page, "Fig. 1")
     fig2 = b.root / FIGURES_DIR / "fig2.png"
-    b.figure(fig2, "Fig. 2: one class's saliency volume in two-class problems and in the "
-                   "all-class problem.",
-             f"made by `{cmd} figure fig2 -w {b.root}` (trains three two-class classifiers, "
-             f"so the report does not make it)")
+    fig2_how = (f"`{cmd} figure fig2 -w {b.root}` or `{cmd} report --fig2 -w {b.root}` makes "
+                f"it (it trains three two-class classifiers, so the report does not by default)")
+    if fig2.is_file():
+        b.figure(fig2, "Fig. 2: one class's saliency volume in two-class problems and in the "
+                       "all-class problem, all seen from one camera.", fig2_how)
+        b.interactive(fig2.with_suffix(".html"), "Fig. 2")
+    else:  # optional: not asked for, so not a missing figure
+        b.add(Paragraph(f"Fig. 2 (one class's saliency volume in two-class problems) is "
+                        f"optional: {fig2_how}."))
     observe_how = f"made by `{cmd} observe -w {b.root}`"
     b.add(Paragraph("How well each observation model predicts the classifier's correctness on "
                     "the test models over X_rho:"))
@@ -376,7 +453,7 @@ def _self_awareness(b: _Builder, inputs: dict[str, Path], class_name: str, how: 
 
 def _classifier(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
     b.add(Heading("Single-view classifier"))
-    how = f"made by `{cmd} evaluate-classifier -w {b.root}`"
+    how = f"made by `{cmd} classifier_eval -w {b.root}`"
     metrics = b.load(inputs["classifier_eval"] / METRICS_FILE,
                      lambda p: load_single_view_metrics(p.parent), how)
     if metrics is not None:

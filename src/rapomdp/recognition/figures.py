@@ -1,4 +1,5 @@
-"""Figures of the classifier: training curves, confusion matrix, accuracy over the hemisphere."""
+"""Figures of the classifier: training curves, confusion matrix, accuracy over the hemisphere
+(matplotlib, object API)."""
 
 from __future__ import annotations
 
@@ -6,65 +7,86 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from rapomdp.geometry.viewsphere import azimuth_zenith
-from rapomdp.io import save_png
+from rapomdp.plots import new_figure, save_png, style
+
+__all__ = ["confusion_figure", "hemisphere_figure", "save_png", "training_curves"]
 
 
 def training_curves(rows: Sequence[dict[str, float]], path: Path) -> Path:
     """Loss and accuracy per epoch, training and validation."""
+    from matplotlib.ticker import MaxNLocator
+
     epoch = [r["epoch"] for r in rows]
-    fig = Figure(figsize=(9, 3.4))
-    ax_loss, ax_acc = fig.subplots(1, 2)
-    ax_loss.plot(epoch, [r["train_loss"] for r in rows], label="train")
-    ax_loss.plot(epoch, [r["val_loss"] for r in rows], label="validation")
-    ax_loss.set(xlabel="epoch", ylabel="cross-entropy", title="loss")
-    ax_acc.plot(epoch, [r["train_accuracy"] for r in rows], label="train (augmented)")
-    ax_acc.plot(epoch, [r["val_accuracy"] for r in rows], label="validation (held-out views)")
-    ax_acc.set(xlabel="epoch", ylabel="accuracy", ylim=(0, 1), title="accuracy")
-    ax_acc.legend(loc="lower right", fontsize=8)
-    return save_png(fig, path)
+    with style():
+        fig = new_figure(9.0, 3.6)
+        ax_loss, ax_acc = fig.subplots(1, 2)
+        ax_loss.plot(epoch, [r["train_loss"] for r in rows], marker="o", ms=3, label="train")
+        ax_loss.plot(epoch, [r["val_loss"] for r in rows], "--", marker="s", ms=3,
+                     label="validation")
+        ax_loss.set(xlabel="epoch", ylabel="cross-entropy (nats)", title="Loss")
+        ax_loss.legend(loc="upper right")
+        ax_acc.plot(epoch, [r["train_accuracy"] for r in rows], marker="o", ms=3,
+                    label="train (augmented)")
+        ax_acc.plot(epoch, [r["val_accuracy"] for r in rows], "--", marker="s", ms=3,
+                    label="validation (held-out views)")
+        ax_acc.set(xlabel="epoch", ylabel="accuracy", ylim=(0, 1.02), title="Accuracy")
+        ax_acc.legend(loc="lower right")
+        for ax in (ax_loss, ax_acc):
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.grid(alpha=0.3)
+        return save_png(fig, path)
 
 
 def confusion_figure(confusion: np.ndarray, classes: Sequence[str], title: str,
                      path: Path) -> Path:
-    """Row-normalised confusion matrix (true class per row), with the counts' share written."""
+    """Row-normalised confusion matrix (true class per row), each cell's share written (from
+    9 pt for a few classes down to 7 pt for 30; beyond 30 classes only the colours)."""
     counts = np.asarray(confusion, dtype=np.float64)
     rates = counts / np.maximum(counts.sum(axis=1, keepdims=True), 1.0)
     n = len(classes)
-    size = max(4.0, 0.42 * n + 1.5)
-    fig = Figure(figsize=(size + 1.0, size))
-    ax = fig.subplots()
-    image = ax.imshow(rates, cmap="Blues", vmin=0.0, vmax=1.0)
-    ax.set_xticks(range(n), classes, rotation=60, ha="right", fontsize=8)
-    ax.set_yticks(range(n), classes, fontsize=8)
-    ax.set(xlabel="predicted", ylabel="true", title=title)
-    if n <= 30:
-        for i, j in zip(*np.nonzero(rates >= 0.005), strict=True):
-            ax.text(j, i, f"{rates[i, j]:.2f}".lstrip("0"), ha="center", va="center", fontsize=6,
-                    color="white" if rates[i, j] > 0.5 else "black")
-    fig.colorbar(image, ax=ax, fraction=0.046, label="fraction of the true class")
-    return save_png(fig, path)
+    size = min(9.0, max(4.5, 0.3 * n + 2.5))
+    cell_pt = 72.0 * (size - 2.0) / max(n, 1)  # about the cell's side in points
+    with style():
+        fig = new_figure(size + 1.2, size)
+        ax = fig.add_subplot()
+        image = ax.imshow(rates, cmap="Blues", vmin=0.0, vmax=1.0)
+        tick_pt = float(np.clip(cell_pt * 0.6, 6.5, 9.0))
+        ax.set_xticks(range(n), classes, rotation=60, ha="right", fontsize=tick_pt)
+        ax.set_yticks(range(n), classes, fontsize=tick_pt)
+        ax.set(xlabel="predicted class", ylabel="true class", title=title)
+        if n <= 30:
+            text_pt = float(np.clip(cell_pt * 0.4, 7.0, 10.0))
+            for i, j in zip(*np.nonzero(rates >= 0.005), strict=True):
+                ax.text(j, i, f"{rates[i, j]:.2f}".lstrip("0"), ha="center", va="center",
+                        fontsize=text_pt, color="white" if rates[i, j] > 0.5 else "black")
+        fig.colorbar(image, ax=ax, shrink=0.8, label="fraction of the true class's images")
+        return save_png(fig, path)
 
 
 def hemisphere_figure(directions: np.ndarray, values: Sequence[np.ndarray],
-                      titles: Sequence[str], suptitle: str, path: Path) -> Path:
-    """Values per viewpoint on the upper hemisphere, seen from above (polar: azimuth, zenith).
-
-    ``directions`` (V, 3) are unit vectors from the centroid to the viewpoints.
-    """
+                      titles: Sequence[str], suptitle: str, path: Path,
+                      label: str = "fraction (0-1)") -> Path:
+    """Values in [0, 1] per viewpoint on the upper hemisphere, seen from above (polar: azimuth,
+    zenith). ``directions`` (V, 3) are unit vectors from the centroid to the viewpoints;
+    ``label`` names the colour bar's quantity and unit."""
     azimuth, zenith = azimuth_zenith(directions)
     zenith_deg = np.degrees(zenith)
-    fig = Figure(figsize=(4.6 * len(values), 4.4))
-    axes = fig.subplots(1, len(values), subplot_kw={"projection": "polar"})
-    for ax, value, title in zip(np.atleast_1d(axes), values, titles, strict=True):
-        points = ax.scatter(azimuth, zenith_deg, c=value, cmap="viridis", vmin=0.0, vmax=1.0,
-                            s=60, edgecolors="k", linewidths=0.3)
-        ax.set_ylim(0, 90)
-        ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=7)
-        ax.set_title(title, fontsize=10, pad=12)
-        fig.colorbar(points, ax=ax, fraction=0.046, pad=0.1)
-    fig.suptitle(suptitle + "\n(seen from above; radius = angle from the zenith; "
-                 "0° azimuth = +x, the models' long side)", fontsize=9, y=1.04)
-    return save_png(fig, path)
+    count = len(values)
+    with style():
+        fig = new_figure(min(10.0, 4.4 * count + 0.6), 4.6)
+        axes = np.atleast_1d(fig.subplots(1, count, subplot_kw={"projection": "polar"}))
+        points = None
+        for ax, value, title in zip(axes, values, titles, strict=True):
+            points = ax.scatter(azimuth, zenith_deg, c=value, cmap="viridis", vmin=0.0,
+                                vmax=1.0, s=50, edgecolors="k", linewidths=0.3)
+            ax.set_ylim(0, 90)
+            ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=8)
+            ax.set_rlabel_position(112.5)
+            ax.set_xticks(np.radians([0, 90, 180, 270]), ["+x", "+y", "−x", "−y"])
+            ax.set_title(title, pad=20)
+        fig.colorbar(points, ax=list(axes), shrink=0.8, label=label)
+        fig.suptitle(suptitle + "\n(seen from above; radius: angle from the zenith; "
+                     "+x is the models' long side)")
+        return save_png(fig, path)
