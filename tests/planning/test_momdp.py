@@ -83,3 +83,38 @@ def test_forbidden_stay_and_unreachable_targets_are_never_chosen():
         act = policy.act(v, rng.dirichlet(np.ones(2)))
         if act.kind == "move":
             assert act.target != v and act.target != 1
+
+
+def test_the_robot_stages_inf_energies_are_taken_and_the_rest_refused() -> None:
+    from rapomdp.planning.momdp import finite_move_energy
+
+    reachable = np.array([True, False, True])
+    energy = np.array([[0.5, np.inf, 1.0], [np.inf, 0.5, np.inf], [1.0, np.inf, 0.5]])
+    model = np.full((3, 2, 2), 0.5)
+    problem = build_active_recognition_problem(model, energy, reachable)
+    assert np.array_equal(problem.move_energy, np.where(np.isinf(energy), 1.0, energy))
+    assert np.array_equal(finite_move_energy(energy, reachable)[1], [1.0, 0.5, 1.0])
+    bad = energy.copy()
+    bad[0, 2] = np.inf
+    with pytest.raises(ValueError, match=r"move_energy\[0, 2\] is infinite although viewpoints "
+                                         r"0 and 2 are both reachable"):
+        build_active_recognition_problem(model, bad, reachable)
+    bad[0, 2] = np.nan
+    with pytest.raises(ValueError, match="NaN or negative"):
+        build_active_recognition_problem(model, bad, reachable)
+
+
+def test_one_default_lambda_everywhere() -> None:
+    import inspect
+
+    from rapomdp.config import Config
+    from rapomdp.planning import DEFAULT_LAMBDA
+    from rapomdp.planning.momdp import ActiveRecognitionProblem
+    from rapomdp.planning.workspace import solve_workspace_problems
+
+    assert Config().solve.wrong_declaration_cost_m == DEFAULT_LAMBDA == 2.0
+    model = np.full((2, 2, 2), 0.5)
+    assert build_active_recognition_problem(model, np.ones((2, 2))).lambda_ == DEFAULT_LAMBDA
+    assert ActiveRecognitionProblem(model, np.ones((2, 2)), np.ones(2, bool)).lambda_ == 2.0
+    default = inspect.signature(solve_workspace_problems).parameters["lambda_"].default
+    assert default == DEFAULT_LAMBDA

@@ -18,7 +18,8 @@ from tests.planning.planning_fixtures import small_arrays
 def test_solve_workspace_problems_writes_one_policy_per_model(tmp_path):
     P, E = small_arrays()
     models = {"ra": P, "classifier": np.full_like(P, 0.5)}
-    paths = solve_workspace_problems(models, E, None, tmp_path, timeout=1e6, max_iterations=25)
+    paths = solve_workspace_problems(models, E, None, tmp_path, lambda_=10.0, timeout=1e6,
+                                     max_iterations=25)
     assert set(paths) == {"ra", "classifier"}
     summary = json.loads((tmp_path / "solve_summary.json").read_text())
     # an uninformative classifier: declaring at once (−5 for two classes) is optimal
@@ -36,8 +37,8 @@ def test_an_iteration_budget_makes_solves_reproducible_in_any_process(tmp_path):
     for name, workers in (("one", 1), ("again", 1), ("two", 2)):
         out = tmp_path / name
         out.mkdir()
-        solve_workspace_problems(models, problem.move_energy, None, out, timeout=60,
-                                 max_iterations=6, workers=workers)
+        solve_workspace_problems(models, problem.move_energy, None, out, lambda_=10.0,
+                                 timeout=60, max_iterations=6, workers=workers)
         runs.append(out)
     summary = json.loads((runs[0] / "solve_summary.json").read_text())
     assert {row["iterations"] for row in summary.values()} == {6}

@@ -17,10 +17,12 @@ from rapomdp.planning.io_pomdp import (
 from rapomdp.planning.io_pomdpx import format_pomdpx, write_pomdpx
 from rapomdp.planning.memory import DEFAULT_MEMORY_GB, MemoryCapError
 from rapomdp.planning.momdp import (
+    DEFAULT_LAMBDA,
     ActiveRecognitionProblem,
     SimulationResult,
     benchmark_problem,
     build_active_recognition_problem,
+    finite_move_energy,
     simulate_policy,
     to_flat_pomdp,
     update_beliefs,
@@ -45,7 +47,9 @@ __all__ = [
     "SolveResult",
     "belief_update",
     "benchmark_problem",
+    "DEFAULT_LAMBDA",
     "build_active_recognition_problem",
+    "finite_move_energy",
     "format_pomdp",
     "format_pomdpx",
     "parse_pomdp",

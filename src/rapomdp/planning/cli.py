@@ -7,6 +7,7 @@ configuration is read only by ``export --workspace``), so they start in a fracti
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import time
@@ -25,6 +26,8 @@ from rapomdp.planning.io_pomdp import PomdpParseError, read_pomdp, write_pomdp
 from rapomdp.planning.io_pomdpx import write_pomdpx
 from rapomdp.planning.memory import DEFAULT_MEMORY_GB, MemoryCapError
 from rapomdp.planning.momdp import (
+    BENCHMARK_LAMBDA,
+    DEFAULT_LAMBDA,
     ActiveRecognitionProblem,
     benchmark_problem,
     build_active_recognition_problem,
@@ -184,7 +187,10 @@ def export_cmd(
     ),
     model: str = typer.Option("ra", "--model", help="With --workspace: the observation model."),
     seed: int = typer.Option(0, "--seed", help="Seed of the synthetic problem."),
-    lambda_: float = typer.Option(10.0, "--lambda", help="Cost of a wrong declaration (λ)."),
+    lambda_: float | None = typer.Option(
+        None, "--lambda", help="Cost of a wrong declaration (λ); default: the workspace's "
+        "solve.wrong_declaration_cost_m with --workspace, the benchmark family's 10 with "
+        "--benchmark, else 2 (the configuration's default)."),
     discount: float = typer.Option(0.95, "--discount"),
     start: int = typer.Option(0, "--start", help="Index of the start viewpoint."),
     solve_seconds: float = typer.Option(
@@ -204,17 +210,22 @@ def export_cmd(
     try:
         if sum(x is not None for x in (problem, benchmark, workspace)) != 1:
             raise ValueError("give exactly one of --problem, --benchmark and --workspace")
+        if lambda_ is not None and not (math.isfinite(lambda_) and lambda_ >= 0):
+            raise ValueError(f"--lambda must be a finite non-negative cost, got {lambda_}")
         if workspace is not None:
             ar = _workspace_problem(workspace, model)
+            if lambda_ is not None:
+                ar = dataclasses.replace(ar, lambda_=lambda_)
         elif benchmark is not None:
             n_v, n_c = _parse_size(benchmark)
-            ar = benchmark_problem(n_v, n_c, seed, lambda_, discount)
+            ar = benchmark_problem(n_v, n_c, seed,
+                                   BENCHMARK_LAMBDA if lambda_ is None else lambda_, discount)
         else:
             assert problem is not None  # one of the three was given
             arrays = load_problem_arrays(problem)
             ar = build_active_recognition_problem(
                 arrays["observation_model"], arrays["move_energy"], arrays.get("reachable"),
-                lambda_, discount, start,
+                DEFAULT_LAMBDA if lambda_ is None else lambda_, discount, start,
             )
     except (ValueError, ArtefactError) as exc:
         console.print(f"[red]error:[/red] {exc}", soft_wrap=True)

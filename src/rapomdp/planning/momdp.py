@@ -26,6 +26,11 @@ from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_
 from rapomdp.planning.pomdp import POMDP, PROB_TOL
 from rapomdp.planning.rules import declare_value, move_or_declare
 
+#: λ of Eq. 1 wherever none is given: the configuration's ``solve.wrong_declaration_cost_m``.
+DEFAULT_LAMBDA = 2.0
+#: λ of the synthetic family of ``pomdp-benchmarks/README.md`` (its declarations cost −10).
+BENCHMARK_LAMBDA = 10.0
+
 
 @dataclass
 class ActiveRecognitionProblem:
@@ -34,7 +39,7 @@ class ActiveRecognitionProblem:
     observation_model: np.ndarray
     move_energy: np.ndarray
     reachable: np.ndarray
-    lambda_: float = 10.0
+    lambda_: float = DEFAULT_LAMBDA
     discount: float = 0.95
     start_viewpoint: int = 0
     #: empty (the default) or None: uniform
@@ -135,7 +140,7 @@ def build_active_recognition_problem(
     observation_model: np.ndarray,
     move_energy: np.ndarray,
     reachable: np.ndarray | None = None,
-    lambda_: float = 10.0,
+    lambda_: float = DEFAULT_LAMBDA,
     discount: float = 0.95,
     start_viewpoint: int = 0,
     start_belief: np.ndarray | None = None,
@@ -147,12 +152,18 @@ def build_active_recognition_problem(
     ``observation_model`` (V, C, C) = P(o | class, viewpoint); ``move_energy`` (V, V) = E_M;
     ``reachable`` (V,) bool (all True when omitted); ``lambda_`` weighs a wrong declaration
     (Eq. 1); the episode starts at ``start_viewpoint`` with ``start_belief`` (uniform).
+
+    ``move_energy`` may hold +inf for moves to or from an unreachable viewpoint, as the robot
+    stage writes it: those moves are not actions, so the entries are replaced by the largest
+    finite energy (:func:`finite_move_energy`); inf between two reachable viewpoints, NaN or a
+    negative energy is refused.
     """
     P = np.asarray(observation_model, dtype=np.float64)
-    reach = np.ones(P.shape[0], dtype=bool) if reachable is None else reachable
+    reach = np.asarray(np.ones(P.shape[0], dtype=bool) if reachable is None else reachable,
+                       dtype=bool)
     return ActiveRecognitionProblem(
         P,
-        np.asarray(move_energy, dtype=np.float64),
+        finite_move_energy(move_energy, reach),
         np.asarray(reach, dtype=bool),
         float(lambda_),
         float(discount),
@@ -163,11 +174,34 @@ def build_active_recognition_problem(
     )
 
 
+def finite_move_energy(move_energy: np.ndarray, reachable: np.ndarray) -> np.ndarray:
+    """E_M with its +inf entries (moves to or from an unreachable viewpoint, never actions)
+    replaced by the largest finite energy; NaN, negatives and inf between reachable viewpoints
+    are refused (named)."""
+    energy = np.array(move_energy, dtype=np.float64)
+    reach = np.asarray(reachable, dtype=bool)
+    if energy.ndim != 2 or energy.shape[0] != energy.shape[1] or energy.shape[0] != reach.size:
+        raise ValueError(f"move_energy must have shape ({reach.size}, {reach.size}), got "
+                         f"{energy.shape}")
+    if np.isnan(energy).any() or (energy < 0).any():
+        raise ValueError("move_energy has NaN or negative entries")
+    infinite = np.isinf(energy)
+    between_reachable = infinite & reach[:, None] & reach[None, :]
+    if between_reachable.any():
+        i, j = (int(k) for k in np.argwhere(between_reachable)[0])
+        raise ValueError(f"move_energy[{i}, {j}] is infinite although viewpoints {i} and {j} "
+                         "are both reachable")
+    if infinite.any():
+        finite = energy[~infinite]
+        energy[infinite] = finite.max() if finite.size else 0.0
+    return energy
+
+
 def benchmark_problem(
     n_viewpoints: int,
     n_classes: int,
     seed: int = 0,
-    lambda_: float = 10.0,
+    lambda_: float = BENCHMARK_LAMBDA,
     discount: float = 0.95,
 ) -> ActiveRecognitionProblem:
     """A synthetic problem of the family in ``pomdp-benchmarks/README.md`` (seeded).

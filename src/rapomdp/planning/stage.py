@@ -6,8 +6,8 @@ P(o | class, viewpoint); ``classes``), ``W/vptree/observation_model.npz`` (``vpt
 ``reachable`` (V,), ``distance_m``). Writes ``policy_<model>.npz`` and ``solve_summary.json``.
 
 Moves to or from an unreachable viewpoint are not actions (the robot stage gives them +inf);
-the planner never uses those entries, so they are replaced by the geodesic distance to keep
-the energy matrix finite.
+the energy goes to the problem builder as it is, which handles those entries
+(:func:`~rapomdp.planning.momdp.finite_move_energy`).
 """
 
 from __future__ import annotations
@@ -61,7 +61,8 @@ def workspace_arrays(
     config: Config, observe_dir: Path, robot_dir: Path, vptree_dir: Path | None = None
 ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[str]]:
     """The observation models to solve (``solve.models`` among those offered, see
-    :func:`offered_observation_models`), E_M (finite), the reachable mask and the class names.
+    :func:`offered_observation_models`), E_M as the robot stage wrote it (+inf to and from
+    unreachable viewpoints), the reachable mask and the class names.
     """
     offered, classes = offered_observation_models(observe_dir, vptree_dir)
     robot = load_npz(Path(robot_dir) / ROBOT_ARRAYS)
@@ -83,8 +84,7 @@ def workspace_arrays(
                 f"observation model '{name}' covers {array.shape[0]} viewpoints, the robot "
                 f"stage {reachable.size}: run both with the same viewpoints.count"
             )
-    energy = np.where(np.isfinite(robot["energy"]), robot["energy"], robot["distance_m"])
-    return models, energy, reachable, classes
+    return models, robot["energy"], reachable, classes
 
 
 def start_viewpoint(reachable: np.ndarray) -> int:

@@ -19,7 +19,11 @@ from rapomdp.io import write_text_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.memory import DEFAULT_MEMORY_GB
-from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
+from rapomdp.planning.momdp import (
+    DEFAULT_LAMBDA,
+    ActiveRecognitionProblem,
+    build_active_recognition_problem,
+)
 from rapomdp.planning.sarsop import ProgressCallback
 
 PROBLEM_KEYS = ("observation_model", "move_energy", "reachable")
@@ -71,7 +75,7 @@ def solve_workspace_problems(
     move_energy: np.ndarray,
     reachable: np.ndarray | None,
     out_dir: str | os.PathLike[str],
-    lambda_: float = 10.0,
+    lambda_: float = DEFAULT_LAMBDA,
     discount: float = 0.95,
     start_viewpoint: int = 0,
     precision: float = 1e-3,
