@@ -21,6 +21,7 @@ number of workers). Writes into the stage folder:
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -111,27 +112,34 @@ class ClosedLoop:
         motion = Motion.from_robot(robot)
         observation, _ = offered_observation_models(inputs["observe"], inputs.get("vptree"))
         cfg = config.evaluate
-        methods: dict[str, Policy] = {}
-        for key in cfg.methods:
+
+        def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:
             recogniser = VPTREE_RECOGNISER if key == "vptree" else "cnn"
             if key == "static":
-                methods[key] = StaticPolicy(METHOD_NAMES[key])
-            elif key == "random":
+                return StaticPolicy(METHOD_NAMES[key])
+            if key == "random":
                 name = cfg.random.observation_model
                 if name not in observation:
                     raise StageError(f"evaluate.random.observation_model is '{name}'; the "
                                      f"workspace has {', '.join(observation)}")
-                methods[key] = RandomWalkPolicy(
+                return RandomWalkPolicy(
                     observation[name], motion.distance_m, motion.reachable,
-                    cfg.random.neighbours, cfg.random.belief_threshold, cfg.random.max_moves,
+                    cfg.random.neighbours, random_threshold, cfg.random.max_moves,
                     METHOD_NAMES[key])
-            else:
-                path = inputs["solve"] / f"policy_{key}.npz"
-                if not path.exists() or key not in observation:
-                    raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
-                                     f"add '{key}' to solve.models")
-                methods[key] = POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
-                                           METHOD_NAMES[key], recogniser, cfg.revisit)
+            path = solve_dir / f"policy_{key}.npz"
+            if not path.exists() or key not in observation:
+                raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
+                                 f"add '{key}' to solve.models")
+            return POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
+                               METHOD_NAMES[key], recogniser, cfg.revisit)
+
+        methods = {key: method(key, cfg.random.belief_threshold, inputs["solve"])
+                   for key in cfg.methods}
+        if "sweep" in inputs:  # the accuracy-energy sweep's settings, run alongside
+            for key, parameter, value, folder in sweep_settings(config):
+                threshold = value if parameter == "threshold" else cfg.random.belief_threshold
+                solve_dir = inputs["sweep"] / folder if folder else inputs["solve"]
+                methods[sweep_key(key, parameter, value)] = method(key, threshold, solve_dir)
         recognisers: dict[str, Recogniser] = {}
         if any(m.recogniser == "cnn" for m in methods.values()):
             recognisers["cnn"] = load_stage_classifier(config, inputs["train"], dataset.classes,
@@ -153,7 +161,8 @@ class ClosedLoop:
         records = []
         for start in starts:
             for key, method in self.methods.items():
-                rng = episode_rng(self.config.seed, model, int(start), key)
+                # a sweep setting draws as its method does (common random numbers)
+                rng = episode_rng(self.config.seed, model, int(start), key.split("@")[0])
                 began = time.process_time()
                 episode = run_episode(scene, self.recognisers[method.recogniser], method,
                                       self.motion, int(start), self.config.evaluate.max_moves,
@@ -201,43 +210,61 @@ def run_episodes(config: Config, inputs: dict[str, Path],
 NOT_POMDP = ("static", "random")
 
 
-def sweep_settings(config: Config) -> list[tuple[str, str, float, Config, str | None]]:
-    """The accuracy-energy sweep's extra runs: (method, parameter, value, configuration, λ
-    folder) for every POMDP method at every extra λ and Random at every extra stop belief.
+def sweep_settings(config: Config) -> list[tuple[str, str, float, str | None]]:
+    """The accuracy-energy sweep's extra settings: (method, parameter, value, λ folder) for
+    every POMDP method at every extra λ and Random at every extra stop belief.
 
     Table 1's own settings (``solve.wrong_declaration_cost_m``, ``random.belief_threshold``)
     are not repeated: the main episodes are their points.
     """
     cfg = config.evaluate
     pomdp = [m for m in cfg.methods if m not in NOT_POMDP]
-    out: list[tuple[str, str, float, Config, str | None]] = []
-    configured = config.solve.wrong_declaration_cost_m
+    out: list[tuple[str, str, float, str | None]] = []
     for lam in dict.fromkeys(cfg.lambdas):
-        if np.isclose(lam, configured) or not pomdp:
-            continue
-        variant = config.model_copy(deep=True)
-        variant.evaluate.methods = list(pomdp)
-        variant.solve.wrong_declaration_cost_m = float(lam)
-        out += [(m, "lambda", float(lam), variant, f"lambda_{lam:g}") for m in pomdp]
+        if not np.isclose(lam, config.solve.wrong_declaration_cost_m):
+            out += [(m, "lambda", float(lam), f"lambda_{lam:g}") for m in pomdp]
     if "random" in cfg.methods:
-        for threshold in dict.fromkeys(cfg.random_thresholds):
-            if np.isclose(threshold, cfg.random.belief_threshold):
-                continue
-            variant = config.model_copy(deep=True)
-            variant.evaluate.methods = ["random"]
-            variant.evaluate.random.belief_threshold = float(threshold)
-            out.append(("random", "threshold", float(threshold), variant, None))
+        out += [("random", "threshold", float(t), None)
+                for t in dict.fromkeys(cfg.random_thresholds)
+                if not np.isclose(t, cfg.random.belief_threshold)]
     return out
 
 
-def run_tradeoff(config: Config, inputs: dict[str, Path], out: Path, table: EpisodeTable,
-                 dataset: Dataset, context: RunContext = RunContext()) -> list[TradeoffPoint]:
-    """Accuracy against energy: Table 1's points plus every POMDP method solved and run at each
-    extra λ (policies under ``out/sweep/lambda_<λ>/``) and Random at each extra stop belief,
-    all from the same (test model, start) pairs."""
-    from rapomdp.experiment.metrics import TradeoffPoint, table1
+def sweep_key(method: str, parameter: str, value: float) -> str:
+    """The episode key of a method at a sweep setting (``ra@lambda=0.5``)."""
+    return f"{method}@{parameter}={value:g}"
+
+
+def solve_sweep(config: Config, inputs: dict[str, Path], sweep_dir: Path,
+                context: RunContext = RunContext()) -> None:
+    """Solve every POMDP method of the evaluation at every extra λ of the sweep, as the solve
+    stage does (``sweep_dir/lambda_<λ>/policy_<method>.npz``)."""
     from rapomdp.planning.stage import start_viewpoint, workspace_arrays
     from rapomdp.planning.workspace import solve_workspace_problems
+
+    folders: dict[str, tuple[float, list[str]]] = {}
+    for method, _, value, folder in sweep_settings(config):
+        if folder is not None:
+            folders.setdefault(folder, (value, []))[1].append(method)
+    for folder, (lam, methods) in folders.items():
+        variant = config.model_copy(deep=True)
+        variant.solve.models = methods
+        models, energy, reachable, classes = workspace_arrays(
+            variant, inputs["observe"], inputs["robot"], inputs.get("vptree"))
+        solve = config.solve
+        solve_workspace_problems(
+            models, energy, reachable, sweep_dir / folder, lambda_=lam, discount=solve.discount,
+            start_viewpoint=start_viewpoint(reachable), precision=solve.precision,
+            timeout=solve.timeout_s, max_iterations=solve.iterations,
+            workers=context.worker_count, allow_stay=False, class_names=classes,
+            memory_gb=solve.memory_gb, scheduler=context.scheduler)
+
+
+def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],
+                    dataset: Dataset) -> list[TradeoffPoint]:
+    """Accuracy against energy: Table 1's rows, then every sweep setting's episodes (all from
+    the same (test model, start) pairs), one curve per method ordered by its setting."""
+    from rapomdp.experiment.metrics import TradeoffPoint, table1
 
     cfg = config.evaluate
     points: list[TradeoffPoint] = []
@@ -251,32 +278,12 @@ def run_tradeoff(config: Config, inputs: dict[str, Path], out: Path, table: Epis
             points.append(TradeoffPoint(row.method, "lambda",
                                         config.solve.wrong_declaration_cost_m, True, row))
     settings = sweep_settings(config)
-    solved: dict[str, Path] = {}
-    for _, _, value, variant, folder in settings:
-        if folder is None or folder in solved:
-            continue
-        variant.solve.models = list(variant.evaluate.methods)
-        models, energy, reachable, classes = workspace_arrays(
-            variant, inputs["observe"], inputs["robot"], inputs.get("vptree"))
-        solved[folder] = out / "sweep" / folder
-        solve_workspace_problems(
-            models, energy, reachable, solved[folder], lambda_=value,
-            discount=variant.solve.discount, start_viewpoint=start_viewpoint(reachable),
-            precision=variant.solve.precision, timeout=variant.solve.timeout_s,
-            max_iterations=variant.solve.iterations, workers=context.worker_count,
-            allow_stay=False, class_names=classes, memory_gb=variant.solve.memory_gb,
-            scheduler=context.scheduler)
-    runs: dict[tuple[str, float], EpisodeTable] = {}
-    for _, parameter, value, variant, folder in settings:
-        if (parameter, value) in runs:
-            continue
-        run_inputs = dict(inputs) if folder is None else {**inputs, "solve": solved[folder]}
-        records, _ = run_episodes(variant, run_inputs, context)
-        runs[parameter, value] = EpisodeTable.from_records(records, dataset,
-                                                           variant.evaluate.methods)
-    for method, parameter, value, _, _ in settings:
-        row = table1(runs[parameter, value], [method])[0]
-        points.append(TradeoffPoint(method, parameter, value, False, row))
+    if settings:
+        keys = [sweep_key(m, p, v) for m, p, v, _ in settings]
+        swept = EpisodeTable.from_records(sweep, dataset, keys)
+        for (method, parameter, value, _), key in zip(settings, keys, strict=True):
+            row = dataclasses.replace(table1(swept, [key])[0], method=method)
+            points.append(TradeoffPoint(method, parameter, value, False, row))
     order = {m: i for i, m in enumerate(cfg.methods)}
     return sorted(points, key=lambda p: (order[p.method], p.value))
 
@@ -305,10 +312,17 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
     from rapomdp.io import save_npz, write_json_atomic, write_text_atomic
 
     began = time.perf_counter()
-    records, dataset = run_episodes(config, inputs, context)
-    episodes_s = time.perf_counter() - began
+    run_inputs = dict(inputs)
+    if sweep_settings(config):
+        solve_sweep(config, inputs, out / "sweep", context)
+        run_inputs["sweep"] = out / "sweep"
+    solved_s = time.perf_counter() - began
+    records, dataset = run_episodes(config, run_inputs, context)
+    episodes_s = time.perf_counter() - began - solved_s
     methods = list(config.evaluate.methods)
-    table = EpisodeTable.from_records(records, dataset, methods)
+    sweep = [r for r in records if r.method not in methods]
+    table = EpisodeTable.from_records([r for r in records if r.method in methods], dataset,
+                                      methods)
     save_npz(out / EPISODES_FILE, compressed=True, **table.arrays())
     rows = table1(table, methods)
     classes_rows = per_class(table, methods)
@@ -321,9 +335,7 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
     write_text_atomic(out / PER_CLASS_CSV, rows_csv([r for _, r in classes_rows],
                                                       [name for name, _ in classes_rows]))
     write_text_atomic(out / EPISODES_CSV, episodes_csv(table))
-    began_sweep = time.perf_counter()
-    points = run_tradeoff(config, inputs, out, table, dataset, context)
-    sweep_s = time.perf_counter() - began_sweep
+    points = tradeoff_points(config, table, sweep, dataset)
     write_text_atomic(out / TRADEOFF_CSV, tradeoff_csv(points))
     write_text_atomic(out / TRADEOFF_MD, tradeoff_markdown(points))
     figures.tradeoff(points, out / TRADEOFF_FIGURE)
@@ -344,6 +356,9 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
         "images_per_s": images / cpu if cpu > 0 else None,
         "workers": min(context.worker_count, len(dataset.with_role("test"))),
         "tradeoff_points": len(points),
-        "seconds": {"episodes_wall": episodes_s, "episodes_cpu": cpu, "tradeoff_wall": sweep_s,
+        "sweep_episodes": len(sweep),
+        "seconds": {"sweep_solve_wall": solved_s, "episodes_wall": episodes_s,
+                    "episodes_cpu": cpu,
+                    "sweep_episodes_cpu": float(sum(r.cpu_seconds for r in sweep)),
                     "total": time.perf_counter() - began},
     })
