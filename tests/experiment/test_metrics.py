@@ -8,14 +8,20 @@ import numpy as np
 import pytest
 
 from rapomdp.experiment.metrics import (
+    MethodSummary,
+    PairedDifference,
+    TradeoffPoint,
     cluster_bootstrap_difference,
     mean_interval,
     paired_accuracy_difference,
     paired_against,
     paired_csv,
+    read_tradeoff_csv,
     rows_csv,
     summarise,
     table1_markdown,
+    table1_story,
+    tradeoff_csv,
     wilson_interval,
 )
 
@@ -122,3 +128,40 @@ def test_markdown_has_the_paired_column() -> None:
     assert "| -0.400 [-0.400, -0.400] |" in lines[2]
     assert lines[3].count("| — |") >= 1  # RA-POMDP itself
     assert "resampling the 4 test models" in text
+
+
+def _summary(method: str, accuracy: float, energy: float, moves: float) -> MethodSummary:
+    return MethodSummary(method, 100, accuracy, accuracy - 0.05, accuracy + 0.05,
+                         {"belief": 0.5, "moves": moves, "distance_m": 0.1, "energy": energy},
+                         {"belief": 0.01, "moves": 0.1, "distance_m": 0.01, "energy": 0.02}, 0)
+
+
+def test_the_story_is_written_from_the_numbers() -> None:
+    rows = [_summary("static", 0.557, 0.0, 0.0), _summary("random", 0.679, 1.18, 2.5),
+            _summary("classifier", 0.530, 0.06, 0.2), _summary("ra", 0.534, 0.21, 0.4)]
+    paired = {"static": PairedDifference("static", "ra", 0.023, -0.011, 0.057, 560, 140),
+              "random": PairedDifference("random", "ra", 0.145, 0.075, 0.216, 560, 140),
+              "classifier": PairedDifference("classifier", "ra", -0.1, -0.15, -0.02, 560, 140)}
+    points = [TradeoffPoint("ra", "lambda", 8.0, False, _summary("ra", 0.6, 1.03, 3.0)),
+              TradeoffPoint("random", "threshold", 0.97, False, _summary("random", 0.695, 1.49,
+                                                                         3.1))]
+    story = table1_story(rows, paired, points)
+    assert story.startswith("On this run Random is the most accurate method (0.679 of 100 "
+                            "episodes); Static, one view, reaches 0.557.")
+    assert ("RA-POMDP is more accurate than Classifier (-0.100); less accurate than Random "
+            "(+0.145); not distinguishable from Static.") in story
+    assert "Mean movement energy per episode: Random 1.18 m, Classifier 0.06 m, RA-POMDP 0.21 m."\
+        in story
+    assert story.endswith("the highest accuracy is Random at stop belief 0.97 (0.695 for 1.49 m).")
+
+
+def test_the_tradeoff_csv_reads_back() -> None:
+    points = [TradeoffPoint("ra", "lambda", 0.5, True, _summary("ra", 0.61, 0.25, 1.0)),
+              TradeoffPoint("static", "none", 0.0, True, _summary("static", 0.5, 0.0, 0.0))]
+    back = read_tradeoff_csv(tradeoff_csv(points))
+    assert [(p.method, p.parameter, p.value, p.configured) for p in back] == [
+        ("ra", "lambda", 0.5, True), ("static", "none", 0.0, True)]
+    assert [p.summary.accuracy for p in back] == [0.61, 0.5]
+    assert back[0].summary.means["energy"] == 0.25
+    with pytest.raises(ValueError, match="not an accuracy-energy table"):
+        read_tradeoff_csv("method,accuracy\nra,x\n")

@@ -154,6 +154,10 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
                 "| ra | -0.412 | 0.131 | 0.740 | 0.610 | 0.580 |"):
         assert row in text
     assert "| RA-POMDP | 1.000 [" in text and "| 4.000 ± 0.000 | 0.800 ± 0.000 |" in text
+    # the story paragraph, from the numbers (these synthetic episodes share no start pairs)
+    assert ("On this run RA-POMDP is the most accurate method (1.000 of 25 episodes); Static, "
+            "one view, reaches 0.360.") in text
+    assert "No paired comparison: methods 'static' and 'ra' did not run from the same" in text
     assert "<td>RA-POMDP</td><td>1.000 [" in html
     assert "30 episodes" in text and "171 depth images" in text
     assert "(412.5 images per CPU second)" in text

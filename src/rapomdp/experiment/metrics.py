@@ -322,3 +322,63 @@ def tradeoff_markdown(points: Sequence[TradeoffPoint]) -> str:
                      f"{_pm(s.means['energy'], s.halfwidths['energy'])} | "
                      f"{s.means['moves']:.2f} | {s.episodes} |")
     return "\n".join(lines) + "\n\n* the setting of Table 1.\n"
+
+
+def read_tradeoff_csv(text: str) -> list[TradeoffPoint]:
+    """The accuracy-energy points back from :func:`tradeoff_csv`'s text (the report reads the
+    evaluate stage's ``tradeoff.csv``); a malformed file raises ``ValueError``."""
+    rows = list(csv.DictReader(io.StringIO(text)))
+    try:
+        return [TradeoffPoint(
+            r["method"], r["parameter"], float(r["value"]), r["configured"] == "1",
+            MethodSummary(r["method"], int(r["episodes"]), float(r["accuracy"]),
+                          float(r["accuracy_low"]), float(r["accuracy_high"]),
+                          {"energy": float(r["energy"]), "moves": float(r["moves"]),
+                           "belief": float(r["belief"])},
+                          {"energy": float(r["energy_ci95"])}, 0)) for r in rows]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"not an accuracy-energy table ({exc})") from None
+
+
+def table1_story(rows: Sequence[MethodSummary], paired: dict[str, PairedDifference],
+                 points: Sequence[TradeoffPoint] = ()) -> str:
+    """One paragraph saying what Table 1 and the accuracy-energy points show on this run,
+    written from the numbers (which method is best, which paired differences exclude 0, what
+    the energy bought)."""
+    name = {r.method: METHOD_NAMES.get(r.method, r.method) for r in rows}
+    best = max(rows, key=lambda r: r.accuracy)
+    parts = [f"On this run {name[best.method]} is the most accurate method "
+             f"({best.accuracy:.3f} of {best.episodes} episodes)"]
+    by_method = {r.method: r for r in rows}
+    if "static" in by_method and best.method != "static":
+        parts[-1] += f"; Static, one view, reaches {by_method['static'].accuracy:.3f}"
+    parts[-1] += "."
+    if paired:
+        ref = next(iter(paired.values())).reference
+        ref_name = METHOD_NAMES.get(ref, ref)
+        above = [f"{name.get(m, m)} ({p.difference:+.3f})" for m, p in paired.items()
+                 if p.low > 0]
+        below = [f"{name.get(m, m)} ({p.difference:+.3f})" for m, p in paired.items()
+                 if p.high < 0]
+        level = [name.get(m, m) for m, p in paired.items() if p.low <= 0 <= p.high]
+        said = []
+        if below:
+            said.append(f"more accurate than {', '.join(below)}")
+        if above:
+            said.append(f"less accurate than {', '.join(above)}")
+        if level:
+            said.append(f"not distinguishable from {', '.join(level)}")
+        parts.append("Over the same (test model, start) pairs, with 95 % intervals that "
+                     f"resample test models, {ref_name} is {'; '.join(said)}.")
+        if ref in by_method:
+            spent = ", ".join(f"{name[r.method]} {r.means['energy']:.2f} m"
+                              for r in rows if r.moves_at_all)
+            parts.append(f"Mean movement energy per episode: {spent or 'none moved'}.")
+    if points:
+        top = max(points, key=lambda p: p.summary.accuracy)
+        setting = {"lambda": f"λ = {top.value:g} m", "threshold": f"stop belief {top.value:g}",
+                   "none": "its one setting"}[top.parameter]
+        parts.append(f"Over the accuracy-energy sweep the highest accuracy is "
+                     f"{METHOD_NAMES.get(top.method, top.method)} at {setting} "
+                     f"({top.summary.accuracy:.3f} for {top.summary.means['energy']:.2f} m).")
+    return " ".join(parts)

@@ -41,16 +41,23 @@ from rapomdp.experiment.episode_table import (
     EPISODES_FILE,
     FIG3_FILE,
     SUMMARY_FILE,
+    TRADEOFF_CSV,
+    TRADEOFF_FIGURE,
     TRAJECTORIES_FILE,
     EpisodeTable,
 )
+from rapomdp.experiment.evaluation import PAIRED_REFERENCE
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
 from rapomdp.experiment.metrics import (
     PER_CLASS_NOTE,
+    paired_against,
+    paired_note,
     per_class,
     per_class_cells,
+    read_tradeoff_csv,
     table1,
     table1_cells,
+    table1_story,
 )
 from rapomdp.io import ArtefactError, atomic_path, read_json, stable_hash, write_text_atomic
 from rapomdp.recognition.artefacts import (
@@ -339,7 +346,7 @@ def _timing(seconds: Any, workers: Any) -> str:
     return ("Time: " + ", ".join(parts) + ".") if parts else ""
 
 
-def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
+def _evaluation(b: _Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any] | None:
     how = f"made by `{cmd} evaluate -w {b.root}`"
     b.add(Heading("Closed-loop recognition (Table 1)"))
     data = b.json(folder / SUMMARY_FILE, how)
@@ -353,7 +360,18 @@ def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
             f"{_timing(data.get('seconds'), data.get('workers'))}"))
     table = b.load(folder / EPISODES_FILE, EpisodeTable.load, how)
     if table is not None:
-        b.add(Table(*table1_cells(table1(table, table.methods))))
+        rows = table1(table, table.methods)
+        try:
+            paired = paired_against(table, table.methods, PAIRED_REFERENCE, seed=seed)
+        except ValueError as exc:  # episodes not from common pairs: no paired column
+            paired = {}
+            b.add(Paragraph(f"No paired comparison: {exc}."))
+        points = (read_tradeoff_csv((folder / TRADEOFF_CSV).read_text(encoding="utf-8"))
+                  if (folder / TRADEOFF_CSV).is_file() else [])
+        b.add(Paragraph(table1_story(rows, paired, points)))
+        b.add(Table(*table1_cells(rows, paired)))
+        if paired:
+            b.add(Paragraph(paired_note(paired)))
         b.add(Paragraph(TABLE1_COLUMNS))
         b.add(Paragraph("Per class:"), Paragraph(PER_CLASS_NOTE),
               Table(*per_class_cells(per_class(table, table.methods), table.methods)))
@@ -363,9 +381,9 @@ def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
              f"method (step 0 is the start viewpoint).", how)
     b.figure(folder / TRAJECTORIES_FILE,
              "The camera's trajectories on the test viewsphere X_rho, per method.", how)
-    if (folder / "tradeoff.png").exists():
+    if (folder / TRADEOFF_FIGURE).exists():
         b.add(Heading("Accuracy against energy"))
-        b.figure(folder / "tradeoff.png",
+        b.figure(folder / TRADEOFF_FIGURE,
                  "Accuracy against mean movement energy: each POMDP method solved at every "
                  "λ of evaluate.lambdas, Random at every stop belief, from the same (test "
                  "model, start) pairs as Table 1 (the points: evaluate/tradeoff.md and .csv).",
@@ -528,7 +546,7 @@ def write_report(config: Config, inputs: dict[str, Path], out: Path,
     b.add(Heading(title, 1))
     _provenance(b, config, inputs)
     b.add(Paragraph(f"Classes ({len(classes)}): {', '.join(classes)}."))
-    evaluation = _evaluation(b, inputs["evaluate"], command)
+    evaluation = _evaluation(b, inputs["evaluate"], command, config.seed)
     _awareness(b, config, inputs, figure_class(evaluation, config, classes),
                fig1 or write_fig1, command)
     _classifier(b, inputs, command)
