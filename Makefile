@@ -45,7 +45,7 @@ bench: $(STAMP)
 	$(VENV)/bin/rapomdp run --workspace $(DEMO_WORKSPACE)
 	$(PY) benchmarks/episode_loop.py --workspace $(DEMO_WORKSPACE)
 	$(PY) benchmarks/vptree_baseline.py --workspace $(DEMO_WORKSPACE)
-	$(PY) benchmarks/lambda_sweep.py --workspace $(DEMO_WORKSPACE)
+	$(PY) benchmarks/dataset_difficulty.py --workspace $(DEMO_WORKSPACE)
 
 clean:
 	rm -rf $(VENV) runs

@@ -23,11 +23,15 @@ def _quiet_single_thread() -> None:
     parallel.workers = 1
 
 
+#: The paper's split (3 train, 1 volume, 1 test): the tests' tiny datasets, 5 models a class.
+SMALL_SPLIT: dict = {"train": 3, "volume": 1, "test": 1}
+
+
 def tiny_config(**overrides: object) -> Config:
     """Three procedural classes, 5 models each, a handful of small views."""
     data: dict = {
         "seed": 3,
-        "dataset": {"classes": ["cup", "mug", "bicycle"]},
+        "dataset": {"classes": ["cup", "mug", "bicycle"], "split": SMALL_SPLIT},
         "camera": {"width": 40, "height": 30},
         "render": {"views": 6},
         "viewpoints": {"count": 16},

@@ -74,9 +74,14 @@ def _guard(action: Callable[[], T]) -> T:
         raise typer.Exit(2) from None
 
 
-def _report(result: StageResult) -> None:
+def _report(result: StageResult, workspace: Workspace | None = None) -> None:
     state = "cached" if result.cached else f"done in {result.seconds:.1f} s"
     console.print(f"[green]✓[/] {result.name:<10} {state}  ({len(result.files)} files)")
+    if result.name == "dataset" and not result.cached and workspace is not None:
+        from rapomdp.data.dataset import role_count_lines
+
+        for line in role_count_lines(workspace.stage_dir("dataset")):
+            console.print(f"  {line}", highlight=False, soft_wrap=True)
 
 
 def _save_config(config: Config, workspace: Workspace) -> None:
@@ -91,7 +96,8 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
         config = load_config(config_path)
         ws = Workspace(workspace)
         _save_config(config, ws)
-        run_pipeline(config, ws, until=until, force=force, on_result=_report)
+        run_pipeline(config, ws, until=until, force=force,
+                     on_result=lambda result: _report(result, ws))
 
     _guard(action)
 

@@ -15,9 +15,9 @@ from rapomdp.config import config_from_dict
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import TINY_PIPELINE
+from tests.conftest import SMALL_SPLIT, TINY_PIPELINE
 
-TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"]},
+TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"], "split": SMALL_SPLIT},
         "viewpoints": {"count": 10}}
 MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint", "classifier",
           "blackbox")

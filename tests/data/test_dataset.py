@@ -5,12 +5,13 @@ import pytest
 import trimesh
 
 from rapomdp.config import config_from_dict
-from rapomdp.data.dataset import load_dataset
+from rapomdp.data.dataset import load_dataset, role_count_lines
 from rapomdp.data.layouts import DatasetLayoutError
 from rapomdp.data.meshes import MeshLoadError, bounding_sphere_radius
 from rapomdp.data.splits import TooFewModelsError
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
+from tests.conftest import SMALL_SPLIT
 
 
 def _folder_dataset(root: Path, per_class: dict[str, int]) -> None:
@@ -22,6 +23,7 @@ def _folder_dataset(root: Path, per_class: dict[str, int]) -> None:
 
 
 def _cfg(root: Path, **dataset: object) -> object:
+    dataset = {"split": {**SMALL_SPLIT, **dataset.pop("split", {})}, **dataset}
     return config_from_dict({"dataset": {"source": "folder", "path": str(root), **dataset},
                              "render": {"views": 2}, "camera": {"width": 16, "height": 12}})
 
@@ -33,8 +35,15 @@ def test_folder_dataset_normalised_split_and_cached_on_file_changes(tmp_path: Pa
     cfg = _cfg(root)
     run_pipeline(cfg, ws, until="dataset")
     data = load_dataset(ws.stage_dir("dataset"))
-    assert data.classes == ["box", "crate"] and len(data.models) == 10
-    assert {m.role for m in data.models} == {"train", "volume", "test"}
+    # the crate's sixth model is an extra training model (dataset.split.extra: train)
+    assert data.classes == ["box", "crate"] and len(data.models) == 11
+    roles = {(c, r): sum(1 for m in data.models if m.class_name == c and m.role == r)
+             for c in data.classes for r in ("train", "volume", "test")}
+    assert roles == {("box", "train"): 3, ("box", "volume"): 1, ("box", "test"): 1,
+                     ("crate", "train"): 4, ("crate", "volume"): 1, ("crate", "test"): 1}
+    assert role_count_lines(ws.stage_dir("dataset")) == [
+        "3 train, 1 volume, 1 test model(s) per class (1 classes: box)",
+        "4 train, 1 volume, 1 test model(s) per class (1 classes: crate)"]
     for model in data.models:
         assert bounding_sphere_radius(data.mesh(model).vertices) == pytest.approx(0.2)
         assert model.source.endswith(".stl")
@@ -42,6 +51,17 @@ def test_folder_dataset_normalised_split_and_cached_on_file_changes(tmp_path: Pa
     # touching a mesh file changes the stage's key
     (root / "box" / "m0.stl").write_bytes((root / "box" / "m1.stl").read_bytes())
     assert not run_pipeline(cfg, ws, until="dataset")[0].cached
+
+
+def test_extra_models_can_be_left_out(tmp_path: Path) -> None:
+    root = tmp_path / "meshes"
+    _folder_dataset(root, {"box": 5, "crate": 7})
+    ws = Workspace(tmp_path / "ws")
+    run_pipeline(_cfg(root, split={"extra": "drop"}), ws, until="dataset")
+    data = load_dataset(ws.stage_dir("dataset"))
+    assert len(data.models) == 10
+    assert role_count_lines(ws.stage_dir("dataset")) == [
+        "3 train, 1 volume, 1 test model(s) per class (2 classes: box, crate)"]
 
 
 def test_folder_dataset_errors_name_the_problem(tmp_path: Path) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 
 import numpy as np
@@ -14,16 +15,17 @@ from rapomdp.experiment.evaluation import ClosedLoop, EpisodeTable, start_viewpo
 from rapomdp.io import read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.workspace import Workspace
-from tests.conftest import TINY_PIPELINE
+from tests.conftest import SMALL_SPLIT, TINY_PIPELINE
 
 METHODS = ["static", "random", "vptree", "classifier", "ra"]
 TINY = {
     **TINY_PIPELINE,
     "seed": 5,
-    "dataset": {"classes": ["cup", "bicycle", "teapot"]},
+    "dataset": {"classes": ["cup", "bicycle", "teapot"], "split": SMALL_SPLIT},
     "viewpoints": {"count": 16},
     "solve": {"timeout_s": 2.0},
-    "evaluate": {"methods": METHODS, "starts_per_model": 3, "max_moves": 6},
+    "evaluate": {"methods": METHODS, "starts_per_model": 3, "max_moves": 6,
+                 "lambdas": [1.0, 2.0, 6.0], "random_thresholds": [0.6]},
 }
 
 
@@ -57,7 +59,8 @@ def test_table1_has_every_method_and_consistent_episodes(workspace) -> None:
     table = EpisodeTable.load(out / "episodes.npz")
     assert table.methods == METHODS
     assert table.method.size == 3 * 3 * len(METHODS)  # classes x starts x methods
-    lines = (out / "table1.md").read_text().strip().splitlines()
+    lines = [line for line in (out / "table1.md").read_text().splitlines()
+             if line.startswith("|")]
     assert [line.split("|")[1].strip() for line in lines[2:]] == [
         "Static", "Random", "VP-tree", "Classifier", "RA-POMDP"]
     robot = np.load(ws.require("robot") / "robot.npz")
@@ -75,6 +78,55 @@ def test_table1_has_every_method_and_consistent_episodes(workspace) -> None:
     assert info["figure_class"] == "bicycle"
     for name in ("fig3.png", "trajectories.png", "per_class.md", "episodes.csv", "table1.csv"):
         assert (out / name).stat().st_size > 0
+
+
+def test_every_method_runs_from_the_same_pairs_and_table1_pairs_them(workspace) -> None:
+    ws, _ = workspace
+    out = ws.require("evaluate")
+    table = EpisodeTable.load(out / "episodes.npz")
+    pairs = {m: sorted(zip(table.model[table.method == m], table.start[table.method == m],
+                           strict=True)) for m in METHODS}
+    assert all(pairs[m] == pairs["static"] for m in METHODS)
+    assert len(set(pairs["static"])) == 3 * 3  # distinct (test model, start) pairs
+    rows = (out / "paired.csv").read_text().splitlines()
+    assert rows[0].startswith("method,reference,accuracy_difference")
+    ra = table.correct[table.method == "ra"].mean()
+    for row in rows[1:]:
+        method, reference, diff, low, high, n, models = row.split(",")
+        assert reference == "ra" and int(n) == 9 and int(models) == 3
+        assert float(diff) == pytest.approx(table.correct[table.method == method].mean() - ra,
+                                            abs=1e-5)
+        assert float(low) <= float(diff) + 1e-9 <= float(high) + 2e-9
+    assert [r.split(",")[0] for r in rows[1:]] == ["static", "random", "vptree", "classifier"]
+    assert "Δ accuracy vs RA-POMDP" in (out / "table1.md").read_text()
+
+
+def test_the_sweep_writes_one_curve_per_method_with_one_point_per_setting(workspace) -> None:
+    ws, config = workspace
+    out = ws.require("evaluate")
+    with open(out / "tradeoff.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    curves: dict[str, list[float]] = {}
+    for row in rows:
+        curves.setdefault(row["method"], []).append(float(row["value"]))
+    assert list(curves) == METHODS
+    assert curves["static"] == [0.0]
+    assert curves["random"] == [0.6, 0.9]  # the sweep's stop belief and Table 1's
+    for method in ("vptree", "classifier", "ra"):
+        assert curves[method] == [1.0, 2.0, 6.0]  # one point per λ, Table 1's λ = 2 among them
+        assert (out / "sweep" / "lambda_6" / f"policy_{method}.npz").exists()
+    assert not (out / "sweep" / "lambda_2").exists()  # Table 1's policies are the solve stage's
+    # Table 1's points are its rows; every point ran from all (test model, start) pairs
+    with open(out / "table1.csv") as handle:
+        table = {r["method"]: r for r in csv.DictReader(handle)}
+    for row in rows:
+        assert int(row["episodes"]) == 9
+        if row["configured"] == "1":
+            assert row["accuracy"] == table[row["method"]]["accuracy"]
+            assert row["energy"] == table[row["method"]]["energy"]
+    assert sum(r["configured"] == "1" for r in rows) == len(METHODS)
+    assert (out / "tradeoff.png").stat().st_size > 0
+    assert "λ = 6 m" in (out / "tradeoff.md").read_text()
 
 
 def test_static_accuracy_is_the_single_view_accuracy_at_the_same_starts(workspace) -> None:

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from rapomdp.experiment.metrics import (
+    cluster_bootstrap_difference,
     mean_interval,
+    paired_accuracy_difference,
+    paired_against,
+    paired_csv,
     rows_csv,
     summarise,
     table1_markdown,
@@ -49,3 +55,70 @@ def test_rows_and_markdown() -> None:
     csv = rows_csv([static, ra]).splitlines()
     assert csv[0].startswith("method,episodes,accuracy,accuracy_low") and len(csv) == 3
     assert rows_csv([ra], ["cup"]).splitlines()[1].startswith("cup,ra,10,0.5,")
+
+
+def _episodes(correct: dict[str, np.ndarray], starts: int) -> SimpleNamespace:
+    """Episodes of methods over models x starts: ``correct[m]`` is (models, starts)."""
+    method, model, start, right = [], [], [], []
+    for key, grid in correct.items():
+        for i, row in enumerate(grid):
+            for s in range(starts):
+                method.append(key)
+                model.append(f"m{i}.npz")
+                start.append(10 * s + i % 3)
+                right.append(bool(row[s]))
+    # the episodes in another order for one method: pairs are matched by (model, start)
+    return SimpleNamespace(method=np.array(method), model=np.array(model), start=np.array(start),
+                           correct=np.array(right))
+
+
+def test_paired_difference_is_exact_when_every_model_gains_the_same() -> None:
+    ra = np.zeros((6, 5), dtype=bool)
+    static = np.zeros((6, 5), dtype=bool)
+    ra[:, :3] = True  # RA-POMDP right from 3 of 5 starts of every model
+    static[:, :1] = True  # Static from 1 of 5
+    table = _episodes({"static": static, "ra": ra}, 5)
+    d = paired_accuracy_difference(table, "static", "ra", resamples=500)
+    assert d.difference == pytest.approx(-0.4)
+    assert d.low == pytest.approx(-0.4) and d.high == pytest.approx(-0.4)  # no spread to resample
+    assert (d.pairs, d.models) == (30, 6)
+    paired = paired_against(table, ["static", "ra"])
+    assert list(paired) == ["static"]
+    assert paired_csv(paired).splitlines()[1].startswith("static,ra,-0.4,")
+    assert paired_against(table, ["static"]) == {}
+
+
+def test_cluster_bootstrap_matches_the_normal_interval_over_models() -> None:
+    # 400 models: half gain 1 on every start, half 0; the models, not the 5 starts, are the draws
+    sums = np.repeat([5.0, 0.0], 200)
+    pairs = np.full(400, 5.0)
+    estimate, low, high = cluster_bootstrap_difference(sums, pairs, resamples=4000, seed=1)
+    half = 1.96 * np.sqrt(0.25 / 400)  # 0.049: the interval of 400 draws, not of 2000
+    assert estimate == pytest.approx(0.5)
+    assert low == pytest.approx(0.5 - half, abs=0.008)
+    assert high == pytest.approx(0.5 + half, abs=0.008)
+    with pytest.raises(ValueError, match="positive pair count"):
+        cluster_bootstrap_difference(np.ones(2), np.array([1.0, 0.0]))
+
+
+def test_paired_difference_needs_the_same_pairs() -> None:
+    grid = np.ones((3, 2), dtype=bool)
+    table = _episodes({"static": grid, "ra": grid}, 2)
+    table.start[0] += 1  # one Static episode from another start
+    with pytest.raises(ValueError, match="did not run from the same"):
+        paired_accuracy_difference(table, "static", "ra")
+    with pytest.raises(ValueError, match="no episodes of method 'random'"):
+        paired_accuracy_difference(table, "random", "ra")
+
+
+def test_markdown_has_the_paired_column() -> None:
+    ra = np.zeros((4, 5), dtype=bool)
+    ra[:, :2] = True
+    table = _episodes({"static": np.zeros((4, 5), dtype=bool), "ra": ra}, 5)
+    rows = [_row("static", np.zeros(20, dtype=int)), _row("ra", np.arange(20))]
+    text = table1_markdown(rows, paired_against(table, ["static", "ra"], resamples=200))
+    lines = text.splitlines()
+    assert "Δ accuracy vs RA-POMDP [95 % CI]" in lines[0]
+    assert "| -0.400 [-0.400, -0.400] |" in lines[2]
+    assert lines[3].count("| — |") >= 1  # RA-POMDP itself
+    assert "resampling the 4 test models" in text

@@ -17,9 +17,10 @@ from rapomdp.pipeline import run_pipeline
 from rapomdp.recognition.classifier import META_FILE, CheckpointMismatchError
 from rapomdp.recognition.stage import load_stage_classifier, train_config_hash
 from rapomdp.workspace import Workspace
+from tests.conftest import SMALL_SPLIT
 
 TINY = {
-    "dataset": {"classes": ["cup", "bottle", "chair"]},
+    "dataset": {"classes": ["cup", "bottle", "chair"], "split": SMALL_SPLIT},
     "camera": {"width": 80, "height": 60},
     "render": {"views": 12},
     "viewpoints": {"count": 8},

@@ -24,7 +24,7 @@ from rapomdp.progress import track
 from rapomdp.workspace import fingerprint_files, stable_hash
 
 DATASET_FILE = "dataset.json"
-PROCEDURAL_VERSION = "1"
+PROCEDURAL_VERSION = "2"
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,23 @@ class Dataset:
     def mesh(self, model: ModelEntry) -> trimesh.Trimesh:
         arrays = load_npz(self.root / model.file)
         return trimesh.Trimesh(arrays["vertices"], arrays["faces"], process=False)
+
+
+def role_count_lines(stage_dir: str | Path) -> list[str]:
+    """How many models each role got per class, one line per distinct count (classes named)."""
+    data = read_json(Path(stage_dir) / DATASET_FILE)
+    groups: dict[tuple[int, ...], list[str]] = {}
+    for name in data["classes"]:
+        counts = data.get("role_counts", {}).get(name)
+        if counts is None:  # a dataset written before the counts were recorded
+            counts = {r: sum(1 for m in data["models"]
+                             if m["class_name"] == name and m["role"] == r) for r in ROLES}
+        groups.setdefault(tuple(counts[r] for r in ROLES), []).append(name)
+    lines = []
+    for key, names in groups.items():
+        roles = ", ".join(f"{n} {r}" for n, r in zip(key, ROLES, strict=True))
+        lines.append(f"{roles} model(s) per class ({len(names)} classes: {', '.join(names)})")
+    return lines
 
 
 def load_dataset(stage_dir: str | Path) -> Dataset:
@@ -109,7 +126,7 @@ def _write_mesh(out: Path, rel: str, mesh: trimesh.Trimesh) -> None:
 def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path) -> None:
     """Build the dataset: pick, split, load, normalise and store every model."""
     cfg = config.dataset
-    counts = cfg.split.model_dump()
+    counts = {role: getattr(cfg.split, role) for role in ROLES}
     if cfg.source == "procedural":
         classes = list(cfg.classes) if cfg.classes is not None else list(PROCEDURAL_CLASSES)
         unknown = [c for c in classes if c not in PROCEDURAL_CLASSES]
@@ -127,7 +144,8 @@ def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path) -> Non
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        split = split_models(candidates, counts, config.seed, cfg.too_few_models)
+        split = split_models(candidates, counts, config.seed, cfg.too_few_models,
+                             cfg.split.extra)
     dropped = [str(w.message) for w in caught]
     for message in dropped:
         warnings.warn(message, stacklevel=2)
@@ -167,6 +185,8 @@ def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path) -> Non
             "radius_m": cfg.radius_m,
             "dropped": dropped,
             "split_counts": counts,
+            "extra_models": cfg.split.extra,
+            "role_counts": {c: {r: len(roles[r]) for r in ROLES} for c, roles in split.items()},
             "models": [asdict(m) for m in models],
             "content_hash": stable_hash([asdict(m) for m in models]),
         },

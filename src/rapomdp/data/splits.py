@@ -28,13 +28,18 @@ def split_models(
     counts: Mapping[str, int],
     seed: int,
     too_few: str = "error",
+    extra: str = "train",
 ) -> dict[str, dict[str, list[T]]]:
     """Draw each class's models for every role, deterministic from the seed.
 
     Each class is shuffled by its own generator, so adding a class does not change the others'
-    split. Models beyond the split's total are left out. With ``too_few="drop"`` a class with
-    too few models is dropped with a warning; otherwise it is an error.
+    split. ``counts`` are the models each role needs; a class with more models gives the rest
+    to training (``extra="train"``) or leaves them out (``extra="drop"``): the volume and test
+    roles keep their counts, so every class is evaluated alike. With ``too_few="drop"`` a class
+    with too few models is dropped with a warning; otherwise it is an error.
     """
+    if extra not in ("train", "drop"):
+        raise ValueError(f"unknown rule for extra models '{extra}'; use 'train' or 'drop'")
     need = sum(counts[role] for role in ROLES)
     split: dict[str, dict[str, list[T]]] = {}
     for name, items in models.items():
@@ -47,13 +52,15 @@ def split_models(
                 warnings.warn(f"{message}: class dropped", stacklevel=2)
                 continue
             raise TooFewModelsError(message)
-        order = class_seed(seed, name).permutation(len(items))[:need]
-        picked = [items[i] for i in order]
+        order = class_seed(seed, name).permutation(len(items))
+        picked = [items[i] for i in order[:need]]
         start = 0
         split[name] = {}
         for role in ROLES:
             split[name][role] = picked[start : start + counts[role]]
             start += counts[role]
+        if extra == "train":
+            split[name]["train"] += [items[i] for i in order[need:]]
     if not split:
         raise TooFewModelsError("no class has enough models for the split")
     return split

@@ -37,15 +37,37 @@ class EvaluateConfig(Section):
         description="static, random, or an observation model solved by the solve stage "
         "(vptree, classifier, ra, ra_class, blackbox)")
     starts_per_model: int = Field(
-        5, ge=1, description="start viewpoints per test model, drawn (seeded) among reachable")
+        4, ge=1, description="start viewpoints per test model, drawn (seeded) among reachable "
+        "(default 4: 32 classes x 4 test models x 4 = 512 episodes per method)")
     max_moves: int = Field(
         30, ge=0, description="step budget: after this many moves a method must declare")
     revisit: bool = Field(
         False, description="let the POMDP methods move back to a viewpoint they have seen "
         "(the noiseless sensor would show the same image, counted as new evidence)")
     random: RandomWalkConfig = RandomWalkConfig()
+    lambdas: list[float] = Field(
+        [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
+        "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "
+        "1's, is always a point); [] for Table 1 alone")
+    random_thresholds: list[float] = Field(
+        [0.6, 0.9, 0.97], description="accuracy against energy: Random's stop beliefs "
+        "(random.belief_threshold, Table 1's, is always a point)")
     figure_class: str = Field("bicycle", description="the class of Fig. 3 and the trajectories "
                               "(the first class when the dataset has no such class)")
+
+    @field_validator("lambdas")
+    @classmethod
+    def _positive(cls, values: list[float]) -> list[float]:
+        if any(v <= 0 for v in values):
+            raise ValueError("every λ must be positive (metres of movement energy)")
+        return values
+
+    @field_validator("random_thresholds")
+    @classmethod
+    def _beliefs(cls, values: list[float]) -> list[float]:
+        if any(not 0 < v <= 1 for v in values):
+            raise ValueError("every stop belief must be in (0, 1]")
+        return values
 
     @field_validator("methods")
     @classmethod

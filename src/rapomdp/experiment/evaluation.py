@@ -10,17 +10,23 @@ number of workers). Writes into the stage folder:
   ``energy``) and the steps of all episodes concatenated (``step_viewpoints``, ``step_outputs``,
   ``step_beliefs``; episode i is rows ``offsets[i]:offsets[i + 1]``); ``classes``, ``methods``;
 - ``episodes.csv`` (one row per episode), ``table1.md|csv``, ``per_class.md|csv``;
+- ``paired.csv``: each method's accuracy minus RA-POMDP's over the same (test model, start)
+  pairs, with a 95 % cluster-bootstrap interval over test models (when RA-POMDP ran);
 - ``fig3.png`` (belief in the true class against step), ``trajectories.png``;
+- ``tradeoff.csv|md|png``: accuracy against mean energy, one curve per method: every POMDP
+  method solved (``sweep/lambda_<λ>/``) and run at each ``evaluate.lambdas``, Random at each
+  ``evaluate.random_thresholds``, Static one point; Table 1's settings are points of it;
 - ``evaluate.json``: counts, timing, images per second of the episode loop.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -46,7 +52,12 @@ from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
 from rapomdp.robot.stage import load_robot
 from rapomdp.workspace import StageError
 
+if TYPE_CHECKING:
+    from rapomdp.experiment.metrics import TradeoffPoint
+
 EVALUATE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "evaluate")
+#: The method every other is compared with, pair by pair, in Table 1.
+PAIRED_REFERENCE = "ra"
 VPTREE_RECOGNISER = "vptree"
 
 
@@ -84,27 +95,34 @@ class ClosedLoop:
         motion = Motion.from_robot(robot)
         observation, _ = offered_observation_models(inputs["observe"], inputs.get("vptree"))
         cfg = config.evaluate
-        methods: dict[str, Policy] = {}
-        for key in cfg.methods:
+
+        def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:
             recogniser = VPTREE_RECOGNISER if key == "vptree" else "cnn"
             if key == "static":
-                methods[key] = StaticPolicy(METHOD_NAMES[key])
-            elif key == "random":
+                return StaticPolicy(METHOD_NAMES[key])
+            if key == "random":
                 name = cfg.random.observation_model
                 if name not in observation:
                     raise StageError(f"evaluate.random.observation_model is '{name}'; the "
                                      f"workspace has {', '.join(observation)}")
-                methods[key] = RandomWalkPolicy(
+                return RandomWalkPolicy(
                     observation[name], motion.distance_m, motion.reachable,
-                    cfg.random.neighbours, cfg.random.belief_threshold, cfg.random.max_moves,
+                    cfg.random.neighbours, random_threshold, cfg.random.max_moves,
                     METHOD_NAMES[key])
-            else:
-                path = inputs["solve"] / f"policy_{key}.npz"
-                if not path.exists() or key not in observation:
-                    raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
-                                     f"add '{key}' to solve.models")
-                methods[key] = POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
-                                           METHOD_NAMES[key], recogniser, cfg.revisit)
+            path = solve_dir / f"policy_{key}.npz"
+            if not path.exists() or key not in observation:
+                raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
+                                 f"add '{key}' to solve.models")
+            return POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
+                               METHOD_NAMES[key], recogniser, cfg.revisit)
+
+        methods = {key: method(key, cfg.random.belief_threshold, inputs["solve"])
+                   for key in cfg.methods}
+        if "sweep" in inputs:  # the accuracy-energy sweep's settings, run alongside
+            for key, parameter, value, folder in sweep_settings(config):
+                threshold = value if parameter == "threshold" else cfg.random.belief_threshold
+                solve_dir = inputs["sweep"] / folder if folder else inputs["solve"]
+                methods[sweep_key(key, parameter, value)] = method(key, threshold, solve_dir)
         recognisers: dict[str, Recogniser] = {}
         if any(m.recogniser == "cnn" for m in methods.values()):
             recognisers["cnn"] = load_stage_classifier(config, inputs["train"], dataset.classes)
@@ -125,7 +143,8 @@ class ClosedLoop:
         records = []
         for start in starts:
             for key, method in self.methods.items():
-                rng = episode_rng(self.config.seed, model, int(start), key)
+                # a sweep setting draws as its method does (common random numbers)
+                rng = episode_rng(self.config.seed, model, int(start), key.split("@")[0])
                 began = time.process_time()
                 episode = run_episode(scene, self.recognisers[method.recogniser], method,
                                       self.motion, int(start), self.config.evaluate.max_moves,
@@ -253,6 +272,86 @@ class EpisodeTable:
         return self.step_viewpoints[self.offsets[episode]:self.offsets[episode + 1]]
 
 
+#: The methods that are POMDP policies (solved per λ); the others are Static and Random.
+NOT_POMDP = ("static", "random")
+
+
+def sweep_settings(config: Config) -> list[tuple[str, str, float, str | None]]:
+    """The accuracy-energy sweep's extra settings: (method, parameter, value, λ folder) for
+    every POMDP method at every extra λ and Random at every extra stop belief.
+
+    Table 1's own settings (``solve.wrong_declaration_cost_m``, ``random.belief_threshold``)
+    are not repeated: the main episodes are their points.
+    """
+    cfg = config.evaluate
+    pomdp = [m for m in cfg.methods if m not in NOT_POMDP]
+    out: list[tuple[str, str, float, str | None]] = []
+    for lam in dict.fromkeys(cfg.lambdas):
+        if not np.isclose(lam, config.solve.wrong_declaration_cost_m):
+            out += [(m, "lambda", float(lam), f"lambda_{lam:g}") for m in pomdp]
+    if "random" in cfg.methods:
+        out += [("random", "threshold", float(t), None)
+                for t in dict.fromkeys(cfg.random_thresholds)
+                if not np.isclose(t, cfg.random.belief_threshold)]
+    return out
+
+
+def sweep_key(method: str, parameter: str, value: float) -> str:
+    """The episode key of a method at a sweep setting (``ra@lambda=0.5``)."""
+    return f"{method}@{parameter}={value:g}"
+
+
+def solve_sweep(config: Config, inputs: dict[str, Path], sweep_dir: Path) -> None:
+    """Solve every POMDP method of the evaluation at every extra λ of the sweep, as the solve
+    stage does (``sweep_dir/lambda_<λ>/policy_<method>.npz``)."""
+    from rapomdp.planning.stage import start_viewpoint, workspace_arrays
+    from rapomdp.planning.workspace import solve_workspace_problems
+
+    folders: dict[str, tuple[float, list[str]]] = {}
+    for method, _, value, folder in sweep_settings(config):
+        if folder is not None:
+            folders.setdefault(folder, (value, []))[1].append(method)
+    for folder, (lam, methods) in folders.items():
+        variant = config.model_copy(deep=True)
+        variant.solve.models = methods
+        models, energy, reachable, classes = workspace_arrays(
+            variant, inputs["observe"], inputs["robot"], inputs.get("vptree"))
+        solve = config.solve
+        solve_workspace_problems(
+            models, energy, reachable, sweep_dir / folder, lambda_=lam, discount=solve.discount,
+            start_viewpoint=start_viewpoint(reachable), precision=solve.precision,
+            timeout=solve.timeout_s, max_iterations=solve.iterations, workers=worker_count(),
+            allow_stay=False, class_names=classes)
+
+
+def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],
+                    dataset: Dataset) -> list[TradeoffPoint]:
+    """Accuracy against energy: Table 1's rows, then every sweep setting's episodes (all from
+    the same (test model, start) pairs), one curve per method ordered by its setting."""
+    from rapomdp.experiment.metrics import TradeoffPoint, table1
+
+    cfg = config.evaluate
+    points: list[TradeoffPoint] = []
+    for row in table1(table, cfg.methods):
+        if row.method == "static":
+            points.append(TradeoffPoint("static", "none", 0.0, True, row))
+        elif row.method == "random":
+            points.append(TradeoffPoint("random", "threshold", cfg.random.belief_threshold,
+                                        True, row))
+        else:
+            points.append(TradeoffPoint(row.method, "lambda",
+                                        config.solve.wrong_declaration_cost_m, True, row))
+    settings = sweep_settings(config)
+    if settings:
+        keys = [sweep_key(m, p, v) for m, p, v, _ in settings]
+        swept = EpisodeTable.from_records(sweep, dataset, keys)
+        for (method, parameter, value, _), key in zip(settings, keys, strict=True):
+            row = dataclasses.replace(table1(swept, [key])[0], method=method)
+            points.append(TradeoffPoint(method, parameter, value, False, row))
+    order = {m: i for i, m in enumerate(cfg.methods)}
+    return sorted(points, key=lambda p: (order[p.method], p.value))
+
+
 def figure_class(config: Config, classes: Sequence[str]) -> str:
     """The configured figure class, or the first class when the dataset has no such class."""
     wanted = config.evaluate.figure_class
@@ -263,28 +362,46 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> No
     """Run every episode, score them, write Table 1, the per-class table and the figures."""
     from rapomdp.experiment import figures
     from rapomdp.experiment.metrics import (
+        paired_against,
+        paired_csv,
         per_class,
         per_class_markdown,
         rows_csv,
         table1,
         table1_markdown,
+        tradeoff_csv,
+        tradeoff_markdown,
     )
     from rapomdp.io import save_npz, write_json_atomic, write_text_atomic
 
     began = time.perf_counter()
-    records, dataset = run_episodes(config, inputs)
-    episodes_s = time.perf_counter() - began
+    run_inputs = dict(inputs)
+    if sweep_settings(config):
+        solve_sweep(config, inputs, out / "sweep")
+        run_inputs["sweep"] = out / "sweep"
+    solved_s = time.perf_counter() - began
+    records, dataset = run_episodes(config, run_inputs)
+    episodes_s = time.perf_counter() - began - solved_s
     methods = list(config.evaluate.methods)
-    table = EpisodeTable.from_records(records, dataset, methods)
+    sweep = [r for r in records if r.method not in methods]
+    table = EpisodeTable.from_records([r for r in records if r.method in methods], dataset,
+                                      methods)
     save_npz(out / "episodes.npz", compressed=True, **table.arrays())
     rows = table1(table, methods)
     classes_rows = per_class(table, methods)
-    write_text_atomic(out / "table1.md", table1_markdown(rows))
+    paired = paired_against(table, methods, PAIRED_REFERENCE, seed=config.seed)
+    write_text_atomic(out / "table1.md", table1_markdown(rows, paired))
     write_text_atomic(out / "table1.csv", rows_csv(rows))
+    if paired:
+        write_text_atomic(out / "paired.csv", paired_csv(paired))
     write_text_atomic(out / "per_class.md", per_class_markdown(classes_rows, methods))
     write_text_atomic(out / "per_class.csv", rows_csv([r for _, r in classes_rows],
                                                       [name for name, _ in classes_rows]))
     write_text_atomic(out / "episodes.csv", _episodes_csv(table))
+    points = tradeoff_points(config, table, sweep, dataset)
+    write_text_atomic(out / "tradeoff.csv", tradeoff_csv(points))
+    write_text_atomic(out / "tradeoff.md", tradeoff_markdown(points))
+    figures.tradeoff(points, out / "tradeoff.png")
     shown = figure_class(config, dataset.classes)
     robot = load_robot(inputs["robot"])
     figures.fig3(table, methods, shown, out / "fig3.png")
@@ -301,7 +418,11 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path) -> No
         "images": images,
         "images_per_s": images / cpu if cpu > 0 else None,
         "workers": min(worker_count(), len(dataset.with_role("test"))),
-        "seconds": {"episodes_wall": episodes_s, "episodes_cpu": cpu,
+        "tradeoff_points": len(points),
+        "sweep_episodes": len(sweep),
+        "seconds": {"sweep_solve_wall": solved_s, "episodes_wall": episodes_s,
+                    "episodes_cpu": cpu,
+                    "sweep_episodes_cpu": float(sum(r.cpu_seconds for r in sweep)),
                     "total": time.perf_counter() - began},
     })
 

@@ -1,5 +1,5 @@
-"""Figures of the closed loop: Fig. 3 (belief in the true class against step) and trajectories
-on the hemisphere, seen from above."""
+"""Figures of the closed loop: Fig. 3 (belief in the true class against step), trajectories
+on the hemisphere seen from above, and accuracy against energy over the λ sweep."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from rapomdp.recognition.figures import save_png  # noqa: E402
 
 if TYPE_CHECKING:
     from rapomdp.experiment.evaluation import EpisodeTable
+    from rapomdp.experiment.metrics import TradeoffPoint
 
 
 def belief_curves(table: EpisodeTable, methods: Sequence[str], class_index: int | None
@@ -92,4 +93,33 @@ def trajectories(table: EpisodeTable, methods: Sequence[str], class_name: str,
     fig.suptitle(f"Trajectories on {class_name} (seen from above; radius = angle from the "
                  "zenith; grey x: unreachable; ring: start; dot: last view, green = right)",
                  fontsize=9)
+    return save_png(fig, path)
+
+
+def tradeoff(points: Sequence[TradeoffPoint], path: Path) -> Path:
+    """Accuracy against mean movement energy: one curve per method over its settings (POMDPs:
+    the wrong-declaration cost λ; Random: its stop belief), Static one point; Table 1's
+    settings ringed."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    for key in dict.fromkeys(p.method for p in points):
+        mine = sorted((p for p in points if p.method == key),
+                      key=lambda p: p.summary.means["energy"])
+        energy = np.array([p.summary.means["energy"] for p in mine])
+        accuracy = np.array([p.summary.accuracy for p in mine])
+        errors = np.array([[p.summary.accuracy - p.summary.accuracy_low for p in mine],
+                           [p.summary.accuracy_high - p.summary.accuracy for p in mine]])
+        line = ax.errorbar(energy, accuracy, yerr=errors, marker="o", markersize=4, capsize=2,
+                           label=METHOD_NAMES.get(key, key))
+        for p, x, y in zip(mine, energy, accuracy, strict=True):
+            if p.configured:
+                ax.plot(x, y, marker="o", markersize=10, fillstyle="none",
+                        color=line[0].get_color())
+            if p.parameter != "none":
+                ax.annotate(f"{p.value:g}", (x, y), textcoords="offset points", xytext=(4, -9),
+                            fontsize=6, color=line[0].get_color())
+    ax.set(xlabel="mean movement energy per episode (m)", ylabel="accuracy",
+           title="Accuracy against energy (labels: λ in m, Random: stop belief; ring: Table 1)")
+    ax.title.set_fontsize(9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
     return save_png(fig, path)

@@ -2,9 +2,11 @@
 
 Accuracy is a proportion: its interval is Wilson's score interval (it stays inside [0, 1] and
 behaves at 0 % and 100 %). Belief, steps, distance and energy are means with Student's t
-interval, mean ± t(0.975, n − 1)·s/√n. Episodes of one class share a test model, so the
-intervals treat the episodes as independent draws: they describe the spread over this
-protocol's starts and classes, not over unseen objects.
+interval, mean ± t(0.975, n − 1)·s/√n. These per-method intervals treat the episodes as
+independent draws. Episodes of one test model are not independent, and every method runs from
+the same (test model, start) pairs, so methods are compared by the *paired* accuracy
+difference with a cluster bootstrap interval that resamples test models
+(:func:`paired_accuracy_difference`).
 """
 
 from __future__ import annotations
@@ -105,24 +107,128 @@ def per_class(table: EpisodeTable, methods: Sequence[str]) -> list[tuple[str, Me
     return out
 
 
+@dataclass(frozen=True)
+class PairedDifference:
+    """Accuracy of ``method`` minus that of ``reference`` over the same (model, start) pairs,
+    with a 95 % cluster-bootstrap interval over test models."""
+
+    method: str
+    reference: str
+    difference: float
+    low: float
+    high: float
+    pairs: int
+    models: int
+
+
+def cluster_bootstrap_difference(per_model_sum: np.ndarray, per_model_pairs: np.ndarray,
+                                 resamples: int = 10_000, seed: int = 0,
+                                 level: float = 0.95) -> tuple[float, float, float]:
+    """Ratio estimate sum(d) / sum(n) and its percentile interval from resampling clusters.
+
+    ``per_model_sum`` (M,) is each model's summed paired difference, ``per_model_pairs`` (M,)
+    its number of pairs; each resample draws M models with replacement (as multinomial counts).
+    """
+    d = np.asarray(per_model_sum, dtype=np.float64)
+    n = np.asarray(per_model_pairs, dtype=np.float64)
+    if d.shape != n.shape or d.ndim != 1 or d.size == 0 or np.any(n <= 0):
+        raise ValueError("need one positive pair count per model and at least one model")
+    estimate = float(d.sum() / n.sum())
+    counts = np.random.default_rng(seed).multinomial(d.size, np.full(d.size, 1.0 / d.size),
+                                                     size=resamples)
+    draws = (counts @ d) / (counts @ n)
+    tail = (1.0 - level) / 2.0 * 100.0
+    low, high = np.percentile(draws, [tail, 100.0 - tail])
+    return estimate, float(low), float(high)
+
+
+def paired_accuracy_difference(table: EpisodeTable, method: str, reference: str,
+                               resamples: int = 10_000, seed: int = 0) -> PairedDifference:
+    """``method``'s accuracy minus ``reference``'s over their common (test model, start) pairs.
+
+    Both methods must have run from exactly the same pairs (the evaluation guarantees it; a
+    table that breaks it is an error). The interval resamples test models, keeping each model's
+    episodes together.
+    """
+    keys = {}
+    for key in (method, reference):
+        sel = np.flatnonzero(table.method == key)
+        if sel.size == 0:
+            raise ValueError(f"no episodes of method '{key}'")
+        pairs = np.char.add(np.char.add(table.model[sel].astype(str), "#"),
+                            table.start[sel].astype(str))
+        order = np.argsort(pairs, kind="stable")
+        keys[key] = (pairs[order], sel[order])
+    (pairs_m, rows_m), (pairs_r, rows_r) = keys[method], keys[reference]
+    if pairs_m.shape != pairs_r.shape or np.any(pairs_m != pairs_r) \
+            or np.unique(pairs_m).size != pairs_m.size:
+        raise ValueError(f"methods '{method}' and '{reference}' did not run from the same "
+                         "(test model, start) pairs")
+    diff = table.correct[rows_m].astype(np.float64) - table.correct[rows_r].astype(np.float64)
+    models, cluster = np.unique(table.model[rows_m], return_inverse=True)
+    sums = np.bincount(cluster, weights=diff, minlength=models.size)
+    sizes = np.bincount(cluster, minlength=models.size).astype(np.float64)
+    estimate, low, high = cluster_bootstrap_difference(sums, sizes, resamples, seed)
+    return PairedDifference(method, reference, estimate, low, high, int(diff.size),
+                            int(models.size))
+
+
+def paired_against(table: EpisodeTable, methods: Sequence[str], reference: str = "ra",
+                   resamples: int = 10_000, seed: int = 0) -> dict[str, PairedDifference]:
+    """Every other method's paired difference to ``reference`` (empty when it did not run)."""
+    if reference not in methods:
+        return {}
+    return {m: paired_accuracy_difference(table, m, reference, resamples, seed)
+            for m in methods if m != reference}
+
+
+def paired_csv(paired: dict[str, PairedDifference]) -> str:
+    """The paired differences as CSV (one row per method)."""
+    lines = ["method,reference,accuracy_difference,ci95_low,ci95_high,pairs,test_models"]
+    lines += [f"{p.method},{p.reference},{p.difference:.6g},{p.low:.6g},{p.high:.6g},"
+              f"{p.pairs},{p.models}" for p in paired.values()]
+    return "\n".join(lines) + "\n"
+
+
 def _pm(mean: float, half: float, digits: int = 3) -> str:
     return f"{mean:.{digits}f} ± {half:.{digits}f}"
 
 
-def table1_markdown(rows: Sequence[MethodSummary]) -> str:
-    """Table 1 as markdown: mean (95 % interval) per method; — where a method never moves."""
-    lines = ["| Method | Accuracy [95 % CI] | Belief | # steps | Distance (m) | Energy (m) "
-             "| Episodes |", "|---|---|---|---|---|---|---|"]
+def table1_markdown(rows: Sequence[MethodSummary],
+                    paired: dict[str, PairedDifference] | None = None) -> str:
+    """Table 1 as markdown: mean (95 % interval) per method; — where a method never moves.
+
+    With ``paired``, a column of each method's paired accuracy difference to the reference
+    (its cluster-bootstrap interval over test models).
+    """
+    reference = next(iter(paired.values())).reference if paired else None
+    head = "| Method | Accuracy [95 % CI] | Belief | # steps | Distance (m) | Energy (m) "
+    rule = "|---|---|---|---|---|---|"
+    if reference is not None:
+        head += f"| Δ accuracy vs {METHOD_NAMES.get(reference, reference)} [95 % CI] "
+        rule += "---|"
+    lines = [head + "| Episodes |", rule + "---|"]
     for r in rows:
         move_cells = ([_pm(r.means[k], r.halfwidths[k]) for k in QUANTITIES[1:]]
                       if r.moves_at_all else ["—"] * 3)
         budget = f" ({r.exhausted} hit the step budget)" if r.exhausted else ""
+        cells = list(move_cells)
+        if reference is not None:
+            p = (paired or {}).get(r.method)
+            cells.append("—" if p is None else
+                         f"{p.difference:+.3f} [{p.low:+.3f}, {p.high:+.3f}]")
         lines.append(
             f"| {METHOD_NAMES.get(r.method, r.method)} | {r.accuracy:.3f} "
             f"[{r.accuracy_low:.3f}, {r.accuracy_high:.3f}] | "
-            f"{_pm(r.means['belief'], r.halfwidths['belief'])} | " + " | ".join(move_cells)
+            f"{_pm(r.means['belief'], r.halfwidths['belief'])} | " + " | ".join(cells)
             + f" | {r.episodes}{budget} |")
-    return "\n".join(lines) + "\n"
+    out = "\n".join(lines) + "\n"
+    if reference is not None:
+        p = next(iter(paired.values()))  # type: ignore[union-attr]
+        out += (f"\nΔ: a method's accuracy minus {METHOD_NAMES.get(reference, reference)}'s "
+                f"over the same {p.pairs} (test model, start) pairs; 95 % cluster-bootstrap "
+                f"interval resampling the {p.models} test models.\n")
+    return out
 
 
 def per_class_markdown(rows: Sequence[tuple[str, MethodSummary]],
@@ -155,3 +261,50 @@ def rows_csv(rows: Sequence[MethodSummary], classes: Sequence[str] | None = None
             values += [f"{r.means[k]:.6g}", f"{r.halfwidths[k]:.6g}"]
         writer.writerow(([classes[i]] if classes is not None else []) + values)
     return buffer.getvalue()
+
+
+@dataclass(frozen=True)
+class TradeoffPoint:
+    """One point of a method's accuracy-energy curve: the method run with one setting.
+
+    ``parameter`` is what was varied (``lambda``: the wrong-declaration cost in metres of
+    energy the POMDP was solved with; ``threshold``: Random's stop belief; ``none``: Static),
+    ``configured`` marks the setting of Table 1.
+    """
+
+    method: str
+    parameter: str
+    value: float
+    configured: bool
+    summary: MethodSummary
+
+
+def tradeoff_csv(points: Sequence[TradeoffPoint]) -> str:
+    """The accuracy-energy points as CSV, one row per (method, setting)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["method", "parameter", "value", "configured", "episodes", "accuracy",
+                     "accuracy_low", "accuracy_high", "energy", "energy_ci95", "moves",
+                     "belief"])
+    for p in points:
+        s = p.summary
+        writer.writerow([p.method, p.parameter, f"{p.value:.6g}", int(p.configured), s.episodes,
+                         f"{s.accuracy:.6g}", f"{s.accuracy_low:.6g}", f"{s.accuracy_high:.6g}",
+                         f"{s.means['energy']:.6g}", f"{s.halfwidths['energy']:.6g}",
+                         f"{s.means['moves']:.6g}", f"{s.means['belief']:.6g}"])
+    return buffer.getvalue()
+
+
+def tradeoff_markdown(points: Sequence[TradeoffPoint]) -> str:
+    """The accuracy-energy points as a markdown table (Table 1's settings marked *)."""
+    lines = ["| Method | Setting | Accuracy [95 % CI] | Energy (m) | # steps | Episodes |",
+             "|---|---|---|---|---|---|"]
+    for p in points:
+        s = p.summary
+        setting = {"lambda": f"λ = {p.value:g} m", "threshold": f"stop at belief {p.value:g}",
+                   "none": "—"}[p.parameter] + (" *" if p.configured else "")
+        lines.append(f"| {METHOD_NAMES.get(p.method, p.method)} | {setting} | {s.accuracy:.3f} "
+                     f"[{s.accuracy_low:.3f}, {s.accuracy_high:.3f}] | "
+                     f"{_pm(s.means['energy'], s.halfwidths['energy'])} | "
+                     f"{s.means['moves']:.2f} | {s.episodes} |")
+    return "\n".join(lines) + "\n\n* the setting of Table 1.\n"

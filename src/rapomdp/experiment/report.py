@@ -319,6 +319,13 @@ def _evaluation(b: _Builder, folder: Path, cmd: str) -> dict[str, Any] | None:
              f"method (step 0 is the start viewpoint).", how)
     b.figure(folder / "trajectories.png",
              "The camera's trajectories on the test viewsphere X_rho, per method.", how)
+    if (folder / "tradeoff.png").exists():
+        b.add(Heading("Accuracy against energy"))
+        b.figure(folder / "tradeoff.png",
+                 "Accuracy against mean movement energy: each POMDP method solved at every "
+                 "λ of evaluate.lambdas, Random at every stop belief, from the same (test "
+                 "model, start) pairs as Table 1.", how)
+        b.markdown(folder / "tradeoff.md", how)
     return data
 
 

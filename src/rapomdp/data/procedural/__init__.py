@@ -1,5 +1,11 @@
-"""The embedded default dataset: parametric 3D models of everyday classes, from a seed."""
+"""The embedded default dataset: parametric 3D models in families of confusable classes."""
 
-from rapomdp.data.procedural.classes import CLASS_BUILDERS, PROCEDURAL_CLASSES, generate_model
+from rapomdp.data.procedural.classes import (
+    CLASSES,
+    FAMILIES,
+    PROCEDURAL_CLASSES,
+    generate_model,
+    generate_parts,
+)
 
-__all__ = ["CLASS_BUILDERS", "PROCEDURAL_CLASSES", "generate_model"]
+__all__ = ["CLASSES", "FAMILIES", "PROCEDURAL_CLASSES", "generate_model", "generate_parts"]

@@ -41,6 +41,13 @@ def box(extents: Sequence[float], centre: Sequence[float], yaw: float = 0.0,
     return creation.box(extents=extents, transform=transform)
 
 
+def slab(lower: Sequence[float], upper: Sequence[float]) -> trimesh.Trimesh:
+    """An axis-aligned box between two corners (panels, shelves, drawer fronts)."""
+    lower, upper = np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64)
+    return creation.box(extents=np.abs(upper - lower), transform=trimesh.transformations
+                        .translation_matrix((lower + upper) / 2.0))
+
+
 def ellipsoid(radii: Sequence[float], centre: Sequence[float], subdivisions: int = 2):
     """An ellipsoid with semi-axes ``radii`` along x, y, z."""
     mesh = creation.icosphere(subdivisions=subdivisions, radius=1.0)
