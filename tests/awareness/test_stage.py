@@ -191,3 +191,31 @@ def test_report_figures_read_the_single_view_models_the_quality_table_scores(wor
     assert rel.stat().st_size > 1000 and hemi.name == "awareness_hemisphere_teapot.png"
     with pytest.raises(Exception, match="class 'unicycle' is not in the observe stage"):
         write_awareness_figures(workspace.root / "observe", "unicycle", tmp_path)
+
+
+def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(workspace, tmp_path):
+    from pathlib import Path
+
+    from rapomdp.awareness.crossfit import CrossfitOutcomes
+    from rapomdp.awareness.stage import run_crossfit_stage
+    from rapomdp.config import load_config
+
+    paper = Path(__file__).parents[2] / "configs" / "paper-awareness.yaml"
+    loaded = load_config(paper).observe
+    assert (loaded.evidence, loaded.ra_model, loaded.belief_correction) == (
+        "volume", "paper", "none")
+    config = config_from_dict({**TINY, "observe": {**TINY["observe"],
+                                                   **loaded.model_dump(include={
+                                                       "evidence", "ra_model",
+                                                       "belief_correction"})}})
+    run_crossfit_stage(config, {"dataset": workspace.root / "dataset",
+                                "render": workspace.root / "render"}, tmp_path)
+    empty = CrossfitOutcomes.load(tmp_path / "outcomes.npz")
+    assert empty.predicted.shape == (0, 10) and read_json(tmp_path / "crossfit.json")[
+        "folds"] == 0
+    run_pipeline(config, workspace, until="observe")
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
+    assert np.all(data["temperatures"] == 1.0) and np.all(data["evidence_groups"] == 0)
+    assert np.allclose(data["ra"], data["ra_paper"])
+    assert not (workspace.root / "observe" / "validation.md").exists()
+    run_pipeline(config_from_dict(TINY), workspace, until="observe")  # back to the default

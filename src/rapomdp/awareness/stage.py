@@ -8,12 +8,18 @@ clean input and, for the mask, ``perturbed_probability`` (views,) after the pert
 ``W/volume/``: ``<class>.npz`` (a :class:`~rapomdp.awareness.volume.SaliencyVolume`: ``scores``
 with NaN = empty, ``counts``, ``origin``, ``voxel_size_m``, ``shape``) and ``volume.json``.
 
-``W/observe/``: ``observation_models.npz`` with ``ra``, ``ra_class``, ``classifier`` and
-``blackbox``, each
+``W/crossfit/``: ``outcomes.npz`` (:class:`~rapomdp.awareness.crossfit.CrossfitOutcomes`: every
+training model's labels at X_rho from the fold classifier that did not train on it) and
+``crossfit.json``.
+
+``W/observe/``: ``observation_models.npz`` with ``ra`` (RA-POMDP's model, the variant
+``observe.ra_model`` names), every ``ra_<variant>``, ``classifier`` and ``blackbox``, each
 (V, C, C) = P(o | class, viewpoint) over the test viewpoints X_rho in order and the dataset's
-classes in order (rows sum to 1), ``models`` (their names), ``classes``, ``scores`` (C, V)
-normalised Eq. 6 scores, ``raw_scores``, ``directions`` (V, 3); ``calibration.json``;
-``quality.csv|md`` (the self-awareness table); ``calibration.png``; ``timing.json``.
+classes in order (rows sum to 1; tempered by ``temperatures``), ``models`` (their names),
+``classes``, ``scores`` / ``area_scores`` (C, V) normalised Eq. 6 scores, ``raw_scores``,
+``directions`` (V, 3), the held-out evidence (``evidence_*``) and the test outcomes;
+``calibration.json``; ``quality.csv|md`` (test models) and ``validation.csv|md`` (held-out);
+``calibration.png``; ``timing.json``.
 """
 
 from __future__ import annotations
