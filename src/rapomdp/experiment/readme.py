@@ -13,7 +13,11 @@ import platform
 import shutil
 from pathlib import Path
 
+from rapomdp.config import Config
 from rapomdp.data.dataset import role_count_lines
+from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.experiment.metrics import table1_story
+from rapomdp.experiment.report import evaluation_summaries
 from rapomdp.io import atomic_path, write_text_atomic
 from rapomdp.recognition.artefacts import load_single_view_metrics
 from rapomdp.workspace import StageError, Workspace
@@ -22,7 +26,8 @@ BEGIN = "<!-- BEGIN generated results: rapomdp report --readme (do not edit by h
 END = "<!-- END generated results -->"
 
 #: Figures of the evaluate stage shown in the README: (file in W/evaluate, name beside it).
-README_FIGURES = (("tradeoff.png", "demo_tradeoff.png"), ("fig3.png", "demo_fig3.png"))
+README_FIGURES = (("tradeoff.png", "demo_tradeoff.png"), ("fig3.png", "demo_fig3.png"),
+                  ("trajectories.png", "demo_trajectories.png"))
 
 
 def _read(path: Path) -> str:
@@ -32,7 +37,16 @@ def _read(path: Path) -> str:
     return path.read_text(encoding="utf-8").strip()
 
 
-def results_markdown(workspace: Workspace, figures_link: str) -> str:
+def _story(evaluate: Path, seed: int) -> list[str]:
+    """What Table 1 and the curves show, from the episodes (as the report says it)."""
+    if not (evaluate / EPISODES_FILE).exists():
+        return []
+    rows, paired, points, _ = evaluation_summaries(EpisodeTable.load(evaluate / EPISODES_FILE),
+                                                   evaluate, seed)
+    return [table1_story(rows, paired, points), ""]
+
+
+def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> str:
     """The generated block (without its markers) for a workspace whose stages have all run;
     ``figures_link`` is the figures folder as the README links it."""
     manifest = workspace.manifest()["stages"]
@@ -63,6 +77,7 @@ def results_markdown(workspace: Workspace, figures_link: str) -> str:
         "",
         "**Table 1** (closed-loop episodes on the test models):",
         "",
+        *_story(evaluate, seed),
         _read(evaluate / "table1.md"),
         "",
     ]
@@ -72,7 +87,8 @@ def results_markdown(workspace: Workspace, figures_link: str) -> str:
                   f"![Accuracy against energy]({figures_link}/demo_tradeoff.png)", ""]
     lines += ["**Self-awareness** (observation models on the test models):", "",
               _read(workspace.require("observe") / "quality.md"), "",
-              f"![Belief in the true class]({figures_link}/demo_fig3.png)"]
+              f"![Belief in the true class]({figures_link}/demo_fig3.png)", "",
+              f"![Trajectories]({figures_link}/demo_trajectories.png)"]
     return "\n".join(lines)
 
 
@@ -90,7 +106,7 @@ def update_readme(workspace: Workspace, readme: Path, figures: Path | None = Non
         link = figures.resolve().relative_to(readme.parent.resolve()).as_posix()
     except ValueError:
         link = figures.resolve().as_posix()
-    block = results_markdown(workspace, link)
+    block = results_markdown(workspace, link, workspace.config(default=Config()).seed)
     figures.mkdir(parents=True, exist_ok=True)
     evaluate = workspace.require("evaluate")
     for source, name in README_FIGURES:

@@ -50,6 +50,9 @@ from rapomdp.experiment.evaluation import PAIRED_REFERENCE
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
 from rapomdp.experiment.metrics import (
     PER_CLASS_NOTE,
+    MethodSummary,
+    PairedDifference,
+    TradeoffPoint,
     paired_against,
     paired_note,
     per_class,
@@ -346,6 +349,22 @@ def _timing(seconds: Any, workers: Any) -> str:
     return ("Time: " + ", ".join(parts) + ".") if parts else ""
 
 
+def evaluation_summaries(table: EpisodeTable, folder: Path, seed: int
+                         ) -> tuple[list[MethodSummary], dict[str, PairedDifference],
+                                    list[TradeoffPoint], str]:
+    """Table 1's rows, the paired differences to RA-POMDP (empty, with the reason as the last
+    item, when the episodes share no (test model, start) pairs) and the accuracy-energy points
+    of an evaluate folder: what the report and the README's generated block say."""
+    rows = table1(table, table.methods)
+    try:
+        paired, unpaired = paired_against(table, table.methods, PAIRED_REFERENCE, seed=seed), ""
+    except ValueError as exc:
+        paired, unpaired = {}, str(exc)
+    points = (read_tradeoff_csv((folder / TRADEOFF_CSV).read_text(encoding="utf-8"))
+              if (folder / TRADEOFF_CSV).is_file() else [])
+    return rows, paired, points, unpaired
+
+
 def _evaluation(b: _Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any] | None:
     how = f"made by `{cmd} evaluate -w {b.root}`"
     b.add(Heading("Closed-loop recognition (Table 1)"))
@@ -360,14 +379,9 @@ def _evaluation(b: _Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any
             f"{_timing(data.get('seconds'), data.get('workers'))}"))
     table = b.load(folder / EPISODES_FILE, EpisodeTable.load, how)
     if table is not None:
-        rows = table1(table, table.methods)
-        try:
-            paired = paired_against(table, table.methods, PAIRED_REFERENCE, seed=seed)
-        except ValueError as exc:  # episodes not from common pairs: no paired column
-            paired = {}
-            b.add(Paragraph(f"No paired comparison: {exc}."))
-        points = (read_tradeoff_csv((folder / TRADEOFF_CSV).read_text(encoding="utf-8"))
-                  if (folder / TRADEOFF_CSV).is_file() else [])
+        rows, paired, points, unpaired = evaluation_summaries(table, folder, seed)
+        if unpaired:
+            b.add(Paragraph(f"No paired comparison: {unpaired}."))
         b.add(Paragraph(table1_story(rows, paired, points)))
         b.add(Table(*table1_cells(rows, paired)))
         if paired:
