@@ -209,7 +209,7 @@ def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(wor
                                                        "evidence", "ra_model",
                                                        "belief_correction"})}})
     run_crossfit_stage(config, {"dataset": workspace.root / "dataset",
-                                "render": workspace.root / "render"}, tmp_path)
+                                "render": workspace.root / "render"}, tmp_path, TEST_CONTEXT)
     empty = CrossfitOutcomes.load(tmp_path / "outcomes.npz")
     assert empty.predicted.shape == (0, 10) and read_json(tmp_path / "crossfit.json")[
         "folds"] == 0
