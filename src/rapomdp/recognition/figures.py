@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.geometry.viewsphere import azimuth_zenith
-from rapomdp.plots import new_figure, save_png, style
+from rapomdp.plots import MAX_WIDTH_IN, new_figure, save_png, style
 
 __all__ = ["confusion_figure", "hemisphere_figure", "save_png", "training_curves"]
 
@@ -46,7 +46,7 @@ def confusion_figure(confusion: np.ndarray, classes: Sequence[str], title: str,
     counts = np.asarray(confusion, dtype=np.float64)
     rates = counts / np.maximum(counts.sum(axis=1, keepdims=True), 1.0)
     n = len(classes)
-    size = min(9.0, max(4.5, 0.3 * n + 2.5))
+    size = min(MAX_WIDTH_IN - 1.2, max(4.5, 0.3 * n + 2.5))  # the colour bar takes 1.2 in
     cell_pt = 72.0 * (size - 2.0) / max(n, 1)  # about the cell's side in points
     with style():
         fig = new_figure(size + 1.2, size)
