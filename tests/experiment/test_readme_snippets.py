@@ -73,3 +73,44 @@ def test_the_environment_as_written(reader_folder) -> None:
     obs, info = namespace["obs"], namespace["info"]
     assert set(obs) == {"depth", "viewpoint"} and obs["depth"].ndim == 2
     assert "action_mask" in info and "invalid" in info
+
+
+DOCS = README.parent / "docs"
+
+
+def test_the_planning_docs_run_as_written(reader_folder) -> None:
+    from rapomdp.planning import benchmark_problem
+
+    given = benchmark_problem(10, 3, seed=2)
+    namespace: dict = {"P": given.observation_model, "E": given.move_energy,
+                       "reach": given.reachable, "viewpoint": 0, "belief": np.full(3, 1 / 3),
+                       "label": 2, "flat_belief": np.array([0.5, 0.5])}
+    block, = python_blocks((DOCS / "planning.md").read_text())
+    exec(block.replace("timeout=30", "timeout=2").replace("timeout=10", "timeout=2"), namespace)
+    assert namespace["flat"].lower <= namespace["flat"].upper + 1e-9
+    assert (reader_folder / "policy_ra.npz").exists() and (reader_folder / "ar.pomdpx").exists()
+    assert namespace["a"].kind in ("move", "declare")
+
+
+def test_the_recognition_docs_run_as_written(reader_folder) -> None:
+    from rapomdp.data.meshes import normalise_mesh
+    from rapomdp.data.procedural import generate_model
+    from rapomdp.data.renderer import DepthRenderer
+    from rapomdp.geometry import look_at_many, viewpoints, xtion_intrinsics
+
+    mesh = normalise_mesh(generate_model("cup", seed=0, index=0), radius_m=0.2)
+    centre = np.array([0.0, 0.0, mesh.bounds[1, 2] / 2])
+    poses = look_at_many(viewpoints(4, 0.6, hemisphere=True, centre=centre), centre)
+    namespace: dict = {"depth_images": DepthRenderer(mesh, xtion_intrinsics(80, 60)).render(poses)}
+    block, = python_blocks((DOCS / "recognition.md").read_text())
+    exec(block, namespace)
+    assert namespace["probs"].shape == (4, len(namespace["clf"].classes))
+    assert namespace["logits"].shape == (4, len(namespace["clf"].classes))
+
+
+def test_the_robot_docs_run_as_written(reader_folder) -> None:
+    namespace: dict = {}
+    block, = python_blocks((DOCS / "robot.md").read_text())
+    exec(block, namespace)
+    assert namespace["result"].reachable.shape == (128,)
+    assert namespace["arrays"]["reachable"].dtype == bool or namespace["arrays"]["reachable"].size

@@ -363,7 +363,7 @@ def failed_swap(root: Path) -> Outcome:
 
 
 @case("checkpoint class list", "a checkpoint whose class list differs (library load)",
-      "--force train")
+      "Retrain with `rapomdp train -w")
 def checkpoint_hint(root: Path) -> Outcome:
     from rapomdp.geometry.camera import xtion_intrinsics
     from rapomdp.recognition.classifier import CheckpointError, Classifier
@@ -378,7 +378,7 @@ def checkpoint_hint(root: Path) -> Outcome:
     try:
         Classifier.load(folder, classes=["cup", "vase"])
     except CheckpointError as exc:
-        assert f"rapomdp run -w {root / 'ws'} --force train" in str(exc), str(exc)
+        assert f"rapomdp train -w {root / 'ws'} --force" in str(exc), str(exc)
         return Outcome(2, str(exc).rsplit(". ", 1)[-1])
     return Outcome(0, "loaded")
 

@@ -247,7 +247,7 @@ class Classifier:
 def _retrain_hint(path: Path) -> str:
     """A command that really redoes the training (plain ``rapomdp train`` keeps a cached one)."""
     where = path.parent.parent if path.parent.name == "train" else "WORKSPACE"
-    return f"Retrain with `rapomdp run -w {where} --force train`."
+    return f"Retrain with `rapomdp train -w {where} --force`."
 
 
 def _check(path: Path, what: str, stored: Any, expected: Any) -> None:
