@@ -148,8 +148,8 @@ def test_the_story_is_written_from_the_numbers() -> None:
     story = table1_story(rows, paired, points)
     assert story.startswith("On this run Random is the most accurate method (0.679 of 100 "
                             "episodes); Static, one view, reaches 0.557.")
-    assert ("RA-POMDP is more accurate than Classifier (-0.100); less accurate than Random "
-            "(+0.145); not distinguishable from Static.") in story
+    assert ("RA-POMDP is more accurate than Classifier (by 0.100); less accurate than Random "
+            "(by 0.145); not distinguishable from Static.") in story
     assert "Mean movement energy per episode: Random 1.18 m, Classifier 0.06 m, RA-POMDP 0.21 m."\
         in story
     assert story.endswith("the highest accuracy is Random at stop belief 0.97 (0.695 for 1.49 m).")

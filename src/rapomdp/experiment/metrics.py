@@ -356,9 +356,9 @@ def table1_story(rows: Sequence[MethodSummary], paired: dict[str, PairedDifferen
     if paired:
         ref = next(iter(paired.values())).reference
         ref_name = METHOD_NAMES.get(ref, ref)
-        above = [f"{name.get(m, m)} ({p.difference:+.3f})" for m, p in paired.items()
+        above = [f"{name.get(m, m)} (by {p.difference:.3f})" for m, p in paired.items()
                  if p.low > 0]
-        below = [f"{name.get(m, m)} ({p.difference:+.3f})" for m, p in paired.items()
+        below = [f"{name.get(m, m)} (by {-p.difference:.3f})" for m, p in paired.items()
                  if p.high < 0]
         level = [name.get(m, m) for m, p in paired.items() if p.low <= 0 <= p.high]
         said = []
