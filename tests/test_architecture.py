@@ -230,6 +230,7 @@ def test_figures_use_the_object_api() -> None:
 
 def test_the_artefact_readers_and_the_solve_stage_load_no_torch() -> None:
     for statement in ("import rapomdp.recognition.artefacts", "import rapomdp.awareness.artefacts",
-                      "import rapomdp.robot.artefacts", "import rapomdp.planning.stage"):
+                      "import rapomdp.robot.artefacts", "import rapomdp.planning.artefacts",
+                      "import rapomdp.planning.stage"):
         modules = loaded_modules(statement)
         assert "torch" not in modules and "roboticstoolbox" not in modules, statement

@@ -463,10 +463,10 @@ def solve(workspace: WorkspaceOption, config: ConfigOption = None,
          overrides, reconfigure)
 
     def summary() -> dict:
-        from rapomdp.io import read_json
+        from rapomdp.planning.artefacts import load_solve_summary
         from rapomdp.workspace import Workspace
 
-        return read_json(Workspace(workspace).require("solve") / "solve_summary.json")
+        return load_solve_summary(Workspace(workspace).require("solve"))
 
     for name, bounds in _guard(summary).items():
         console.print(

@@ -61,6 +61,7 @@ from rapomdp.experiment.episode_table import (
 )
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
 from rapomdp.parallel import run_tasks
+from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import offered_observation_models
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
@@ -126,7 +127,7 @@ class ClosedLoop:
                     observation[name], motion.distance_m, motion.reachable,
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
                     METHOD_NAMES[key])
-            path = solve_dir / f"policy_{key}.npz"
+            path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
                                  f"add '{key}' to solve.models")

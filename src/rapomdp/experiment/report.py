@@ -63,6 +63,7 @@ from rapomdp.experiment.metrics import (
     table1_story,
 )
 from rapomdp.io import ArtefactError, atomic_path, read_json, stable_hash, write_text_atomic
+from rapomdp.planning.artefacts import SOLVE_SUMMARY
 from rapomdp.recognition.artefacts import (
     HEMISPHERE_FIGURE,
     METRICS_FILE,
@@ -526,7 +527,7 @@ def _robot_and_solver(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
              "The Panda's reachability of the test viewpoints, coloured by manipulability, with "
              "the arm drawn at a few of its solutions.", how)
     how = f"made by `{cmd} solve -w {b.root}`"
-    bounds = b.json(inputs["solve"] / "solve_summary.json", how)
+    bounds = b.json(inputs["solve"] / SOLVE_SUMMARY, how)
     if bounds is not None:
         rows = [[str(name), _fmt(v.get("lower", "-"), 4), _fmt(v.get("upper", "-"), 4),
                  _fmt(v.get("seconds", "-"), 1), _fmt(v.get("vectors", "-"))]

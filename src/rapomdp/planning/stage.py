@@ -20,7 +20,8 @@ from rich.console import Console
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
 from rapomdp.config import Config
 from rapomdp.context import RunContext
-from rapomdp.io import load_npz, read_json
+from rapomdp.io import load_npz
+from rapomdp.planning.artefacts import load_solve_summary
 from rapomdp.planning.memory import MemoryCapError
 from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recognition_problem
 from rapomdp.planning.workspace import solve_workspace_problems
@@ -127,7 +128,7 @@ def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path,
         )
     except MemoryCapError as exc:
         raise StageError(f"solve: {exc}") from None
-    summary = read_json(out / "solve_summary.json")
+    summary = load_solve_summary(out)
     for name, row in summary.items():
         if row.get("note"):
             Console(stderr=True).print(f"solve {name}: {row['note']}", highlight=False,

@@ -18,6 +18,7 @@ import numpy as np
 from rapomdp.io import write_text_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.ar_solver import solve_active_recognition
+from rapomdp.planning.artefacts import SOLVE_SUMMARY, policy_file
 from rapomdp.planning.memory import DEFAULT_MEMORY_GB
 from rapomdp.planning.momdp import (
     DEFAULT_LAMBDA,
@@ -55,7 +56,7 @@ def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | N
     )
     result = solve_active_recognition(problem, precision, timeout, callback,
                                       max_iterations=max_iterations, memory_gb=memory_gb)
-    result.policy.save(out / f"policy_{name}.npz")
+    result.policy.save(out / policy_file(name))
     return {
         "lower": result.lower,
         "upper": result.upper,
@@ -110,5 +111,5 @@ def solve_workspace_problems(
         rows = [_solve_one(observation_models[n], move_energy, reachable, out, n, *common,
                            callback) for n in names]
     summary = dict(zip(names, rows, strict=True))
-    write_text_atomic(out / "solve_summary.json", json.dumps(summary, indent=2) + "\n")
-    return {name: out / f"policy_{name}.npz" for name in names}
+    write_text_atomic(out / SOLVE_SUMMARY, json.dumps(summary, indent=2) + "\n")
+    return {name: out / policy_file(name) for name in names}
