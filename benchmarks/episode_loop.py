@@ -19,6 +19,7 @@ import torch
 
 from rapomdp.context import default_workers
 from rapomdp.experiment.evaluation import ClosedLoop
+from rapomdp.pipeline import get_stage
 from rapomdp.workspace import Workspace
 
 RESULTS = Path(__file__).parent / "results" / "episode_loop.txt"
@@ -32,9 +33,7 @@ def main() -> None:
     torch.set_num_threads(1)
     ws = Workspace(args.workspace)
     config = ws.config()
-    inputs = {name: ws.require(name) for name in ("dataset", "train", "observe", "vptree",
-                                                    "robot", "solve")}
-    loop = ClosedLoop.load(config, inputs, threads=1)
+    loop = ClosedLoop.load(config, ws.inputs(get_stage("evaluate")), threads=1)
     cnn = loop.recognisers["cnn"]
     pomdp = next(m for k, m in loop.methods.items() if k not in ("static", "random"))
     rng = np.random.default_rng(0)

@@ -9,7 +9,7 @@ from rapomdp.data.dataset import load_dataset
 from rapomdp.data.meshes import bounding_sphere_radius
 from rapomdp.data.training_views import load_training_views
 from rapomdp.pipeline import run_pipeline, stages_up_to
-from rapomdp.workspace import Stage, StageError, Workspace
+from rapomdp.workspace import Stage, StageError, StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT, tiny_config
 
 
@@ -65,10 +65,10 @@ def test_a_failed_stage_leaves_earlier_results_intact(workspace_dir: Path) -> No
     ws = Workspace(workspace_dir)
     cfg = Config()
 
-    def good(config: Config, inputs: dict, out: Path, context: RunContext) -> None:
+    def good(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
         (out / "result.txt").write_text("good")
 
-    def bad(config: Config, inputs: dict, out: Path, context: RunContext) -> None:
+    def bad(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
         (out / "result.txt").write_text("half")
         raise RuntimeError("disk on fire")
 
@@ -89,6 +89,40 @@ def test_missing_inputs_are_named(workspace_dir: Path) -> None:
     with pytest.raises(StageError, match="stage 'dataset' has not been run here; run `rapomdp "
                                          "run --workspace .* --until dataset` first"):
         ws.require("dataset")
+
+
+def test_stage_inputs_are_typed_folders_and_name_a_missing_upstream(tmp_path: Path) -> None:
+    """A stage reads ``inputs.train`` (its folder, or a StageError naming the train stage and
+    the reading one); ``inputs.train_dir`` is None when not given (an optional input)."""
+    inputs = StageInputs("observe", dataset_dir=str(tmp_path), volume_dir=tmp_path / "v")
+    assert inputs.dataset == tmp_path and isinstance(inputs.dataset, Path)  # a str is coerced
+    assert inputs.crossfit_dir is None
+    assert inputs.given() == {"dataset": tmp_path, "volume": tmp_path / "v"}  # pipeline order
+    assert repr(inputs) == (f"StageInputs('observe', dataset_dir={str(tmp_path)!r}, "
+                            f"volume_dir={str(tmp_path / 'v')!r})")
+    with pytest.raises(StageError, match=r"^stage 'observe' needs the folder of stage "
+                                         r"'crossfit', which it was not given: run `rapomdp "
+                                         r"crossfit -w WORKSPACE` first"):
+        inputs.crossfit  # noqa: B018
+    with pytest.raises(StageError, match=r"^this stage needs the folder of stage 'train'"):
+        StageInputs().train  # noqa: B018
+    assert StageInputs.of("train", {"dataset": tmp_path}) == StageInputs(
+        "train", dataset_dir=tmp_path)
+    with pytest.raises(StageError, match=r"stage 'mine' reads 'fig9', which StageInputs has "
+                                         r"no folder for \(it has dataset, render, train"):
+        StageInputs.of("mine", {"fig9": tmp_path})
+
+
+def test_the_workspace_gives_a_stage_the_folders_of_its_graph_inputs(workspace_dir: Path
+                                                                     ) -> None:
+    ws = Workspace(workspace_dir)
+    seen: list[StageInputs] = []
+    ws.run(Stage("dataset", lambda c, i, o, x: seen.append(i)), Config(), context=TEST_CONTEXT)
+    ws.run(Stage("render", lambda c, i, o, x: seen.append(i), inputs=("dataset",)), Config(),
+           context=TEST_CONTEXT)
+    assert seen == [StageInputs("dataset"),
+                    StageInputs("render", dataset_dir=ws.stage_dir("dataset"))]
+    assert ws.inputs(Stage("render", lambda c, i, o, x: None, inputs=("dataset",))) == seen[1]
 
 
 

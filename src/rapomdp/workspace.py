@@ -18,11 +18,11 @@ import os
 import re
 import shutil
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 from rapomdp.config import Config, ConfigError, config_from_dict, read_config_data
 from rapomdp.context import RunContext
@@ -57,12 +57,108 @@ class WorkspaceBusyError(StageError):
     """Another run holds the workspace's lock."""
 
 
+class _Upstream:
+    """A :class:`StageInputs` attribute named after an earlier stage: that stage's folder, or a
+    :class:`StageError` naming the stage when it was not given (a required input)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.stage = name
+
+    @overload
+    def __get__(self, inputs: None, owner: type | None = None) -> _Upstream: ...
+
+    @overload
+    def __get__(self, inputs: StageInputs, owner: type | None = None) -> Path: ...
+
+    def __get__(self, inputs: StageInputs | None, owner: type | None = None
+                ) -> _Upstream | Path:
+        if inputs is None:
+            return self
+        folder: Path | None = getattr(inputs, f"{self.stage}_dir")
+        if folder is None:
+            reader = f"stage '{inputs.stage}'" if inputs.stage else "this stage"
+            raise StageError(
+                f"{reader} needs the folder of stage '{self.stage}', which it was not given: "
+                f"run `rapomdp {self.stage} -w WORKSPACE` first, or pass "
+                f"StageInputs({self.stage}_dir=...)")
+        return folder
+
+
+@dataclass(frozen=True, repr=False)
+class StageInputs:
+    """The folders of the earlier stages a stage reads: one typed attribute per stage.
+
+    ``inputs.train`` is the train stage's folder, or a :class:`StageError` naming the train
+    stage when it was not given; ``inputs.train_dir`` is that folder or None, for an input the
+    stage can do without. ``stage`` names the reading stage in those errors. The pipeline
+    builds one per stage from the stage graph (:meth:`Workspace.inputs`); a library caller
+    names the folders it has: ``StageInputs("solve", observe_dir=..., robot_dir=...)``.
+    """
+
+    stage: str = ""
+    dataset_dir: Path | None = None
+    render_dir: Path | None = None
+    train_dir: Path | None = None
+    classifier_eval_dir: Path | None = None
+    saliency_dir: Path | None = None
+    volume_dir: Path | None = None
+    robot_dir: Path | None = None
+    crossfit_dir: Path | None = None
+    observe_dir: Path | None = None
+    vptree_dir: Path | None = None
+    solve_dir: Path | None = None
+    evaluate_dir: Path | None = None
+
+    dataset = _Upstream()
+    render = _Upstream()
+    train = _Upstream()
+    classifier_eval = _Upstream()
+    saliency = _Upstream()
+    volume = _Upstream()
+    robot = _Upstream()
+    crossfit = _Upstream()
+    observe = _Upstream()
+    vptree = _Upstream()
+    solve = _Upstream()
+    evaluate = _Upstream()
+
+    def __post_init__(self) -> None:
+        for name, folder in self._folders():  # a str from a library caller becomes a Path
+            if folder is not None and not isinstance(folder, Path):
+                object.__setattr__(self, f"{name}_dir", Path(folder))
+
+    def _folders(self) -> Iterator[tuple[str, Path | None]]:
+        for item in fields(self):
+            if item.name.endswith("_dir"):
+                yield item.name.removesuffix("_dir"), getattr(self, item.name)
+
+    @classmethod
+    def of(cls, stage: str, folders: Mapping[str, str | Path]) -> StageInputs:
+        """The inputs of ``stage`` from ``{upstream stage: folder}`` (the stage graph's names);
+        a name that is no pipeline stage raises a :class:`StageError`."""
+        known = [name for name, _ in cls()._folders()]
+        unknown = [name for name in folders if name not in known]
+        if unknown:
+            raise StageError(f"stage '{stage}' reads {', '.join(map(repr, unknown))}, which "
+                             f"StageInputs has no folder for (it has {', '.join(known)})")
+        given: dict[str, Any] = {f"{name}_dir": Path(folder) for name, folder in folders.items()}
+        return cls(stage, **given)
+
+    def given(self) -> dict[str, Path]:
+        """``{stage: folder}`` for every folder given, in pipeline order."""
+        return {name: folder for name, folder in self._folders() if folder is not None}
+
+    def __repr__(self) -> str:  # the folders given only
+        given = "".join(f", {name}_dir={str(folder)!r}" for name, folder in self.given().items())
+        return f"StageInputs({self.stage!r}{given})"
+
+
 @dataclass(frozen=True)
 class Stage:
     """One pipeline stage: reads ``inputs`` (earlier stages) and writes its own folder."""
 
     name: str
-    run: Callable[[Config, dict[str, Path], Path, RunContext], None]
+    run: Callable[[Config, StageInputs, Path, RunContext], None]
     sections: Sequence[str] = ()
     inputs: Sequence[str] = ()
     version: str = "1"
@@ -212,6 +308,10 @@ class Workspace:
     def stage_dir(self, name: str) -> Path:
         return self.root / name
 
+    def inputs(self, stage: Stage) -> StageInputs:
+        """The folders of ``stage``'s inputs here, each a finished stage (:meth:`require`)."""
+        return StageInputs.of(stage.name, {name: self.require(name) for name in stage.inputs})
+
     def require(self, name: str) -> Path:
         """The folder of a finished stage, or an error saying how to make it."""
         record = self.manifest()["stages"].get(name)
@@ -305,7 +405,7 @@ class Workspace:
         if not force and self.is_current(stage, config):
             record = self.manifest()["stages"][stage.name]
             return StageResult(stage.name, key, True, 0.0, record.get("files", []))
-        inputs = {name: self.require(name) for name in stage.inputs}
+        inputs = self.inputs(stage)
         tmp = self.root / f".{stage.name}.tmp-{os.getpid()}"
         try:
             self.root.mkdir(parents=True, exist_ok=True)

@@ -14,8 +14,8 @@ from rapomdp.cli import app
 from rapomdp.config import config_from_dict
 from rapomdp.context import RunContext
 from rapomdp.io import load_npz, read_json
-from rapomdp.pipeline import run_pipeline
-from rapomdp.workspace import Workspace
+from rapomdp.pipeline import get_stage, run_pipeline
+from rapomdp.workspace import StageInputs, Workspace
 from tests.conftest import SMALL_SPLIT, TEST_CONTEXT, TINY_PIPELINE
 
 TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"], "split": SMALL_SPLIT},
@@ -115,7 +115,7 @@ def test_saliency_maps_do_not_depend_on_the_number_of_processes(workspace, tmp_p
     from rapomdp.awareness.stage import run_saliency_stage
 
     config = config_from_dict(TINY)
-    inputs = {name: workspace.require(name) for name in ("dataset", "render", "train")}
+    inputs = workspace.inputs(get_stage("saliency"))
     run_saliency_stage(config, inputs, tmp_path, RunContext(workers=2, progress=False))
     for name in ("bicycle", "teapot"):
         model = _volume_model(workspace, name)
@@ -208,8 +208,9 @@ def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(wor
                                                    **loaded.model_dump(include={
                                                        "evidence", "ra_model",
                                                        "belief_correction"})}})
-    run_crossfit_stage(config, {"dataset": workspace.root / "dataset",
-                                "render": workspace.root / "render"}, tmp_path, TEST_CONTEXT)
+    run_crossfit_stage(config, StageInputs("crossfit", dataset_dir=workspace.root / "dataset",
+                                           render_dir=workspace.root / "render"),
+                       tmp_path, TEST_CONTEXT)
     empty = CrossfitOutcomes.load(tmp_path / "outcomes.npz")
     assert empty.predicted.shape == (0, 10) and read_json(tmp_path / "crossfit.json")[
         "folds"] == 0

@@ -14,7 +14,7 @@ from rapomdp.experiment import evaluation
 from rapomdp.experiment.episode_table import EpisodeTable
 from rapomdp.experiment.evaluation import ClosedLoop, start_viewpoints
 from rapomdp.io import read_json
-from rapomdp.workspace import Workspace
+from rapomdp.workspace import StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT, remote_references
 from tests.experiment.conftest import METHODS
 
@@ -24,9 +24,10 @@ def workspace(pipeline_workspace):
     return pipeline_workspace
 
 
-def _inputs(ws: Workspace) -> dict:
-    return {name: ws.require(name) for name in ("dataset", "train", "observe", "vptree", "robot",
-                                              "solve")}
+def _inputs(ws: Workspace) -> StageInputs:
+    from rapomdp.pipeline import get_stage
+
+    return ws.inputs(get_stage("evaluate"))
 
 
 def test_table1_has_every_method_and_consistent_episodes(workspace) -> None:

@@ -12,7 +12,7 @@ from rapomdp.context import RunContext
 from rapomdp.experiment.readme import BEGIN, END, update_readme
 from rapomdp.io import write_json_atomic
 from rapomdp.pipeline import run_pipeline
-from rapomdp.workspace import Stage, StageError, Workspace
+from rapomdp.workspace import Stage, StageError, StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT, tiny_config
 
 TABLE1 = "| Method | Accuracy [95 % CI] |\n|---|---|\n| Static | 0.421 [0.380, 0.463] |\n"
@@ -22,7 +22,7 @@ PNG = b"\x89PNG\r\n\x1a\n-not-a-real-image-"
 
 
 def _writer(files: dict[str, str | bytes], metrics: dict | None = None):
-    def run(config: Config, inputs: dict[str, Path], out: Path, context: RunContext) -> None:
+    def run(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
         for name, data in files.items():
             (out / name).write_bytes(data if isinstance(data, bytes) else data.encode())
         if metrics is not None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -27,7 +28,6 @@ from rapomdp.experiment.metrics import (  # noqa: E402
     table1_markdown,
 )
 from rapomdp.experiment.report import (  # noqa: E402
-    REPORT_INPUTS,
     Table,
     run_report_stage,
     table_html,
@@ -35,7 +35,7 @@ from rapomdp.experiment.report import (  # noqa: E402
 )
 from rapomdp.io import save_npz, write_json_atomic  # noqa: E402
 from rapomdp.pipeline import get_stage, run_pipeline  # noqa: E402
-from rapomdp.workspace import Stage, StageError, Workspace  # noqa: E402
+from rapomdp.workspace import Stage, StageError, StageInputs, Workspace  # noqa: E402
 from tests.conftest import TEST_CONTEXT, tiny_config  # noqa: E402
 
 QUALITY = """model,log_likelihood,brier,auc,mean_p_correct,accuracy
@@ -76,7 +76,7 @@ def _png(path: Path) -> None:
 
 def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ...],
             episodes: bool = False):
-    def run(config: Config, inputs: dict[str, Path], out: Path, context: RunContext) -> None:
+    def run(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
         if episodes:
             classes = load_dataset(out.parent / "dataset").classes
             save_npz(out / "episodes.npz", **_episodes(classes).arrays())
@@ -124,8 +124,8 @@ def synthetic(tmp_path_factory: pytest.TempPathFactory) -> tuple[Workspace, Conf
     return ws, config
 
 
-def _inputs(ws: Workspace) -> dict[str, Path]:
-    return {name: ws.require(name) for name in REPORT_INPUTS}
+def _inputs(ws: Workspace) -> StageInputs:
+    return ws.inputs(get_stage("report"))
 
 
 def _fake_fig1(calls: list[tuple[str, Path]]):
@@ -227,7 +227,7 @@ def test_missing_files_and_fig1_failures_become_lines(synthetic, tmp_path: Path)
     broken.mkdir()
     save_npz(broken / "episodes.npz",
              **_episodes(load_dataset(ws.require("dataset")).classes).arrays())
-    inputs["evaluate"] = broken
+    inputs = dataclasses.replace(inputs, evaluate_dir=broken)
     # the real Fig. 1 needs the render, saliency and volume stages, absent here
     _, md = write_report(config, inputs, tmp_path / "r")
     text = md.read_text()
@@ -245,10 +245,10 @@ def test_missing_files_and_fig1_failures_become_lines(synthetic, tmp_path: Path)
 def test_a_missing_required_stage_is_named(synthetic, tmp_path: Path) -> None:
     ws, config = synthetic
     inputs = _inputs(ws)
-    del inputs["solve"]
+    inputs = dataclasses.replace(inputs, solve_dir=None)
     with pytest.raises(StageError, match="report: needs the stage.s. solve"):
         run_report_stage(config, inputs, tmp_path / "r", TEST_CONTEXT)
-    inputs["solve"] = tmp_path / "nowhere"
+    inputs = dataclasses.replace(inputs, solve_dir=tmp_path / "nowhere")
     with pytest.raises(StageError, match="solve"):
         write_report(config, inputs, tmp_path / "r")
 

@@ -12,7 +12,7 @@ from rapomdp.io import read_json, save_npz
 from rapomdp.planning.cli import pomdp_app
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import run_solve_stage, workspace_problem
-from rapomdp.workspace import Stage, StageError, Workspace
+from rapomdp.workspace import Stage, StageError, StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT
 
 V, C = 10, 3
@@ -64,9 +64,9 @@ def test_solve_stage_writes_one_policy_per_model(workspace: Workspace, tmp_path:
     cfg = config_from_dict({"solve": {"timeout_s": 3, "wrong_declaration_cost_m": 3.0}})
     out = tmp_path / "solve"
     out.mkdir()
-    run_solve_stage(cfg, {"observe": workspace.stage_dir("observe"),
-                          "vptree": workspace.stage_dir("vptree"),
-                          "robot": workspace.stage_dir("robot")}, out, TEST_CONTEXT)
+    run_solve_stage(cfg, StageInputs("solve", observe_dir=workspace.stage_dir("observe"),
+                                     vptree_dir=workspace.stage_dir("vptree"),
+                                     robot_dir=workspace.stage_dir("robot")), out, TEST_CONTEXT)
     summary = read_json(out / "solve_summary.json")
     assert set(summary) == {"ra", "classifier", "vptree"}  # the default solve.models
     for name, bounds in summary.items():
@@ -139,9 +139,21 @@ def test_export_workspace_problem(workspace: Workspace, tmp_path: Path) -> None:
     assert "has not been run here" in missing.output
 
 
+def test_a_stage_given_no_required_upstream_names_it(workspace: Workspace,
+                                                    tmp_path: Path) -> None:
+    """vptree is optional to the solve stage; robot is not: the error names the stage to run."""
+    inputs = StageInputs("solve", observe_dir=workspace.stage_dir("observe"))
+    with pytest.raises(StageError, match=r"^stage 'solve' needs the folder of stage 'robot', "
+                                         r"which it was not given: run `rapomdp robot -w "
+                                         r"WORKSPACE` first"):
+        run_solve_stage(config_from_dict({}), inputs, tmp_path / "solve", TEST_CONTEXT)
+    assert not (tmp_path / "solve").exists()  # nothing solved, nothing written
+
+
 def test_solve_stage_records_the_memory_note_and_refuses_what_cannot_fit(
         workspace: Workspace, tmp_path: Path) -> None:
-    inputs = {"observe": workspace.stage_dir("observe"), "robot": workspace.stage_dir("robot")}
+    inputs = StageInputs("solve", observe_dir=workspace.stage_dir("observe"),
+                         robot_dir=workspace.stage_dir("robot"))  # no vptree: optional
     out = tmp_path / "solve"
     out.mkdir()
     cfg = config_from_dict({"solve": {"models": ["ra"], "iterations": 3}})

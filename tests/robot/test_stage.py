@@ -13,13 +13,13 @@ from rapomdp.robot.artefacts import ROBOT_ARRAYS, ROBOT_FIGURE, ROBOT_SUMMARY, d
 from rapomdp.robot.energy import movement_energy
 from rapomdp.robot.figures import pick_poses
 from rapomdp.robot.stage import UnreachableError, run_robot_stage, solve_robot
-from rapomdp.workspace import StageError
+from rapomdp.workspace import StageError, StageInputs
 from tests.conftest import TEST_CONTEXT
 
 
 def test_stage_writes_arrays_summary_and_figure(tmp_path: Path) -> None:
     config = Config(viewpoints={"count": 24})
-    run_robot_stage(config, {}, tmp_path, TEST_CONTEXT)
+    run_robot_stage(config, StageInputs("robot"), tmp_path, TEST_CONTEXT)
     arrays = load_robot(tmp_path)
     n = 24
     assert arrays["reachable"].shape == (n,) and arrays["reachable"].dtype == bool

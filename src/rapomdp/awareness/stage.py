@@ -83,7 +83,7 @@ from rapomdp.progress import track
 from rapomdp.recognition.classifier import Classifier, configure_torch
 from rapomdp.recognition.preprocess import input_to_image
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
-from rapomdp.workspace import StageError
+from rapomdp.workspace import StageError, StageInputs
 
 SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency")
 VOLUME_SECTIONS = ("volume",)
@@ -150,22 +150,22 @@ def _saliency_task(config_json: str, render_dir: str, dataset_dir: str, train_di
     return depth.shape[0], seconds
 
 
-def run_saliency_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_saliency_stage(config: Config, inputs: StageInputs, out: Path,
                        context: RunContext) -> None:
     """2D saliency maps of every class's volume model over the training viewsphere, one model
     per task over worker processes (each model has its own seed: the maps do not depend on
     the number of processes)."""
-    dataset = load_dataset(inputs["dataset"])
+    dataset = load_dataset(inputs.dataset)
     cfg = config.saliency
     workers = context.worker_count
     task_threads = context.in_worker().threads if workers > 1 else context.threads
-    tasks = [(config.model_dump_json(), str(inputs["render"]), str(inputs["dataset"]),
-              str(inputs["train"]), str(out), m.file, task_threads)
+    tasks = [(config.model_dump_json(), str(inputs.render), str(inputs.dataset),
+              str(inputs.train), str(out), m.file, task_threads)
              for m in dataset.with_role("volume")]
     done = run_tasks(_saliency_task, tasks, workers, f"saliency ({cfg.method}): volume models",
                      context.progress, context.scheduler)
     total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
-    classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
+    classifier = load_stage_classifier(config, inputs.train, dataset.classes,
                                        context.threads)
     write_json_atomic(out / SALIENCY_FILE, {
         "method": cfg.method, "config": cfg.model_dump(mode="json"),
@@ -201,15 +201,15 @@ def class_volume(dataset: Dataset, views, saliency_dir: Path, class_name: str,  
                            views.intrinsics, grid)
 
 
-def run_volume_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_volume_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
     """One 3D dense saliency volume per class (voxel median of back-projected saliency)."""
-    views = load_training_views(inputs["render"], inputs["dataset"])
+    views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
     start = time.perf_counter()
     info = {}
     for class_name in track(dataset.classes, "volume: classes", context.progress):
-        volume = class_volume(dataset, views, inputs["saliency"], class_name,
+        volume = class_volume(dataset, views, inputs.saliency, class_name,
                               config.volume.resolution)
         volume.save(out / volume_file(class_name))
         info[class_name] = {"grid": volume.grid.to_dict(),
@@ -417,12 +417,12 @@ def observation_evidence(kind: str, volume_labels: np.ndarray, volume_predicted:
     return folded if kind == "crossfit" else Evidence.concatenate([volume, folded])
 
 
-def run_crossfit_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_crossfit_stage(config: Config, inputs: StageInputs, out: Path,
                        context: RunContext) -> None:
     """k classifiers, each labelling at X_rho the training models it did not train on (nothing
     is trained when ``observe.evidence`` is ``volume``: the paper's protocol)."""
     start = time.perf_counter()
-    views = load_training_views(inputs["render"], inputs["dataset"])
+    views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
     if config.observe.evidence == "volume":
         result = CrossfitOutcomes(np.zeros(0, dtype=str), np.zeros(0, np.int64),
@@ -451,21 +451,21 @@ def crossfit_fingerprint(config: Config) -> str:
                         "epochs": cfg.crossfit_epochs})
 
 
-def run_observe_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                       context: RunContext) -> None:
     """Viewpoint scores, the RA variants / Classifier / black-box observation models fitted on
     held-out evidence, their held-out validation and their quality on the test models."""
     from rapomdp.awareness.figures import calibration_figure
 
-    dataset = load_dataset(inputs["dataset"])
-    classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
+    dataset = load_dataset(inputs.dataset)
+    classifier = load_stage_classifier(config, inputs.train, dataset.classes,
                                        context.threads)
-    volumes = {name: SaliencyVolume.load(inputs["volume"] / volume_file(name))
+    volumes = {name: SaliencyVolume.load(inputs.volume / volume_file(name))
                for name in dataset.classes}
-    crossfit = (CrossfitOutcomes.load(inputs["crossfit"] / CROSSFIT_FILE)
-                if "crossfit" in inputs else None)
-    views = (load_training_views(inputs["render"], inputs["dataset"])
-             if "render" in inputs else None)
+    crossfit = (CrossfitOutcomes.load(inputs.crossfit / CROSSFIT_FILE)
+                if inputs.crossfit_dir is not None else None)
+    views = (load_training_views(inputs.render, inputs.dataset)
+             if inputs.render_dir is not None else None)
     result = observe(config, dataset, classifier, volumes, crossfit=crossfit, views=views,
                      progress=context.progress)
     write_quality(result.quality, out / QUALITY_CSV, out / QUALITY_MD)

@@ -32,6 +32,7 @@ from rapomdp.io import (
     write_json_atomic,
 )
 from rapomdp.progress import track
+from rapomdp.workspace import StageInputs
 
 DATASET_FILE = "dataset.json"
 PROCEDURAL_VERSION = "2"
@@ -150,7 +151,7 @@ def _write_mesh(out: Path, rel: str, mesh: trimesh.Trimesh) -> None:
              faces=np.asarray(mesh.faces, dtype=np.int32))
 
 
-def run_dataset_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
                       context: RunContext) -> None:
     """Build the dataset: pick, split, load, normalise and store every model."""
     cfg = config.dataset

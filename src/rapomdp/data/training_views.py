@@ -24,6 +24,7 @@ from rapomdp.geometry.camera import Intrinsics, look_at_many, xtion_intrinsics
 from rapomdp.geometry.viewsphere import viewpoints
 from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
 from rapomdp.progress import track
+from rapomdp.workspace import StageInputs
 
 RENDER_FILE = "render.json"
 
@@ -48,10 +49,10 @@ def render_depth(
     return apply_sensor_noise(depth, angles, noise, rng or np.random.default_rng())
 
 
-def run_render_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_render_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
     """Render every model of the dataset from the training viewsphere."""
-    dataset = load_dataset(inputs["dataset"])
+    dataset = load_dataset(inputs.dataset)
     intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
     cfg = config.render
     for model in track(dataset.models, "render: training viewsphere", context.progress):

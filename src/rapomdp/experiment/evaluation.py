@@ -66,7 +66,7 @@ from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import offered_observation_models
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
-from rapomdp.workspace import StageError
+from rapomdp.workspace import StageError, StageInputs
 
 if TYPE_CHECKING:
     from rapomdp.experiment.metrics import TradeoffPoint
@@ -105,13 +105,17 @@ class ClosedLoop:
     motion: Motion
 
     @classmethod
-    def load(cls, config: Config, inputs: dict[str, Path],
-             threads: int | None = None) -> ClosedLoop:
-        """The closed loop of a workspace's stage folders; the CNN uses ``threads`` threads."""
-        dataset = load_dataset(inputs["dataset"])
-        robot = load_robot(inputs["robot"])
+    def load(cls, config: Config, inputs: StageInputs, threads: int | None = None,
+             sweep_dir: Path | None = None) -> ClosedLoop:
+        """The closed loop of a workspace's stage folders; the CNN uses ``threads`` threads.
+
+        With ``sweep_dir`` (the evaluate stage's ``sweep/``, from :func:`solve_sweep`) the
+        accuracy-energy sweep's settings run alongside Table 1's methods.
+        """
+        dataset = load_dataset(inputs.dataset)
+        robot = load_robot(inputs.robot)
         motion = Motion.from_robot(robot)
-        observation, _ = offered_observation_models(inputs["observe"], inputs.get("vptree"))
+        observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
         cfg = config.evaluate
 
         def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:
@@ -134,21 +138,21 @@ class ClosedLoop:
             return POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
                                METHOD_NAMES[key], recogniser, cfg.revisit)
 
-        methods = {key: method(key, cfg.random.belief_threshold, inputs["solve"])
+        methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}
-        if "sweep" in inputs:  # the accuracy-energy sweep's settings, run alongside
+        if sweep_dir is not None:  # the accuracy-energy sweep's settings, run alongside
             for key, parameter, value, folder in sweep_settings(config):
                 threshold = value if parameter == "threshold" else cfg.random.belief_threshold
-                solve_dir = inputs["sweep"] / folder if folder else inputs["solve"]
+                solve_dir = sweep_dir / folder if folder else inputs.solve
                 methods[sweep_key(key, parameter, value)] = method(key, threshold, solve_dir)
         recognisers: dict[str, Recogniser] = {}
         if any(m.recogniser == "cnn" for m in methods.values()):
-            recognisers["cnn"] = load_stage_classifier(config, inputs["train"], dataset.classes,
+            recognisers["cnn"] = load_stage_classifier(config, inputs.train, dataset.classes,
                                                        threads)
         if any(m.recogniser == VPTREE_RECOGNISER for m in methods.values()):
             from rapomdp.recognition.vptree_stage import load_workspace_vptree
 
-            recognisers[VPTREE_RECOGNISER] = load_workspace_vptree(inputs["vptree"])
+            recognisers[VPTREE_RECOGNISER] = load_workspace_vptree(inputs.vptree)
         return cls(config, dataset, recognisers, methods, motion)
 
     def scene(self, model: ModelEntry) -> TestViews:
@@ -173,34 +177,36 @@ class ClosedLoop:
         return records
 
 
-def _run_models_task(config_json: str, inputs: dict[str, str],
+def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | None,
                      model_files: list[str]) -> list[list[EpisodeRecord]]:
     """A worker's task: load the closed loop once, run each of its test models."""
-    loop = ClosedLoop.load(Config.model_validate_json(config_json),
-                           {k: Path(v) for k, v in inputs.items()}, threads=1)
+    loop = ClosedLoop.load(Config.model_validate_json(config_json), inputs, threads=1,
+                           sweep_dir=sweep_dir)
     by_file = {m.file: m for m in loop.dataset.with_role("test")}
     return [loop.run_model(by_file[name]) for name in model_files]
 
 
-def run_episodes(config: Config, inputs: dict[str, Path],
-                 context: RunContext = RunContext()) -> tuple[list[EpisodeRecord], Dataset]:
-    """Every test model x start x method, over ``context``'s worker processes (each loads the
-    closed loop once and runs a contiguous share of the test models); records in a fixed order
-    (test models as listed, then start, then method), whatever the number of workers."""
-    dataset = load_dataset(inputs["dataset"])
+def run_episodes(config: Config, inputs: StageInputs,
+                 context: RunContext = RunContext(), sweep_dir: Path | None = None
+                 ) -> tuple[list[EpisodeRecord], Dataset]:
+    """Every test model x start x method (and sweep setting, with ``sweep_dir``: see
+    :meth:`ClosedLoop.load`), over ``context``'s worker processes (each loads the closed loop
+    once and runs a contiguous share of the test models); records in a fixed order (test
+    models as listed, then start, then method), whatever the number of workers."""
+    dataset = load_dataset(inputs.dataset)
     models = dataset.with_role("test")
     # On a Dask cluster every test model is a task of its own (the cluster spreads them).
     count = len(models) if context.uses_cluster else min(context.worker_count, len(models))
     if count <= 1 and not context.uses_cluster:
-        loop = ClosedLoop.load(config, inputs, context.threads)
+        loop = ClosedLoop.load(config, inputs, context.threads, sweep_dir)
         per_model = run_tasks(loop.run_model, [(m,) for m in models], 1,
                               "evaluate: test models", context.progress)
     else:
         config_json = config.model_dump_json()
-        paths = {k: str(v) for k, v in inputs.items()}
         shares = [[models[i].file for i in share]
                   for share in np.array_split(np.arange(len(models)), count)]
-        per_share = run_tasks(_run_models_task, [(config_json, paths, share) for share in shares],
+        per_share = run_tasks(_run_models_task, [(config_json, inputs, sweep_dir, share)
+                                                   for share in shares],
                               count, f"evaluate: test models ({count} shares)",
                               context.progress, context.scheduler)
         per_model = [records for share in per_share for records in share]
@@ -236,7 +242,7 @@ def sweep_key(method: str, parameter: str, value: float) -> str:
     return f"{method}@{parameter}={value:g}"
 
 
-def solve_sweep(config: Config, inputs: dict[str, Path], sweep_dir: Path,
+def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
                 context: RunContext = RunContext()) -> None:
     """Solve every POMDP method of the evaluation at every extra λ of the sweep, as the solve
     stage does (``sweep_dir/lambda_<λ>/policy_<method>.npz``)."""
@@ -251,7 +257,7 @@ def solve_sweep(config: Config, inputs: dict[str, Path], sweep_dir: Path,
         variant = config.model_copy(deep=True)
         variant.solve.models = methods
         models, energy, reachable, classes = workspace_arrays(
-            variant, inputs["observe"], inputs["robot"], inputs.get("vptree"))
+            variant, inputs.observe, inputs.robot, inputs.vptree_dir)
         solve = config.solve
         solve_workspace_problems(
             models, energy, reachable, sweep_dir / folder, lambda_=lam, discount=solve.discount,
@@ -295,7 +301,7 @@ def figure_class(config: Config, classes: Sequence[str]) -> str:
     return wanted if wanted in classes else classes[0]
 
 
-def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
                        context: RunContext) -> None:
     """Run every episode, score them, write Table 1, the per-class table and the figures."""
     from rapomdp.experiment import figures
@@ -313,12 +319,12 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
     from rapomdp.io import save_npz, write_json_atomic, write_text_atomic
 
     began = time.perf_counter()
-    run_inputs = dict(inputs)
+    sweep_dir = None
     if sweep_settings(config):
-        solve_sweep(config, inputs, out / "sweep", context)
-        run_inputs["sweep"] = out / "sweep"
+        sweep_dir = out / "sweep"
+        solve_sweep(config, inputs, sweep_dir, context)
     solved_s = time.perf_counter() - began
-    records, dataset = run_episodes(config, run_inputs, context)
+    records, dataset = run_episodes(config, inputs, context, sweep_dir)
     episodes_s = time.perf_counter() - began - solved_s
     methods = list(config.evaluate.methods)
     sweep = [r for r in records if r.method not in methods]
@@ -341,7 +347,7 @@ def run_evaluate_stage(config: Config, inputs: dict[str, Path], out: Path,
     write_text_atomic(out / TRADEOFF_MD, tradeoff_markdown(points))
     figures.tradeoff(points, out / TRADEOFF_FIGURE)
     shown = figure_class(config, dataset.classes)
-    robot = load_robot(inputs["robot"])
+    robot = load_robot(inputs.robot)
     figures.fig3(table, methods, shown, out / FIG3_FILE)
     figures.trajectories(table, methods, shown, robot["directions"],
                          robot["reachable"].astype(bool), out / TRAJECTORIES_FILE)

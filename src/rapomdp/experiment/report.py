@@ -74,7 +74,7 @@ from rapomdp.recognition.artefacts import (
     load_vptree_summary,
 )
 from rapomdp.robot.artefacts import ROBOT_FIGURE, ROBOT_SUMMARY, describe
-from rapomdp.workspace import StageError, Workspace, read_stage_record
+from rapomdp.workspace import StageError, StageInputs, Workspace, read_stage_record
 
 REPORT_SECTIONS = ("seed",)
 REPORT_INPUTS = ("dataset", "train", "classifier_eval", "observe", "robot", "solve", "evaluate")
@@ -299,7 +299,9 @@ def figure_class(evaluation: dict[str, Any] | None, config: Config,
     return drawn if drawn in classes else evaluation_figure_class(config, classes)
 
 
-def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> None:
+def _provenance(builder: _Builder, config: Config, given: dict[str, Path]) -> None:
+    """The configuration hash and every stage's key: the workspace's, then those of the
+    report's input folders (``given``: ``{stage: folder}``) not recorded there."""
     builder.add(Paragraph(
         f"Configuration hash {stable_hash(config.model_dump(mode='json'))[:12]}, "
         f"seed {config.seed}, workspace {builder.root}. Every stage the workspace holds, by "
@@ -308,7 +310,7 @@ def _provenance(builder: _Builder, config: Config, inputs: dict[str, Path]) -> N
     order = sorted((str(record.get("finished", "")), name) for name, record in ran.items()
                    if name != "report" and isinstance(record, dict))
     folders = {name: builder.root / name for _, name in order}
-    folders.update({name: folder for name, folder in inputs.items() if name not in folders})
+    folders.update({name: folder for name, folder in given.items() if name not in folders})
     rows = []
     for name, folder in folders.items():
         try:
@@ -406,7 +408,7 @@ def _evaluation(b: _Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any
     return data
 
 
-def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name: str,
+def _awareness(b: _Builder, config: Config, inputs: StageInputs, class_name: str,
                fig1: Callable[..., tuple[Path, Path]], cmd: str) -> None:
     b.add(Heading("Recognition self-awareness"))
     ws = Workspace(b.root)
@@ -433,24 +435,24 @@ def _awareness(b: _Builder, config: Config, inputs: dict[str, Path], class_name:
     observe_how = f"made by `{cmd} observe -w {b.root}`"
     b.add(Paragraph("How well each observation model predicts the classifier's correctness on "
                     "the test models over X_rho:"))
-    quality = b.load(inputs["observe"] / QUALITY_CSV, lambda p: load_quality(p.parent),
+    quality = b.load(inputs.observe / QUALITY_CSV, lambda p: load_quality(p.parent),
                      observe_how)
     if quality is not None:
         b.add(Table(*quality_cells(quality)))
-    b.figure(inputs["observe"] / CALIBRATION_FIGURE,
+    b.figure(inputs.observe / CALIBRATION_FIGURE,
              "Calibration: the classifier's accuracy per viewpoint-score bin on the held-out "
              "evidence, and the fitted score-to-correctness map of RA-POMDP's model.",
              observe_how)
     _self_awareness(b, inputs, class_name, observe_how)
 
 
-def _self_awareness(b: _Builder, inputs: dict[str, Path], class_name: str, how: str) -> None:
+def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str) -> None:
     """Held-out validation, predicted vs observed P(correct), one class's hemispheres and the
     calibration of every method's final belief."""
     from rapomdp.awareness.quality import expected_calibration_error
     from rapomdp.awareness.report import write_awareness_figures
 
-    observe = inputs["observe"]
+    observe = inputs.observe
     if (observe / VALIDATION_CSV).exists():
         b.add(Paragraph("Held-out validation (what chose RA-POMDP's model): each group of the "
                         "held-out evidence scored by the models fitted without it:"))
@@ -468,7 +470,7 @@ def _self_awareness(b: _Builder, inputs: dict[str, Path], class_name: str, how: 
                  how, rel.name)
         b.figure(hemi, f"Class {class_name}: predicted P(correct) per viewpoint (RA, "
                        f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
-    episodes = inputs["evaluate"] / EPISODES_FILE
+    episodes = inputs.evaluate / EPISODES_FILE
     if episodes.exists():
         table = EpisodeTable.load(episodes)
         rows = []
@@ -484,22 +486,22 @@ def _self_awareness(b: _Builder, inputs: dict[str, Path], class_name: str, how: 
                     rows))
 
 
-def _classifier(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
+def _classifier(b: _Builder, inputs: StageInputs, cmd: str) -> None:
     b.add(Heading("Single-view classifier"))
     how = f"made by `{cmd} classifier_eval -w {b.root}`"
-    metrics = b.load(inputs["classifier_eval"] / METRICS_FILE,
+    metrics = b.load(inputs.classifier_eval / METRICS_FILE,
                      lambda p: load_single_view_metrics(p.parent), how)
     if metrics is not None:
         rows = [[label, _fmt(part.images), _fmt(part.accuracy), _fmt(part.chance)]
                 for part, label in ((metrics.xrho, "test viewpoints X_rho"),
                                     (metrics.sphere, "whole sphere"))]
         b.add(Table(["test views", "images", "accuracy", "chance"], rows))
-    b.figure(inputs["classifier_eval"] / confusion_file("xrho", "png"),
+    b.figure(inputs.classifier_eval / confusion_file("xrho", "png"),
              "Single-view confusion of the classifier on the test models over X_rho.", how)
-    b.figure(inputs["classifier_eval"] / HEMISPHERE_FIGURE,
+    b.figure(inputs.classifier_eval / HEMISPHERE_FIGURE,
              "Single-view accuracy and mean probability of the true class per test viewpoint.",
              how)
-    b.figure(inputs["train"] / TRAINING_FIGURE,
+    b.figure(inputs.train / TRAINING_FIGURE,
              "Training curves: loss and accuracy per epoch.",
              f"made by `{cmd} train -w {b.root}`")
     vptree = b.root / "vptree" / VPTREE_SUMMARY_FILE
@@ -514,20 +516,20 @@ def _classifier(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
         b.missing(f"VP-tree baseline accuracy (vptree/{VPTREE_SUMMARY_FILE} not found)", how)
 
 
-def _robot_and_solver(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
+def _robot_and_solver(b: _Builder, inputs: StageInputs, cmd: str) -> None:
     b.add(Heading("Robot and planner"))
     how = f"made by `{cmd} robot -w {b.root}`"
-    summary = b.json(inputs["robot"] / ROBOT_SUMMARY, how)
+    summary = b.json(inputs.robot / ROBOT_SUMMARY, how)
     if summary is not None:
         try:
             b.add(Paragraph(f"Panda arm: {describe(summary)}."))
         except (KeyError, TypeError) as exc:
             b.missing(f"robot/{ROBOT_SUMMARY} lacks {exc}", how)
-    b.figure(inputs["robot"] / ROBOT_FIGURE,
+    b.figure(inputs.robot / ROBOT_FIGURE,
              "The Panda's reachability of the test viewpoints, coloured by manipulability, with "
              "the arm drawn at a few of its solutions.", how)
     how = f"made by `{cmd} solve -w {b.root}`"
-    bounds = b.json(inputs["solve"] / SOLVE_SUMMARY, how)
+    bounds = b.json(inputs.solve / SOLVE_SUMMARY, how)
     if bounds is not None:
         rows = [[str(name), _fmt(v.get("lower", "-"), 4), _fmt(v.get("upper", "-"), 4),
                  _fmt(v.get("seconds", "-"), 1), _fmt(v.get("vectors", "-"))]
@@ -537,31 +539,30 @@ def _robot_and_solver(b: _Builder, inputs: dict[str, Path], cmd: str) -> None:
               Table(["observation model", "lower", "upper", "seconds", "alpha vectors"], rows))
 
 
-def write_report(config: Config, inputs: dict[str, Path], out: Path,
+def write_report(config: Config, inputs: StageInputs, out: Path,
                  fig1: Callable[..., tuple[Path, Path]] | None = None,
                  command: str = "rapomdp") -> tuple[Path, Path]:
     """Write ``report.md`` and ``report.html`` (and the figures) into ``out``.
 
-    ``inputs`` maps each of :data:`REPORT_INPUTS` to its stage folder in one workspace;
-    a missing one raises :class:`StageError` naming it. ``fig1`` makes Fig. 1 (default
+    ``inputs`` holds the folder of each of :data:`REPORT_INPUTS` in one workspace; a missing
+    one raises :class:`StageError` naming it. ``fig1`` makes Fig. 1 (default
     :func:`~rapomdp.awareness.report.write_fig1`). Returns (html, markdown) paths.
     """
-    missing = [name for name in REPORT_INPUTS if name not in inputs
-               or not Path(inputs[name]).is_dir()]
+    given = inputs.given()
+    missing = [name for name in REPORT_INPUTS if name not in given or not given[name].is_dir()]
     if missing:
         raise StageError(f"report: needs the stage(s) {', '.join(missing)}, which have not "
                          f"run; run `{command} {missing[0]} -w WORKSPACE` first")
-    inputs = {name: Path(inputs[name]) for name in REPORT_INPUTS}
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    root = inputs["dataset"].parent
-    classes = load_dataset(inputs["dataset"]).classes
+    root = inputs.dataset.parent
+    classes = load_dataset(inputs.dataset).classes
     b = _Builder(root, out)
     title = f"rapomdp report: {root.name}"
     b.add(Heading(title, 1))
-    _provenance(b, config, inputs)
+    _provenance(b, config, {name: given[name] for name in REPORT_INPUTS})
     b.add(Paragraph(f"Classes ({len(classes)}): {', '.join(classes)}."))
-    evaluation = _evaluation(b, inputs["evaluate"], command, config.seed)
+    evaluation = _evaluation(b, inputs.evaluate, command, config.seed)
     _awareness(b, config, inputs, figure_class(evaluation, config, classes),
                fig1 or write_fig1, command)
     _classifier(b, inputs, command)
@@ -571,7 +572,7 @@ def write_report(config: Config, inputs: dict[str, Path], out: Path,
     return page, md
 
 
-def run_report_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_report_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
     """The pipeline stage: the report of the workspace the inputs belong to."""
     del context  # one process, no long loops

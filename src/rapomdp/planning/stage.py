@@ -27,7 +27,7 @@ from rapomdp.planning.momdp import ActiveRecognitionProblem, build_active_recogn
 from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE as VPTREE_FILE
 from rapomdp.robot.artefacts import ROBOT_ARRAYS
-from rapomdp.workspace import StageError
+from rapomdp.workspace import StageError, StageInputs
 
 
 def offered_observation_models(observe_dir: Path, vptree_dir: Path | None = None
@@ -106,11 +106,11 @@ def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path, model:
     )
 
 
-def run_solve_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_solve_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
     """Solve the workspace's active-recognition problem once per observation model."""
-    models, energy, reachable, classes = workspace_arrays(config, inputs["observe"],
-                                                         inputs["robot"], inputs.get("vptree"))
+    models, energy, reachable, classes = workspace_arrays(config, inputs.observe,
+                                                         inputs.robot, inputs.vptree_dir)
     try:
         solve_workspace_problems(
             models, energy, reachable, out,

@@ -47,7 +47,7 @@ from rapomdp.recognition.training import (
     train_classifier,
     validation_mask,
 )
-from rapomdp.workspace import StageError, Workspace
+from rapomdp.workspace import StageError, StageInputs, Workspace
 
 TRAIN_SECTIONS = ("seed", "dataset", "camera", "render", "train")
 EVAL_SECTIONS = ("seed", "camera", "render", "viewpoints")
@@ -93,13 +93,13 @@ def load_stage_classifier(config: Config, train_dir: Path, classes: list[str],
     )
 
 
-def run_train_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_train_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
     """Train the depth classifier on the train models' training-viewsphere renders."""
-    views = load_training_views(inputs["render"], inputs["dataset"])
+    views = load_training_views(inputs.render, inputs.dataset)
     classes = views.dataset.classes
     if len(classes) < 2:
-        raise StageError(f"{inputs['dataset']}: training needs at least 2 classes, got {classes}")
+        raise StageError(f"{inputs.dataset}: training needs at least 2 classes, got {classes}")
     data = collect_views(views, "train")
     held = validation_mask(data, config.train.validation_fraction,
                            class_seed(config.seed, "train/validation"))
@@ -134,12 +134,12 @@ def run_train_stage(config: Config, inputs: dict[str, Path], out: Path,
     write_json_atomic(out / METRICS_FILE, metrics)
 
 
-def run_classifier_eval_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_classifier_eval_stage(config: Config, inputs: StageInputs, out: Path,
                               context: RunContext) -> None:
     """Single-view accuracy of the trained classifier on the test models."""
-    views = load_training_views(inputs["render"], inputs["dataset"])
+    views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
-    classifier = load_stage_classifier(config, inputs["train"], dataset.classes,
+    classifier = load_stage_classifier(config, inputs.train, dataset.classes,
                                        context.threads)
     test_models = dataset.with_role("test")
     labels = np.array([dataset.label(m) for m in test_models], dtype=np.int64)

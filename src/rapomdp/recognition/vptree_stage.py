@@ -33,7 +33,7 @@ from rapomdp.recognition.artefacts import (
 )
 from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.recognition.vocabulary_tree import DescriptorParams, VocabularyTreeClassifier
-from rapomdp.workspace import StageError
+from rapomdp.workspace import StageError, StageInputs
 
 VPTREE_SECTIONS = ("seed", "camera", "render", "viewpoints", "vptree")
 
@@ -76,12 +76,12 @@ def xrho_predictions(classifier: VocabularyTreeClassifier, dataset: Dataset,
     return np.array(labels, dtype=np.int64), np.stack(predicted)
 
 
-def run_vptree_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
     """Fit the VP-tree, count its per-viewpoint confusion on the volume models at X_rho."""
     seconds: dict[str, float] = {}
     start = time.perf_counter()
-    views = load_training_views(inputs["render"], inputs["dataset"])
+    views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
     classifier = fit_vptree(config, views, context.progress)
     seconds["fit"] = time.perf_counter() - start

@@ -24,7 +24,7 @@ from rapomdp.robot.energy import joint_distance_matrix, movement_energy, singula
 from rapomdp.robot.figures import pick_poses, plot_robot
 from rapomdp.robot.ik import IKSettings, ViewpointSolutions, arm_skeleton_world, solve_viewpoints
 from rapomdp.robot.scene import Scene
-from rapomdp.workspace import StageError
+from rapomdp.workspace import StageError, StageInputs
 
 
 class UnreachableError(StageError):
@@ -179,7 +179,7 @@ def plot_result(result: RobotResult, config: Config, path: str | Path, arms: int
     )
 
 
-def run_robot_stage(config: Config, inputs: dict[str, Path], out: Path,
+def run_robot_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
     """The pipeline stage: writes robot.npz, robot.json and robot.png into ``out``."""
     del inputs  # the robot stage reads only the configuration
