@@ -11,7 +11,6 @@ from rapomdp.config import Config, ConfigError, config_from_dict
 from rapomdp.io import read_json
 from rapomdp.robot.artefacts import ROBOT_ARRAYS, ROBOT_FIGURE, ROBOT_SUMMARY, describe, load_robot
 from rapomdp.robot.energy import movement_energy
-from rapomdp.robot.figures import pick_poses
 from rapomdp.robot.stage import UnreachableError, run_robot_stage, solve_robot
 from rapomdp.workspace import StageError, StageInputs
 from tests.conftest import TEST_CONTEXT
@@ -70,13 +69,6 @@ def test_robot_section_is_validated() -> None:
         config_from_dict({"robot": {"energy": {"penalty": "cubic"}}})
     with pytest.raises(ConfigError, match="robot.restarts"):
         config_from_dict({"robot": {"restarts": 0}})
-
-
-def test_pick_poses_spans_the_manipulability_range() -> None:
-    m = np.array([0.05, np.nan, 0.09, 0.01, 0.07])
-    reachable = ~np.isnan(m)
-    assert pick_poses(m, reachable, 3).tolist() == [2, 4, 3]  # best, middle, worst
-    assert pick_poses(m, np.zeros(5, dtype=bool)).size == 0
 
 
 def test_config_yaml_round_trip_keeps_the_robot_section() -> None:

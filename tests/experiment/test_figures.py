@@ -1,0 +1,55 @@
+"""Fig. 3's curves from a hand-made episodes table: the padding and the class filter."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from rapomdp.experiment.episode_table import EpisodeTable
+from rapomdp.experiment.figures import belief_curves, fig3
+
+
+def _table() -> EpisodeTable:
+    """Three episodes: ra on class 0 with 1 and 3 images, static on class 1 with 2 images;
+    the belief in the true class is written into the steps."""
+    classes, methods = ["cup", "mug"], ["static", "ra", "random"]
+    method = np.array(["ra", "ra", "static"])
+    class_index = np.array([0, 0, 1])
+    lengths = np.array([1, 3, 2])
+    offsets = np.concatenate([[0], np.cumsum(lengths)])
+    true_belief = np.array([0.9, 0.5, 0.6, 0.7, 0.4, 0.8])
+    beliefs = np.zeros((offsets[-1], 2))
+    for episode, c in enumerate(class_index):
+        rows = slice(offsets[episode], offsets[episode + 1])
+        beliefs[rows, c] = true_belief[rows]
+        beliefs[rows, 1 - c] = 1 - true_belief[rows]
+    n, steps = method.size, int(offsets[-1])
+    return EpisodeTable(
+        classes=classes, methods=methods, method=method, class_index=class_index,
+        model=np.array(["m0", "m1", "m2"]), start=np.zeros(n, np.int64),
+        declared=class_index.copy(), exhausted=np.zeros(n, bool), correct=np.ones(n, bool),
+        belief=true_belief[offsets[1:] - 1], moves=lengths - 1, distance_m=np.zeros(n),
+        energy=np.zeros(n), offsets=offsets, step_viewpoints=np.arange(steps) % 4,
+        step_outputs=beliefs.copy(), step_beliefs=beliefs, cpu_seconds=np.zeros(n))
+
+
+def test_a_declared_episode_keeps_its_final_belief_in_the_mean_curve() -> None:
+    curves = belief_curves(_table(), ["static", "ra", "random"], None)
+    assert list(curves) == ["static", "ra"]  # random ran no episode: no curve
+    # ra: (0.9, 0.9, 0.9) padded and (0.5, 0.6, 0.7) averaged step by step
+    np.testing.assert_allclose(curves["ra"], [0.7, 0.75, 0.8])
+    np.testing.assert_allclose(curves["static"], [0.4, 0.8])
+
+
+def test_the_class_filter_keeps_that_class_only() -> None:
+    curves = belief_curves(_table(), ["static", "ra"], 1)
+    assert list(curves) == ["static"]
+    np.testing.assert_allclose(curves["static"], [0.4, 0.8])
+
+
+def test_fig3_draws_both_panels_from_the_table(tmp_path: Path) -> None:
+    path = fig3(_table(), ["static", "ra"], "mug", tmp_path / "fig3.png")
+    with Image.open(path) as image:  # two side-by-side panels: wider than tall
+        assert image.format == "PNG" and image.width > 2 * image.height
