@@ -28,11 +28,13 @@ class ConfigError(ValueError):
 class SplitConfig(Section):
     """Models per class for each role, and what becomes of a class's models beyond their total
     (a folder with more): ``train`` adds them to the training models, ``drop`` leaves them out.
-    Default 4 / 1 / 4: 4 test models a class for paired statistics over test models (the
-    paper's 3 / 1 / 1 is ``configs/paper.yaml``)."""
+    Default 4 / 3 / 4: 4 test models a class for paired statistics over test models, 3 volume
+    models a class as held-out evidence of the trained classifier (the first of them also
+    makes the saliency volume, ``volume.models_per_class``); the paper's 3 / 1 / 1 is
+    ``configs/paper.yaml``."""
 
     train: int = Field(4, ge=1)
-    volume: int = Field(1, ge=1)
+    volume: int = Field(3, ge=1)
     test: int = Field(4, ge=1)
     extra: Literal["train", "drop"] = "train"
 
@@ -190,6 +192,9 @@ class VolumeConfig(Section):
     """The 3D dense saliency volume: voxels along the object's longest side (paper: 25-80)."""
 
     resolution: int = Field(40, ge=2, le=256)
+    models_per_class: int | None = Field(
+        1, ge=1, description="volume models per class whose saliency maps the volume fuses "
+        "(the first ones; null: all). The others are held-out evidence only")
 
 
 class ObserveConfig(Section):
@@ -201,8 +206,9 @@ class ObserveConfig(Section):
     confusion_pseudo_count: float = Field(
         1.0, ge=0, description="RA / black-box: pseudo-count per (class, label) of the confusion")
     evidence: Literal["volume", "crossfit", "both"] = Field(
-        "both", description="held-out evidence the models are fitted on: the volume models "
-        "under the classifier (the paper's), cross-fitted training models, or both")
+        "volume", description="held-out evidence the models are fitted on: the volume models "
+        "under the trained classifier (dataset.split.volume a class), cross-fitted training "
+        "models (weaker fold classifiers), or both")
     crossfit_folds: int = Field(3, ge=2, description="cross-fitting folds over training models")
     crossfit_epochs: int = Field(
         6, ge=1, description="epochs of each fold's classifier (the demo's time budget)")
@@ -210,12 +216,15 @@ class ObserveConfig(Section):
         False, description="also fit ra_contrastive: each class's saliency volume against its "
         "most confused class (one more mask per volume-model view)")
     ra_model: Literal["auto", "paper", "class", "area", "class_area", "contrastive",
-                      "viewpoint"] = Field(
+                      "viewpoint", "transfer"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")
-    belief_correction: Literal["none", "temperature"] = Field(
-        "temperature", description="temperature: every model's likelihoods raised to a power "
-        "fitted on held-out multi-view episodes (correlated views count less than independent)")
+    belief_correction: Literal["auto", "none", "temperature", "after_first"] = Field(
+        "none", description="none: naive Bayes (chosen on the held-out closed loop, "
+        "docs/awareness.md §4.5); temperature: every model's likelihoods raised to a power fitted "
+        "on held-out multi-view walks (correlated views count less than independent ones); "
+        "after_first: the first view in full, the later ones tempered; auto: per model, the "
+        "one of least held-out belief log loss")
 
 
 Vector3 = tuple[float, float, float]
@@ -306,7 +315,8 @@ class SolveConfig(Section):
     """The active-recognition POMDP built from the workspace, and its solver."""
 
     wrong_declaration_cost_m: float = Field(
-        2.0, gt=0, description="lambda (Eq. 1): a wrong declaration's cost, in metres of E_M")
+        8.0, gt=0, description="lambda (Eq. 1): a wrong declaration's cost, in metres of E_M "
+        "(Table 1's; chosen on held-out episodes, docs/experiment.md)")
     discount: float = Field(0.95, gt=0, lt=1)
     precision: float = Field(1e-3, gt=0, description="stop when upper - lower is below this")
     iterations: int | None = Field(

@@ -6,15 +6,20 @@ import numpy as np
 import pytest
 
 from rapomdp.awareness.evidence import (
+    TRANSFER_PRIOR,
     Evidence,
     belief_log_loss,
+    choose_belief_correction,
     choose_ra_variant,
     fit_observation_models,
     fit_temperature,
     leave_one_group_out,
     random_walks,
+    salient_view_similarity,
     temper,
+    transfer_confusion,
     validation_quality,
+    walk_log_beliefs,
 )
 from rapomdp.awareness.observation import calibrate_correctness, calibrate_per_class
 from rapomdp.config import ObserveConfig
@@ -157,3 +162,83 @@ def test_viewpoint_evidence_is_stacked_on_other_groups_and_finds_a_bad_patch():
     assert fused.correct[0, bad].mean() < 0.45 < 0.75 < fused.correct[0, ~bad].mean()
     single = Evidence(labels, predicted, np.zeros(8, np.int64))
     assert fit_viewpoint_correctness(single, flat, 2, directions) is None
+
+
+def test_salient_view_similarity_is_one_for_the_same_parts_and_zero_for_disjoint_ones():
+    seen = np.array([[1.0, 2.0, 0.0, 0.0], [2.0, 4.0, 0.0, 0.0], [0.0, 0.0, 3.0, 1.0]])
+    sim = salient_view_similarity(seen)
+    assert sim[0, 1] == pytest.approx(1.0)
+    assert sim[0, 2] == pytest.approx(0.0)
+    assert np.allclose(np.diag(sim), 1.0)
+    assert np.allclose(sim, sim.T)
+
+
+def test_transfer_shares_evidence_between_views_that_see_the_same_saliency_only():
+    # two classes, 4 viewpoints at one direction (no geometric preference): views 0-1 see
+    # one salient part, views 2-3 another; class 0 is mistaken for class 1 at view 0 only
+    directions = np.tile([[0.0, 0.0, 1.0]], (4, 1))
+    block = np.kron(np.eye(2), np.ones((2, 2)))  # similarity 1 within a part, 0 across
+    similarity = np.stack([block, block])
+    labels = np.zeros(20, np.int64)
+    predicted = np.zeros((20, 4), np.int64)
+    predicted[:, 0] = 1  # always wrong at view 0, always right elsewhere
+    evidence = Evidence(labels, predicted, np.arange(20))
+    p = transfer_confusion(evidence, similarity, directions, pseudo_count=1.0)
+    assert np.allclose(p.sum(axis=2), 1.0)
+    # views 0 and 1 pool 20 wrong + 20 right labels; views 2 and 3 pool 40 right ones
+    row = np.array([61.0, 21.0]) / 82.0  # class 0's confusion row: 60 right, 20 wrong, +1 each
+    expected_01 = (np.array([20.0, 20.0]) + TRANSFER_PRIOR * row) / (40 + TRANSFER_PRIOR)
+    expected_23 = (np.array([40.0, 0.0]) + TRANSFER_PRIOR * row) / (40 + TRANSFER_PRIOR)
+    assert np.allclose(p[0, 0], expected_01) and np.allclose(p[1, 0], expected_01)
+    assert np.allclose(p[2, 0], expected_23) and np.allclose(p[3, 0], expected_23)
+    # class 1 has no evidence: its confusion row's pseudo-counts, uniform
+    assert np.allclose(p[:, 1], 0.5)
+
+
+def test_evidence_groups_volume_models_by_rank_and_folds_after_them():
+    from rapomdp.awareness.crossfit import CrossfitOutcomes
+    from rapomdp.awareness.stage import observation_evidence
+
+    labels = np.array([0, 0, 1, 1])
+    predicted = np.zeros((4, 3), np.int64)
+    rank = np.array([0, 1, 0, 1])
+    crossfit = CrossfitOutcomes(np.array(["m1", "m2"]), np.array([0, 1]), np.array([0, 1]),
+                                np.zeros((2, 3), np.int64), [])
+    both = observation_evidence("both", labels, predicted, crossfit, rank)
+    assert both.groups.tolist() == [0, 1, 0, 1, 2, 3]
+    assert both.volume_mask.tolist() == [True] * 4 + [False] * 2
+    volume = observation_evidence("volume", labels, predicted, None, rank)
+    assert volume.groups.tolist() == [0, 1, 0, 1] and volume.volume_mask.all()
+    assert volume.subset(np.array([False, True, True, False])).volume_mask.tolist() == [True,
+                                                                                       True]
+
+
+def test_after_first_leaves_independent_evidence_alone_and_discounts_only_later_views():
+    rng = np.random.default_rng(13)
+    views, classes, rows = 20, 3, 400
+    p = _planted_model(views, classes, rng)
+    labels = rng.integers(0, classes, rows)
+    predicted = _draw_labels(p, labels, rng)
+    walk_row = np.repeat(np.arange(rows), 4)
+    walks = np.stack([rng.permutation(views)[:6] for _ in walk_row])
+    row_model = np.zeros(rows, np.int64)
+    independent = fit_temperature([p], row_model, labels, predicted, walks, walk_row,
+                                  first_temperature=1.0)
+    assert independent == pytest.approx(1.0, abs=0.12)
+    # every later view repeats the first view's label: only the first one is evidence
+    repeated = np.repeat(predicted[:, :1], views, axis=1)
+    shrunk = fit_temperature([p], row_model, labels, repeated, walks, walk_row,
+                             first_temperature=1.0)
+    assert shrunk < 0.3
+    # the first step's belief is the single-view posterior whatever the later temperature
+    first = [walk_log_beliefs(t, [p], row_model, repeated, walks, walk_row, 1.0)[:, 0]
+             for t in (1.0, shrunk)]
+    assert np.allclose(first[0], first[1])
+
+
+def test_belief_correction_auto_takes_the_least_held_out_loss():
+    report = {"log_loss_naive": 1.2, "log_loss_tempered": 1.0,
+              "after_first_log_loss_tempered": 0.9}
+    assert choose_belief_correction(report, "auto") == "after_first"
+    assert choose_belief_correction({**report, "log_loss_naive": 0.5}, "auto") == "none"
+    assert choose_belief_correction(report, "temperature") == "temperature"

@@ -19,9 +19,11 @@ from rapomdp.workspace import StageInputs, Workspace
 from tests.conftest import SMALL_SPLIT, TEST_CONTEXT, TINY_PIPELINE
 
 TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"], "split": SMALL_SPLIT},
-        "viewpoints": {"count": 10}}
-MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint", "classifier",
-          "blackbox")
+        "viewpoints": {"count": 10},
+        # the cross-fitted evidence too (the default is the volume models alone)
+        "observe": {**TINY_PIPELINE["observe"], "evidence": "both"}}
+MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint",
+          "ra_transfer", "classifier", "blackbox")
 
 
 @pytest.fixture(scope="module")
@@ -64,6 +66,12 @@ def test_observation_models_follow_the_planner_contract(workspace):
     assert data["scores"].shape == (2, 10)
     assert data["scores"].min() >= 0 and data["scores"].max() <= 1
     assert data["directions"].shape == (10, 3) and np.all(data["directions"][:, 2] >= 0)
+    similarity = data["view_similarity"]
+    assert similarity.shape == (2, 10, 10) and np.allclose(np.diagonal(similarity, 0, 1, 2), 1,
+                                                           atol=1e-5)
+    for name in data["models"]:  # the belief's first update: a model of the same shape
+        first = data[f"first_view_{name}"]
+        assert first.shape == data[name].shape and np.allclose(first.sum(axis=2), 1)
     models = load_observation_models(workspace.root / "observe" / "observation_models.npz")
     assert set(models) == set(MODELS)
     with open(workspace.root / "observe" / "quality.csv") as handle:
@@ -220,3 +228,15 @@ def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(wor
     assert np.allclose(data["ra"], data["ra_paper"])
     assert not (workspace.root / "observe" / "validation.md").exists()
     run_pipeline(config_from_dict(TINY), workspace, until="observe")  # back to the default
+
+
+def test_saliency_volumes_use_each_classs_first_volume_models_only():
+    from types import SimpleNamespace
+
+    from rapomdp.awareness.stage import saliency_models
+
+    models = [SimpleNamespace(class_name=c, id=f"{c}{i}") for c in "ab" for i in range(3)]
+    dataset = SimpleNamespace(with_role=lambda role: models if role == "volume" else [])
+    assert [m.id for m in saliency_models(dataset, 1)] == ["a0", "b0"]
+    assert [m.id for m in saliency_models(dataset, 2)] == ["a0", "a1", "b0", "b1"]
+    assert len(saliency_models(dataset, None)) == 6

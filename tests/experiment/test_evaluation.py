@@ -90,9 +90,9 @@ def test_the_sweep_writes_one_curve_per_method_with_one_point_per_setting(worksp
     assert curves["static"] == [0.0]
     assert curves["random"] == [0.6, 0.9]  # the sweep's stop belief and Table 1's
     for method in ("vptree", "classifier", "ra"):
-        assert curves[method] == [1.0, 2.0, 6.0]  # one point per λ, Table 1's λ = 2 among them
+        assert curves[method] == [1.0, 2.0, 6.0, 8.0]  # one point per λ and Table 1's (8)
         assert (out / "sweep" / "lambda_6" / f"policy_{method}.npz").exists()
-    assert not (out / "sweep" / "lambda_2").exists()  # Table 1's policies are the solve stage's
+    assert not (out / "sweep" / "lambda_8").exists()  # Table 1's policies are the solve stage's
     # Table 1's points are its rows; every point ran from all (test model, start) pairs
     with open(out / "table1.csv") as handle:
         table = {r["method"]: r for r in csv.DictReader(handle)}

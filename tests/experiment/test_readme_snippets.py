@@ -123,7 +123,9 @@ def test_the_awareness_docs_run_as_written(reader_folder) -> None:
     assert namespace["pixels"].shape == namespace["depth"].shape
     assert namespace["score"].shape == (16,) and np.nanmax(namespace["score"]) <= 1.0
     assert namespace["likelihood"].shape == (3,) and (namespace["likelihood"] > 0).all()
-    assert len(namespace["outcomes"].labels) > 0  # the tiny pipeline cross-fits its models
+    similarity = namespace["similarity"]  # ra_transfer's kernel: 1 on the diagonal
+    assert similarity.shape[1] == similarity.shape[2]
+    assert np.allclose(np.diagonal(similarity, 0, 1, 2), 1.0, atol=1e-5)
 
 
 def test_the_cluster_snippets_are_valid_python_for_their_libraries() -> None:

@@ -170,7 +170,7 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
     for stage in ("dataset", "train", "classifier_eval", "robot", "solve", "evaluate"):
         assert re.search(rf"^\| {stage} \| [0-9a-f]{{12}} \|", text, flags=re.M), stage
     assert "```yaml\nseed: 3  # every stage" in text
-    assert "wrong_declaration_cost_m: 2.0  # lambda" in text
+    assert "wrong_declaration_cost_m: 8.0  # lambda" in text
     assert "<details><summary>The configuration of this run" in html
     assert "| test viewpoints X_rho | 48 | 0.646 | 0.333 |" in text
     assert "| ra | -3.2100 | -3.2000 | 1.5 | 40 |" in text

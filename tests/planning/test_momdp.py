@@ -112,9 +112,9 @@ def test_one_default_lambda_everywhere() -> None:
     from rapomdp.planning.momdp import ActiveRecognitionProblem
     from rapomdp.planning.workspace import solve_workspace_problems
 
-    assert Config().solve.wrong_declaration_cost_m == DEFAULT_LAMBDA == 2.0
+    assert Config().solve.wrong_declaration_cost_m == DEFAULT_LAMBDA == 8.0
     model = np.full((2, 2, 2), 0.5)
     assert build_active_recognition_problem(model, np.ones((2, 2))).lambda_ == DEFAULT_LAMBDA
-    assert ActiveRecognitionProblem(model, np.ones((2, 2)), np.ones(2, bool)).lambda_ == 2.0
+    assert ActiveRecognitionProblem(model, np.ones((2, 2)), np.ones(2, bool)).lambda_ == 8.0
     default = inspect.signature(solve_workspace_problems).parameters["lambda_"].default
     assert default == DEFAULT_LAMBDA

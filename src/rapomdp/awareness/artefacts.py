@@ -4,7 +4,8 @@ report, the command line and later stages go through (NumPy and JSON only: no to
 ``W/saliency/``: ``maps/<class>/<model>.npz`` (:func:`saliency_map_file`), :data:`SALIENCY_FILE`.
 ``W/volume/``: ``<class>.npz`` (:func:`volume_file`), :data:`VOLUME_FILE`.
 ``W/observe/``: :data:`OBSERVATION_FILE` (every observation model (V, C, C) by name, ``models``,
-``classes``, ``scores``, ``directions``, ...), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
+``classes``, ``scores``, ``directions``, ..., and per model ``first_view_<name>``: the model of
+the belief's first update, :data:`FIRST_VIEW_PREFIX`), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
 self-awareness table, :func:`load_quality`), :data:`CALIBRATION_FILE`,
 :data:`CALIBRATION_FIGURE`, :data:`TIMING_FILE`.
 """
@@ -19,6 +20,9 @@ from rapomdp.io import ArtefactError
 SALIENCY_FILE = "saliency.json"
 VOLUME_FILE = "volume.json"
 OBSERVATION_FILE = "observation_models.npz"
+#: Prefix of each model's first-update array in :data:`OBSERVATION_FILE` (the planner's model
+#: when every view is discounted alike; the single-view model with ``after_first``).
+FIRST_VIEW_PREFIX = "first_view_"
 QUALITY_CSV = "quality.csv"
 QUALITY_MD = "quality.md"
 VALIDATION_CSV = "validation.csv"

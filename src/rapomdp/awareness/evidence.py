@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
 from scipy.optimize import minimize_scalar
 
 from rapomdp.awareness.observation import (
@@ -22,6 +23,7 @@ from rapomdp.awareness.observation import (
     ClassifierObservationModel,
     ObservationModel,
     RAObservationModel,
+    TransferObservationModel,
     calibrate_correctness,
     calibrate_per_class,
     newton_logistic,
@@ -37,6 +39,7 @@ RA_VARIANTS = {
     "class_area": ("area", True),  # the salient area seen + per-class intercepts
     "contrastive": ("contrastive", True),  # a class against its most confused (observe.contrastive)
     "viewpoint": ("area", True),  # + the held-out per-viewpoint evidence, stacked
+    "transfer": ("similarity", False),  # whole rows shared by views that see the same saliency
 }
 """RA variant -> (viewpoint score it calibrates, per-class intercepts?)."""
 
@@ -46,14 +49,29 @@ TEMPERATURE_BOUNDS = (0.05, 2.0)
 @dataclass
 class Evidence:
     """Held-out outcomes: true ``labels`` (N,), the classifier's ``predicted`` labels (N, V),
-    each row's ``groups`` (N,) (0: volume models, f + 1: cross-fitting fold f)."""
+    each row's ``groups`` (N,) — the units of leave-one-group-out validation (the k-th volume
+    model of every class is group k; cross-fitting fold f follows them) — and ``from_volume``
+    (N,): the row is a volume model under the trained classifier itself (default: group 0)."""
 
     labels: np.ndarray
     predicted: np.ndarray
     groups: np.ndarray
+    from_volume: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.from_volume is None:
+            self.from_volume = np.asarray(self.groups) == 0
+        self.from_volume = np.asarray(self.from_volume, dtype=bool)
+
+    @property
+    def volume_mask(self) -> np.ndarray:
+        """(N,) bool: the rows labelled by the trained classifier (the volume models)."""
+        assert self.from_volume is not None
+        return self.from_volume
 
     def subset(self, mask: np.ndarray) -> Evidence:
-        return Evidence(self.labels[mask], self.predicted[mask], self.groups[mask])
+        return Evidence(self.labels[mask], self.predicted[mask], self.groups[mask],
+                        self.volume_mask[mask])
 
     @property
     def correct(self) -> np.ndarray:
@@ -63,7 +81,8 @@ class Evidence:
     def concatenate(cls, parts: Sequence[Evidence]) -> Evidence:
         return cls(np.concatenate([p.labels for p in parts]),
                    np.concatenate([p.predicted for p in parts]),
-                   np.concatenate([p.groups for p in parts]))
+                   np.concatenate([p.groups for p in parts]),
+                   np.concatenate([p.volume_mask for p in parts]))
 
 
 VIEWPOINT_BANDWIDTH_DEG = 20.0
@@ -141,21 +160,65 @@ def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: in
     return FixedCorrectness(1.0 / (1.0 + np.exp(-z)), w[:classes].copy(), w[classes:].copy())
 
 
+SALIENT_VIEW_POWER = 4.0
+"""Exponent on the cosine similarity of two viewpoints' seen saliency in ``ra_transfer``'s
+kernel (chosen on held-out log-likelihood of the first-generation default's evidence)."""
+TRANSFER_PRIOR = 4.0
+"""Pseudo-observations of the class's viewpoint-free confusion row in each ``ra_transfer``
+row (shrinks a viewpoint with little evidence toward the class's confusion)."""
+
+
+def salient_view_similarity(seen_saliency: np.ndarray | sparse.spmatrix) -> np.ndarray:
+    """Cosine similarity (V, V) of the saliency each viewpoint sees: ``seen_saliency``
+    (V, voxels), dense or sparse, = visibility x voxel saliency of a class's volume (1: the
+    same salient parts)."""
+    f = sparse.csr_matrix(seen_saliency, dtype=np.float64)
+    gram = np.asarray((f @ f.T).todense())
+    norm = np.sqrt(np.diag(gram)) + 1e-12
+    return np.clip(gram / norm[:, None] / norm[None, :], 0.0, 1.0)
+
+
+def transfer_confusion(evidence: Evidence, similarity: np.ndarray, directions: np.ndarray,
+                       pseudo_count: float) -> np.ndarray:
+    """``ra_transfer``: P(o | c, x) (V, C, C) from the held-out labels at *every* viewpoint,
+    each weighted by how alike the saliency it sees is to x's (``similarity`` (C, V, V) from
+    :func:`salient_view_similarity`, raised to :data:`SALIENT_VIEW_POWER`) and how near it is
+    (Gaussian in the angle, :data:`VIEWPOINT_BANDWIDTH_DEG`), shrunk to the class's confusion
+    row by :data:`TRANSFER_PRIOR` pseudo-observations. Views that see the same salient parts
+    share their evidence — the recognition-aware prior on where the classifier errs alike."""
+    c, v = similarity.shape[0], similarity.shape[1]
+    counts = np.zeros((v, c, c))
+    x = np.broadcast_to(np.arange(v)[None], evidence.predicted.shape)
+    t = np.broadcast_to(evidence.labels[:, None], evidence.predicted.shape)
+    np.add.at(counts, (x, t, evidence.predicted), 1.0)
+    d = np.asarray(directions, dtype=np.float64)
+    angle = np.degrees(np.arccos(np.clip(d @ d.T, -1.0, 1.0)))
+    kernel = np.asarray(similarity) ** SALIENT_VIEW_POWER * np.exp(
+        -0.5 * (angle / VIEWPOINT_BANDWIDTH_DEG) ** 2)[None]  # (C, V, V)
+    smoothed = np.einsum("cuv,vco->uco", kernel, counts)
+    row = counts.sum(axis=0) + pseudo_count
+    row /= row.sum(axis=1, keepdims=True)  # (C, C) the class's confusion
+    return (smoothed + TRANSFER_PRIOR * row[None]) / (
+        smoothed.sum(axis=2, keepdims=True) + TRANSFER_PRIOR)
+
+
 def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
                            classes: Sequence[str], cfg: ObserveConfig,
                            directions: np.ndarray | None = None
                            ) -> dict[str, ObservationModel]:
     """Every RA variant (``ra_<variant>``), the Classifier and the black-box model, fitted on
     ``evidence``; ``scores`` holds the per-class normalised viewpoint scores (C, V) by kind
-    (``mean``, ``area``). ``ra_viewpoint`` needs the viewpoints' ``directions`` and two
-    groups of evidence."""
+    (``mean``, ``area``) and, under ``similarity``, the (C, V, V) saliency similarity of the
+    viewpoints (:func:`salient_view_similarity`). ``ra_viewpoint`` needs the viewpoints'
+    ``directions`` and two groups of evidence, ``ra_transfer`` the directions and the
+    similarity."""
     labels, predicted = evidence.labels, evidence.predicted
     rows = np.broadcast_to(labels[:, None], predicted.shape)
     correct = predicted == rows
     wrong = wrong_label_distribution(rows, predicted, len(classes), cfg.confusion_pseudo_count)
     models: dict[str, ObservationModel] = {}
     for variant, (kind, per_class) in RA_VARIANTS.items():
-        if kind not in scores or variant == "viewpoint":
+        if kind not in scores or variant in ("viewpoint", "transfer"):
             continue
         s = scores[kind]
         calibration = (calibrate_per_class(s[labels], correct, rows, len(classes)) if per_class
@@ -166,6 +229,10 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
         fused = fit_viewpoint_correctness(evidence, scores[kind], len(classes), directions)
         if fused is not None:
             models["ra_viewpoint"] = RAObservationModel(scores[kind], fused, wrong, classes)
+        if "similarity" in scores:  # (C, V, V), not a score: only ra_transfer reads it
+            models["ra_transfer"] = TransferObservationModel(
+                transfer_confusion(evidence, scores["similarity"], directions,
+                                   cfg.confusion_pseudo_count), classes)
     models["classifier"] = ClassifierObservationModel(labels, predicted, classes,
                                                       cfg.classifier_pseudo_count)
     models["blackbox"] = BlackBoxObservationModel(labels, predicted, classes,
@@ -230,6 +297,17 @@ def choose_ra_variant(validation: list[dict[str, float | str]], configured: str)
         return "paper"
     best = max(ra, key=lambda r: float(r["log_likelihood"]))
     return str(best["model"]).removeprefix("ra_")
+
+
+def choose_belief_correction(report: dict[str, float], configured: str) -> str:
+    """The configured belief correction, or with ``auto`` the one of least held-out belief log
+    loss on the walks of :func:`held_out_temperatures` (``report``: one model's row, the
+    ``after_first`` fit's keys prefixed ``after_first_``)."""
+    if configured != "auto":
+        return configured
+    losses = {"none": report["log_loss_naive"], "temperature": report["log_loss_tempered"],
+              "after_first": report["after_first_log_loss_tempered"]}
+    return min(losses, key=losses.__getitem__)
 
 
 # -- the classifier's level ----------------------------------------------------------------
@@ -305,12 +383,9 @@ def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighb
     return walks
 
 
-def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
-                     predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray
-                     ) -> np.ndarray:
-    """Log beliefs (E, L, C) after every step of every walk, from a uniform prior, updated by
-    Eq. 5 with the tempered models (row r of the outcomes uses ``models[row_model[r]]``). A
-    viewpoint a walk stays on adds no evidence (the sensor would see the same image)."""
+def _log_likelihoods(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
+                     predicted: np.ndarray) -> np.ndarray:
+    """log P(observed label | c, x) (N, V, C) of every outcome row under its tempered model."""
     loglik = np.empty(predicted.shape + (models[0].shape[1],))  # (N, V, C)
     for m, p in enumerate(models):
         rows = np.flatnonzero(row_model == m)
@@ -319,7 +394,22 @@ def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model
         log_p = np.log(np.maximum(temper(p, temperature), 1e-300))  # (V, C, O)
         x = np.arange(p.shape[0])[None, :]
         loglik[rows] = log_p[x, :, predicted[rows]]  # (R, V, C)
+    return loglik
+
+
+def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
+                     predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
+                     first_temperature: float | None = None) -> np.ndarray:
+    """Log beliefs (E, L, C) after every step of every walk, from a uniform prior, updated by
+    Eq. 5 with the tempered models (row r of the outcomes uses ``models[row_model[r]]``); with
+    ``first_temperature`` the first view is tempered by it instead (1: the single-view model,
+    later views discounted alone). A viewpoint a walk stays on adds no evidence (the sensor
+    would see the same image)."""
+    loglik = _log_likelihoods(temperature, models, row_model, predicted)
     steps = loglik[walk_row[:, None], walks]  # (E, L, C)
+    if first_temperature is not None:
+        first = _log_likelihoods(first_temperature, models, row_model, predicted)
+        steps[:, 0] = first[walk_row, walks[:, 0]]
     repeat = np.zeros(walks.shape, dtype=bool)
     repeat[:, 1:] = walks[:, 1:] == walks[:, :-1]
     steps = np.where(repeat[..., None], 0.0, steps)
@@ -330,21 +420,25 @@ def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model
 
 def belief_log_loss(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                     labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
-                    walk_row: np.ndarray) -> float:
+                    walk_row: np.ndarray, first_temperature: float | None = None) -> float:
     """Mean −log belief in the true class after every step of every walk
     (:func:`walk_log_beliefs`)."""
-    log_belief = walk_log_beliefs(temperature, models, row_model, predicted, walks, walk_row)
+    log_belief = walk_log_beliefs(temperature, models, row_model, predicted, walks, walk_row,
+                                  first_temperature)
     return float(-np.mean(log_belief[np.arange(len(walks)), :, labels[walk_row]]))
 
 
 def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels: np.ndarray,
                     predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
-                    bounds: tuple[float, float] = TEMPERATURE_BOUNDS) -> float:
+                    bounds: tuple[float, float] = TEMPERATURE_BOUNDS,
+                    first_temperature: float | None = None) -> float:
     """The temperature that minimises :func:`belief_log_loss` on held-out walks (bounded 1-D
     search). Evidence that is independent and drawn from the model gives ~1; evidence that
-    repeats itself gives less."""
+    repeats itself gives less. With ``first_temperature`` only the views after the first are
+    tempered by the fit."""
     result = minimize_scalar(belief_log_loss, bounds=bounds, method="bounded",
-                             args=(models, row_model, labels, predicted, walks, walk_row),
+                             args=(models, row_model, labels, predicted, walks, walk_row,
+                                   first_temperature),
                              options={"xatol": 1e-3})
     return float(result.x)
 
@@ -352,12 +446,15 @@ def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels:
 def held_out_temperatures(evidence: Evidence,
                           folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
                           directions: np.ndarray, length: int, starts_per_row: int,
-                          neighbours: int, rng: np.random.Generator
+                          neighbours: int, rng: np.random.Generator,
+                          after_first: bool = False
                           ) -> tuple[dict[str, float], dict[str, dict[str, float]]]:
     """One temperature per model, fitted on random walks over the held-out groups' outcomes,
-    each group's beliefs updated by the models fitted without it; and, per model, the
-    calibration of those held-out beliefs (max belief against a right argmax) after the first
-    and the last step, naive (t = 1) and tempered. Empty without folds."""
+    each group's beliefs updated by the models fitted without it (``after_first``: the first
+    view counts in full, the fit tempers the later ones); and, per model, the calibration of
+    those held-out beliefs (max belief against a right argmax) after the first and the last
+    step, naive (t = 1) and tempered, with the held-out log loss of each. Empty without
+    folds."""
     if not folds:
         return {}, {}
     row_model = np.full(len(evidence.labels), -1, dtype=np.int64)
@@ -371,13 +468,17 @@ def held_out_temperatures(evidence: Evidence,
     temperatures, calibration = {}, {}
     for name in (n for n in folds[0][1] if all(n in m for _, m in folds)):
         models = [m[name].probabilities for _, m in folds]
+        first = 1.0 if after_first else None
         t = fit_temperature(models, row_model, evidence.labels, evidence.predicted, walks,
-                            walk_row)
+                            walk_row, first_temperature=first)
         temperatures[name] = t
         report: dict[str, float] = {"temperature": t}
         for label, value in (("naive", 1.0), ("tempered", t)):
+            report[f"log_loss_{label}"] = belief_log_loss(
+                value, models, row_model, evidence.labels, evidence.predicted, walks, walk_row,
+                first)
             belief = np.exp(walk_log_beliefs(value, models, row_model, evidence.predicted,
-                                             walks, walk_row))
+                                             walks, walk_row, first))
             for step, at in (("first", 0), ("last", length - 1)):
                 confidence = belief[:, at].max(axis=1)
                 right = belief[:, at].argmax(axis=1) == true

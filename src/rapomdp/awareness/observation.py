@@ -208,6 +208,29 @@ class RAObservationModel(ObservationModel):
         self.scores, self.calibration = scores, calibration
 
 
+@dataclass
+class TransferCalibration:
+    """What ``ra_transfer`` was fitted with (it has no score calibration: its rows are the
+    held-out labels shared between views that see alike saliency)."""
+
+    method: str = "salient_view_transfer"
+
+    def to_dict(self) -> dict[str, object]:
+        return {"method": self.method}
+
+
+class TransferObservationModel(ObservationModel):
+    """Recognition-aware by transfer: each viewpoint's whole row P(o | c, x) pooled from the
+    held-out labels at the viewpoints whose seen saliency resembles x's
+    (:func:`rapomdp.awareness.evidence.transfer_confusion`)."""
+
+    name = "ra_transfer"
+
+    def __init__(self, probabilities: np.ndarray, classes: Sequence[str]) -> None:
+        super().__init__(probabilities, classes)
+        self.calibration = TransferCalibration()
+
+
 class ClassifierObservationModel(ObservationModel):
     """The classifier's empirical per-viewpoint confusion (the box closed), with pseudo-counts:
     P(o | c, x) = (n(c, x, o) + a) / (n(c, x) + C a)."""

@@ -17,6 +17,8 @@ training model's labels at X_rho from the fold classifier that did not train on 
 (V, C, C) = P(o | class, viewpoint) over the test viewpoints X_rho in order and the dataset's
 classes in order (rows sum to 1; tempered by ``temperatures``), ``models`` (their names),
 ``classes``, ``scores`` / ``area_scores`` (C, V) normalised Eq. 6 scores, ``raw_scores``,
+``view_similarity`` (C, V, V) the cosine similarity of the saliency two viewpoints see
+(``ra_transfer``'s kernel), ``first_view_<name>`` (the model of the belief's first update),
 ``directions`` (V, 3), the held-out evidence (``evidence_*``) and the test outcomes;
 ``calibration.json``; ``quality.csv|md`` (test models) and ``validation.csv|md`` (held-out);
 ``calibration.png``; ``timing.json``.
@@ -34,6 +36,7 @@ import torch
 from rapomdp.awareness.artefacts import (
     CALIBRATION_FIGURE,
     CALIBRATION_FILE,
+    FIRST_VIEW_PREFIX,
     OBSERVATION_FILE,
     QUALITY_CSV,
     QUALITY_MD,
@@ -49,11 +52,13 @@ from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit
 from rapomdp.awareness.evidence import (
     RA_VARIANTS,
     Evidence,
+    choose_belief_correction,
     choose_ra_variant,
     fit_level,
     fit_observation_models,
     held_out_temperatures,
     leave_one_group_out,
+    salient_view_similarity,
     shift_level,
     temper,
     validation_quality,
@@ -85,7 +90,7 @@ from rapomdp.recognition.preprocess import input_to_image
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
 from rapomdp.workspace import StageError, StageInputs
 
-SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency")
+SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency", "volume")
 VOLUME_SECTIONS = ("volume",)
 OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
 CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
@@ -93,6 +98,18 @@ TEMPERATURE_WALK_LENGTH = 6
 """Views per held-out walk the temperature is fitted on (an active episode's few moves)."""
 TEMPERATURE_WALKS_PER_ROW = 16
 TEMPERATURE_NEIGHBOURS = 8
+
+
+def saliency_models(dataset: Dataset, per_class: int | None) -> list[ModelEntry]:
+    """The volume models whose saliency makes the class volumes: each class's first
+    ``per_class`` volume models (all with None)."""
+    seen: dict[str, int] = {}
+    out = []
+    for model in dataset.with_role("volume"):
+        seen[model.class_name] = seen.get(model.class_name, 0) + 1
+        if per_class is None or seen[model.class_name] <= per_class:
+            out.append(model)
+    return out
 
 
 def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, method: str,
@@ -161,7 +178,7 @@ def run_saliency_stage(config: Config, inputs: StageInputs, out: Path,
     task_threads = context.in_worker().threads if workers > 1 else context.threads
     tasks = [(config.model_dump_json(), str(inputs.render), str(inputs.dataset),
               str(inputs.train), str(out), m.file, task_threads)
-             for m in dataset.with_role("volume")]
+             for m in saliency_models(dataset, config.volume.models_per_class)]
     done = run_tasks(_saliency_task, tasks, workers, f"saliency ({cfg.method}): volume models",
                      context.progress, context.scheduler)
     total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
@@ -182,9 +199,10 @@ def load_saliency(saliency_dir: Path, model: ModelEntry) -> dict[str, np.ndarray
 
 
 def class_volume(dataset: Dataset, views, saliency_dir: Path, class_name: str,  # noqa: ANN001
-                 resolution: int) -> SaliencyVolume:
-    """The saliency volume of one class from its volume model(s)' views and saliency maps."""
-    models = [m for m in dataset.with_role("volume") if m.class_name == class_name]
+                 resolution: int, per_class: int | None = None) -> SaliencyVolume:
+    """The saliency volume of one class from its first ``per_class`` volume models' views and
+    saliency maps (all with None)."""
+    models = [m for m in saliency_models(dataset, per_class) if m.class_name == class_name]
     if not models:
         raise StageError(f"{dataset.root}: class '{class_name}' has no volume model")
     meshes = [dataset.mesh(m) for m in models]
@@ -210,7 +228,7 @@ def run_volume_stage(config: Config, inputs: StageInputs, out: Path,
     info = {}
     for class_name in track(dataset.classes, "volume: classes", context.progress):
         volume = class_volume(dataset, views, inputs.saliency, class_name,
-                              config.volume.resolution)
+                              config.volume.resolution, config.volume.models_per_class)
         volume.save(out / volume_file(class_name))
         info[class_name] = {"grid": volume.grid.to_dict(),
                             "occupied_voxels": int(volume.occupied.sum()),
@@ -255,6 +273,8 @@ class Observation:
     ra_variant: str = "paper"
     temperatures: dict[str, float] = field(default_factory=dict)
     single_view: dict[str, ObservationModel] = field(default_factory=dict)
+    first_view: dict[str, ObservationModel] = field(default_factory=dict)
+    corrections: dict[str, str] = field(default_factory=dict)
     levels: dict[str, float] = field(default_factory=dict)
     belief_calibration: dict[str, dict[str, float]] = field(default_factory=dict)
     score_kinds: dict[str, np.ndarray] = field(default_factory=dict)
@@ -287,22 +307,31 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
 
     raw = np.zeros((len(classes), config.viewpoints.count))
     area = np.zeros_like(raw)
-    vol_labels, vol_pred = [], []
+    similarity = np.zeros((len(classes), config.viewpoints.count, config.viewpoints.count))
+    vol_labels, vol_pred, vol_rank = [], [], []
     for c, class_name in enumerate(track(classes, "observe: volume models at X_rho", progress)):
         volume = volumes[class_name]
-        per_model, per_model_area = [], []
-        for model in (m for m in dataset.with_role("volume") if m.class_name == class_name):
+        voxel_scores = volume.flat_scores()
+        per_model, per_model_area, per_model_similarity = [], [], []
+        for rank, model in enumerate(m for m in dataset.with_role("volume")
+                                     if m.class_name == class_name):
             seen = outcomes(model, VOLUME_STREAM)
             vis = visibility_from_depth(seen.clean, seen.poses, intrinsics, volume.grid)
-            per_model.append(viewpoint_scores(vis, volume.flat_scores()))
-            per_model_area.append(viewpoint_salient_area(vis, volume.flat_scores()))
+            per_model.append(viewpoint_scores(vis, voxel_scores))
+            per_model_area.append(viewpoint_salient_area(vis, voxel_scores))
+            per_model_similarity.append(salient_view_similarity(
+                vis.multiply(np.nan_to_num(voxel_scores, nan=0.0)[None])))
             vol_pred.append(seen.predicted)
             vol_labels.append(c)
+            vol_rank.append(rank)
         raw[c] = np.nanmean(np.stack(per_model), axis=0)
         area[c] = np.mean(np.stack(per_model_area), axis=0)
-    scores = {"mean": normalise_scores(raw), "area": normalise_scores(area)}
+        similarity[c] = np.mean(np.stack(per_model_similarity), axis=0)
+    scores = {"mean": normalise_scores(raw), "area": normalise_scores(area),
+              "similarity": similarity}
     labels, predicted = np.array(vol_labels), np.stack(vol_pred)
-    evidence = observation_evidence(cfg.evidence, labels, predicted, crossfit)
+    evidence = observation_evidence(cfg.evidence, labels, predicted, crossfit,
+                                    np.array(vol_rank, dtype=np.int64))
     if cfg.contrastive:
         if views is None:
             raise StageError("observe.contrastive needs the training renders (render stage)")
@@ -318,30 +347,42 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
     if variant == "viewpoint" and len(np.unique(evidence.groups)) < 2:
         raise StageError("observe.ra_model 'viewpoint' stacks over groups of held-out "
-                         "evidence: set observe.evidence to crossfit or both")
+                         "evidence: use two or more volume models per class "
+                         "(dataset.split.volume) or set observe.evidence to crossfit or both")
     fitted = fit_observation_models(evidence, scores, classes, cfg, directions)
     levels = {name: 0.0 for name in fitted}
-    if (evidence.groups > 0).any() and (evidence.groups == 0).any():
+    if (~evidence.volume_mask).any() and evidence.volume_mask.any():
         # cross-fitted classifiers train on less data and err more: each model's P(correct)
         # is moved to the level of the modelled classifier on its own held-out objects
-        volume = evidence.subset(evidence.groups == 0)
+        volume = evidence.subset(evidence.volume_mask)
         levels = {name: fit_level(m.probabilities, volume.labels, volume.predicted)
                   for name, m in fitted.items()}
         fitted = {name: _relevel(m, levels[name]) for name, m in fitted.items()}
     single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
     levels["ra"] = levels[f"ra_{variant}"]
     temperatures = {name: 1.0 for name in single_view}
-    held, belief_calibration = held_out_temperatures(
-        evidence, folds, directions,
-        TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
-        class_seed(config.seed, "observe/temperature"))
-    if cfg.belief_correction == "temperature":
-        temperatures.update(held)
-        if f"ra_{variant}" in held:
-            temperatures["ra"] = held[f"ra_{variant}"]
+    corrections = {name: "none" for name in single_view}
+    fits = {kind: held_out_temperatures(  # the same walks for both
+        evidence, folds, directions, TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW,
+        TEMPERATURE_NEIGHBOURS, class_seed(config.seed, "observe/temperature"),
+        after_first=kind == "after_first") for kind in ("temperature", "after_first")}
+    belief_calibration = {name: {**report, **{f"after_first_{k}": v for k, v in
+                                              fits["after_first"][1][name].items()}}
+                          for name, report in fits["temperature"][1].items()}
+    for name in belief_calibration:
+        corrections[name] = choose_belief_correction(belief_calibration[name],
+                                                     cfg.belief_correction)
+        kind = corrections[name]
+        temperatures[name] = fits[kind][0][name] if kind != "none" else 1.0
+    corrections["ra"] = corrections.get(f"ra_{variant}", "none")
+    temperatures["ra"] = temperatures.get(f"ra_{variant}", 1.0)
     models: dict[str, ObservationModel] = {
         name: ObservationModel(temper(m.probabilities, temperatures[name]), classes)
         for name, m in single_view.items()}
+    # the belief's first update: the single-view model when only later views are discounted
+    first_view: dict[str, ObservationModel] = {
+        name: (single_view[name] if corrections[name] == "after_first" else models[name])
+        for name in models}
     models_s = time.perf_counter() - start
     test_models = dataset.with_role("test")
     test_labels = np.array([dataset.label(m) for m in test_models])
@@ -351,7 +392,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     calibration = single_view["ra"].calibration  # type: ignore[attr-defined]
     return Observation(models, raw, scores["mean"], scores["area"], calibration, labels,
                        predicted, evidence, test_labels, test_pred, rows, validation, variant,
-                       temperatures, single_view, levels, belief_calibration, scores,
+                       temperatures, single_view, first_view, corrections, levels,
+                       belief_calibration, scores,
                        {"scores_s": scores_s, "observation_models_s": models_s,
                         "total_s": time.perf_counter() - start})
 
@@ -374,7 +416,8 @@ def contrastive_scores(config: Config, views: TrainingViews, classifier: Classif
     against = most_confused(evidence, len(classes))
     raw = np.zeros((len(classes), config.viewpoints.count))
     for c, class_name in enumerate(track(classes, "observe: contrastive volumes", progress)):
-        models = [m for m in dataset.with_role("volume") if m.class_name == class_name]
+        models = [m for m in saliency_models(dataset, config.volume.models_per_class)
+                  if m.class_name == class_name]
         depth, poses, maps = [], [], []
         for model in models:
             d, p = views.load(model)
@@ -404,16 +447,22 @@ def _relevel(model: ObservationModel, shift: float) -> ObservationModel:
 
 
 def observation_evidence(kind: str, volume_labels: np.ndarray, volume_predicted: np.ndarray,
-                         crossfit: CrossfitOutcomes | None) -> Evidence:
-    """The held-out evidence ``observe.evidence`` names (group 0: the volume models, f + 1:
-    cross-fitting fold f)."""
-    volume = Evidence(volume_labels, volume_predicted, np.zeros(len(volume_labels), np.int64))
+                         crossfit: CrossfitOutcomes | None,
+                         volume_rank: np.ndarray | None = None) -> Evidence:
+    """The held-out evidence ``observe.evidence`` names. Groups: the k-th volume model of every
+    class is group k (``volume_rank``; all 0 without it), cross-fitting fold f the group after
+    the volume models' last."""
+    rank = (np.zeros(len(volume_labels), np.int64) if volume_rank is None
+            else np.asarray(volume_rank, dtype=np.int64))
+    volume = Evidence(volume_labels, volume_predicted, rank, np.ones(len(rank), dtype=bool))
     if kind == "volume":
         return volume
     if crossfit is None or len(crossfit.labels) == 0:
         raise StageError(f"observe.evidence is '{kind}' but there are no cross-fitted "
                          "outcomes: run the crossfit stage")
-    folded = Evidence(crossfit.labels, crossfit.predicted, crossfit.folds + 1)
+    folded = Evidence(crossfit.labels, crossfit.predicted,
+                      crossfit.folds + int(rank.max(initial=-1)) + 1,
+                      np.zeros(len(crossfit.labels), dtype=bool))
     return folded if kind == "crossfit" else Evidence.concatenate([volume, folded])
 
 
@@ -477,11 +526,14 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
              **{name: m.probabilities for name, m in result.models.items()},
              models=np.array(list(result.models)), classes=np.array(dataset.classes),
              temperatures=np.array([result.temperatures[n] for n in result.models]),
+             **{f"{FIRST_VIEW_PREFIX}{name}": m.probabilities
+                for name, m in result.first_view.items()},
              scores=result.scores, raw_scores=result.raw_scores, area_scores=result.area_scores,
+             view_similarity=result.score_kinds["similarity"].astype(np.float32),
              directions=directions,
              volume_labels=result.volume_labels, volume_predictions=result.volume_predictions,
              evidence_labels=ev.labels, evidence_predictions=ev.predicted,
-             evidence_groups=ev.groups,
+             evidence_groups=ev.groups, evidence_from_volume=ev.volume_mask,
              test_labels=result.test_labels, test_predictions=result.test_predictions)
     correct = ev.correct
     write_json_atomic(out / CALIBRATION_FILE, {
@@ -490,6 +542,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
         "variants": {name: m.calibration.to_dict()  # type: ignore[attr-defined]
                      for name, m in result.single_view.items() if name.startswith("ra_")},
         "temperatures": result.temperatures,
+        "belief_corrections": result.corrections,
         "level_shifts": result.levels,
         "held_out_belief": result.belief_calibration,
         "evidence": config.observe.evidence,
@@ -498,7 +551,8 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                                   == result.volume_labels[:, None]).mean()),
         "pairs": int(correct.size),
     })
-    figure_scores = result.score_kinds[RA_VARIANTS[result.ra_variant][0]]
+    kind = RA_VARIANTS[result.ra_variant][0]
+    figure_scores = result.score_kinds["area" if kind == "similarity" else kind]
     calibration_figure(figure_scores[ev.labels], correct, result.calibration,
                        out / CALIBRATION_FIGURE)
     write_json_atomic(out / TIMING_FILE, result.seconds)

@@ -63,7 +63,7 @@ from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPoli
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.stage import offered_observation_models
+from rapomdp.planning.stage import first_view_models, offered_observation_models
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
@@ -116,6 +116,7 @@ class ClosedLoop:
         robot = load_robot(inputs.robot)
         motion = Motion.from_robot(robot)
         observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
+        first_view = first_view_models(inputs.observe, inputs.vptree_dir)
         cfg = config.evaluate
 
         def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:
@@ -130,13 +131,14 @@ class ClosedLoop:
                 return RandomWalkPolicy(
                     observation[name], motion.distance_m, motion.reachable,
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
-                    METHOD_NAMES[key])
+                    METHOD_NAMES[key], first_view_model=first_view[name])
             path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
                                  f"add '{key}' to solve.models")
             return POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
-                               METHOD_NAMES[key], recogniser, cfg.revisit)
+                               METHOD_NAMES[key], recogniser, cfg.revisit,
+                               first_view_model=first_view[key])
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}

@@ -21,11 +21,22 @@ from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
 
 class BayesBelief:
     """A class distribution updated by Eq. 5 with an observation model P (V, C, C): the
-    recogniser's most likely class is the observation."""
+    recogniser's most likely class is the observation. The first update of an episode uses
+    ``first_view_model`` (default: P itself) — the single-view model when the observe stage
+    discounts only the views after the first (``observe.belief_correction: after_first``);
+    the planner plans every later update, and plans it with P."""
 
-    def __init__(self, observation_model: np.ndarray) -> None:
+    def __init__(self, observation_model: np.ndarray,
+                 first_view_model: np.ndarray | None = None) -> None:
         self.observation_model = np.asarray(observation_model, dtype=np.float64)
+        self.first_view_model = (self.observation_model if first_view_model is None
+                                 else np.asarray(first_view_model, dtype=np.float64))
+        if self.first_view_model.shape != self.observation_model.shape:
+            raise ValueError(f"the first-view model's shape {self.first_view_model.shape} "
+                             f"differs from the observation model's "
+                             f"{self.observation_model.shape}")
         self.belief = self.uniform()
+        self.updates = 0
 
     def uniform(self) -> np.ndarray:
         c = self.observation_model.shape[1]
@@ -33,10 +44,13 @@ class BayesBelief:
 
     def reset(self) -> None:
         self.belief = self.uniform()
+        self.updates = 0
 
     def update(self, viewpoint: int, output: np.ndarray) -> None:
         label = int(np.argmax(output))
-        self.belief = update_beliefs(self.observation_model, self.belief, viewpoint, label)
+        model = self.first_view_model if self.updates == 0 else self.observation_model
+        self.belief = update_beliefs(model, self.belief, viewpoint, label)
+        self.updates += 1
 
 
 class StaticPolicy:
@@ -71,7 +85,8 @@ class RandomWalkPolicy:
 
     def __init__(self, observation_model: np.ndarray, distance_m: np.ndarray,
                  reachable: np.ndarray, neighbours: int = 8, belief_threshold: float = 0.9,
-                 max_moves: int = 10, name: str = "Random", recogniser: str = "cnn") -> None:
+                 max_moves: int = 10, name: str = "Random", recogniser: str = "cnn",
+                 first_view_model: np.ndarray | None = None) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
         if max_moves < 0:
@@ -79,7 +94,7 @@ class RandomWalkPolicy:
         self.name, self.recogniser = name, recogniser
         self.neighbours = k_nearest(distance_m, neighbours, allowed=reachable)
         self.belief_threshold, self.max_moves = float(belief_threshold), int(max_moves)
-        self._bayes = BayesBelief(observation_model)
+        self._bayes = BayesBelief(observation_model, first_view_model)
         self._visited: set[int] = set()
         self._rng = np.random.default_rng()
 
@@ -118,7 +133,8 @@ class POMDPPolicy:
     """
 
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
-                 name: str, recogniser: str = "cnn", revisit: bool = False) -> None:
+                 name: str, recogniser: str = "cnn", revisit: bool = False,
+                 first_view_model: np.ndarray | None = None) -> None:
         if observation_model.shape[0] != policy.n_viewpoints or \
                 observation_model.shape[1] != policy.n_classes:
             raise ValueError(
@@ -126,7 +142,7 @@ class POMDPPolicy:
                 f"{policy.n_classes} classes, the observation model {observation_model.shape}")
         self.name, self.recogniser, self.revisit = name, recogniser, revisit
         self.policy = policy
-        self._bayes = BayesBelief(observation_model)
+        self._bayes = BayesBelief(observation_model, first_view_model)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
     def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:

@@ -27,7 +27,7 @@ from rapomdp.planning.pomdp import POMDP, PROB_TOL
 from rapomdp.planning.rules import declare_value, move_or_declare
 
 #: λ of Eq. 1 wherever none is given: the configuration's ``solve.wrong_declaration_cost_m``.
-DEFAULT_LAMBDA = 2.0
+DEFAULT_LAMBDA = 8.0
 #: λ of the synthetic family of ``pomdp-benchmarks/README.md`` (its declarations cost −10).
 BENCHMARK_LAMBDA = 10.0
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
-from rapomdp.awareness.artefacts import OBSERVATION_FILE
+from rapomdp.awareness.artefacts import FIRST_VIEW_PREFIX, OBSERVATION_FILE
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.io import load_npz
@@ -28,6 +28,17 @@ from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE as VPTREE_FILE
 from rapomdp.robot.artefacts import ROBOT_ARRAYS
 from rapomdp.workspace import StageError, StageInputs
+
+
+def first_view_models(observe_dir: Path, vptree_dir: Path | None = None
+                      ) -> dict[str, np.ndarray]:
+    """Each offered model's model of the belief's *first* update (the observe stage's
+    ``first_view_<name>``; the planner's model itself where there is none, e.g. the VP-tree's
+    or a workspace from before the belief correction). Later updates use the planner's."""
+    offered, _ = offered_observation_models(observe_dir, vptree_dir)
+    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+    return {name: observe.get(f"{FIRST_VIEW_PREFIX}{name}", model)
+            for name, model in offered.items()}
 
 
 def offered_observation_models(observe_dir: Path, vptree_dir: Path | None = None
