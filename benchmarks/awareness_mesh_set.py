@@ -158,7 +158,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="mesh folder to write")
     parser.add_argument("--workspace", type=Path, help="run the pipeline up to observe here")
-    parser.add_argument("--models", type=int, default=5, help="models per class")
+    parser.add_argument("--models", type=int, default=11,
+                        help="models per class (the default split takes 4 + 3 + 4)")
     parser.add_argument("--seed", type=int, default=7)
     args = parser.parse_args()
     files = write_mesh_set(args.out, args.models, args.seed)
