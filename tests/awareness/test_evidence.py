@@ -242,3 +242,15 @@ def test_belief_correction_auto_takes_the_least_held_out_loss():
     assert choose_belief_correction(report, "auto") == "after_first"
     assert choose_belief_correction({**report, "log_loss_naive": 0.5}, "auto") == "none"
     assert choose_belief_correction(report, "temperature") == "temperature"
+
+
+def test_softmax_temperature_recovers_a_planted_overconfidence():
+    from rapomdp.awareness.evidence import fit_softmax_temperature
+
+    rng = np.random.default_rng(21)
+    logits = rng.normal(size=(4000, 5)) * 2.0
+    labels = np.array([rng.choice(5, p=np.exp(z) / np.exp(z).sum()) for z in logits])
+    calibrated = np.exp(logits) / np.exp(logits).sum(axis=1, keepdims=True)
+    over = np.exp(3.0 * logits) / np.exp(3.0 * logits).sum(axis=1, keepdims=True)
+    assert fit_softmax_temperature(calibrated, labels) == pytest.approx(1.0, abs=0.08)
+    assert fit_softmax_temperature(over[:, None], labels) == pytest.approx(3.0, rel=0.08)

@@ -112,3 +112,17 @@ def test_bayes_belief_uses_the_first_view_model_once_per_episode() -> None:
     assert np.allclose(belief.belief, np.array([0.9, 0.5]) / 1.4)
     with pytest.raises(ValueError, match="first-view model's shape"):
         BayesBelief(planner, np.full((3, 2, 2), 0.5))
+
+
+def test_static_belief_is_the_output_temperature_scaled_and_declares_its_argmax() -> None:
+    output = np.array([0.5, 0.3, 0.2])
+    static = StaticPolicy(softmax_temperature=0.5)
+    static.reset(0, np.random.default_rng(0))
+    static.observe(0, output)
+    assert np.allclose(static.belief, output**2 / (output**2).sum())
+    assert static.act(0).target == 0
+    plain = StaticPolicy()
+    plain.observe(0, output)
+    assert np.allclose(plain.belief, output)
+    with pytest.raises(ValueError, match="softmax_temperature must be positive"):
+        StaticPolicy(softmax_temperature=0.0)

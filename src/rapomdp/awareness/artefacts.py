@@ -15,7 +15,9 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from rapomdp.io import ArtefactError
+import numpy as np
+
+from rapomdp.io import ArtefactError, load_npz
 
 SALIENCY_FILE = "saliency.json"
 VOLUME_FILE = "volume.json"
@@ -58,3 +60,11 @@ def load_quality(folder: str | Path, name: str = QUALITY_CSV) -> list[dict[str, 
                 for r in rows]
     except (KeyError, TypeError, ValueError):
         raise ArtefactError(f"{path}: expected the columns {', '.join(QUALITY_COLUMNS)}") from None
+
+
+def load_softmax_temperature(observe_dir: str | Path) -> float:
+    """The classifier output's temperature the observe stage fitted on the volume models
+    (Static's belief); 1 for a workspace from before it was fitted."""
+    data = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+    return float(np.asarray(data["softmax_temperature"])) if "softmax_temperature" in data \
+        else 1.0

@@ -310,6 +310,26 @@ def choose_belief_correction(report: dict[str, float], configured: str) -> str:
     return min(losses, key=losses.__getitem__)
 
 
+def fit_softmax_temperature(probabilities: np.ndarray, labels: np.ndarray,
+                            bounds: tuple[float, float] = (0.05, 20.0)) -> float:
+    """The temperature T of the classifier's output p ** (1 / T) (renormalised) that maximises
+    the likelihood of the true classes ``labels`` (N,) on held-out outputs ``probabilities``
+    (N, V, C) or (N, C): temperature scaling of the logits, the passive belief's calibration
+    (T > 1: the output was overconfident)."""
+    p = np.asarray(probabilities, dtype=np.float64)
+    log_p = np.log(np.maximum(p.reshape(-1, p.shape[-1]), 1e-300))
+    rows = np.broadcast_to(np.asarray(labels).reshape((-1,) + (1,) * (p.ndim - 2)),
+                           p.shape[:-1]).reshape(-1)
+
+    def loss(t: float) -> float:
+        z = log_p / t
+        z = z - z.max(axis=1, keepdims=True)
+        return float(np.mean(np.log(np.exp(z).sum(axis=1)) - z[np.arange(len(rows)), rows]))
+
+    return float(minimize_scalar(loss, bounds=bounds, method="bounded",
+                                 options={"xatol": 1e-4}).x)
+
+
 # -- the classifier's level ----------------------------------------------------------------
 
 def shift_level(probabilities: np.ndarray, shift: float) -> np.ndarray:

@@ -56,6 +56,7 @@ from rapomdp.awareness.evidence import (
     choose_ra_variant,
     fit_level,
     fit_observation_models,
+    fit_softmax_temperature,
     held_out_temperatures,
     leave_one_group_out,
     salient_view_similarity,
@@ -246,12 +247,15 @@ class XrhoOutcomes:
     clean: np.ndarray
     poses: np.ndarray
     predicted: np.ndarray
+    probabilities: np.ndarray | None = None  # (V, C) the classifier's output
 
 
 def xrho_outcomes(dataset: Dataset, model: ModelEntry, config: Config, classifier: Classifier,
                   purpose: str) -> XrhoOutcomes:
     clean, sensed, poses = xrho_renders(dataset, model, config, purpose)
-    return XrhoOutcomes(clean, poses, classifier.predict(sensed).argmax(axis=1))
+    probabilities = classifier.predict(sensed)
+    return XrhoOutcomes(clean, poses, probabilities.argmax(axis=1),
+                        probabilities.astype(np.float32))
 
 
 @dataclass
@@ -279,6 +283,7 @@ class Observation:
     belief_calibration: dict[str, dict[str, float]] = field(default_factory=dict)
     score_kinds: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
+    softmax_temperature: float = 1.0
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -308,7 +313,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     raw = np.zeros((len(classes), config.viewpoints.count))
     area = np.zeros_like(raw)
     similarity = np.zeros((len(classes), config.viewpoints.count, config.viewpoints.count))
-    vol_labels, vol_pred, vol_rank = [], [], []
+    vol_labels, vol_pred, vol_rank, vol_probabilities = [], [], [], []
     for c, class_name in enumerate(track(classes, "observe: volume models at X_rho", progress)):
         volume = volumes[class_name]
         voxel_scores = volume.flat_scores()
@@ -322,6 +327,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
             per_model_similarity.append(salient_view_similarity(
                 vis.multiply(np.nan_to_num(voxel_scores, nan=0.0)[None])))
             vol_pred.append(seen.predicted)
+            vol_probabilities.append(seen.probabilities)
             vol_labels.append(c)
             vol_rank.append(rank)
         raw[c] = np.nanmean(np.stack(per_model), axis=0)
@@ -330,6 +336,9 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     scores = {"mean": normalise_scores(raw), "area": normalise_scores(area),
               "similarity": similarity}
     labels, predicted = np.array(vol_labels), np.stack(vol_pred)
+    # Static's belief is the classifier's output: its temperature, fitted on the volume models
+    softmax_t = (fit_softmax_temperature(np.stack(vol_probabilities), labels)
+                 if all(p is not None for p in vol_probabilities) else 1.0)
     evidence = observation_evidence(cfg.evidence, labels, predicted, crossfit,
                                     np.array(vol_rank, dtype=np.int64))
     if cfg.contrastive:
@@ -395,7 +404,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                        temperatures, single_view, first_view, corrections, levels,
                        belief_calibration, scores,
                        {"scores_s": scores_s, "observation_models_s": models_s,
-                        "total_s": time.perf_counter() - start})
+                        "total_s": time.perf_counter() - start}, softmax_t)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -530,6 +539,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                 for name, m in result.first_view.items()},
              scores=result.scores, raw_scores=result.raw_scores, area_scores=result.area_scores,
              view_similarity=result.score_kinds["similarity"].astype(np.float32),
+             softmax_temperature=np.array(result.softmax_temperature),
              directions=directions,
              volume_labels=result.volume_labels, volume_predictions=result.volume_predictions,
              evidence_labels=ev.labels, evidence_predictions=ev.predicted,
@@ -543,6 +553,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                      for name, m in result.single_view.items() if name.startswith("ra_")},
         "temperatures": result.temperatures,
         "belief_corrections": result.corrections,
+        "softmax_temperature": result.softmax_temperature,
         "level_shifts": result.levels,
         "held_out_belief": result.belief_calibration,
         "evidence": config.observe.evidence,

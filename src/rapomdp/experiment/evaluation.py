@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rapomdp.awareness.artefacts import load_softmax_temperature
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
@@ -122,7 +123,8 @@ class ClosedLoop:
         def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:
             recogniser = VPTREE_RECOGNISER if key == "vptree" else "cnn"
             if key == "static":
-                return StaticPolicy(METHOD_NAMES[key])
+                return StaticPolicy(METHOD_NAMES[key],
+                                    softmax_temperature=load_softmax_temperature(inputs.observe))
             if key == "random":
                 name = cfg.random.observation_model
                 if name not in observation:

@@ -55,17 +55,26 @@ class BayesBelief:
 
 class StaticPolicy:
     """Passive recognition: classify the start view and declare; the belief is the recogniser's
-    output itself (a passive classifier has no other)."""
+    output itself (a passive classifier has no other), temperature-scaled by
+    ``softmax_temperature`` (fitted on held-out objects by the observe stage; 1: as output).
+    The declared class, the output's argmax, does not depend on it."""
 
-    def __init__(self, name: str = "Static", recogniser: str = "cnn") -> None:
+    def __init__(self, name: str = "Static", recogniser: str = "cnn",
+                 softmax_temperature: float = 1.0) -> None:
+        if not softmax_temperature > 0:
+            raise ValueError(f"softmax_temperature must be positive, got {softmax_temperature}")
         self.name, self.recogniser = name, recogniser
+        self.softmax_temperature = float(softmax_temperature)
         self._belief = np.empty(0)
 
     def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
         self._belief = np.empty(0)
 
     def observe(self, viewpoint: int, output: np.ndarray) -> None:
-        self._belief = np.asarray(output, dtype=np.float64) / float(np.sum(output))
+        z = np.log(np.maximum(np.asarray(output, dtype=np.float64), 1e-300))
+        z = z / self.softmax_temperature
+        z -= z.max()
+        self._belief = np.exp(z) / np.exp(z).sum()
 
     @property
     def belief(self) -> np.ndarray:
