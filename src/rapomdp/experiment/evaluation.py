@@ -158,6 +158,10 @@ class ClosedLoop:
         scene = self.scene(model)
         starts = start_viewpoints(self.config.seed, model, self.motion.reachable,
                                   self.config.evaluate.starts_per_model)
+        # a noiseless sensor sees the same image at every look from a viewpoint: each
+        # (viewpoint, recogniser) is rendered and classified once for all the model's episodes
+        memos: dict[str, dict[int, np.ndarray]] | None = (
+            None if scene.noise.enabled else {name: {} for name in self.recognisers})
         records = []
         for start in starts:
             for key, method in self.methods.items():
@@ -166,7 +170,7 @@ class ClosedLoop:
                 began = time.process_time()
                 episode = run_episode(scene, self.recognisers[method.recogniser], method,
                                       self.motion, int(start), self.config.evaluate.max_moves,
-                                      rng)
+                                      rng, None if memos is None else memos[method.recogniser])
                 records.append(EpisodeRecord(key, model.file, int(start), episode,
                                              time.process_time() - began))
         return records
