@@ -242,26 +242,38 @@ def sweep_key(method: str, parameter: str, value: float) -> str:
 def solve_sweep(config: Config, inputs: dict[str, Path], sweep_dir: Path,
                 context: RunContext = RunContext()) -> None:
     """Solve every POMDP method of the evaluation at every extra λ of the sweep, as the solve
-    stage does (``sweep_dir/lambda_<λ>/policy_<method>.npz``)."""
+    stage does (``sweep_dir/lambda_<λ>/policy_<method>.npz``), all in one pool of workers.
+
+    The longest solves start first: larger λ first, then the methods whose solve-stage
+    policies were furthest from converged (the gap between the bounds it reported at the
+    start belief); the order changes the wall time only.
+    """
+    from rapomdp.io import read_json
     from rapomdp.planning.stage import start_viewpoint, workspace_arrays
-    from rapomdp.planning.workspace import solve_workspace_problems
+    from rapomdp.planning.workspace import solve_problem_sets
 
     folders: dict[str, tuple[float, list[str]]] = {}
     for method, _, value, folder in sweep_settings(config):
         if folder is not None:
             folders.setdefault(folder, (value, []))[1].append(method)
-    for folder, (lam, methods) in folders.items():
-        variant = config.model_copy(deep=True)
-        variant.solve.models = methods
-        models, energy, reachable, classes = workspace_arrays(
-            variant, inputs["observe"], inputs["robot"], inputs.get("vptree"))
-        solve = config.solve
-        solve_workspace_problems(
-            models, energy, reachable, sweep_dir / folder, lambda_=lam, discount=solve.discount,
-            start_viewpoint=start_viewpoint(reachable), precision=solve.precision,
-            timeout=solve.timeout_s, max_iterations=solve.iterations,
-            workers=context.worker_count, allow_stay=False, class_names=classes,
-            memory_gb=solve.memory_gb, scheduler=context.scheduler)
+    if not folders:
+        return
+    variant = config.model_copy(deep=True)
+    variant.solve.models = list(dict.fromkeys(m for _, ms in folders.values() for m in ms))
+    models, energy, reachable, classes = workspace_arrays(
+        variant, inputs["observe"], inputs["robot"], inputs.get("vptree"))
+    summary = inputs["solve"] / "solve_summary.json"
+    rows = read_json(summary) if summary.is_file() else {}
+    gap = {name: float(row["upper"]) - float(row["lower"]) for name, row in rows.items()
+           if isinstance(row, dict) and {"upper", "lower"} <= row.keys()}
+    solve = config.solve
+    solve_problem_sets(
+        [(sweep_dir / folder, lam, {m: models[m] for m in methods})
+         for folder, (lam, methods) in folders.items()],
+        energy, reachable, discount=solve.discount, start_viewpoint=start_viewpoint(reachable),
+        precision=solve.precision, timeout=solve.timeout_s, max_iterations=solve.iterations,
+        workers=context.worker_count, allow_stay=False, class_names=classes,
+        memory_gb=solve.memory_gb, scheduler=context.scheduler, cost=gap)
 
 
 def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],
