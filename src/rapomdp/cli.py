@@ -477,8 +477,9 @@ def solve(workspace: WorkspaceOption, config: ConfigOption = None,
 
 WorkersOption = Annotated[
     int | None,
-    typer.Option(help="Processes for saliency maps and episodes (default: 2, or 1 on a "
-                      "single core); the results do not depend on it."),
+    typer.Option(help="Processes for the stages that spread tasks (render, classifier_eval, "
+                      "vptree, saliency, solve, evaluate; default: 2, or 1 on a single "
+                      "core); the results do not depend on it."),
 ]
 
 
