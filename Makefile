@@ -22,7 +22,7 @@ $(STAMP): $(PY) pyproject.toml constraints.txt
 install: $(STAMP)
 
 # Every stage on the embedded dataset, then Table 1; the report is W/report/report.html.
-# Two PyTorch threads for the serial stages (train, crossfit, classifier_eval, observe): 1.97x
+# Two PyTorch threads for the serial stages (train, crossfit, observe): 1.97x
 # the training throughput of one on an idle 2-core machine (benchmarks/classifier_speed.py);
 # the parallel stages use two single-threaded processes whatever this says.
 DEMO_THREADS ?= 2

@@ -58,6 +58,11 @@ def test_dask_gives_the_local_results_in_task_order(on_dask) -> None:
         assert a.tobytes() == b.tobytes()
 
 
+def test_a_tasks_own_error_in_a_worker_process_comes_back_as_it_is() -> None:
+    with pytest.raises(ValueError, match="task 2 refuses"):
+        run_tasks(refuse, [(1,), (2,), (3,)], 2, "refusing", progress=False)
+
+
 def test_a_tasks_own_error_comes_back_as_it_is(on_dask) -> None:
     with pytest.raises(ValueError, match="task 2 refuses"):
         run_tasks(refuse, [(1,), (2,), (3,)], 1, "refusing", scheduler=on_dask)

@@ -269,9 +269,10 @@ def dataset_preview(
 @app.command()
 def render(workspace: WorkspaceOption, config: ConfigOption = None,
            force: ForceOption = False, reconfigure: ReconfigureOption = False,
-           overrides: OverridesArgument = None) -> None:
+           overrides: OverridesArgument = None, workers: WorkersOption = None) -> None:
     """Render every model's depth images over the training viewsphere (and build the dataset)."""
-    _run(config, workspace, "render", ["render"] if force else [], None, overrides, reconfigure)
+    _run(config, workspace, "render", ["render"] if force else [], _context(workers=workers),
+         overrides, reconfigure)
 
 
 ThreadsOption = Annotated[
@@ -301,10 +302,10 @@ def train(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceO
 def classifier_eval(workspace: WorkspaceOption, config: ConfigOption = None,
                     force: ForceOption = False, reconfigure: ReconfigureOption = False,
                     overrides: OverridesArgument = None,
-                    threads: ThreadsOption = None) -> None:
+                    threads: ThreadsOption = None, workers: WorkersOption = None) -> None:
     """Single-view accuracy on the test models: per class, confusion, per viewpoint."""
     _run(config, workspace, "classifier_eval", ["classifier_eval"] if force else [],
-         _context(threads), overrides, reconfigure)
+         _context(threads, workers), overrides, reconfigure)
     from rapomdp.recognition.artefacts import load_single_view_metrics
     from rapomdp.workspace import Workspace
 
@@ -359,9 +360,10 @@ def observe(workspace: WorkspaceOption, config: ConfigOption = None, force: Forc
 @app.command()
 def vptree(workspace: WorkspaceOption, config: ConfigOption = None,
            force: ForceOption = False, reconfigure: ReconfigureOption = False,
-           overrides: OverridesArgument = None) -> None:
+           overrides: OverridesArgument = None, workers: WorkersOption = None) -> None:
     """The VP-tree baseline: vocabulary-tree classifier and its per-viewpoint confusion."""
-    _run(config, workspace, "vptree", ["vptree"] if force else [], None, overrides, reconfigure)
+    _run(config, workspace, "vptree", ["vptree"] if force else [], _context(workers=workers),
+         overrides, reconfigure)
     from rapomdp.recognition.artefacts import load_vptree_summary
     from rapomdp.workspace import Workspace
 
@@ -477,8 +479,9 @@ def solve(workspace: WorkspaceOption, config: ConfigOption = None,
 
 WorkersOption = Annotated[
     int | None,
-    typer.Option(help="Processes for saliency maps and episodes (default: 2, or 1 on a "
-                      "single core); the results do not depend on it."),
+    typer.Option(help="Processes for the stages that spread tasks (render, classifier_eval, "
+                      "vptree, saliency, solve, evaluate; default: 2, or 1 on a single "
+                      "core); the results do not depend on it."),
 ]
 
 

@@ -105,8 +105,10 @@ def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
     """Cancel what is queued and end the workers now (an interrupt must not wait for them)."""
+    # taken before the shutdown, which drops the pool's table of processes
+    processes = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
-    for process in list(getattr(pool, "_processes", {}).values()):
+    for process in processes:
         if process.is_alive():
             process.terminate()
 

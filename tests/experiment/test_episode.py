@@ -48,15 +48,34 @@ def test_unreachable_moves_and_starts_are_refused(motion: Motion) -> None:
         run_episode(ViewScene(), recogniser, Scripted([]), motion, 6, 10,
                     np.random.default_rng(0))
 
+class CountingRecogniser(TableRecogniser):
+    """A :class:`TableRecogniser` that counts the images it classifies."""
+
+    images = 0
+
+    def predict(self, depth_images: np.ndarray) -> np.ndarray:
+        self.images += depth_images.shape[0]
+        return super().predict(depth_images)
 
 
-
-
-
-
-
-
-
+def test_a_memo_classifies_each_viewpoint_once_and_changes_no_episode(motion: Motion) -> None:
+    labels = (np.arange(V) * 7) % C
+    paths = [[3, 9, 4], [9, 3], [4, 9, 3, 10], [1]]
+    plain, counted = CountingRecogniser(labels), CountingRecogniser(labels)
+    memo: dict[int, np.ndarray] = {}
+    for path in paths:
+        a = run_episode(ViewScene(), plain, Scripted(path), motion, 0, 10,
+                        np.random.default_rng(1))
+        b = run_episode(ViewScene(), counted, Scripted(path), motion, 0, 10,
+                        np.random.default_rng(1), memo=memo)
+        for name in ("viewpoints", "outputs", "beliefs", "move_energy", "move_distance_m"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert (a.declared, a.exhausted) == (b.declared, b.exhausted)
+    assert plain.images == sum(len(p) + 1 for p in paths) == 14
+    assert counted.images == len(memo) == len({0, 1, 3, 4, 9, 10}) == 6
+    # the memo's rows are the recogniser's; an episode's outputs are copies of them
+    b.outputs[:] = -1.0
+    assert np.array_equal(memo[0], counted.predict(np.full((1, 2, 3), 0.0))[0])
 
 
 def test_a_move_is_checked_and_costs_its_energy_and_distance() -> None:

@@ -11,6 +11,7 @@ import pytest
 
 from rapomdp.context import RunContext
 from rapomdp.experiment import evaluation
+from rapomdp.experiment.episode import run_episode
 from rapomdp.experiment.episode_table import EpisodeTable
 from rapomdp.experiment.evaluation import ClosedLoop, start_viewpoints
 from rapomdp.io import read_json
@@ -120,6 +121,25 @@ def test_static_accuracy_is_the_single_view_accuracy_at_the_same_starts(workspac
     static = table.method == "static"
     assert table.correct[static].mean() == pytest.approx(np.mean(right))
     assert table.correct[static].tolist() == right
+
+
+def test_remembered_outputs_give_the_episodes_of_a_render_and_classify_per_look(
+        workspace) -> None:
+    ws, config = workspace
+    assert not config.render.noise.enabled  # the stage then classifies each view once
+    loop = ClosedLoop.load(config, _inputs(ws))
+    for model in loop.dataset.with_role("test")[:2]:
+        scene = loop.scene(model)
+        records = loop.run_model(model)
+        assert len(records) == 3 * len(loop.methods)
+        for record in records:
+            method = loop.methods[record.method]
+            rng = evaluation.episode_rng(config.seed, model, record.start, record.method)
+            alone = run_episode(scene, loop.recognisers[method.recogniser], method, loop.motion,
+                                record.start, config.evaluate.max_moves, rng)
+            for name in ("viewpoints", "outputs", "beliefs", "move_energy"):
+                assert np.array_equal(getattr(alone, name), getattr(record.episode, name))
+            assert alone.declared == record.episode.declared
 
 
 def test_actions_do_not_depend_on_the_label(workspace) -> None:

@@ -334,8 +334,8 @@ def read_only_work(root: Path) -> Outcome:
 def full_disk(root: Path) -> Outcome:
     ws = cached_workspace(root)
     before = snapshot(ws)
-    with disk_full(ws):
-        outcome = cli(["render", "-w", str(ws), "render.views=7"])
+    with disk_full(ws):  # in this process, where the harness fills the disk
+        outcome = cli(["render", "-w", str(ws), "--workers", "1", "render.views=7"])
     leftovers = [p.name for p in ws.iterdir() if ".tmp-" in p.name]
     assert not leftovers, leftovers
     return _kept(outcome, before, ws)

@@ -11,7 +11,7 @@ from rapomdp.planning.momdp import (
     benchmark_problem,
 )
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.workspace import solve_workspace_problems
+from rapomdp.planning.workspace import solve_problem_sets, solve_workspace_problems
 from tests.planning.planning_fixtures import small_arrays
 
 
@@ -50,3 +50,35 @@ def test_an_iteration_budget_makes_solves_reproducible_in_any_process(tmp_path):
             assert np.array_equal(first.betas, again.betas)
             assert np.array_equal(first.targets, again.targets)
             assert np.array_equal(first.upper_values, again.upper_values)
+
+
+def _arrays(folder) -> dict[str, np.ndarray]:
+    return {f"{p.name}:{k}": v for p in sorted(folder.glob("*.npz"))
+            for k, v in np.load(p).items()}
+
+
+def _without_time(folder) -> dict:
+    summary = json.loads((folder / "solve_summary.json").read_text())
+    return {name: {k: v for k, v in row.items() if k != "seconds"}
+            for name, row in summary.items()}
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_problem_sets_in_one_pool_write_what_one_call_per_folder_writes(tmp_path, workers):
+    P, E = small_arrays()
+    models = {"a": P, "b": P[::-1].copy()}
+    sets = [(tmp_path / "pool" / "lambda_3", 3.0, models),
+            (tmp_path / "pool" / "lambda_12", 12.0, {"b": models["b"]})]
+    paths = solve_problem_sets(sets, E, None, timeout=1e6, max_iterations=25,
+                               workers=workers, cost={"a": 1.0, "b": 2.0})
+    assert paths == {folder: {n: folder / f"policy_{n}.npz" for n in ms}
+                     for folder, _, ms in sets}
+    for folder, lam, ms in sets:
+        alone = tmp_path / "alone" / folder.name
+        solve_workspace_problems(ms, E, None, alone, lambda_=lam, timeout=1e6,
+                                 max_iterations=25)
+        assert list(_without_time(folder)) == list(ms)  # the models' order, not the pool's
+        assert _without_time(folder) == _without_time(alone)
+        mine, theirs = _arrays(folder), _arrays(alone)
+        assert mine.keys() == theirs.keys()
+        assert all(np.array_equal(mine[k], theirs[k]) for k in mine)

@@ -10,6 +10,7 @@ from rapomdp.recognition.preprocess import (
     PreprocessParams,
     crop_boxes,
     input_to_image,
+    object_extents,
     preprocess,
 )
 
@@ -107,3 +108,24 @@ def test_input_to_image_inverts_the_crop(intrinsics, render_model):
 def test_bad_shape_is_refused(intrinsics):
     with pytest.raises(ValueError, match="depth images must be"):
         preprocess(np.zeros((2, 3, 4, 5)), intrinsics.fx, intrinsics.fy, PARAMS)
+
+
+def test_known_extents_give_the_inputs_of_extents_found_in_the_batch(intrinsics, render_model):
+    depth = render_model("bicycle", fibonacci_directions(9) * 0.6)
+    depth = np.concatenate([depth, np.zeros((1, *depth.shape[1:]), np.float32)])  # + empty
+    extents = object_extents(depth)
+    assert extents.reference_depth_m.shape == (10,) and np.isnan(extents.reference_depth_m[-1])
+    in_threes = object_extents(depth, batch_size=3)
+    for name in ("u_min", "u_max", "v_min", "v_max", "reference_depth_m"):
+        np.testing.assert_array_equal(getattr(in_threes, name), getattr(extents, name))
+    rng = np.random.default_rng(0)
+    shift, scale = rng.uniform(-0.05, 0.05, (4, 2)), rng.uniform(0.9, 1.1, 4)
+    pick = np.array([1, 4, 5, 9])
+    found = preprocess(depth[pick], intrinsics.fx, intrinsics.fy, PARAMS, shift, scale)
+    known = preprocess(depth[pick], intrinsics.fx, intrinsics.fy, PARAMS, shift, scale,
+                       extents[pick])
+    for a, b in ((found.images, known.images), (found.boxes, known.boxes),
+                 (found.reference_depth_m, known.reference_depth_m)):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="extents of 3 images"):
+        preprocess(depth[pick], intrinsics.fx, intrinsics.fy, PARAMS, extents=extents[:3])

@@ -95,3 +95,32 @@ def test_cli_refuses_a_checkpoint_for_other_classes(workspace):
     assert "class list does not match" in result.output
     assert "classifier.json" in result.output
     assert (root / "classifier_eval" / "metrics.json").exists()  # the earlier result survives
+
+
+def _same_arrays(a, b) -> bool:
+    x, y = load_npz(a), load_npz(b)
+    return x.keys() == y.keys() and all(np.array_equal(x[k], y[k]) for k in x)
+
+
+def test_render_and_classifier_eval_over_two_workers_write_what_one_process_does(
+        workspace, tmp_path):
+    from rapomdp.context import RunContext
+    from rapomdp.pipeline import get_stage
+    from rapomdp.workspace import StageInputs
+
+    root, config = workspace
+    two = RunContext(workers=2, threads=1, progress=False)
+    for name in ("render", "classifier_eval"):
+        stage = get_stage(name)
+        out = tmp_path / name
+        out.mkdir()
+        stage.run(config, StageInputs.of(name, {i: root / i for i in stage.inputs}), out, two)
+        mine = sorted(p.relative_to(out) for p in out.rglob("*") if p.is_file())
+        theirs = sorted(p.relative_to(root / name) for p in (root / name).rglob("*")
+                        if p.is_file() and p.name != "stage.json")
+        assert mine == theirs
+        for rel in mine:
+            if rel.suffix == ".npz":
+                assert _same_arrays(out / rel, root / name / rel), rel
+        if name == "classifier_eval":
+            assert read_json(out / "metrics.json") == read_json(root / name / "metrics.json")

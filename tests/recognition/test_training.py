@@ -72,6 +72,24 @@ def test_training_is_deterministic_for_a_seed():
     np.testing.assert_array_equal(runs[0], runs[1])
 
 
+def test_extents_found_once_train_the_network_of_extents_found_per_batch(monkeypatch):
+    from rapomdp.recognition import training
+
+    cfg = TrainConfig(width=0.125, epochs=2, batch_size=32,
+                      preprocess=PreprocessConfig(input_size_px=32))
+    data = toy_views(10, seed=3)
+
+    def weights() -> list[torch.Tensor]:
+        classifier, _ = train_classifier(data, data, TOY_CLASSES, cfg, 144.3, 144.3, seed=5,
+                                         device=torch.device("cpu"))
+        return list(classifier.network.state_dict().values())
+
+    once = weights()
+    monkeypatch.setattr(training, "object_extents", lambda depth: None)  # per batch, as before
+    per_batch = weights()
+    assert all(torch.equal(a, b) for a, b in zip(once, per_batch, strict=True))
+
+
 def test_validation_holds_out_a_fraction_of_every_models_views():
     models = np.repeat(np.arange(4), 50)
     data = LabelledViews(np.zeros((200, 2, 2), np.float32), models, models, np.arange(200))

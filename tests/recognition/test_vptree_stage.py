@@ -8,9 +8,11 @@ import numpy as np
 from typer.testing import CliRunner
 
 from rapomdp.cli import app
+from rapomdp.data.dataset import load_dataset
+from rapomdp.data.test_views import TEST_STREAM
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
-from rapomdp.recognition.vptree_stage import load_workspace_vptree
+from rapomdp.recognition.vptree_stage import load_workspace_vptree, xrho_predictions
 from rapomdp.workspace import Workspace
 from tests.conftest import TEST_CONTEXT, tiny_config
 
@@ -34,6 +36,13 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     assert set(summary["seconds"]) >= {"fit", "observation_model", "test", "total"}
     classifier = load_workspace_vptree(stage)
     assert classifier.classes == classes and classifier.tree.leaves == 16
+    # the models at X_rho over two worker processes: the labels of one process
+    dataset = load_dataset(workspace.root / "dataset")
+    models = dataset.with_role("test") + dataset.with_role("volume")
+    alone = xrho_predictions(classifier, dataset, models, config, TEST_STREAM, "", False)
+    shared = xrho_predictions(classifier, dataset, models, config, TEST_STREAM, "", False, 2)
+    assert alone[1].shape == (len(models), 16)
+    assert all(np.array_equal(a, b) for a, b in zip(alone, shared, strict=True))
     # one volume model per class at 16 viewpoints and pseudo-count a: n(c, x) = 1, so each
     # row is (1 + a) / (1 + 3a) on the label seen and a / (1 + 3a) elsewhere
     a = config.vptree.pseudo_count

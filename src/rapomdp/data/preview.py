@@ -43,6 +43,9 @@ def contact_sheet(
         axes = fig.subplots(rows, cols, squeeze=False)
         for ax in axes.ravel():
             ax.set_axis_off()
+            # hidden axes too: the layout then skips their (undrawn) ticks; the same sheet
+            ax.xaxis.set_visible(False)
+            ax.yaxis.set_visible(False)
         shown = None
         near, far = np.inf, 0.0
         images = {}

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.config import Config, NoiseConfig
+from rapomdp.config import Config, NoiseConfig, RenderConfig
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.noise import apply_sensor_noise
@@ -23,7 +23,7 @@ from rapomdp.data.splits import class_seed
 from rapomdp.geometry.camera import Intrinsics, look_at_many, xtion_intrinsics
 from rapomdp.geometry.viewsphere import viewpoints
 from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
-from rapomdp.progress import track
+from rapomdp.parallel import run_tasks
 from rapomdp.workspace import StageInputs
 
 RENDER_FILE = "render.json"
@@ -49,19 +49,29 @@ def render_depth(
     return apply_sensor_noise(depth, angles, noise, rng or np.random.default_rng())
 
 
+def _render_model(dataset: Dataset, model: ModelEntry, intrinsics: Intrinsics,
+                  cfg: RenderConfig, seed: int, out: Path) -> None:
+    """One model's training-viewsphere renders, written to ``out`` (a task of the stage)."""
+    renderer = DepthRenderer(dataset.mesh(model), intrinsics)
+    poses = model_poses(model, cfg.views, cfg.radius_m, hemisphere=False)
+    rng = class_seed(seed, f"render/{model.class_name}/{model.id}")
+    depth = render_depth(renderer, poses, cfg.noise, rng)
+    save_npz(out / "views" / model.class_name / f"{model.id}.npz", compressed=True,
+             depth=depth, poses=poses)
+
+
 def run_render_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
-    """Render every model of the dataset from the training viewsphere."""
+    """Render every model of the dataset from the training viewsphere, one model per task
+    over the worker processes (each model's noise has its own seed: the images do not depend
+    on the number of processes)."""
     dataset = load_dataset(inputs.dataset)
     intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
     cfg = config.render
-    for model in track(dataset.models, "render: training viewsphere", context.progress):
-        renderer = DepthRenderer(dataset.mesh(model), intrinsics)
-        poses = model_poses(model, cfg.views, cfg.radius_m, hemisphere=False)
-        rng = class_seed(config.seed, f"render/{model.class_name}/{model.id}")
-        depth = render_depth(renderer, poses, cfg.noise, rng)
-        save_npz(out / "views" / model.class_name / f"{model.id}.npz", compressed=True,
-                 depth=depth, poses=poses)
+    run_tasks(_render_model, [(dataset, m, intrinsics, cfg, config.seed, out)
+                              for m in dataset.models],
+              context.worker_count, "render: training viewsphere", context.progress,
+              context.scheduler)
     write_json_atomic(
         out / RENDER_FILE,
         {"intrinsics": intrinsics.to_dict(), "views": cfg.views, "radius_m": cfg.radius_m,

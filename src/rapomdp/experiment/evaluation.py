@@ -167,6 +167,10 @@ class ClosedLoop:
         scene = self.scene(model)
         starts = start_viewpoints(self.config.seed, model, self.motion.reachable,
                                   self.config.evaluate.starts_per_model)
+        # a noiseless sensor sees the same image at every look from a viewpoint: each
+        # (viewpoint, recogniser) is rendered and classified once for all the model's episodes
+        memos: dict[str, dict[int, np.ndarray]] | None = (
+            None if scene.noise.enabled else {name: {} for name in self.recognisers})
         records = []
         for start in starts:
             for key, method in self.methods.items():
@@ -175,7 +179,7 @@ class ClosedLoop:
                 began = time.process_time()
                 episode = run_episode(scene, self.recognisers[method.recogniser], method,
                                       self.motion, int(start), self.config.evaluate.max_moves,
-                                      rng)
+                                      rng, None if memos is None else memos[method.recogniser])
                 records.append(EpisodeRecord(key, model.file, int(start), episode,
                                              time.process_time() - began))
         return records
@@ -249,26 +253,38 @@ def sweep_key(method: str, parameter: str, value: float) -> str:
 def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
                 context: RunContext = RunContext()) -> None:
     """Solve every POMDP method of the evaluation at every extra λ of the sweep, as the solve
-    stage does (``sweep_dir/lambda_<λ>/policy_<method>.npz``)."""
+    stage does (``sweep_dir/lambda_<λ>/policy_<method>.npz``), all in one pool of workers.
+
+    The longest solves start first: larger λ first, then the methods whose solve-stage
+    policies were furthest from converged (the gap between the bounds it reported at the
+    start belief); the order changes the wall time only.
+    """
+    from rapomdp.planning.artefacts import SOLVE_SUMMARY, load_solve_summary
     from rapomdp.planning.stage import start_viewpoint, workspace_arrays
-    from rapomdp.planning.workspace import solve_workspace_problems
+    from rapomdp.planning.workspace import solve_problem_sets
 
     folders: dict[str, tuple[float, list[str]]] = {}
     for method, _, value, folder in sweep_settings(config):
         if folder is not None:
             folders.setdefault(folder, (value, []))[1].append(method)
-    for folder, (lam, methods) in folders.items():
-        variant = config.model_copy(deep=True)
-        variant.solve.models = methods
-        models, energy, reachable, classes = workspace_arrays(
-            variant, inputs.observe, inputs.robot, inputs.vptree_dir)
-        solve = config.solve
-        solve_workspace_problems(
-            models, energy, reachable, sweep_dir / folder, lambda_=lam, discount=solve.discount,
-            start_viewpoint=start_viewpoint(reachable), precision=solve.precision,
-            timeout=solve.timeout_s, max_iterations=solve.iterations,
-            workers=context.worker_count, allow_stay=False, class_names=classes,
-            memory_gb=solve.memory_gb, scheduler=context.scheduler)
+    if not folders:
+        return
+    variant = config.model_copy(deep=True)
+    variant.solve.models = list(dict.fromkeys(m for _, ms in folders.values() for m in ms))
+    models, energy, reachable, classes = workspace_arrays(
+        variant, inputs.observe, inputs.robot, inputs.vptree_dir)
+    rows = (load_solve_summary(inputs.solve) if (inputs.solve / SOLVE_SUMMARY).is_file()
+            else {})
+    gap = {name: float(row["upper"]) - float(row["lower"]) for name, row in rows.items()
+           if isinstance(row, dict) and {"upper", "lower"} <= row.keys()}
+    solve = config.solve
+    solve_problem_sets(
+        [(sweep_dir / folder, lam, {m: models[m] for m in methods})
+         for folder, (lam, methods) in folders.items()],
+        energy, reachable, discount=solve.discount, start_viewpoint=start_viewpoint(reachable),
+        precision=solve.precision, timeout=solve.timeout_s, max_iterations=solve.iterations,
+        workers=context.worker_count, allow_stay=False, class_names=classes,
+        memory_gb=solve.memory_gb, scheduler=context.scheduler, cost=gap)
 
 
 def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -113,3 +113,48 @@ def solve_workspace_problems(
     summary = dict(zip(names, rows, strict=True))
     write_text_atomic(out / SOLVE_SUMMARY, json.dumps(summary, indent=2) + "\n")
     return {name: out / policy_file(name) for name in names}
+
+
+def solve_problem_sets(
+    sets: Sequence[tuple[str | os.PathLike[str], float, Mapping[str, np.ndarray]]],
+    move_energy: np.ndarray,
+    reachable: np.ndarray | None,
+    *,
+    discount: float = 0.95,
+    start_viewpoint: int = 0,
+    precision: float = 1e-3,
+    timeout: float = 30.0,
+    allow_stay: bool = False,
+    class_names: list[str] | None = None,
+    max_iterations: int | None = None,
+    workers: int = 1,
+    memory_gb: float = DEFAULT_MEMORY_GB,
+    scheduler: str | None = None,
+    cost: Mapping[str, float] | None = None,
+) -> dict[Path, dict[str, Path]]:
+    """Several :func:`solve_workspace_problems` calls, (folder, λ, models) each, in one pool.
+
+    Every folder gets the files and the summary one call would write it, but all the problems
+    share the ``workers`` processes, started in decreasing order of λ and then of ``cost[name]``
+    (a relative estimate of a model's solve time; larger λ, deeper plans, longer solves), so the
+    longest start first instead of one folder's tail holding up the next folder. The order
+    decides only the wall time: each solve is the one it would be alone.
+    """
+    common = (discount, start_viewpoint, precision, timeout, max_iterations, allow_stay,
+              class_names, memory_gb)
+    jobs = [(Path(folder), lam, name, models[name])
+            for folder, lam, models in sets for name in models]
+    weights = cost or {}
+    order = sorted(range(len(jobs)),
+                   key=lambda i: (-jobs[i][1], -weights.get(jobs[i][2], 0.0)))
+    tasks = [(jobs[i][3], move_energy, reachable, jobs[i][0], jobs[i][2], jobs[i][1], *common)
+             for i in order]
+    solved = run_tasks(_solve_one, tasks, workers, "solve: models", scheduler=scheduler)
+    rows = dict(zip(order, solved, strict=True))
+    paths: dict[Path, dict[str, Path]] = {}
+    for folder, _, models in sets:
+        out = Path(folder)
+        summary = {name: rows[i] for i, (f, _, name, _) in enumerate(jobs) if f == out}
+        write_text_atomic(out / SOLVE_SUMMARY, json.dumps(summary, indent=2) + "\n")
+        paths[out] = {name: out / policy_file(name) for name in models}
+    return paths

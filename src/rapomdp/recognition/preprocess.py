@@ -66,6 +66,51 @@ def as_depth_batch(depth_m: np.ndarray) -> np.ndarray:
     return depth
 
 
+@dataclass
+class ObjectExtents:
+    """What :func:`crop_boxes` reads of each depth image (n,): the object's pixel bounding box
+    (rows ``v_min..v_max``, columns ``u_min..u_max``) and its reference depth in metres (the
+    lower median of its depths), NaN and an arbitrary box for an image without object pixels.
+
+    They depend on the image alone: training computes them once per image
+    (:func:`object_extents`) and only the augmentation's shift and scale change per epoch.
+    """
+
+    u_min: np.ndarray
+    u_max: np.ndarray
+    v_min: np.ndarray
+    v_max: np.ndarray
+    reference_depth_m: np.ndarray
+    image_shape: tuple[int, int]
+
+    def __getitem__(self, index: np.ndarray | slice) -> ObjectExtents:
+        return ObjectExtents(self.u_min[index], self.u_max[index], self.v_min[index],
+                             self.v_max[index], self.reference_depth_m[index], self.image_shape)
+
+    def __len__(self) -> int:
+        return int(self.reference_depth_m.shape[0])
+
+
+def object_extents(depth_m: np.ndarray, batch_size: int = 512) -> ObjectExtents:
+    """The :class:`ObjectExtents` of depth images (n, H, W) or (H, W) in metres, ``batch_size``
+    images at a time (each image's result is the same in any batch)."""
+    depth = as_depth_batch(depth_m)
+    n, h, w = depth.shape
+    parts = []
+    for start in range(0, max(n, 1), batch_size):
+        d = depth[start : start + batch_size]
+        valid = d > 0
+        rows, cols = valid.any(axis=2), valid.any(axis=1)
+        has_object = rows.any(axis=1)
+        flat = torch.from_numpy(np.where(valid, d, np.float32(np.nan)).reshape(d.shape[0], -1))
+        reference = torch.nanmedian(flat, dim=1).values.double().numpy()  # lower median
+        parts.append((np.argmax(cols, axis=1), w - 1 - np.argmax(cols[:, ::-1], axis=1),
+                      np.argmax(rows, axis=1), h - 1 - np.argmax(rows[:, ::-1], axis=1),
+                      np.where(has_object, reference, np.nan)))
+    u_min, u_max, v_min, v_max, reference = (np.concatenate(a) for a in zip(*parts, strict=True))
+    return ObjectExtents(u_min, u_max, v_min, v_max, reference, (h, w))
+
+
 def crop_boxes(
     depth_m: np.ndarray,
     fx_px: float,
@@ -73,24 +118,22 @@ def crop_boxes(
     params: PreprocessParams,
     shift: np.ndarray | None = None,
     scale: np.ndarray | None = None,
+    extents: ObjectExtents | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Crop boxes (n, 4) = (u, v, width, height) in pixels and reference depths (n,) in metres.
 
     ``shift`` (n, 2) moves a box by that fraction of its size; ``scale`` (n,) multiplies its
     size (augmentation). An image without object pixels gets the whole image as its box.
+    ``extents``: the images' :func:`object_extents`, when already known.
     """
     depth = as_depth_batch(depth_m)
     n, h, w = depth.shape
-    valid = depth > 0
-    rows, cols = valid.any(axis=2), valid.any(axis=1)
-    has_object = rows.any(axis=1)
-    v_min = np.argmax(rows, axis=1)
-    v_max = h - 1 - np.argmax(rows[:, ::-1], axis=1)
-    u_min = np.argmax(cols, axis=1)
-    u_max = w - 1 - np.argmax(cols[:, ::-1], axis=1)
-    flat = torch.from_numpy(np.where(valid, depth, np.float32(np.nan)).reshape(n, -1))
-    reference = torch.nanmedian(flat, dim=1).values.double().numpy()  # lower median
-    reference = np.where(has_object, reference, np.nan)
+    e = extents if extents is not None else object_extents(depth)
+    if len(e) != n or e.image_shape != (h, w):
+        raise ValueError(f"extents of {len(e)} images of {e.image_shape} for images {depth.shape}")
+    reference = e.reference_depth_m
+    has_object = ~np.isnan(reference)
+    u_min, u_max, v_min, v_max = e.u_min, e.u_max, e.v_min, e.v_max
     safe_ref = np.where(has_object, reference, 1.0)
     # the object's extent in metres at the reference depth, and the square side that holds it
     extent_m = np.maximum((u_max - u_min + 1) / fx_px, (v_max - v_min + 1) / fy_px) * safe_ref
@@ -142,15 +185,17 @@ def preprocess(
     params: PreprocessParams,
     shift: np.ndarray | None = None,
     scale: np.ndarray | None = None,
+    extents: ObjectExtents | None = None,
 ) -> Preprocessed:
     """Network inputs (n, 1, S, S) float32 from depth images (n, H, W) or (H, W) in metres.
 
     ``fx_px``, ``fy_px`` are the camera's focal lengths at the images' resolution; ``shift`` and
-    ``scale`` are the training augmentation (see :func:`crop_boxes`).
+    ``scale`` are the training augmentation, ``extents`` the images' :func:`object_extents`
+    when already known (see :func:`crop_boxes`).
     """
     depth = as_depth_batch(depth_m)
     n, h, w = depth.shape
-    boxes, reference = crop_boxes(depth, fx_px, fy_px, params, shift, scale)
+    boxes, reference = crop_boxes(depth, fx_px, fy_px, params, shift, scale, extents)
     ref = torch.from_numpy(np.where(np.isnan(reference), 0.0, reference).astype(np.float32))
     size = params.input_size_px
     rows = _area_weights(boxes[:, 1] + 0.5 - boxes[:, 3] / 2, boxes[:, 3], size, h)

@@ -24,6 +24,7 @@ from rapomdp.data.test_views import TEST_STREAM, TestViews, xrho_noise_rng
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, stable_hash, write_json_atomic
+from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
 from rapomdp.recognition.artefacts import (
     HEMISPHERE_FIGURE,
@@ -134,22 +135,52 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
     write_json_atomic(out / METRICS_FILE, metrics)
 
 
+def _classify_test_models(config: Config, render_dir: Path, dataset_dir: Path,
+                          train_dir: Path, model_files: list[str], threads: int | None,
+                          progress: bool = False) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The classifier's probabilities of test models at X_rho (V, C) and over their training
+    viewsphere (views, C), model by model (a task of the classifier_eval stage)."""
+    views = load_training_views(render_dir, dataset_dir)
+    dataset = views.dataset
+    classifier = load_stage_classifier(config, train_dir, dataset.classes, threads)
+    by_file = {m.file: m for m in dataset.models}
+    out = []
+    for model in track([by_file[f] for f in model_files], "classifier: test models", progress):
+        sensed = TestViews.of_model(config, dataset, model).sensed(
+            xrho_noise_rng(config.seed, TEST_STREAM, model))
+        out.append((classifier.predict(sensed), classifier.predict(views.load(model)[0])))
+    return out
+
+
 def run_classifier_eval_stage(config: Config, inputs: StageInputs, out: Path,
                               context: RunContext) -> None:
-    """Single-view accuracy of the trained classifier on the test models."""
+    """Single-view accuracy of the trained classifier on the test models (rendered and
+    classified in a few shares per worker process; the probabilities do not depend on it)."""
     views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
+    # loaded here first: a checkpoint that does not fit is refused before any task starts
     classifier = load_stage_classifier(config, inputs.train, dataset.classes,
                                        context.threads)
     test_models = dataset.with_role("test")
     labels = np.array([dataset.label(m) for m in test_models], dtype=np.int64)
     vp = config.viewpoints
-    xrho, sphere = [], []
-    for model in track(test_models, "classifier: test models", context.progress):
-        sensed = TestViews.of_model(config, dataset, model).sensed(
-            xrho_noise_rng(config.seed, TEST_STREAM, model))
-        xrho.append(classifier.predict(sensed))
-        sphere.append(classifier.predict(views.load(model)[0]))
+    files = [m.file for m in test_models]
+    if context.worker_count <= 1 and not context.uses_cluster:
+        per_model = _classify_test_models(config, inputs.render, inputs.dataset,
+                                          inputs.train, files, context.threads,
+                                          context.progress)
+    else:
+        shares = np.array_split(np.arange(len(files)), min(4 * context.worker_count,
+                                                           max(1, len(files))))
+        threads = context.in_worker().threads
+        parts = run_tasks(_classify_test_models,
+                          [(config, inputs.render, inputs.dataset, inputs.train,
+                            [files[i] for i in share], threads) for share in shares],
+                          context.worker_count, "classifier: test models", context.progress,
+                          context.scheduler)
+        per_model = [result for part in parts for result in part]
+    xrho = [x for x, _ in per_model]
+    sphere = [s for _, s in per_model]
     results = [
         SingleViewResult("xrho", dataset.classes, np.stack(xrho), labels),
         SingleViewResult("sphere", dataset.classes, np.stack(sphere), labels),

@@ -23,7 +23,7 @@ from rapomdp.data.training_views import TrainingViews
 from rapomdp.progress import progress_bar
 from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
-from rapomdp.recognition.preprocess import PreprocessParams, preprocess
+from rapomdp.recognition.preprocess import PreprocessParams, object_extents, preprocess
 
 
 @dataclass
@@ -148,6 +148,9 @@ def train_classifier(
     optimiser = torch.optim.Adam(network.parameters(), lr=cfg.learning_rate,
                                  weight_decay=cfg.weight_decay)
     val_inputs = preprocess(val.depth, fx_px, fy_px, params).images if len(val) else None
+    # where the object is in each image does not change between epochs (unless the noise
+    # augmentation changes the images): found once, the crop alone is redrawn per batch
+    extents = None if cfg.augment.noise else object_extents(train.depth)
     noise = noise or NoiseConfig()
     history = History()
     batches = -(-len(train) // cfg.batch_size)
@@ -161,7 +164,8 @@ def train_classifier(
             for b in range(batches):
                 idx = np.sort(order[b * cfg.batch_size : (b + 1) * cfg.batch_size])
                 depth, shift, scale = augment_batch(train.depth[idx], cfg.augment, noise, rng)
-                x = torch.from_numpy(preprocess(depth, fx_px, fy_px, params, shift, scale).images)
+                x = torch.from_numpy(preprocess(depth, fx_px, fy_px, params, shift, scale,
+                                                None if extents is None else extents[idx]).images)
                 y = torch.from_numpy(train.labels[idx])
                 x, y = x.to(device), y.to(device)
                 logits = network(x)

@@ -24,6 +24,7 @@ from rapomdp.data.dataset import Dataset, ModelEntry
 from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.io import save_npz, write_json_atomic
+from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
 from rapomdp.recognition.artefacts import (
     VPTREE_CLASSIFIER_FILE,
@@ -63,17 +64,31 @@ def fit_vptree(config: Config, views: TrainingViews,
         levels=cfg.levels, max_fit_descriptors=cfg.max_fit_descriptors, top_k=cfg.top_k)
 
 
+def _xrho_labels(classifier: VocabularyTreeClassifier, dataset: Dataset,
+                 models: list[ModelEntry], config: Config, purpose: str) -> list[np.ndarray]:
+    """The VP-tree's labels (V,) of each model rendered at X_rho (a task of the stage)."""
+    return [classifier.predict(xrho_renders(dataset, model, config, purpose)[1]).argmax(axis=1)
+            for model in models]
+
+
 def xrho_predictions(classifier: VocabularyTreeClassifier, dataset: Dataset,
                      models: list[ModelEntry], config: Config, purpose: str,
-                     description: str, progress: bool = True,
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """True labels (M,) and the VP-tree's labels (M, V) of models rendered at X_rho."""
-    labels, predicted = [], []
-    for model in track(models, description, progress):
-        _, sensed, _ = xrho_renders(dataset, model, config, purpose)
-        predicted.append(classifier.predict(sensed).argmax(axis=1))
-        labels.append(dataset.label(model))
-    return np.array(labels, dtype=np.int64), np.stack(predicted)
+                     description: str, progress: bool = True, workers: int = 1,
+                     scheduler: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """True labels (M,) and the VP-tree's labels (M, V) of models rendered at X_rho, over
+    ``workers`` processes (or the Dask ``scheduler``); the labels do not depend on them.
+
+    In one process each model is a task; otherwise the models go in a few contiguous shares
+    per worker, so the classifier travels to the workers a few times, not once per model.
+    """
+    shares = len(models) if workers <= 1 and scheduler is None else 4 * workers
+    groups = [[models[i] for i in share]
+              for share in np.array_split(np.arange(len(models)), min(shares, len(models)))]
+    predicted = run_tasks(_xrho_labels, [(classifier, dataset, g, config, purpose)
+                                         for g in groups],
+                          workers, description, progress, scheduler)
+    labels = [dataset.label(model) for model in models]
+    return np.array(labels, dtype=np.int64), np.stack([p for part in predicted for p in part])
 
 
 def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
@@ -88,7 +103,8 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     step = time.perf_counter()
     volume_labels, volume_pred = xrho_predictions(
         classifier, dataset, dataset.with_role("volume"), config, VOLUME_STREAM,
-        "vptree: volume models at X_rho", context.progress)
+        "vptree: volume models at X_rho", context.progress, context.worker_count,
+        context.scheduler)
     confusion = viewpoint_confusion(volume_labels, volume_pred, len(dataset.classes),
                                     config.vptree.pseudo_count)
     seconds["observation_model"] = time.perf_counter() - step
@@ -98,7 +114,8 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     if test_models:
         test_labels, test_pred = xrho_predictions(
             classifier, dataset, test_models, config, TEST_STREAM,
-            "vptree: test models at X_rho", context.progress)
+            "vptree: test models at X_rho", context.progress, context.worker_count,
+            context.scheduler)
         test_accuracy = float((test_pred == test_labels[:, None]).mean())
     seconds["test"] = time.perf_counter() - step
     classifier.save(out / VPTREE_CLASSIFIER_FILE)
