@@ -21,7 +21,7 @@ def test_config_prints_the_default() -> None:
 def test_config_comments_say_what_each_key_is_and_its_unit() -> None:
     lines = runner.invoke(app, ["config"]).stdout.splitlines()
     assert "  radius_m: 0.2  # bounding-sphere radius after normalisation; unit: metres" in lines
-    assert any(line.startswith("  wrong_declaration_cost_m: 2.0  # lambda (Eq. 1)")
+    assert any(line.startswith("  wrong_declaration_cost_m: 8.0  # lambda (Eq. 1)")
                for line in lines)
     assert "    missing_start_deg: 70.0  # unit: degrees" in lines
     assert any(line.startswith("    joint_weight_m_per_rad: 0.0") and

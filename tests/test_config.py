@@ -13,8 +13,10 @@ def test_default_has_the_papers_values() -> None:
     cfg = Config()
     assert cfg.viewpoints.count == 128 and cfg.viewpoints.radius_m == 0.6
     assert cfg.dataset.radius_m == 0.2
-    # 4 test models a class for statistics over test models; the paper's 3 / 1 / 1 is a config
-    assert (cfg.dataset.split.train, cfg.dataset.split.volume, cfg.dataset.split.test) == (4, 1, 4)
+    # 4 test models a class for statistics over test models, 3 volume models a class of held-out
+    # evidence; the paper's 3 / 1 / 1 is a config
+    assert (cfg.dataset.split.train, cfg.dataset.split.volume, cfg.dataset.split.test) == (4, 3, 4)
+    assert cfg.volume.models_per_class == 1 and cfg.observe.evidence == "volume"
     assert cfg.dataset.split.extra == "train"
     paper = load_config(Path(__file__).parents[1] / "configs" / "paper.yaml")
     assert (paper.dataset.split.train, paper.dataset.split.volume, paper.dataset.split.test) \
