@@ -65,6 +65,9 @@ def main() -> None:
     classes = [str(c) for c in observe["classes"]]
     evidence = Evidence(observe["evidence_labels"], observe["evidence_predictions"],
                         observe["evidence_groups"], observe["evidence_from_volume"])
+    if not evidence.volume_mask.all():
+        raise SystemExit(f"{args.workspace}: its evidence holds cross-fitted rows; this closed "
+                         "loop refits volume-only models: observe with observe.evidence=volume")
     volume_groups = np.unique(evidence.groups[evidence.volume_mask])
     scores = {"mean": observe["scores"], "area": observe["area_scores"],
               "similarity": observe["view_similarity"].astype(np.float64)}

@@ -46,7 +46,8 @@ def split_models(
         if len(items) < need:
             message = (
                 f"class '{name}' has {len(items)} model(s); the split needs {need} "
-                f"({', '.join(f'{counts[r]} {r}' for r in ROLES)})"
+                f"({', '.join(f'{counts[r]} {r}' for r in ROLES)}): set dataset.split to "
+                "fewer, or dataset.too_few_models: drop"
             )
             if too_few == "drop":
                 warnings.warn(f"{message}: class dropped", stacklevel=2)

@@ -117,7 +117,7 @@ class ClosedLoop:
         robot = load_robot(inputs.robot)
         motion = Motion.from_robot(robot)
         observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
-        first_view = first_view_models(inputs.observe, inputs.vptree_dir)
+        first_view = first_view_models(inputs.observe, observation)
         cfg = config.evaluate
 
         def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rapomdp.awareness.evidence import temper
 from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
@@ -71,10 +72,8 @@ class StaticPolicy:
         self._belief = np.empty(0)
 
     def observe(self, viewpoint: int, output: np.ndarray) -> None:
-        z = np.log(np.maximum(np.asarray(output, dtype=np.float64), 1e-300))
-        z = z / self.softmax_temperature
-        z -= z.max()
-        self._belief = np.exp(z) / np.exp(z).sum()
+        output = np.asarray(output, dtype=np.float64)[None, None]  # (1, 1, C)
+        self._belief = temper(output, 1.0 / self.softmax_temperature)[0, 0]
 
     @property
     def belief(self) -> np.ndarray:

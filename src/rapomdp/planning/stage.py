@@ -30,12 +30,12 @@ from rapomdp.robot.artefacts import ROBOT_ARRAYS
 from rapomdp.workspace import StageError, StageInputs
 
 
-def first_view_models(observe_dir: Path, vptree_dir: Path | None = None
+def first_view_models(observe_dir: Path, offered: dict[str, np.ndarray]
                       ) -> dict[str, np.ndarray]:
-    """Each offered model's model of the belief's *first* update (the observe stage's
-    ``first_view_<name>``; the planner's model itself where there is none, e.g. the VP-tree's
-    or a workspace from before the belief correction). Later updates use the planner's."""
-    offered, _ = offered_observation_models(observe_dir, vptree_dir)
+    """Each ``offered`` model's (:func:`offered_observation_models`) model of the belief's
+    *first* update (the observe stage's ``first_view_<name>``; the planner's model itself where
+    there is none, e.g. the VP-tree's or a workspace from before the belief correction). Later
+    updates use the planner's."""
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     return {name: observe.get(f"{FIRST_VIEW_PREFIX}{name}", model)
             for name, model in offered.items()}
