@@ -20,6 +20,7 @@ import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
 from rapomdp.awareness.evidence import Evidence, fit_observation_models, temper
+from rapomdp.awareness.quality import expected_calibration_error
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
@@ -57,6 +58,9 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="solver CPU budget each")
     parser.add_argument("--naive", action="store_true",
                         help="naive Bayes (t = 1) instead of the observe stage's correction")
+    parser.add_argument("--temperature", type=float, default=None,
+                        help="every model tempered by this t (planner and belief alike) "
+                             "instead of the observe stage's correction")
     args = parser.parse_args()
     ws = Workspace(args.workspace)
     config = ws.config()
@@ -77,7 +81,7 @@ def main() -> None:
     variant = f"ra_{calibration['ra_model']}"
     temperatures, corrections = calibration["temperatures"], calibration["belief_corrections"]
     cfg = config.evaluate
-    rows: dict[tuple[str, float], list[tuple[bool, float, float]]] = {}
+    rows: dict[tuple[str, float], list[tuple[bool, float, float, float]]] = {}
     for g in volume_groups:
         held = evidence.groups == g
         fitted = fit_observation_models(evidence.subset(~held), scores, classes, config.observe,
@@ -87,8 +91,11 @@ def main() -> None:
         for name in ("random", *args.models):
             key = cfg.random.observation_model if name == "random" else name
             single = fitted[key].probabilities
-            planner = single if args.naive else temper(single, temperatures[key])
-            first = single if args.naive or corrections[key] == "after_first" else planner
+            if args.temperature is not None:
+                planner = first = temper(single, args.temperature)
+            else:
+                planner = single if args.naive else temper(single, temperatures[key])
+                first = single if args.naive or corrections[key] == "after_first" else planner
             for lam in ([0.0] if name == "random" else args.lambdas):
                 if name == "random":
                     method = RandomWalkPolicy(planner, motion.distance_m, motion.reachable,
@@ -113,20 +120,31 @@ def main() -> None:
                         truth = int(part.labels[r])
                         rows.setdefault((name, lam), []).append(
                             (episode.declared == truth, float(episode.move_energy.sum()),
-                             float(episode.beliefs[-1, truth])))
+                             float(episode.beliefs[-1, truth]),
+                             float(episode.beliefs[-1, episode.declared])))
         static = part.predicted == part.labels[:, None]
         rows.setdefault(("static", 0.0), []).extend(
-            (bool(c), 0.0, float("nan")) for c in static[:, motion.reachable].ravel())
+            (bool(c), 0.0, float("nan"), float("nan"))
+            for c in static[:, motion.reachable].ravel())
+    belief = (f"t = {args.temperature:g}" if args.temperature is not None
+              else "naive" if args.naive else "the observe stage corrections")
     print(f"held-out closed loop on {len(volume_groups)} volume group(s) of "
           f"{len(classes)} classes ({args.starts} starts a model); RA model {variant}; "
-          f"belief: {'naive' if args.naive else 'the observe stage corrections'}")
-    print(f"{'method':12s} {'lambda':>6s} {'accuracy':>8s} {'energy':>7s} {'belief':>7s} n")
+          f"belief: {belief}")
+    print("belief: final belief in the true class; confidence: in the declared class; "
+          "ECE over the confidence (10 bins)")
+    print(f"{'method':12s} {'lambda':>6s} {'accuracy':>8s} {'energy':>7s} {'belief':>7s} "
+          f"{'confid.':>7s} {'ECE':>6s} n")
     table = {}
     for (name, lam), values in rows.items():
         a = np.array(values, dtype=np.float64)
         table[(name, lam)] = a[:, 1].mean()
+        known = np.isfinite(a[:, 3])
+        ece = (expected_calibration_error(a[known, 3], a[known, 0]) if known.any()
+               else float("nan"))
         print(f"{name:12s} {lam:6g} {a[:, 0].mean():8.3f} {a[:, 1].mean():7.3f} "
-              f"{np.nanmean(a[:, 2]) if np.isfinite(a[:, 2]).any() else float('nan'):7.3f} "
+              f"{np.nanmean(a[:, 2]) if known.any() else float('nan'):7.3f} "
+              f"{np.nanmean(a[:, 3]) if known.any() else float('nan'):7.3f} {ece:6.3f} "
               f"{len(a)}")
     budget = table[("random", 0.0)]
     fitting = [lam for lam in args.lambdas if table[("ra", lam)] <= budget]

@@ -40,3 +40,8 @@ def test_the_csv_has_one_line_per_episode_with_its_path() -> None:
     assert lines[0].startswith("method,class,model,start,declared,correct,belief,moves")
     assert lines[1] == "static,a,a/m1.stl,3,a,1,0.7,0,0,0,0,3"
     assert lines[2] == "ra,a,a/m1.stl,3,b,0,0.3,2,0.5,0.75,1,3 7 9"
+
+
+def test_the_final_confidence_is_the_last_belief_in_the_declared_class() -> None:
+    # episode 0 declares a from [0.7, 0.3]; episode 1 declares b from its last row [0.3, 0.7]
+    np.testing.assert_allclose(_table().final_confidence(), [0.7, 0.7])

@@ -325,9 +325,12 @@ def fig2(volumes: Sequence[SaliencyVolume], titles: Sequence[str], class_name: s
 
 
 def reliability_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-                       path: Path) -> Path:
+                       path: Path,
+                       xlabel: str = "predicted P(classifier right) at (class, viewpoint)",
+                       title: str = "Self-awareness on unseen objects (10 bins)") -> Path:
     """Predicted against observed P(correct) on the test models, one line per observation
-    model: ``curves[name] = (mean predicted, observed accuracy, count)`` per bin."""
+    model (or per method): ``curves[name] = (mean predicted, observed accuracy, count)`` per
+    bin."""
     with style():
         fig = new_figure(5.5, 4.4)
         ax = fig.add_subplot()
@@ -336,9 +339,8 @@ def reliability_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, np.ndarra
             seen = count > 0
             ax.plot(predicted[seen], observed[seen], marker="os^Dv<>P"[i % 8], ms=4,
                     color=OKABE_ITO[i % len(OKABE_ITO)], label=name)
-        ax.set(xlabel="predicted P(classifier right) at (class, viewpoint)",
-               ylabel="observed accuracy on the test models", xlim=(0, 1), ylim=(0, 1.02),
-               title="Self-awareness on unseen objects (10 bins)")
+        ax.set(xlabel=xlabel, ylabel="observed accuracy on the test models", xlim=(0, 1),
+               ylim=(0, 1.02), title=title)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left")
         return save_png(fig, path)

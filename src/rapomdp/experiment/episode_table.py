@@ -108,6 +108,12 @@ class EpisodeTable:
         return cls(classes=[str(c) for c in data["classes"]],
                    methods=[str(m) for m in data["methods"]], **fields)
 
+    def final_confidence(self) -> np.ndarray:
+        """Each episode's final belief in the class it declared: the confidence a calibrated
+        belief matches its accuracy with (the belief in the true class falls short of the
+        accuracy even for a calibrated belief whenever that belief is not one-hot)."""
+        return self.step_beliefs[self.offsets[1:] - 1, self.declared]
+
     def beliefs_in_true_class(self, episode: int) -> np.ndarray:
         """Belief in the true class after each image of one episode."""
         rows = slice(self.offsets[episode], self.offsets[episode + 1])

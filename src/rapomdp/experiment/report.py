@@ -80,6 +80,7 @@ REPORT_SECTIONS = ("seed",)
 REPORT_INPUTS = ("dataset", "train", "classifier_eval", "observe", "robot", "solve", "evaluate")
 REPORT_MD = "report.md"
 REPORT_HTML = "report.html"
+BELIEF_RELIABILITY_FIGURE = "belief_reliability.png"
 T = TypeVar("T")
 
 
@@ -243,7 +244,7 @@ class _Builder:
         """Copy ``source`` into the report (as ``name``) with its caption, or say it is
         missing and how to make it."""
         if not source.is_file():
-            self.missing(f"{self._shown(source)} (not found)", how)
+            self.missing(f"{self.shown(source)} (not found)", how)
             return
         self.blocks.append(Image(self.copy(source, name), caption))
 
@@ -256,17 +257,17 @@ class _Builder:
     def load(self, source: Path, reader: Callable[[Path], T], how: str) -> T | None:
         """``reader(source)`` (an artefact's typed loader), or a missing line saying why not."""
         if not source.is_file():
-            self.missing(f"{self._shown(source)} (not found)", how)
+            self.missing(f"{self.shown(source)} (not found)", how)
             return None
         try:
             return reader(source)
         except (ArtefactError, KeyError, ValueError) as exc:
-            self.missing(f"{self._shown(source)}: {exc}", how)
+            self.missing(f"{self.shown(source)}: {exc}", how)
             return None
 
     def json(self, source: Path, how: str) -> dict[str, Any] | None:
         if not source.is_file():
-            self.missing(f"{self._shown(source)} (not found)", how)
+            self.missing(f"{self.shown(source)} (not found)", how)
             return None
         try:
             data = read_json(source)
@@ -274,11 +275,11 @@ class _Builder:
             self.missing(str(exc), how)
             return None
         if not isinstance(data, dict):
-            self.missing(f"{self._shown(source)} is not a JSON object", how)
+            self.missing(f"{self.shown(source)} is not a JSON object", how)
             return None
         return data
 
-    def _shown(self, path: Path) -> str:
+    def shown(self, path: Path) -> str:
         try:
             return str(path.relative_to(self.root))
         except ValueError:
@@ -449,7 +450,6 @@ def _awareness(b: _Builder, config: Config, inputs: StageInputs, class_name: str
 def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str) -> None:
     """Held-out validation, predicted vs observed P(correct), one class's hemispheres and the
     calibration of every method's final belief."""
-    from rapomdp.awareness.quality import expected_calibration_error
     from rapomdp.awareness.report import write_awareness_figures
 
     observe = inputs.observe
@@ -472,18 +472,37 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str)
                        f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
     episodes = inputs.evaluate / EPISODES_FILE
     if episodes.exists():
-        table = EpisodeTable.load(episodes)
-        rows = []
-        for method in table.methods:
-            mine = table.method == method
-            belief, right = table.belief[mine], table.correct[mine].astype(float)
-            rows.append([method, _fmt(float(right.mean())), _fmt(float(belief.mean())),
-                         _fmt(float(belief.mean() - right.mean())),
-                         _fmt(expected_calibration_error(belief, right))])
-        b.add(Paragraph("Calibration of every method's final belief in the closed loop "
-                        "(ECE: 10 equal-width bins):"))
-        b.add(Table(["method", "accuracy", "mean final belief", "belief − accuracy", "ECE"],
-                    rows))
+        _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate)
+
+
+def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> None:
+    """Every method's final belief against its accuracy: the mean belief in the true class,
+    the mean confidence (belief in the declared class), their ECE and reliability curves."""
+    from rapomdp.awareness.figures import reliability_figure
+    from rapomdp.awareness.quality import expected_calibration_error, reliability
+
+    confidence = table.final_confidence()
+    rows, curves = [], {}
+    for method in table.methods:
+        mine = table.method == method
+        right = table.correct[mine].astype(float)
+        rows.append([method, _fmt(float(right.mean())), _fmt(float(table.belief[mine].mean())),
+                     _fmt(float(confidence[mine].mean())),
+                     _fmt(float(confidence[mine].mean() - right.mean())),
+                     _fmt(expected_calibration_error(confidence[mine], right))])
+        curves[method] = reliability(confidence[mine], right, 10)
+    b.add(Paragraph("Calibration of every method's final belief in the closed loop on the test "
+                    "models: the mean belief in the true class; the confidence (the belief in "
+                    "the declared class), which a calibrated belief's accuracy equals; ECE of "
+                    "the confidence over 10 equal-width bins:"))
+    b.add(Table(["method", "accuracy", "mean final belief in the true class",
+                 "mean confidence", "confidence − accuracy", "ECE"], rows))
+    figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
+                                xlabel="final belief in the declared class",
+                                title="Final beliefs on the test models (10 bins)")
+    b.add(Image(figure.name, "Reliability of every method's final belief: accuracy against "
+                             "confidence (belief in the declared class), from "
+                             f"{b.shown(evaluate / EPISODES_FILE)}."))
 
 
 def _classifier(b: _Builder, inputs: StageInputs, cmd: str) -> None:
