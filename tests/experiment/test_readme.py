@@ -90,3 +90,33 @@ def test_no_markers_or_no_stages_is_a_named_error(finished, tmp_path: Path) -> N
     with pytest.raises(StageError, match=r"stage\(s\) dataset, classifier_eval, observe, "
                                          r"evaluate have not run"):
         update_readme(empty, readme)
+
+
+def test_the_block_shows_every_methods_final_belief_calibration(tmp_path) -> None:
+    from rapomdp.data.dataset import load_dataset
+    from rapomdp.io import save_npz
+    from tests.experiment.test_report import _episodes
+
+    ws = Workspace(tmp_path / "ws")
+    config = tiny_config()
+    run_pipeline(config, ws, until="dataset", context=TEST_CONTEXT)
+    classes = load_dataset(ws.require("dataset")).classes
+
+    def evaluate(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
+        _writer({"table1.md": TABLE1})(config, inputs, out, context)
+        save_npz(out / "episodes.npz", **_episodes(classes).arrays())
+
+    stages = {"classifier_eval": _writer({}, {"xrho": {"images": 48, "accuracy": 0.5,
+                                                       "chance": 0.3333},
+                                              "sphere": {"images": 18, "accuracy": 0.6,
+                                                         "chance": 0.3333}}),
+              "observe": _writer({"quality.md": QUALITY}), "evaluate": evaluate}
+    for name, run in stages.items():
+        ws.run(Stage(name, run), config, context=TEST_CONTEXT)
+    readme = tmp_path / "README.md"
+    readme.write_text(f"{BEGIN}\n{END}\n")
+    text = update_readme(ws, readme).read_text()
+    assert "**Calibration of the final belief**" in text
+    # Static right 9 of 25 with belief 0.8 / 0.3 in the true class, uniform over 3 classes
+    assert "| Static | 0.360 | 0.480 | 0.333 | -0.027 | 0.027 |" in text
+    assert "| RA-POMDP | 1.000 | 0.800 | 0.333 | -0.667 | 0.667 |" in text

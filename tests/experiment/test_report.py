@@ -188,11 +188,11 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
     # one <table> per markdown table: Table 1, per class, quality, the final beliefs'
     # calibration, provenance, classifier, solver
     assert html.count("<table>") == len(re.findall(r"^\|---", text, flags=re.M)) == 7
-    assert ("| method | accuracy | mean final belief in the true class | mean confidence | "
-            "confidence − accuracy | ECE |") in text
+    assert ("| Method | Accuracy | Belief in the true class | Confidence | "
+            "Confidence − accuracy | ECE |") in text
     # the fixture's beliefs stay uniform over 3 classes: confidence 1/3 whatever was declared
-    assert "| static | 0.360 | 0.480 | 0.333 | -0.027 | 0.027 |" in text
-    assert "| ra | 1.000 | 0.800 | 0.333 | -0.667 | 0.667 |" in text
+    assert "| Static | 0.360 | 0.480 | 0.333 | -0.027 | 0.027 |" in text
+    assert "| RA-POMDP | 1.000 | 0.800 | 0.333 | -0.667 | 0.667 |" in text
     # optional inputs that are absent are named with the command that makes them
     assert "Fig. 2: one class" not in text
     # Fig. 2 is optional: said how to make, but not a missing figure

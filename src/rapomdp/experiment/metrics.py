@@ -242,6 +242,28 @@ def table1_markdown(rows: Sequence[MethodSummary],
     return out + f"\n{paired_note(paired)}\n" if paired else out
 
 
+BELIEF_CALIBRATION_HEADER = ["Method", "Accuracy", "Belief in the true class", "Confidence",
+                             "Confidence − accuracy", "ECE"]
+
+
+def belief_calibration_cells(table: EpisodeTable) -> tuple[list[str], list[list[str]]]:
+    """Every method's final belief against its accuracy: the mean belief in the true class, the
+    mean confidence (the belief in the declared class, which a calibrated belief's accuracy
+    equals), their difference and the confidence's ECE (10 equal-width bins)."""
+    from rapomdp.awareness.quality import expected_calibration_error
+
+    confidence = table.final_confidence()
+    cells = []
+    for method in table.methods:
+        mine = table.method == method
+        right = table.correct[mine].astype(float)
+        cells.append([METHOD_NAMES.get(method, method), f"{right.mean():.3f}",
+                      f"{table.belief[mine].mean():.3f}", f"{confidence[mine].mean():.3f}",
+                      f"{confidence[mine].mean() - right.mean():+.3f}",
+                      f"{expected_calibration_error(confidence[mine], right):.3f}"])
+    return list(BELIEF_CALIBRATION_HEADER), cells
+
+
 def per_class_cells(rows: Sequence[tuple[str, MethodSummary]],
                     methods: Sequence[str]) -> tuple[list[str], list[list[str]]]:
     """The per-class table's header and cells: accuracy (mean final belief) per class and

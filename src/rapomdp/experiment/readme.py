@@ -3,8 +3,9 @@
 ``rapomdp report -w runs/demo --readme README.md`` replaces the block between
 :data:`BEGIN` and :data:`END` in the README with what the workspace's artefacts say: the
 dataset's roles, the stages' times, single-view accuracy, Table 1 with its paired column, the
-accuracy–energy sweep and the self-awareness table; its figures are copied next to the README
-(``--readme-figures``, default ``docs/figures`` beside it). Nothing in the block is typed by hand.
+accuracy–energy sweep, the final beliefs' calibration and the self-awareness table; its
+figures are copied next to the README (``--readme-figures``, default ``docs/figures`` beside
+it). Nothing in the block is typed by hand.
 """
 
 from __future__ import annotations
@@ -16,9 +17,9 @@ from pathlib import Path
 from rapomdp.config import Config
 from rapomdp.data.dataset import role_count_lines
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
-from rapomdp.experiment.metrics import table1_story
+from rapomdp.experiment.metrics import belief_calibration_cells, table1_story
 from rapomdp.experiment.report import evaluation_summaries
-from rapomdp.io import atomic_path, write_text_atomic
+from rapomdp.io import atomic_path, markdown_table, write_text_atomic
 from rapomdp.recognition.artefacts import load_single_view_metrics
 from rapomdp.workspace import StageError, Workspace
 
@@ -85,6 +86,11 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
         lines += ["**Accuracy against energy** (every method over its settings, the same "
                   "(test model, start) pairs):", "", _read(evaluate / "tradeoff.md"), "",
                   f"![Accuracy against energy]({figures_link}/demo_tradeoff.png)", ""]
+    if (evaluate / EPISODES_FILE).exists():
+        lines += ["**Calibration of the final belief** (confidence: the belief in the declared "
+                  "class, which a calibrated belief's accuracy equals; ECE over 10 bins):", "",
+                  markdown_table(*belief_calibration_cells(
+                      EpisodeTable.load(evaluate / EPISODES_FILE))).strip(), ""]
     lines += ["**Self-awareness** (observation models on the test models):", "",
               _read(workspace.require("observe") / "quality.md"), "",
               f"![Belief in the true class]({figures_link}/demo_fig3.png)", "",

@@ -34,7 +34,7 @@ from rapomdp.awareness.artefacts import (
 )
 from rapomdp.awareness.quality import quality_cells
 from rapomdp.awareness.report import FIGURES_DIR, write_fig1
-from rapomdp.config import Config
+from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
 from rapomdp.experiment.episode_table import (
@@ -53,6 +53,7 @@ from rapomdp.experiment.metrics import (
     MethodSummary,
     PairedDifference,
     TradeoffPoint,
+    belief_calibration_cells,
     paired_against,
     paired_note,
     per_class,
@@ -476,27 +477,20 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str)
 
 
 def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> None:
-    """Every method's final belief against its accuracy: the mean belief in the true class,
-    the mean confidence (belief in the declared class), their ECE and reliability curves."""
+    """Every method's final belief against its accuracy (:func:`belief_calibration_cells`) and
+    the reliability of its confidence."""
     from rapomdp.awareness.figures import reliability_figure
-    from rapomdp.awareness.quality import expected_calibration_error, reliability
+    from rapomdp.awareness.quality import reliability
 
     confidence = table.final_confidence()
-    rows, curves = [], {}
-    for method in table.methods:
-        mine = table.method == method
-        right = table.correct[mine].astype(float)
-        rows.append([method, _fmt(float(right.mean())), _fmt(float(table.belief[mine].mean())),
-                     _fmt(float(confidence[mine].mean())),
-                     _fmt(float(confidence[mine].mean() - right.mean())),
-                     _fmt(expected_calibration_error(confidence[mine], right))])
-        curves[method] = reliability(confidence[mine], right, 10)
+    curves = {METHOD_NAMES.get(m, m): reliability(confidence[table.method == m],
+                                                  table.correct[table.method == m], 10)
+              for m in table.methods}
     b.add(Paragraph("Calibration of every method's final belief in the closed loop on the test "
                     "models: the mean belief in the true class; the confidence (the belief in "
                     "the declared class), which a calibrated belief's accuracy equals; ECE of "
                     "the confidence over 10 equal-width bins:"))
-    b.add(Table(["method", "accuracy", "mean final belief in the true class",
-                 "mean confidence", "confidence − accuracy", "ECE"], rows))
+    b.add(Table(*belief_calibration_cells(table)))
     figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
                                 xlabel="final belief in the declared class",
                                 title="Final beliefs on the test models (10 bins)")
