@@ -58,6 +58,11 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="solver CPU budget each")
     parser.add_argument("--naive", action="store_true",
                         help="naive Bayes (t = 1) instead of the observe stage's correction")
+    parser.add_argument("--correction", choices=["none", "temperature", "after_first"],
+                        default=None,
+                        help="this belief correction for every model, with the temperature the "
+                             "observe stage fitted for it on held-out walks "
+                             "(calibration.json: held_out_belief)")
     parser.add_argument("--temperature", type=float, default=None,
                         help="every model tempered by this t (planner and belief alike) "
                              "instead of the observe stage's correction")
@@ -80,6 +85,14 @@ def main() -> None:
     start = start_viewpoint(motion.reachable)
     variant = f"ra_{calibration['ra_model']}"
     temperatures, corrections = calibration["temperatures"], calibration["belief_corrections"]
+    if args.naive:
+        args.correction = "none"
+    if args.correction is not None:
+        fits = calibration["held_out_belief"]
+        key = "after_first_temperature" if args.correction == "after_first" else "temperature"
+        corrections = dict.fromkeys(corrections, args.correction)
+        temperatures = {m: (1.0 if args.correction == "none" else fits[m][key]) for m in fits}
+        temperatures["ra"] = temperatures[variant]
     cfg = config.evaluate
     rows: dict[tuple[str, float], list[tuple[bool, float, float, float]]] = {}
     for g in volume_groups:
@@ -94,8 +107,8 @@ def main() -> None:
             if args.temperature is not None:
                 planner = first = temper(single, args.temperature)
             else:
-                planner = single if args.naive else temper(single, temperatures[key])
-                first = single if args.naive or corrections[key] == "after_first" else planner
+                planner = temper(single, temperatures[key])
+                first = single if corrections[key] == "after_first" else planner
             for lam in ([0.0] if name == "random" else args.lambdas):
                 if name == "random":
                     method = RandomWalkPolicy(planner, motion.distance_m, motion.reachable,
@@ -126,8 +139,10 @@ def main() -> None:
         rows.setdefault(("static", 0.0), []).extend(
             (bool(c), 0.0, float("nan"), float("nan"))
             for c in static[:, motion.reachable].ravel())
+    fitted_t = ", ".join(f"{m} {temperatures[m]:.3f}" for m in args.models)
     belief = (f"t = {args.temperature:g}" if args.temperature is not None
-              else "naive" if args.naive else "the observe stage corrections")
+              else f"{args.correction} (t: {fitted_t})" if args.correction is not None
+              else "the observe stage corrections")
     print(f"held-out closed loop on {len(volume_groups)} volume group(s) of "
           f"{len(classes)} classes ({args.starts} starts a model); RA model {variant}; "
           f"belief: {belief}")

@@ -220,11 +220,12 @@ class ObserveConfig(Section):
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")
     belief_correction: Literal["auto", "none", "temperature", "after_first"] = Field(
-        "none", description="none: naive Bayes (chosen on the held-out closed loop, "
-        "docs/awareness.md §4.5); temperature: every model's likelihoods raised to a power fitted "
-        "on held-out multi-view walks (correlated views count less than independent ones); "
-        "after_first: the first view in full, the later ones tempered; auto: per model, the "
-        "one of least held-out belief log loss")
+        "temperature", description="temperature: every model's likelihoods raised to a power "
+        "fitted on held-out multi-view walks, so correlated views count less than independent "
+        "ones (the default: on the held-out closed loop it calibrates RA-POMDP's final belief "
+        "at the same accuracy, docs/awareness.md §4.5); none: naive Bayes; after_first: the "
+        "first view in full, the later ones tempered; auto: per model, the one of least "
+        "held-out belief log loss")
 
 
 Vector3 = tuple[float, float, float]
