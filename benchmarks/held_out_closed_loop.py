@@ -24,7 +24,7 @@ from rapomdp.awareness.quality import expected_calibration_error
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
-from rapomdp.io import load_npz, read_json
+from rapomdp.io import load_npz, read_json, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
@@ -66,6 +66,10 @@ def main() -> None:
     parser.add_argument("--temperature", type=float, default=None,
                         help="every model tempered by this t (planner and belief alike) "
                              "instead of the observe stage's correction")
+    parser.add_argument("--save", type=Path, default=None,
+                        help="write every episode's (correct, energy, belief, confidence, "
+                             "held-out model) per (method, λ) to this .npz, for paired "
+                             "comparisons between runs (the same starts in the same order)")
     args = parser.parse_args()
     ws = Workspace(args.workspace)
     config = ws.config()
@@ -94,7 +98,7 @@ def main() -> None:
         temperatures = {m: (1.0 if args.correction == "none" else fits[m][key]) for m in fits}
         temperatures["ra"] = temperatures[variant]
     cfg = config.evaluate
-    rows: dict[tuple[str, float], list[tuple[bool, float, float, float]]] = {}
+    rows: dict[tuple[str, float], list[tuple[bool, float, float, float, float]]] = {}
     for g in volume_groups:
         held = evidence.groups == g
         fitted = fit_observation_models(evidence.subset(~held), scores, classes, config.observe,
@@ -134,11 +138,11 @@ def main() -> None:
                         rows.setdefault((name, lam), []).append(
                             (episode.declared == truth, float(episode.move_energy.sum()),
                              float(episode.beliefs[-1, truth]),
-                             float(episode.beliefs[-1, episode.declared])))
+                             float(episode.beliefs[-1, episode.declared]), float(g * 10_000 + r)))
         static = part.predicted == part.labels[:, None]
         rows.setdefault(("static", 0.0), []).extend(
-            (bool(c), 0.0, float("nan"), float("nan"))
-            for c in static[:, motion.reachable].ravel())
+            (bool(c), 0.0, float("nan"), float("nan"), float(g * 10_000 + r))
+            for r, row in enumerate(static[:, motion.reachable]) for c in row)
     fitted_t = ", ".join(f"{m} {temperatures[m]:.3f}" for m in args.models)
     belief = (f"t = {args.temperature:g}" if args.temperature is not None
               else f"{args.correction} (t: {fitted_t})" if args.correction is not None
@@ -161,6 +165,9 @@ def main() -> None:
               f"{np.nanmean(a[:, 2]) if known.any() else float('nan'):7.3f} "
               f"{np.nanmean(a[:, 3]) if known.any() else float('nan'):7.3f} {ece:6.3f} "
               f"{len(a)}")
+    if args.save is not None:
+        save_npz(args.save, **{f"{name}@{lam:g}": np.array(v, dtype=np.float64)
+                               for (name, lam), v in rows.items()})
     budget = table[("random", 0.0)]
     fitting = [lam for lam in args.lambdas if table[("ra", lam)] <= budget]
     print(f"λ rule: largest λ whose RA-POMDP held-out energy <= Random's ({budget:.3f}): "

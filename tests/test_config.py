@@ -17,6 +17,8 @@ def test_default_has_the_papers_values() -> None:
     # evidence; the paper's 3 / 1 / 1 is a config
     assert (cfg.dataset.split.train, cfg.dataset.split.volume, cfg.dataset.split.test) == (4, 3, 4)
     assert cfg.volume.models_per_class == 1 and cfg.observe.evidence == "volume"
+    # the belief's likelihoods tempered (chosen on the held-out closed loop, docs/awareness.md)
+    assert cfg.observe.belief_correction == "temperature"
     assert cfg.dataset.split.extra == "train"
     paper = load_config(Path(__file__).parents[1] / "configs" / "paper.yaml")
     assert (paper.dataset.split.train, paper.dataset.split.volume, paper.dataset.split.test) \
