@@ -66,6 +66,8 @@ def main() -> None:
     parser.add_argument("--temperature", type=float, default=None,
                         help="every model tempered by this t (planner and belief alike) "
                              "instead of the observe stage's correction")
+    parser.add_argument("--iterations", type=int, default=None,
+                        help="solver iterations (default: the workspace's solve.iterations)")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -124,7 +126,7 @@ def main() -> None:
                         start)
                     policy = solve_active_recognition(
                         problem, config.solve.precision, args.seconds,
-                        max_iterations=config.solve.iterations).policy
+                        max_iterations=args.iterations or config.solve.iterations).policy
                     method = POMDPPolicy(policy, planner, name, first_view_model=first)
                 for r in range(len(part.labels)):
                     rng = class_seed(config.seed, f"held-out/{g}/{r}")
