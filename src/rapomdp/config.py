@@ -377,6 +377,11 @@ class EvaluateConfig(Section):
     revisit: bool = Field(
         False, description="let the POMDP methods move back to a viewpoint they have seen "
         "(the noiseless sensor would show the same image, counted as new evidence)")
+    lookahead: bool = Field(
+        False, description="the POMDP methods act by a one-step lookahead on their solved "
+        "value (one backup at the belief reached) instead of the solved plans' first moves: "
+        "held out, steadier under small model changes, but less calibrated "
+        "(docs/awareness.md §4.5)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "

@@ -126,3 +126,19 @@ def test_static_belief_is_the_output_temperature_scaled_and_declares_its_argmax(
     assert np.allclose(plain.belief, output)
     with pytest.raises(ValueError, match="softmax_temperature must be positive"):
         StaticPolicy(softmax_temperature=0.0)
+
+
+def test_a_pomdp_method_with_lookahead_acts_by_it():
+    from rapomdp.planning.momdp import benchmark_problem
+
+    problem = benchmark_problem(6, 3, seed=2, lambda_=10.0)
+    policy = solve_active_recognition(problem, precision=1e-2, timeout=1e6,
+                                      max_iterations=5).policy
+    allowed = np.array([True, True, False, True, True, True])
+    method = POMDPPolicy(policy, problem.observation_model, "ra", lookahead_over=allowed)
+    method.reset(0, np.random.default_rng(0))
+    method.observe(0, np.eye(3)[1])
+    visited = np.zeros(6, dtype=bool)
+    visited[0] = True
+    assert method.act(0) == policy.lookahead_act(0, method.belief, problem.observation_model,
+                                                 allowed, visited)

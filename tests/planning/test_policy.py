@@ -9,7 +9,7 @@ from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import (
     benchmark_problem,
 )
-from rapomdp.planning.policy import ActiveRecognitionPolicy, AlphaVectorPolicy
+from rapomdp.planning.policy import ActiveRecognitionPolicy, AlphaVectorPolicy, ARAction
 
 
 def test_policies_round_trip_through_npz(tmp_path):
@@ -27,3 +27,50 @@ def test_policies_round_trip_through_npz(tmp_path):
     assert not list(tmp_path.glob(".p.npz*"))  # no temporary left behind
     with pytest.raises(ValueError, match="expected a 'rapomdp.alpha-vector-policy.v1'"):
         AlphaVectorPolicy.load(path)
+
+
+def _brute_force_lookahead(policy, problem, viewpoint, belief, allowed):
+    """Q of every allowed move by explicit loops over labels (Eq. 5 and the policy's value)."""
+    P, E = problem.observation_model, problem.move_energy
+    q = {}
+    for j in np.flatnonzero(allowed):
+        if j == viewpoint:
+            continue
+        total = 0.0
+        for o in range(P.shape[2]):
+            joint = belief * P[j, :, o]
+            p_o = joint.sum()
+            if p_o > 0:
+                total += p_o * policy.value(int(j), joint / p_o)
+        q[int(j)] = -E[viewpoint, j] + policy.discount * total
+    return q
+
+
+def test_the_lookahead_takes_the_move_of_best_one_step_backup():
+    problem = benchmark_problem(6, 3, seed=2, lambda_=10.0)
+    policy = solve_active_recognition(problem, precision=1e-2, timeout=1e6,
+                                      max_iterations=5).policy
+    allowed = np.ones(6, dtype=bool)
+    for belief in (np.full(3, 1 / 3), np.array([0.5, 0.3, 0.2]), np.array([0.45, 0.45, 0.1])):
+        q = _brute_force_lookahead(policy, problem, 0, belief, allowed)
+        best = max(q, key=q.__getitem__)
+        declare = -10.0 * (1.0 - belief.max())
+        assert q[best] > declare  # at λ = 10 m moving pays from these beliefs
+        assert policy.lookahead_act(0, belief, problem.observation_model, allowed) == \
+            ARAction("move", best)
+    # visited and unreachable viewpoints are never targets; with none left it declares
+    belief = np.full(3, 1 / 3)
+    forbidden = np.zeros(6, dtype=bool)
+    forbidden[[1, 2]] = True
+    allowed[3] = False
+    q = _brute_force_lookahead(policy, problem, 0, belief, allowed & ~forbidden)
+    action = policy.lookahead_act(0, belief, problem.observation_model, allowed, forbidden)
+    assert action == ARAction("move", max(q, key=q.__getitem__)) and action.target in (4, 5)
+    nothing = np.zeros(6, dtype=bool)
+    nothing[0] = True
+    assert policy.lookahead_act(0, np.array([0.2, 0.7, 0.1]), problem.observation_model,
+                                nothing) == ARAction("declare", 1)
+    # a certain belief is declared at once
+    assert policy.lookahead_act(0, np.array([0.0, 0.0, 1.0]), problem.observation_model,
+                                allowed) == ARAction("declare", 2)
+

@@ -140,7 +140,8 @@ class ClosedLoop:
                                  f"add '{key}' to solve.models")
             return POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
                                METHOD_NAMES[key], recogniser, cfg.revisit,
-                               first_view_model=first_view[key])
+                               first_view_model=first_view[key],
+                               lookahead_over=motion.reachable if cfg.lookahead else None)
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}

@@ -137,12 +137,15 @@ class POMDPPolicy:
     With ``revisit`` False (the default) it never moves back to a viewpoint it has seen: the
     POMDP treats images from one viewpoint as independent draws, but a noiseless sensor sees
     the same image again, which would count one piece of evidence twice. It then follows the
-    best plan whose first move goes somewhere new (or declares).
+    best plan whose first move goes somewhere new (or declares). With ``lookahead_over`` (V,)
+    bool, it acts by a one-step lookahead on the policy's value over those viewpoints
+    (:meth:`ActiveRecognitionPolicy.lookahead_act`, ``evaluate.lookahead``).
     """
 
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
                  name: str, recogniser: str = "cnn", revisit: bool = False,
-                 first_view_model: np.ndarray | None = None) -> None:
+                 first_view_model: np.ndarray | None = None,
+                 lookahead_over: np.ndarray | None = None) -> None:
         if observation_model.shape[0] != policy.n_viewpoints or \
                 observation_model.shape[1] != policy.n_classes:
             raise ValueError(
@@ -150,6 +153,8 @@ class POMDPPolicy:
                 f"{policy.n_classes} classes, the observation model {observation_model.shape}")
         self.name, self.recogniser, self.revisit = name, recogniser, revisit
         self.policy = policy
+        self.observation_model = observation_model
+        self.lookahead_over = lookahead_over
         self._bayes = BayesBelief(observation_model, first_view_model)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
@@ -166,5 +171,9 @@ class POMDPPolicy:
         return self._bayes.belief
 
     def act(self, viewpoint: int) -> ARAction:
-        return self.policy.act(viewpoint, self._bayes.belief,
-                               None if self.revisit else self._visited)
+        forbidden = None if self.revisit else self._visited
+        if self.lookahead_over is not None:
+            return self.policy.lookahead_act(viewpoint, self._bayes.belief,
+                                             self.observation_model, self.lookahead_over,
+                                             forbidden)
+        return self.policy.act(viewpoint, self._bayes.belief, forbidden)

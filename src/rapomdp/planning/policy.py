@@ -16,7 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.io import ArtefactError, load_npz, save_npz
-from rapomdp.planning.rules import declare_value, declare_values, move_or_declare
+from rapomdp.planning.rules import (
+    declare_value,
+    declare_values,
+    move_or_declare,
+    unnormalised_declare_value,
+)
 
 FORMAT_FLAT = "rapomdp.alpha-vector-policy.v1"
 FORMAT_AR = "rapomdp.active-recognition-policy.v1"
@@ -135,6 +140,38 @@ class ActiveRecognitionPolicy:
         _, m = move_or_declare(moves[None], declare_value(b, self.lambda_)[None])
         if m[0] >= 0:
             return ARAction("move", int(self.targets[m[0]]))
+        return ARAction("declare", k)
+
+    def lookahead_act(self, viewpoint: int, belief: np.ndarray, observation_model: np.ndarray,
+                      allowed: np.ndarray, forbidden: np.ndarray | None = None) -> ARAction:
+        """One-step lookahead on the lower bound: the move j (``allowed``, not ``forbidden``)
+        maximising −E[v, j] + γ Σ_o P(o | b, j) V(j, b_jo), V this policy's value and b_jo the
+        Eq. 5 update, or declaring when no move beats it; ties go to declaring.
+
+        ``observation_model`` (V, C, O) must be the model the policy was solved on. A
+        point-based lower bound's own plans can be poor away from the beliefs the solver
+        visited; one backup at the belief actually reached is less sensitive to them."""
+        b = np.asarray(belief, dtype=np.float64)
+        ok = np.asarray(allowed, dtype=bool).copy()
+        ok[viewpoint] = False
+        if forbidden is not None:
+            ok &= ~np.asarray(forbidden, dtype=bool)
+        targets = np.flatnonzero(ok)
+        dec = declare_value(b, self.lambda_)
+        k = int(np.argmax(declare_values(b, self.lambda_)))
+        if targets.size == 0:
+            return ARAction("declare", k)
+        u = b[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)  # (J, O, C)
+        prob = u.sum(axis=2)
+        child = unnormalised_declare_value(u, self.lambda_)  # (J, O)
+        if len(self.targets):
+            plans = u @ self.betas.T - prob[..., None] * \
+                self.move_energy[targets][:, None, self.targets]  # (J, O, M)
+            child = np.maximum(child, plans.max(axis=2))
+        q = self.discount * child.sum(axis=1) - self.move_energy[viewpoint, targets]
+        _, m = move_or_declare(q[None], np.asarray(dec)[None])
+        if m[0] >= 0:
+            return ARAction("move", int(targets[m[0]]))
         return ARAction("declare", k)
 
     def upper(self, viewpoint: int, belief: np.ndarray) -> float:
