@@ -66,6 +66,9 @@ def main() -> None:
     parser.add_argument("--temperature", type=float, default=None,
                         help="every model tempered by this t (planner and belief alike) "
                              "instead of the observe stage's correction")
+    parser.add_argument("--lookahead", action="store_true",
+                        help="the POMDP methods act by a one-step lookahead on their value "
+                             "(evaluate.lookahead) instead of the solved plans")
     parser.add_argument("--iterations", type=int, default=None,
                         help="solver iterations (default: the workspace's solve.iterations)")
     parser.add_argument("--save", type=Path, default=None,
@@ -127,7 +130,9 @@ def main() -> None:
                     policy = solve_active_recognition(
                         problem, config.solve.precision, args.seconds,
                         max_iterations=args.iterations or config.solve.iterations).policy
-                    method = POMDPPolicy(policy, planner, name, first_view_model=first)
+                    method = POMDPPolicy(policy, planner, name, first_view_model=first,
+                                         lookahead_over=(motion.reachable if args.lookahead
+                                                         else None))
                 for r in range(len(part.labels)):
                     rng = class_seed(config.seed, f"held-out/{g}/{r}")
                     starts = rng.choice(np.flatnonzero(motion.reachable), args.starts,
