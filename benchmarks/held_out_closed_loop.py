@@ -9,6 +9,7 @@ episode is exact). Random walks as `evaluate` configures it. Prints one row per 
 the λ rule: the largest λ whose RA-POMDP episodes spend no more energy than Random's.
 
     python benchmarks/held_out_closed_loop.py --workspace W [--lambdas 2 8] [--starts 4]
+        [--correction none|temperature|after_first] [--draws K] [--lookahead] [--save F]
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
+
+#: Half-width of the relative change of t between policy draws (``--draws``).
+DRAW_SPREAD = 0.02
 
 
 class LabelScene:
@@ -69,6 +73,11 @@ def main() -> None:
     parser.add_argument("--lookahead", action="store_true",
                         help="the POMDP methods act by a one-step lookahead on their value "
                              "(evaluate.lookahead) instead of the solved plans")
+    parser.add_argument("--draws", type=int, default=1,
+                        help="solve each POMDP K times, its model tempered by factors evenly "
+                             f"spaced in [1 - {DRAW_SPREAD:g}, 1 + {DRAW_SPREAD:g}], and pool "
+                             "their episodes: the solved policy changes a lot under such "
+                             "changes, so one solve is one draw (docs/awareness.md §4.5)")
     parser.add_argument("--iterations", type=int, default=None,
                         help="solver iterations (default: the workspace's solve.iterations)")
     parser.add_argument("--save", type=Path, default=None,
@@ -103,7 +112,7 @@ def main() -> None:
         temperatures = {m: (1.0 if args.correction == "none" else fits[m][key]) for m in fits}
         temperatures["ra"] = temperatures[variant]
     cfg = config.evaluate
-    rows: dict[tuple[str, float], list[tuple[bool, float, float, float, float]]] = {}
+    rows: dict[tuple[str, float], list[tuple[bool, float, float, float, float, float]]] = {}
     for g in volume_groups:
         held = evidence.groups == g
         fitted = fit_observation_models(evidence.subset(~held), scores, classes, config.observe,
@@ -118,37 +127,45 @@ def main() -> None:
             else:
                 planner = temper(single, temperatures[key])
                 first = single if corrections[key] == "after_first" else planner
+            draws = (np.array([1.0]) if name == "random" or args.draws == 1
+                     else np.linspace(1.0 - DRAW_SPREAD, 1.0 + DRAW_SPREAD, args.draws))
             for lam in ([0.0] if name == "random" else args.lambdas):
-                if name == "random":
-                    method = RandomWalkPolicy(planner, motion.distance_m, motion.reachable,
-                                              cfg.random.neighbours, cfg.random.belief_threshold,
-                                              cfg.random.max_moves, first_view_model=first)
-                else:
-                    problem = build_active_recognition_problem(
-                        planner, motion.energy, motion.reachable, lam, config.solve.discount,
-                        start)
-                    policy = solve_active_recognition(
-                        problem, config.solve.precision, args.seconds,
-                        max_iterations=args.iterations or config.solve.iterations).policy
-                    method = POMDPPolicy(policy, planner, name, first_view_model=first,
-                                         lookahead_over=(motion.reachable if args.lookahead
-                                                         else None))
-                for r in range(len(part.labels)):
-                    rng = class_seed(config.seed, f"held-out/{g}/{r}")
-                    starts = rng.choice(np.flatnonzero(motion.reachable), args.starts,
-                                        replace=False)
-                    for s in starts:
-                        episode = run_episode(LabelScene(),
-                                              LabelRecogniser(part.predicted[r], len(classes)),
-                                              method, motion, int(s), cfg.max_moves, rng)
-                        truth = int(part.labels[r])
-                        rows.setdefault((name, lam), []).append(
-                            (episode.declared == truth, float(episode.move_energy.sum()),
-                             float(episode.beliefs[-1, truth]),
-                             float(episode.beliefs[-1, episode.declared]), float(g * 10_000 + r)))
+                for d, factor in enumerate(draws):
+                    model = temper(planner, float(factor))
+                    first_model = first if first is single else temper(first, float(factor))
+                    if name == "random":
+                        method = RandomWalkPolicy(model, motion.distance_m, motion.reachable,
+                                                  cfg.random.neighbours,
+                                                  cfg.random.belief_threshold,
+                                                  cfg.random.max_moves,
+                                                  first_view_model=first_model)
+                    else:
+                        problem = build_active_recognition_problem(
+                            model, motion.energy, motion.reachable, lam,
+                            config.solve.discount, start)
+                        policy = solve_active_recognition(
+                            problem, config.solve.precision, args.seconds,
+                            max_iterations=args.iterations or config.solve.iterations).policy
+                        method = POMDPPolicy(policy, model, name, first_view_model=first_model,
+                                             lookahead_over=(motion.reachable if args.lookahead
+                                                             else None))
+                    for r in range(len(part.labels)):
+                        rng = class_seed(config.seed, f"held-out/{g}/{r}")
+                        starts = rng.choice(np.flatnonzero(motion.reachable), args.starts,
+                                            replace=False)
+                        for s in starts:
+                            episode = run_episode(
+                                LabelScene(), LabelRecogniser(part.predicted[r], len(classes)),
+                                method, motion, int(s), cfg.max_moves, rng)
+                            truth = int(part.labels[r])
+                            rows.setdefault((name, lam), []).append(
+                                (episode.declared == truth, float(episode.move_energy.sum()),
+                                 float(episode.beliefs[-1, truth]),
+                                 float(episode.beliefs[-1, episode.declared]),
+                                 float(g * 10_000 + r), float(d)))
         static = part.predicted == part.labels[:, None]
         rows.setdefault(("static", 0.0), []).extend(
-            (bool(c), 0.0, float("nan"), float("nan"), float(g * 10_000 + r))
+            (bool(c), 0.0, float("nan"), float("nan"), float(g * 10_000 + r), 0.0)
             for r, row in enumerate(static[:, motion.reachable]) for c in row)
     fitted_t = ", ".join(f"{m} {temperatures[m]:.3f}" for m in args.models)
     belief = (f"t = {args.temperature:g}" if args.temperature is not None
@@ -168,10 +185,13 @@ def main() -> None:
         known = np.isfinite(a[:, 3])
         ece = (expected_calibration_error(a[known, 3], a[known, 0]) if known.any()
                else float("nan"))
+        per_draw = [a[a[:, 5] == d, 0].mean() for d in np.unique(a[:, 5])]
+        spread = (f"  draws {min(per_draw):.3f}-{max(per_draw):.3f}" if len(per_draw) > 1
+                  else "")
         print(f"{name:12s} {lam:6g} {a[:, 0].mean():8.3f} {a[:, 1].mean():7.3f} "
               f"{np.nanmean(a[:, 2]) if known.any() else float('nan'):7.3f} "
               f"{np.nanmean(a[:, 3]) if known.any() else float('nan'):7.3f} {ece:6.3f} "
-              f"{len(a)}")
+              f"{len(a)}{spread}")
     if args.save is not None:
         save_npz(args.save, **{f"{name}@{lam:g}": np.array(v, dtype=np.float64)
                                for (name, lam), v in rows.items()})
