@@ -73,14 +73,23 @@ def _draw_labels(p: np.ndarray, labels: np.ndarray, rng: np.random.Generator) ->
     return (u > cdf).sum(axis=2).T.clip(max=p.shape[1] - 1)  # (N, V)
 
 
-def test_temperature_leaves_independent_evidence_alone_and_shrinks_duplicated_evidence():
-    rng = np.random.default_rng(3)
+def _planted_walks(rng: np.random.Generator) -> tuple[int, int, np.ndarray, np.ndarray,
+                                                      np.ndarray, np.ndarray, np.ndarray]:
+    """Independent evidence from a planted 20-view, 3-class model: 400 rows of labels drawn at
+    every view, 4 walks of 6 random views a row (views, rows, model, labels, predicted,
+    walk rows, walks)."""
     views, classes, rows = 20, 3, 400
     p = _planted_model(views, classes, rng)
     labels = rng.integers(0, classes, rows)
     predicted = _draw_labels(p, labels, rng)
     walk_row = np.repeat(np.arange(rows), 4)
     walks = np.stack([rng.permutation(views)[:6] for _ in walk_row])
+    return views, rows, p, labels, predicted, walk_row, walks
+
+
+def test_temperature_leaves_independent_evidence_alone_and_shrinks_duplicated_evidence():
+    rng = np.random.default_rng(3)
+    views, rows, p, labels, predicted, walk_row, walks = _planted_walks(rng)
     independent = fit_temperature([p], np.zeros(rows, np.int64), labels, predicted, walks,
                                   walk_row)
     assert independent == pytest.approx(1.0, abs=0.12)
@@ -215,12 +224,7 @@ def test_evidence_groups_volume_models_by_rank_and_folds_after_them():
 
 def test_after_first_leaves_independent_evidence_alone_and_discounts_only_later_views():
     rng = np.random.default_rng(13)
-    views, classes, rows = 20, 3, 400
-    p = _planted_model(views, classes, rng)
-    labels = rng.integers(0, classes, rows)
-    predicted = _draw_labels(p, labels, rng)
-    walk_row = np.repeat(np.arange(rows), 4)
-    walks = np.stack([rng.permutation(views)[:6] for _ in walk_row])
+    views, rows, p, labels, predicted, walk_row, walks = _planted_walks(rng)
     row_model = np.zeros(rows, np.int64)
     independent = fit_temperature([p], row_model, labels, predicted, walks, walk_row,
                                   first_temperature=1.0)
