@@ -38,12 +38,11 @@ def _read(path: Path) -> str:
     return path.read_text(encoding="utf-8").strip()
 
 
-def _story(evaluate: Path, seed: int) -> list[str]:
+def _story(table: EpisodeTable | None, evaluate: Path, seed: int) -> list[str]:
     """What Table 1 and the curves show, from the episodes (as the report says it)."""
-    if not (evaluate / EPISODES_FILE).exists():
+    if table is None:
         return []
-    rows, paired, points, _ = evaluation_summaries(EpisodeTable.load(evaluate / EPISODES_FILE),
-                                                   evaluate, seed)
+    rows, paired, points, _ = evaluation_summaries(table, evaluate, seed)
     return [table1_story(rows, paired, points), ""]
 
 
@@ -60,6 +59,8 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
     seconds = {name: float(r.get("seconds", 0.0)) for name, r in manifest.items()}
     metrics = load_single_view_metrics(workspace.require("classifier_eval"))
     evaluate = workspace.require("evaluate")
+    episodes = (EpisodeTable.load(evaluate / EPISODES_FILE)
+                if (evaluate / EPISODES_FILE).exists() else None)
     lines = [
         f"*Generated from the workspace `{workspace.root.name}` (last stage finished "
         f"{finished}; Python {platform.python_version()}, {platform.machine()}).*",
@@ -78,7 +79,7 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
         "",
         "**Table 1** (closed-loop episodes on the test models):",
         "",
-        *_story(evaluate, seed),
+        *_story(episodes, evaluate, seed),
         _read(evaluate / "table1.md"),
         "",
     ]
@@ -86,11 +87,10 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
         lines += ["**Accuracy against energy** (every method over its settings, the same "
                   "(test model, start) pairs):", "", _read(evaluate / "tradeoff.md"), "",
                   f"![Accuracy against energy]({figures_link}/demo_tradeoff.png)", ""]
-    if (evaluate / EPISODES_FILE).exists():
+    if episodes is not None:
         lines += ["**Calibration of the final belief** (confidence: the belief in the declared "
                   "class, which a calibrated belief's accuracy equals; ECE over 10 bins):", "",
-                  markdown_table(*belief_calibration_cells(
-                      EpisodeTable.load(evaluate / EPISODES_FILE))).strip(), ""]
+                  markdown_table(*belief_calibration_cells(episodes)).strip(), ""]
     lines += ["**Self-awareness** (observation models on the test models):", "",
               _read(workspace.require("observe") / "quality.md"), "",
               f"![Belief in the true class]({figures_link}/demo_fig3.png)", "",

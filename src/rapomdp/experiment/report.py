@@ -483,9 +483,9 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> Non
     from rapomdp.awareness.quality import reliability
 
     confidence = table.final_confidence()
-    curves = {METHOD_NAMES.get(m, m): reliability(confidence[table.method == m],
-                                                  table.correct[table.method == m], 10)
-              for m in table.methods}
+    mine = {m: table.method == m for m in table.methods}
+    curves = {METHOD_NAMES.get(m, m): reliability(confidence[rows], table.correct[rows], 10)
+              for m, rows in mine.items()}
     b.add(Paragraph("Calibration of every method's final belief in the closed loop on the test "
                     "models: the mean belief in the true class; the confidence (the belief in "
                     "the declared class), which a calibrated belief's accuracy equals; ECE of "
