@@ -6,11 +6,15 @@ import numpy as np
 import pytest
 
 from rapomdp.awareness.evidence import (
+    DEFAULT_TRANSFER_KERNEL,
+    TRANSFER_KERNEL_GRID,
     TRANSFER_PRIOR,
     Evidence,
+    TransferKernel,
     belief_log_loss,
     choose_belief_correction,
     choose_ra_variant,
+    choose_transfer_kernel,
     fit_observation_models,
     fit_temperature,
     leave_one_group_out,
@@ -202,6 +206,91 @@ def test_transfer_shares_evidence_between_views_that_see_the_same_saliency_only(
     assert np.allclose(p[2, 0], expected_23) and np.allclose(p[3, 0], expected_23)
     # class 1 has no evidence: its confusion row's pseudo-counts, uniform
     assert np.allclose(p[:, 1], 0.5)
+
+
+def test_transfer_confusion_with_an_explicit_kernel_matches_a_hand_computed_row():
+    # views 0 and 1 look from one direction, view 2 from 90° away; class 0's view 0 sees
+    # saliency half like view 1's; kernel: power 2, 45°, 3 pseudo-observations
+    directions = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    similarity = np.ones((2, 3, 3))
+    similarity[0, 0, 1] = similarity[0, 1, 0] = 0.5
+    labels = np.array([0, 0])
+    predicted = np.array([[1, 0, 0], [0, 0, 1]])
+    evidence = Evidence(labels, predicted, np.array([0, 1]))
+    p = transfer_confusion(evidence, similarity, directions, 1.0, TransferKernel(2.0, 45.0, 3.0))
+    far = np.exp(-0.5 * (90.0 / 45.0) ** 2)
+    row = np.array([5.0, 3.0]) / 8.0  # class 0: 4 right, 2 wrong, +1 each
+    # at view 0: its own [1, 1], view 1's [2, 0] at 0.5 ** 2, view 2's [1, 1] at `far`
+    near = np.array([1.0, 1.0]) + 0.25 * np.array([2.0, 0.0]) + far * np.array([1.0, 1.0])
+    assert np.allclose(p[0, 0], (near + 3.0 * row) / (near.sum() + 3.0))
+    # at view 2: views 0 and 1 at `far` (similarity 1), its own [1, 1] at 1
+    there = far * np.array([3.0, 1.0]) + np.array([1.0, 1.0])
+    assert np.allclose(p[2, 0], (there + 3.0 * row) / (there.sum() + 3.0))
+    assert np.allclose(p[:, 1], 0.5)  # class 1: no evidence, the uniform row
+
+
+def _planted_kernel_evidence(structured: bool, seed: int) -> tuple[Evidence, np.ndarray,
+                                                                    np.ndarray]:
+    """Three classes, 64 viewpoints, three groups of two objects a class; every view sees the
+    same saliency. ``structured``: each (class, viewpoint) has one label for every object,
+    drawn independently per viewpoint; else every outcome is i.i.d. around the class's rate."""
+    rng = np.random.default_rng(seed)
+    classes, views = 3, 64
+    directions = fibonacci_directions(views, hemisphere=True)
+    labels = np.tile(np.repeat(np.arange(classes), 2), 3)
+    groups = np.repeat(np.arange(3), 2 * classes)
+    if structured:
+        predicted = rng.integers(0, classes, (classes, views))[labels]
+    else:
+        right = rng.random((labels.size, views)) < np.array([0.5, 0.7, 0.9])[labels, None]
+        wrong = (labels[:, None] + rng.integers(1, classes, right.shape)) % classes
+        predicted = np.where(right, labels[:, None], wrong)
+    return (Evidence(labels, predicted, groups), np.ones((classes, views, views)),
+            directions)
+
+
+def test_transfer_kernel_choice_pools_widely_on_viewpoint_free_noise():
+    evidence, similarity, directions = _planted_kernel_evidence(False, 31)
+    kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
+    assert (kernel.bandwidth_deg, kernel.prior) == (40.0, 8.0)
+    assert len(table) == len(TRANSFER_KERNEL_GRID) == 64
+    best = max(r["held_out_log_likelihood"] for r in table)
+    narrowest = max(r["held_out_log_likelihood"] for r in table if r["bandwidth_deg"] == 5.0)
+    assert narrowest < best
+
+
+def test_transfer_kernel_choice_stays_local_on_per_viewpoint_structure():
+    evidence, similarity, directions = _planted_kernel_evidence(True, 32)
+    kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
+    assert (kernel.bandwidth_deg, kernel.prior) == (5.0, 1.0)
+    assert kernel.power == 0.0  # every view sees the same saliency: powers tie, the first wins
+    default = next(r for r in table if TransferKernel.from_dict(r) == DEFAULT_TRANSFER_KERNEL)
+    assert default["held_out_log_likelihood"] < table[0]["held_out_log_likelihood"]
+
+
+def test_transfer_kernel_table_is_the_held_out_validation_of_ra_transfer():
+    evidence, similarity, directions = _planted_kernel_evidence(False, 33)
+    _, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
+    flat = np.full((3, 64), 0.5)
+    scores = {"mean": flat, "area": flat, "similarity": similarity}
+    for row in (table[0], table[37]):
+        folds = leave_one_group_out(evidence, scores, ["a", "b", "c"], ObserveConfig(),
+                                    directions, TransferKernel.from_dict(row))
+        ra = next(r for r in validation_quality(evidence, folds) if r["model"] == "ra_transfer")
+        assert ra["log_likelihood"] == pytest.approx(row["held_out_log_likelihood"], abs=1e-12)
+
+
+def test_transfer_kernel_choice_falls_back_to_the_default_without_two_folds():
+    evidence, similarity, directions = _planted_kernel_evidence(False, 34)
+    single = Evidence(evidence.labels, evidence.predicted, np.zeros_like(evidence.groups))
+    assert choose_transfer_kernel(single, similarity, directions, 1.0) == (
+        DEFAULT_TRANSFER_KERNEL, [])
+    # two groups, but holding out group 1 leaves class 2 without evidence: one fold only
+    two = np.where(evidence.labels == 2, 1, evidence.groups % 2)
+    assert choose_transfer_kernel(Evidence(evidence.labels, evidence.predicted, two),
+                                  similarity, directions, 1.0) == (DEFAULT_TRANSFER_KERNEL, [])
+    assert DEFAULT_TRANSFER_KERNEL.to_dict() == {"power": 4.0, "bandwidth_deg": 20.0,
+                                                 "prior": TRANSFER_PRIOR}
 
 
 def test_evidence_groups_volume_models_by_rank_and_folds_after_them():

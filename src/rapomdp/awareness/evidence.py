@@ -11,8 +11,9 @@ the temperature without the test models.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import sparse
@@ -162,10 +163,42 @@ def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: in
 
 SALIENT_VIEW_POWER = 4.0
 """Exponent on the cosine similarity of two viewpoints' seen saliency in ``ra_transfer``'s
-kernel (chosen on held-out log-likelihood of the first-generation default's evidence)."""
+default kernel (:data:`DEFAULT_TRANSFER_KERNEL`: the fallback when there is nothing to choose
+on; the observe stage chooses per dataset, :func:`choose_transfer_kernel`)."""
 TRANSFER_PRIOR = 4.0
 """Pseudo-observations of the class's viewpoint-free confusion row in each ``ra_transfer``
-row (shrinks a viewpoint with little evidence toward the class's confusion)."""
+row of the default kernel (shrinks a viewpoint with little evidence toward the class's
+confusion)."""
+
+
+@dataclass(frozen=True)
+class TransferKernel:
+    """``ra_transfer``'s kernel: the exponent on the seen-saliency similarity, the Gaussian
+    width over the viewpoint angle (degrees) and the pseudo-observations of the class's
+    confusion row."""
+
+    power: float
+    bandwidth_deg: float
+    prior: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {"power": self.power, "bandwidth_deg": self.bandwidth_deg, "prior": self.prior}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> TransferKernel:
+        """The kernel of :meth:`to_dict`'s keys (other keys ignored)."""
+        return cls(float(data["power"]), float(data["bandwidth_deg"]), float(data["prior"]))
+
+
+DEFAULT_TRANSFER_KERNEL = TransferKernel(SALIENT_VIEW_POWER, VIEWPOINT_BANDWIDTH_DEG,
+                                         TRANSFER_PRIOR)
+"""The kernel without a choice (one group of evidence): the first generation's constants."""
+TRANSFER_KERNEL_GRID: tuple[TransferKernel, ...] = tuple(
+    TransferKernel(power, bandwidth, prior)
+    for power in (0.0, 2.0, 4.0, 8.0)
+    for bandwidth in (5.0, 10.0, 20.0, 40.0)
+    for prior in (1.0, 2.0, 4.0, 8.0))
+"""The 64 kernels :func:`choose_transfer_kernel` scores (the default among them)."""
 
 
 def salient_view_similarity(seen_saliency: np.ndarray | sparse.spmatrix) -> np.ndarray:
@@ -178,40 +211,107 @@ def salient_view_similarity(seen_saliency: np.ndarray | sparse.spmatrix) -> np.n
     return np.clip(gram / norm[:, None] / norm[None, :], 0.0, 1.0)
 
 
+def _angle_deg(directions: np.ndarray) -> np.ndarray:
+    """Angles (V, V) in degrees between the viewpoints' unit ``directions`` (V, 3)."""
+    d = np.asarray(directions, dtype=np.float64)
+    return np.degrees(np.arccos(np.clip(d @ d.T, -1.0, 1.0)))
+
+
+def _class_view_counts(labels: np.ndarray, predicted: np.ndarray, classes: int) -> np.ndarray:
+    """Label counts n(c, x, o) (C, V, C) of the outcomes: true ``labels`` (N,), ``predicted``
+    (N, V)."""
+    v = predicted.shape[1]
+    flat = (labels[:, None] * v + np.arange(v)[None]) * classes + predicted
+    return np.bincount(flat.ravel(), minlength=classes * v * classes).astype(
+        np.float64).reshape(classes, v, classes)
+
+
+def _transfer_weights(similarity: np.ndarray, angle_deg: np.ndarray, power: float,
+                      bandwidth_deg: float) -> np.ndarray:
+    """K_c(x, x') (C, V, V) = sim_c(x, x') ** power * exp(-(angle / bandwidth) ** 2 / 2)."""
+    return np.asarray(similarity, dtype=np.float64) ** power * np.exp(
+        -0.5 * (angle_deg / bandwidth_deg) ** 2)[None]
+
+
+def _confusion_rows(counts: np.ndarray, pseudo_count: float) -> np.ndarray:
+    """Each class's viewpoint-free confusion row (C, C) from the counts (C, V, C)."""
+    row = counts.sum(axis=1) + pseudo_count
+    return row / row.sum(axis=1, keepdims=True)
+
+
 def transfer_confusion(evidence: Evidence, similarity: np.ndarray, directions: np.ndarray,
-                       pseudo_count: float) -> np.ndarray:
+                       pseudo_count: float,
+                       kernel: TransferKernel = DEFAULT_TRANSFER_KERNEL) -> np.ndarray:
     """``ra_transfer``: P(o | c, x) (V, C, C) from the held-out labels at *every* viewpoint,
     each weighted by how alike the saliency it sees is to x's (``similarity`` (C, V, V) from
-    :func:`salient_view_similarity`, raised to :data:`SALIENT_VIEW_POWER`) and how near it is
-    (Gaussian in the angle, :data:`VIEWPOINT_BANDWIDTH_DEG`), shrunk to the class's confusion
-    row by :data:`TRANSFER_PRIOR` pseudo-observations. Views that see the same salient parts
-    share their evidence — the recognition-aware prior on where the classifier errs alike."""
-    c, v = similarity.shape[0], similarity.shape[1]
-    counts = np.zeros((v, c, c))
-    x = np.broadcast_to(np.arange(v)[None], evidence.predicted.shape)
-    t = np.broadcast_to(evidence.labels[:, None], evidence.predicted.shape)
-    np.add.at(counts, (x, t, evidence.predicted), 1.0)
-    d = np.asarray(directions, dtype=np.float64)
-    angle = np.degrees(np.arccos(np.clip(d @ d.T, -1.0, 1.0)))
-    kernel = np.asarray(similarity) ** SALIENT_VIEW_POWER * np.exp(
-        -0.5 * (angle / VIEWPOINT_BANDWIDTH_DEG) ** 2)[None]  # (C, V, V)
-    smoothed = np.einsum("cuv,vco->uco", kernel, counts)
-    row = counts.sum(axis=0) + pseudo_count
-    row /= row.sum(axis=1, keepdims=True)  # (C, C) the class's confusion
-    return (smoothed + TRANSFER_PRIOR * row[None]) / (
-        smoothed.sum(axis=2, keepdims=True) + TRANSFER_PRIOR)
+    :func:`salient_view_similarity`, raised to ``kernel.power``) and how near it is (Gaussian
+    in the angle, ``kernel.bandwidth_deg``), shrunk to the class's confusion row by
+    ``kernel.prior`` pseudo-observations. Views that see the same salient parts share their
+    evidence — the recognition-aware prior on where the classifier errs alike."""
+    c = similarity.shape[0]
+    counts = _class_view_counts(evidence.labels, evidence.predicted, c)  # (C, V, O)
+    weights = _transfer_weights(similarity, _angle_deg(directions), kernel.power,
+                                kernel.bandwidth_deg)
+    smoothed = weights @ counts  # (C, V, O)
+    row = _confusion_rows(counts, pseudo_count)
+    p = (smoothed + kernel.prior * row[:, None]) / (
+        smoothed.sum(axis=2, keepdims=True) + kernel.prior)
+    return np.ascontiguousarray(p.transpose(1, 0, 2))
+
+
+def choose_transfer_kernel(evidence: Evidence, similarity: np.ndarray, directions: np.ndarray,
+                           pseudo_count: float,
+                           grid: Sequence[TransferKernel] = TRANSFER_KERNEL_GRID
+                           ) -> tuple[TransferKernel, list[dict[str, float]]]:
+    """The kernel of ``grid`` whose :func:`transfer_confusion` has the best held-out
+    log-likelihood — mean log P(observed label) over every held-out outcome, each group scored
+    by the model fitted on the others (the folds of :func:`leave_one_group_out`) — and every
+    kernel's held-out log-likelihood, in ``grid``'s order (ties: the first). With fewer than
+    two folds: :data:`DEFAULT_TRANSFER_KERNEL` and an empty table. The smoothed counts are
+    computed once per (power, bandwidth) and fold; the priors reuse them."""
+    masks = _held_out_masks(evidence)
+    if len(masks) < 2:
+        return DEFAULT_TRANSFER_KERNEL, []
+    c = similarity.shape[0]
+    angle = _angle_deg(directions)
+    folds = []  # (rest's counts, rest's rows, held-out (class, view, label) indices)
+    for held in masks:
+        counts = _class_view_counts(evidence.labels[~held], evidence.predicted[~held], c)
+        predicted = evidence.predicted[held]
+        t = np.broadcast_to(evidence.labels[held][:, None], predicted.shape).ravel()
+        x = np.broadcast_to(np.arange(predicted.shape[1])[None], predicted.shape).ravel()
+        folds.append((counts, _confusion_rows(counts, pseudo_count), (t, x, predicted.ravel())))
+    outcomes = sum(idx[0].size for _, _, idx in folds)
+    by_shape: dict[tuple[float, float], list[int]] = {}
+    for i, k in enumerate(grid):
+        by_shape.setdefault((k.power, k.bandwidth_deg), []).append(i)
+    log_likelihood = np.zeros(len(grid))
+    for (power, bandwidth), which in by_shape.items():
+        weights = _transfer_weights(similarity, angle, power, bandwidth)
+        priors = np.array([grid[i].prior for i in which])[:, None]  # (K, 1)
+        total = np.zeros(len(which))
+        for counts, row, (t, x, o) in folds:
+            smoothed = weights @ counts  # (C, V, O)
+            seen = smoothed.sum(axis=2)[t, x]
+            p = (smoothed[t, x, o] + priors * row[t, o]) / (seen + priors)  # (K, M)
+            total += np.log(np.maximum(p, 1e-300)).sum(axis=1)
+        log_likelihood[which] = total / outcomes
+    table = [{**k.to_dict(), "held_out_log_likelihood": float(ll)}
+             for k, ll in zip(grid, log_likelihood, strict=True)]
+    return grid[int(np.argmax(log_likelihood))], table
 
 
 def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
                            classes: Sequence[str], cfg: ObserveConfig,
-                           directions: np.ndarray | None = None
+                           directions: np.ndarray | None = None,
+                           transfer_kernel: TransferKernel = DEFAULT_TRANSFER_KERNEL
                            ) -> dict[str, ObservationModel]:
     """Every RA variant (``ra_<variant>``), the Classifier and the black-box model, fitted on
     ``evidence``; ``scores`` holds the per-class normalised viewpoint scores (C, V) by kind
     (``mean``, ``area``) and, under ``similarity``, the (C, V, V) saliency similarity of the
     viewpoints (:func:`salient_view_similarity`). ``ra_viewpoint`` needs the viewpoints'
     ``directions`` and two groups of evidence, ``ra_transfer`` the directions and the
-    similarity."""
+    similarity (its kernel: ``transfer_kernel``)."""
     labels, predicted = evidence.labels, evidence.predicted
     rows = np.broadcast_to(labels[:, None], predicted.shape)
     correct = predicted == rows
@@ -232,7 +332,7 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
         if "similarity" in scores:  # (C, V, V), not a score: only ra_transfer reads it
             models["ra_transfer"] = TransferObservationModel(
                 transfer_confusion(evidence, scores["similarity"], directions,
-                                   cfg.confusion_pseudo_count), classes)
+                                   cfg.confusion_pseudo_count, transfer_kernel), classes)
     models["classifier"] = ClassifierObservationModel(labels, predicted, classes,
                                                       cfg.classifier_pseudo_count)
     models["blackbox"] = BlackBoxObservationModel(labels, predicted, classes,
@@ -248,21 +348,29 @@ def observed_probabilities(model: np.ndarray, labels: np.ndarray, predicted: np.
     return model[x, t, predicted], model[x, t, t]
 
 
+def _held_out_masks(evidence: Evidence) -> list[np.ndarray]:
+    """The rows (N,) bool of every group whose complement still covers every class (the
+    groups leave-one-group-out holds out)."""
+    masks = []
+    everything = set(evidence.labels.tolist())
+    for g in np.unique(evidence.groups):
+        held = evidence.groups == g
+        if held.all() or set(evidence.labels[~held].tolist()) != everything:
+            continue
+        masks.append(held)
+    return masks
+
+
 def leave_one_group_out(evidence: Evidence, scores: dict[str, np.ndarray],
                         classes: Sequence[str], cfg: ObserveConfig,
-                        directions: np.ndarray | None = None
+                        directions: np.ndarray | None = None,
+                        transfer_kernel: TransferKernel = DEFAULT_TRANSFER_KERNEL
                         ) -> list[tuple[np.ndarray, dict[str, ObservationModel]]]:
     """For every group whose complement still covers every class: (its rows' mask, the models
     fitted on the other groups). Empty when there is one group only."""
-    out = []
-    for g in np.unique(evidence.groups):
-        held = evidence.groups == g
-        rest = evidence.subset(~held)
-        if held.all() or set(rest.labels.tolist()) != set(evidence.labels.tolist()):
-            continue
-        models = fit_observation_models(rest, scores, classes, cfg, directions)
-        out.append((held, models))
-    return out
+    return [(held, fit_observation_models(evidence.subset(~held), scores, classes, cfg,
+                                          directions, transfer_kernel))
+            for held in _held_out_masks(evidence)]
 
 
 def validation_quality(evidence: Evidence,
