@@ -78,6 +78,13 @@ def test_observation_models_follow_the_planner_contract(workspace):
         rows = list(csv.DictReader(handle))
     assert [r["model"] for r in rows] == list(MODELS)
     assert all(float(r["log_likelihood"]) <= 0 for r in rows)
+    # ra_transfer's kernel: the grid kernel of best held-out log-likelihood, recorded
+    chosen = read_json(workspace.root / "observe" / "calibration.json")["transfer_kernel"]
+    grid = chosen.pop("grid")
+    assert len(grid) == 64
+    best = max(grid, key=lambda r: r["held_out_log_likelihood"])
+    assert chosen == {k: best[k] for k in ("power", "bandwidth_deg", "prior")}
+    assert read_json(workspace.root / "observe" / "timing.json")["transfer_kernel_s"] >= 0
 
 
 def test_fig1_is_written_and_a_wrong_class_is_named(workspace):
@@ -227,6 +234,8 @@ def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(wor
     assert np.all(data["temperatures"] == 1.0) and np.all(data["evidence_groups"] == 0)
     assert np.allclose(data["ra"], data["ra_paper"])
     assert not (workspace.root / "observe" / "validation.md").exists()
+    assert read_json(workspace.root / "observe" / "calibration.json")["transfer_kernel"] == {
+        "power": 4.0, "bandwidth_deg": 20.0, "prior": 4.0, "grid": []}  # one group: default
     run_pipeline(config_from_dict(TINY), workspace, until="observe")  # back to the default
 
 

@@ -20,8 +20,9 @@ classes in order (rows sum to 1; tempered by ``temperatures``), ``models`` (thei
 ``view_similarity`` (C, V, V) the cosine similarity of the saliency two viewpoints see
 (``ra_transfer``'s kernel), ``first_view_<name>`` (the model of the belief's first update),
 ``directions`` (V, 3), the held-out evidence (``evidence_*``) and the test outcomes;
-``calibration.json``; ``quality.csv|md`` (test models) and ``validation.csv|md`` (held-out);
-``calibration.png``; ``timing.json``.
+``calibration.json`` (``transfer_kernel``: ``ra_transfer``'s kernel, chosen on held-out
+log-likelihood, and under ``grid`` every grid kernel's); ``quality.csv|md`` (test models) and
+``validation.csv|md`` (held-out); ``calibration.png``; ``timing.json``.
 """
 
 from __future__ import annotations
@@ -50,10 +51,13 @@ from rapomdp.awareness.artefacts import (
 )
 from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit_outcomes
 from rapomdp.awareness.evidence import (
+    DEFAULT_TRANSFER_KERNEL,
     RA_VARIANTS,
     Evidence,
+    TransferKernel,
     choose_belief_correction,
     choose_ra_variant,
+    choose_transfer_kernel,
     fit_level,
     fit_observation_models,
     fit_softmax_temperature,
@@ -284,6 +288,8 @@ class Observation:
     score_kinds: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
     softmax_temperature: float = 1.0
+    transfer_kernel: TransferKernel = DEFAULT_TRANSFER_KERNEL
+    transfer_kernel_grid: list[dict[str, float]] = field(default_factory=list)
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -349,7 +355,14 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     scores_s = time.perf_counter() - start
     # RA-POMDP's model and the belief's temperature: chosen / fitted on held-out groups
     directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
-    folds = leave_one_group_out(evidence, scores, classes, cfg, directions)
+    kernel_start = time.perf_counter()
+    kernel = DEFAULT_TRANSFER_KERNEL
+    kernel_grid: list[dict[str, float]] = []
+    if "similarity" in scores:  # ra_transfer's kernel, on the same folds (one group: default)
+        kernel, kernel_grid = choose_transfer_kernel(evidence, scores["similarity"], directions,
+                                                     cfg.confusion_pseudo_count)
+    kernel_s = time.perf_counter() - kernel_start
+    folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
     validation = validation_quality(evidence, folds)
     variant = choose_ra_variant(validation, cfg.ra_model)
     if variant == "contrastive" and not cfg.contrastive:
@@ -358,7 +371,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         raise StageError("observe.ra_model 'viewpoint' stacks over groups of held-out "
                          "evidence: use two or more volume models per class "
                          "(dataset.split.volume) or set observe.evidence to crossfit or both")
-    fitted = fit_observation_models(evidence, scores, classes, cfg, directions)
+    fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
     levels = {name: 0.0 for name in fitted}
     if (~evidence.volume_mask).any() and evidence.volume_mask.any():
         # cross-fitted classifiers train on less data and err more: each model's P(correct)
@@ -404,7 +417,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                        temperatures, single_view, first_view, corrections, levels,
                        belief_calibration, scores,
                        {"scores_s": scores_s, "observation_models_s": models_s,
-                        "total_s": time.perf_counter() - start}, softmax_t)
+                        "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
+                       softmax_t, kernel, kernel_grid)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -556,6 +570,8 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
         "softmax_temperature": result.softmax_temperature,
         "level_shifts": result.levels,
         "held_out_belief": result.belief_calibration,
+        "transfer_kernel": {**result.transfer_kernel.to_dict(),
+                            "grid": result.transfer_kernel_grid},
         "evidence": config.observe.evidence,
         "evidence_accuracy": float(correct.mean()),
         "volume_accuracy": float((result.volume_predictions
