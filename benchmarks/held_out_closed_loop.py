@@ -3,10 +3,11 @@ volume models (objects the trained classifier never saw), never on the test mode
 
 For each volume group g (the g-th volume model of every class) the observation models are
 fitted on the other groups as the observe stage fits them (same variant, same belief
-correction and temperature), each POMDP method is solved at each λ, and the methods run from
-``--starts`` seeded reachable starts per held-out model on its labels at X_rho (noise off: the
-episode is exact). Random walks as `evaluate` configures it. Prints one row per (method, λ) and
-the λ rule: the largest λ whose RA-POMDP episodes spend no more energy than Random's.
+correction and temperature, same ``ra_transfer`` kernel), each POMDP method is solved at each
+λ, and the methods run from ``--starts`` seeded reachable starts per held-out model on its
+labels at X_rho (noise off: the episode is exact). Random walks as `evaluate` configures it.
+Prints one row per (method, λ) and the λ rule: the largest λ whose RA-POMDP episodes spend no
+more energy than Random's.
 
     python benchmarks/held_out_closed_loop.py --workspace W [--lambdas 2 8] [--starts 4]
         [--correction none|temperature|after_first] [--draws K] [--lookahead] [--save F]
@@ -20,7 +21,13 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
-from rapomdp.awareness.evidence import Evidence, fit_observation_models, temper
+from rapomdp.awareness.evidence import (
+    DEFAULT_TRANSFER_KERNEL,
+    Evidence,
+    TransferKernel,
+    fit_observation_models,
+    temper,
+)
 from rapomdp.awareness.quality import expected_calibration_error
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
@@ -102,6 +109,9 @@ def main() -> None:
     motion = Motion.from_robot(robot)
     start = start_viewpoint(motion.reachable)
     variant = f"ra_{calibration['ra_model']}"
+    # ra_transfer's kernel as the observe stage chose it (older workspaces: the default)
+    kernel = (TransferKernel.from_dict(calibration["transfer_kernel"])
+              if "transfer_kernel" in calibration else DEFAULT_TRANSFER_KERNEL)
     temperatures, corrections = calibration["temperatures"], calibration["belief_corrections"]
     if args.naive:
         args.correction = "none"
@@ -116,7 +126,7 @@ def main() -> None:
     for g in volume_groups:
         held = evidence.groups == g
         fitted = fit_observation_models(evidence.subset(~held), scores, classes, config.observe,
-                                        observe["directions"])
+                                        observe["directions"], kernel)
         fitted["ra"] = fitted[variant]
         part = evidence.subset(held)
         for name in ("random", *args.models):
@@ -173,7 +183,7 @@ def main() -> None:
               else "the observe stage corrections")
     print(f"held-out closed loop on {len(volume_groups)} volume group(s) of "
           f"{len(classes)} classes ({args.starts} starts a model); RA model {variant}; "
-          f"belief: {belief}")
+          f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}")
     print("belief: final belief in the true class; confidence: in the declared class; "
           "ECE over the confidence (10 bins)")
     print(f"{'method':12s} {'lambda':>6s} {'accuracy':>8s} {'energy':>7s} {'belief':>7s} "
