@@ -143,6 +143,7 @@ def main() -> None:
                 for d, factor in enumerate(draws):
                     model = temper(planner, float(factor))
                     first_model = first if first is single else temper(first, float(factor))
+                    method: RandomWalkPolicy | POMDPPolicy
                     if name == "random":
                         method = RandomWalkPolicy(model, motion.distance_m, motion.reachable,
                                                   cfg.random.neighbours,

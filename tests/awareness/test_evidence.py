@@ -208,7 +208,7 @@ def test_transfer_shares_evidence_between_views_that_see_the_same_saliency_only(
     assert np.allclose(p[:, 1], 0.5)
 
 
-def test_transfer_confusion_with_an_explicit_kernel_matches_a_hand_computed_row():
+def test_transfer_confusion_with_an_explicit_kernel_matches_a_hand_computed_row() -> None:
     # views 0 and 1 look from one direction, view 2 from 90° away; class 0's view 0 sees
     # saliency half like view 1's; kernel: power 2, 45°, 3 pseudo-observations
     directions = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
@@ -249,7 +249,7 @@ def _planted_kernel_evidence(structured: bool, seed: int) -> tuple[Evidence, np.
             directions)
 
 
-def test_transfer_kernel_choice_pools_widely_on_viewpoint_free_noise():
+def test_transfer_kernel_choice_pools_widely_on_viewpoint_free_noise() -> None:
     evidence, similarity, directions = _planted_kernel_evidence(False, 31)
     kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
     assert (kernel.bandwidth_deg, kernel.prior) == (40.0, 8.0)
@@ -259,7 +259,7 @@ def test_transfer_kernel_choice_pools_widely_on_viewpoint_free_noise():
     assert narrowest < best
 
 
-def test_transfer_kernel_choice_stays_local_on_per_viewpoint_structure():
+def test_transfer_kernel_choice_stays_local_on_per_viewpoint_structure() -> None:
     evidence, similarity, directions = _planted_kernel_evidence(True, 32)
     kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
     assert (kernel.bandwidth_deg, kernel.prior) == (5.0, 1.0)
@@ -268,7 +268,7 @@ def test_transfer_kernel_choice_stays_local_on_per_viewpoint_structure():
     assert default["held_out_log_likelihood"] < table[0]["held_out_log_likelihood"]
 
 
-def test_transfer_kernel_table_is_the_held_out_validation_of_ra_transfer():
+def test_transfer_kernel_table_is_the_held_out_validation_of_ra_transfer() -> None:
     evidence, similarity, directions = _planted_kernel_evidence(False, 33)
     _, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
     flat = np.full((3, 64), 0.5)
@@ -280,7 +280,7 @@ def test_transfer_kernel_table_is_the_held_out_validation_of_ra_transfer():
         assert ra["log_likelihood"] == pytest.approx(row["held_out_log_likelihood"], abs=1e-12)
 
 
-def test_transfer_kernel_choice_falls_back_to_the_default_without_two_folds():
+def test_transfer_kernel_choice_falls_back_to_the_default_without_two_folds() -> None:
     evidence, similarity, directions = _planted_kernel_evidence(False, 34)
     single = Evidence(evidence.labels, evidence.predicted, np.zeros_like(evidence.groups))
     assert choose_transfer_kernel(single, similarity, directions, 1.0) == (

@@ -380,7 +380,7 @@ def validation_quality(evidence: Evidence,
     pooled (the same measures as :mod:`rapomdp.awareness.quality`)."""
     if not folds:
         return []
-    rows = []
+    rows: list[dict[str, float | str]] = []
     for name in (n for n in folds[0][1] if all(n in models for _, models in folds)):
         observed, p_correct, correct = [], [], []
         for held, models in folds:

@@ -203,7 +203,7 @@ def load_saliency(saliency_dir: Path, model: ModelEntry) -> dict[str, np.ndarray
     return load_npz(saliency_dir / saliency_map_file(model.class_name, model.id))
 
 
-def class_volume(dataset: Dataset, views, saliency_dir: Path, class_name: str,  # noqa: ANN001
+def class_volume(dataset: Dataset, views: TrainingViews, saliency_dir: Path, class_name: str,
                  resolution: int, per_class: int | None = None) -> SaliencyVolume:
     """The saliency volume of one class from its first ``per_class`` volume models' views and
     saliency maps (all with None)."""
@@ -343,8 +343,9 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
               "similarity": similarity}
     labels, predicted = np.array(vol_labels), np.stack(vol_pred)
     # Static's belief is the classifier's output: its temperature, fitted on the volume models
-    softmax_t = (fit_softmax_temperature(np.stack(vol_probabilities), labels)
-                 if all(p is not None for p in vol_probabilities) else 1.0)
+    known = [p for p in vol_probabilities if p is not None]
+    softmax_t = (fit_softmax_temperature(np.stack(known), labels)
+                 if len(known) == len(vol_probabilities) else 1.0)
     evidence = observation_evidence(cfg.evidence, labels, predicted, crossfit,
                                     np.array(vol_rank, dtype=np.int64))
     if cfg.contrastive:
@@ -376,8 +377,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     if (~evidence.volume_mask).any() and evidence.volume_mask.any():
         # cross-fitted classifiers train on less data and err more: each model's P(correct)
         # is moved to the level of the modelled classifier on its own held-out objects
-        volume = evidence.subset(evidence.volume_mask)
-        levels = {name: fit_level(m.probabilities, volume.labels, volume.predicted)
+        own = evidence.subset(evidence.volume_mask)
+        levels = {name: fit_level(m.probabilities, own.labels, own.predicted)
                   for name, m in fitted.items()}
         fitted = {name: _relevel(m, levels[name]) for name, m in fitted.items()}
     single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
