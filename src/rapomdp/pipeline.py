@@ -99,6 +99,7 @@ STAGES: list[Stage] = [
         run=run_observe_stage,
         sections=OBSERVE_SECTIONS,
         inputs=("dataset", "render", "train", "volume", "crossfit"),
+        version="2",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
     Stage(
