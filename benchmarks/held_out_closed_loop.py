@@ -26,7 +26,6 @@ from rapomdp.awareness.evidence import (
     Evidence,
     TransferKernel,
     fit_observation_models,
-    temper,
 )
 from rapomdp.awareness.quality import expected_calibration_error
 from rapomdp.data.splits import class_seed
@@ -36,6 +35,7 @@ from rapomdp.io import load_npz, read_json, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
+from rapomdp.recognition.belief import temper
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
 

@@ -1,4 +1,4 @@
-"""Held-out fitting: planted calibration curves, the belief's temperature, the variant choice."""
+"""Held-out fitting: planted calibration curves, the belief correction and variant choices."""
 
 from __future__ import annotations
 
@@ -11,19 +11,14 @@ from rapomdp.awareness.evidence import (
     TRANSFER_PRIOR,
     Evidence,
     TransferKernel,
-    belief_log_loss,
     choose_belief_correction,
     choose_ra_variant,
     choose_transfer_kernel,
     fit_observation_models,
-    fit_temperature,
     leave_one_group_out,
-    random_walks,
     salient_view_similarity,
-    temper,
     transfer_confusion,
     validation_quality,
-    walk_log_beliefs,
 )
 from rapomdp.awareness.observation import calibrate_correctness, calibrate_per_class
 from rapomdp.config import ObserveConfig
@@ -63,71 +58,6 @@ def test_per_class_calibration_recovers_intercepts_and_the_shared_slope():
     fit = calibrate_per_class(s, correct, g, 3)
     assert np.abs(fit.intercepts - intercepts).max() < 0.12
     assert fit.slope == pytest.approx(2.0, abs=0.15)
-
-
-def _planted_model(views: int, classes: int, rng: np.random.Generator) -> np.ndarray:
-    p = rng.dirichlet(np.ones(classes), size=(views, classes))
-    p = 0.4 * p + 0.6 * np.eye(classes)[None]
-    return p / p.sum(axis=2, keepdims=True)
-
-
-def _draw_labels(p: np.ndarray, labels: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    cdf = np.cumsum(p[:, labels], axis=2)  # (V, N, C)
-    u = rng.random(cdf.shape[:2])[..., None]
-    return (u > cdf).sum(axis=2).T.clip(max=p.shape[1] - 1)  # (N, V)
-
-
-def _planted_walks(rng: np.random.Generator) -> tuple[int, int, np.ndarray, np.ndarray,
-                                                      np.ndarray, np.ndarray, np.ndarray]:
-    """Independent evidence from a planted 20-view, 3-class model: 400 rows of labels drawn at
-    every view, 4 walks of 6 random views a row (views, rows, model, labels, predicted,
-    walk rows, walks)."""
-    views, classes, rows = 20, 3, 400
-    p = _planted_model(views, classes, rng)
-    labels = rng.integers(0, classes, rows)
-    predicted = _draw_labels(p, labels, rng)
-    walk_row = np.repeat(np.arange(rows), 4)
-    walks = np.stack([rng.permutation(views)[:6] for _ in walk_row])
-    return views, rows, p, labels, predicted, walk_row, walks
-
-
-def test_temperature_leaves_independent_evidence_alone_and_shrinks_duplicated_evidence():
-    rng = np.random.default_rng(3)
-    views, rows, p, labels, predicted, walk_row, walks = _planted_walks(rng)
-    independent = fit_temperature([p], np.zeros(rows, np.int64), labels, predicted, walks,
-                                  walk_row)
-    assert independent == pytest.approx(1.0, abs=0.12)
-    # every odd viewpoint repeats the label of the even one before it; walks visit both
-    duplicated = predicted.copy()
-    duplicated[:, 1::2] = duplicated[:, 0::2]
-    pairs = np.stack([rng.permutation(views // 2)[:3] for _ in walk_row])
-    walks = np.stack([2 * pairs, 2 * pairs + 1], axis=2).reshape(len(walk_row), 6)
-    shrunk = fit_temperature([p], np.zeros(rows, np.int64), labels, duplicated, walks, walk_row)
-    assert 0.3 < shrunk < 0.75
-    loss = [belief_log_loss(t, [p], np.zeros(rows, np.int64), labels, duplicated, walks,
-                            walk_row) for t in (1.0, shrunk)]
-    assert loss[1] < loss[0]
-
-
-def test_temper_keeps_rows_normalised_and_flattens_them():
-    rng = np.random.default_rng(4)
-    p = _planted_model(5, 4, rng)
-    assert np.array_equal(temper(p, 1.0), p)
-    cooled = temper(p, 0.5)
-    assert np.allclose(cooled.sum(axis=2), 1.0)
-    entropy = [-(q * np.log(q)).sum(axis=2) for q in (p, cooled)]
-    assert np.all(entropy[1] > entropy[0])
-    assert np.allclose(temper(p, 0.5), np.sqrt(p) / np.sqrt(p).sum(axis=2, keepdims=True))
-
-
-def test_random_walks_move_to_near_unvisited_viewpoints():
-    directions = fibonacci_directions(64, hemisphere=True)
-    walks = random_walks(directions, np.arange(64), 5, 6, np.random.default_rng(5))
-    assert walks.shape == (64, 5) and np.array_equal(walks[:, 0], np.arange(64))
-    assert all(len(set(w)) == 5 for w in walks.tolist())
-    step = np.einsum("ij,ij->i", directions[walks[:, :-1]].reshape(-1, 3),
-                     directions[walks[:, 1:]].reshape(-1, 3))
-    assert np.degrees(np.arccos(np.clip(step, -1, 1))).max() < 35
 
 
 def test_held_out_validation_prefers_the_score_that_predicts_correctness():
@@ -309,24 +239,6 @@ def test_evidence_groups_volume_models_by_rank_and_folds_after_them():
     assert volume.groups.tolist() == [0, 1, 0, 1] and volume.volume_mask.all()
     assert volume.subset(np.array([False, True, True, False])).volume_mask.tolist() == [True,
                                                                                        True]
-
-
-def test_after_first_leaves_independent_evidence_alone_and_discounts_only_later_views():
-    rng = np.random.default_rng(13)
-    views, rows, p, labels, predicted, walk_row, walks = _planted_walks(rng)
-    row_model = np.zeros(rows, np.int64)
-    independent = fit_temperature([p], row_model, labels, predicted, walks, walk_row,
-                                  first_temperature=1.0)
-    assert independent == pytest.approx(1.0, abs=0.12)
-    # every later view repeats the first view's label: only the first one is evidence
-    repeated = np.repeat(predicted[:, :1], views, axis=1)
-    shrunk = fit_temperature([p], row_model, labels, repeated, walks, walk_row,
-                             first_temperature=1.0)
-    assert shrunk < 0.3
-    # the first step's belief is the single-view posterior whatever the later temperature
-    first = [walk_log_beliefs(t, [p], row_model, repeated, walks, walk_row, 1.0)[:, 0]
-             for t in (1.0, shrunk)]
-    assert np.allclose(first[0], first[1])
 
 
 def test_belief_correction_auto_takes_the_least_held_out_loss():

@@ -185,10 +185,10 @@ def test_contrastive_variant_joins_the_table_and_the_held_out_belief_is_reported
 
 def test_report_figures_read_the_single_view_models_the_quality_table_scores(workspace,
                                                                               tmp_path):
-    from rapomdp.awareness.evidence import temper
     from rapomdp.awareness.observation import ObservationModel
     from rapomdp.awareness.quality import awareness_quality
     from rapomdp.awareness.report import single_view_models, write_awareness_figures
+    from rapomdp.recognition.belief import temper
 
     observe = load_npz(workspace.root / "observe" / "observation_models.npz")
     single = single_view_models(observe)

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE, volume_file
-from rapomdp.awareness.evidence import temper
 from rapomdp.awareness.figures import (
     fig1,
     hemisphere_pair_figure,
@@ -23,6 +22,7 @@ from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
 from rapomdp.io import load_npz
+from rapomdp.recognition.belief import temper
 from rapomdp.workspace import StageError, Workspace
 
 FIGURES_DIR = "figures"

@@ -65,7 +65,6 @@ from rapomdp.awareness.evidence import (
     leave_one_group_out,
     salient_view_similarity,
     shift_level,
-    temper,
     validation_quality,
 )
 from rapomdp.awareness.observation import (
@@ -90,6 +89,12 @@ from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, save_npz, stable_hash, write_json_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
+from rapomdp.recognition.belief import (
+    TEMPERATURE_NEIGHBOURS,
+    TEMPERATURE_WALK_LENGTH,
+    TEMPERATURE_WALKS_PER_ROW,
+    temper,
+)
 from rapomdp.recognition.classifier import Classifier, configure_torch
 from rapomdp.recognition.preprocess import input_to_image
 from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
@@ -99,10 +104,6 @@ SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency", "volume")
 VOLUME_SECTIONS = ("volume",)
 OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
 CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
-TEMPERATURE_WALK_LENGTH = 6
-"""Views per held-out walk the temperature is fitted on (an active episode's few moves)."""
-TEMPERATURE_WALKS_PER_ROW = 16
-TEMPERATURE_NEIGHBOURS = 8
 
 
 def saliency_models(dataset: Dataset, per_class: int | None) -> list[ModelEntry]:

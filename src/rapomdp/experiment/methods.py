@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rapomdp.awareness.evidence import temper
 from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
+from rapomdp.recognition.belief import temper
 
 
 class BayesBelief:
