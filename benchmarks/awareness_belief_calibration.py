@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.quality import expected_calibration_error, reliability
+from rapomdp.recognition.belief import expected_calibration_error, reliability
 
 
 def main(arguments: list[str]) -> None:

@@ -27,7 +27,6 @@ from rapomdp.awareness.evidence import (
     TransferKernel,
     fit_observation_models,
 )
-from rapomdp.awareness.quality import expected_calibration_error
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
@@ -35,7 +34,7 @@ from rapomdp.io import load_npz, read_json, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
-from rapomdp.recognition.belief import temper
+from rapomdp.recognition.belief import expected_calibration_error, temper
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
 

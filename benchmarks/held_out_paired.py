@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.quality import expected_calibration_error
 from rapomdp.experiment.metrics import cluster_bootstrap_difference
 from rapomdp.io import load_npz
+from rapomdp.recognition.belief import expected_calibration_error
 
 
 def main() -> None:

@@ -1,4 +1,5 @@
-"""The multi-view belief's temperature: planted independent and repeated evidence, the walks."""
+"""The multi-view belief's temperature: planted independent and repeated evidence, the walks,
+the held-out folds and the calibration report."""
 
 from __future__ import annotations
 
@@ -8,9 +9,14 @@ import pytest
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.recognition.belief import (
     belief_log_loss,
+    expected_calibration_error,
     fit_temperature,
+    fold_of_rows,
+    held_out_groups,
+    held_out_walks,
     random_walks,
     temper,
+    walk_calibration,
     walk_log_beliefs,
 )
 
@@ -96,3 +102,53 @@ def test_after_first_leaves_independent_evidence_alone_and_discounts_only_later_
     first = [walk_log_beliefs(t, [p], row_model, repeated, walks, walk_row, 1.0)[:, 0]
              for t in (1.0, shrunk)]
     assert np.allclose(first[0], first[1])
+
+
+def test_held_out_groups_skip_a_group_whose_complement_misses_a_class():
+    labels = np.array([0, 1, 0, 1, 1])
+    groups = np.array([0, 0, 1, 1, 2])  # without group 0 or 1 a class is still seen; not 2's
+    masks = held_out_groups(labels, groups)
+    assert [m.tolist() for m in masks] == [[True, True, False, False, False],
+                                           [False, False, True, True, False],
+                                           [False, False, False, False, True]]
+    assert held_out_groups(np.array([0, 1]), np.array([0, 0])) == []  # one group
+    assert held_out_groups(np.array([0, 1]), np.array([0, 1])) == []  # each class once
+    assert fold_of_rows(masks[:2], 5).tolist() == [0, 0, 1, 1, -1]
+
+
+def test_held_out_walks_start_per_held_out_row_on_the_sphere():
+    directions = fibonacci_directions(16, hemisphere=True)
+    row_model = np.array([0, -1, 1])
+    walks, walk_row = held_out_walks(row_model, directions, np.random.default_rng(2), 4, 3, 5)
+    assert walk_row.tolist() == [0, 0, 0, 2, 2, 2]
+    assert walks.shape == (6, 4) and walks.min() >= 0 and walks.max() < 16
+    again = held_out_walks(row_model, directions, np.random.default_rng(2), 4, 3, 5)
+    assert np.array_equal(again[0], walks)  # the generator's draws only
+
+
+def test_walk_calibration_reports_the_naive_and_tempered_beliefs():
+    rng = np.random.default_rng(8)
+    views, rows, p, labels, predicted, walk_row, walks = _planted_walks(rng)
+    row_model = np.zeros(rows, np.int64)
+    report = walk_calibration(0.5, [p], row_model, labels, predicted, walks, walk_row)
+    assert report["temperature"] == 0.5
+    for label, t in (("naive", 1.0), ("tempered", 0.5)):
+        assert report[f"log_loss_{label}"] == belief_log_loss(t, [p], row_model, labels,
+                                                              predicted, walks, walk_row)
+        last = np.exp(walk_log_beliefs(t, [p], row_model, predicted, walks, walk_row))[:, -1]
+        right = last.argmax(axis=1) == labels[walk_row]
+        assert report[f"belief_last_{label}"] == pytest.approx(last.max(axis=1).mean())
+        assert report[f"ece_last_{label}"] == expected_calibration_error(last.max(axis=1),
+                                                                         right)
+        accuracy = right.mean()
+    # the accuracy is the tempered belief's (renormalising P ** t can move an argmax)
+    assert report["accuracy_last"] == pytest.approx(accuracy)
+    # a cooler model is less sure of its first view
+    assert report["belief_first_tempered"] < report["belief_first_naive"]
+
+
+def test_expected_calibration_error_is_the_weighted_gap_per_bin():
+    confidence = np.array([0.95, 0.95, 0.55, 0.55])
+    right = np.array([True, True, True, False])
+    assert expected_calibration_error(confidence, right) == pytest.approx(
+        0.5 * 0.05 + 0.5 * 0.05)

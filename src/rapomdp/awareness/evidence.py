@@ -30,13 +30,14 @@ from rapomdp.awareness.observation import (
     newton_logistic,
     wrong_label_distribution,
 )
-from rapomdp.awareness.quality import expected_calibration_error, quality_from_probabilities
+from rapomdp.awareness.quality import quality_from_probabilities
 from rapomdp.config import ObserveConfig
 from rapomdp.recognition.belief import (
-    belief_log_loss,
     fit_temperature,
-    random_walks,
-    walk_log_beliefs,
+    fold_of_rows,
+    held_out_groups,
+    held_out_walks,
+    walk_calibration,
 )
 
 RA_VARIANTS = {
@@ -272,7 +273,7 @@ def choose_transfer_kernel(evidence: Evidence, similarity: np.ndarray, direction
     kernel's held-out log-likelihood, in ``grid``'s order (ties: the first). With fewer than
     two folds: :data:`DEFAULT_TRANSFER_KERNEL` and an empty table. The smoothed counts are
     computed once per (power, bandwidth) and fold; the priors reuse them."""
-    masks = _held_out_masks(evidence)
+    masks = held_out_groups(evidence.labels, evidence.groups)
     if len(masks) < 2:
         return DEFAULT_TRANSFER_KERNEL, []
     c = similarity.shape[0]
@@ -351,19 +352,6 @@ def observed_probabilities(model: np.ndarray, labels: np.ndarray, predicted: np.
     return model[x, t, predicted], model[x, t, t]
 
 
-def _held_out_masks(evidence: Evidence) -> list[np.ndarray]:
-    """The rows (N,) bool of every group whose complement still covers every class (the
-    groups leave-one-group-out holds out)."""
-    masks = []
-    everything = set(evidence.labels.tolist())
-    for g in np.unique(evidence.groups):
-        held = evidence.groups == g
-        if held.all() or set(evidence.labels[~held].tolist()) != everything:
-            continue
-        masks.append(held)
-    return masks
-
-
 def leave_one_group_out(evidence: Evidence, scores: dict[str, np.ndarray],
                         classes: Sequence[str], cfg: ObserveConfig,
                         directions: np.ndarray | None = None,
@@ -373,7 +361,7 @@ def leave_one_group_out(evidence: Evidence, scores: dict[str, np.ndarray],
     fitted on the other groups). Empty when there is one group only."""
     return [(held, fit_observation_models(evidence.subset(~held), scores, classes, cfg,
                                           directions, transfer_kernel))
-            for held in _held_out_masks(evidence)]
+            for held in held_out_groups(evidence.labels, evidence.groups)]
 
 
 def validation_quality(evidence: Evidence,
@@ -487,18 +475,13 @@ def held_out_temperatures(evidence: Evidence,
     each group's beliefs updated by the models fitted without it (``after_first``: the first
     view counts in full, the fit tempers the later ones); and, per model, the calibration of
     those held-out beliefs (max belief against a right argmax) after the first and the last
-    step, naive (t = 1) and tempered, with the held-out log loss of each. Empty without
-    folds."""
+    step, naive (t = 1) and tempered, with the held-out log loss of each
+    (:func:`~rapomdp.recognition.belief.walk_calibration`). Empty without folds."""
     if not folds:
         return {}, {}
-    row_model = np.full(len(evidence.labels), -1, dtype=np.int64)
-    for m, (held, _) in enumerate(folds):
-        row_model[held] = m
-    rows = np.flatnonzero(row_model >= 0)
-    walk_row = np.repeat(rows, starts_per_row)
-    starts = rng.integers(0, evidence.predicted.shape[1], size=walk_row.size)
-    walks = random_walks(directions, starts, length, neighbours, rng)
-    true = evidence.labels[walk_row]
+    row_model = fold_of_rows([held for held, _ in folds], len(evidence.labels))
+    walks, walk_row = held_out_walks(row_model, directions, rng, length, starts_per_row,
+                                     neighbours)
     temperatures, calibration = {}, {}
     for name in (n for n in folds[0][1] if all(n in m for _, m in folds)):
         models = [m[name].probabilities for _, m in folds]
@@ -506,18 +489,6 @@ def held_out_temperatures(evidence: Evidence,
         t = fit_temperature(models, row_model, evidence.labels, evidence.predicted, walks,
                             walk_row, first_temperature=first)
         temperatures[name] = t
-        report: dict[str, float] = {"temperature": t}
-        for label, value in (("naive", 1.0), ("tempered", t)):
-            report[f"log_loss_{label}"] = belief_log_loss(
-                value, models, row_model, evidence.labels, evidence.predicted, walks, walk_row,
-                first)
-            belief = np.exp(walk_log_beliefs(value, models, row_model, evidence.predicted,
-                                             walks, walk_row, first))
-            for step, at in (("first", 0), ("last", length - 1)):
-                confidence = belief[:, at].max(axis=1)
-                right = belief[:, at].argmax(axis=1) == true
-                report[f"ece_{step}_{label}"] = expected_calibration_error(confidence, right)
-                report[f"belief_{step}_{label}"] = float(confidence.mean())
-                report[f"accuracy_{step}"] = float(right.mean())
-        calibration[name] = report
+        calibration[name] = walk_calibration(t, models, row_model, evidence.labels,
+                                             evidence.predicted, walks, walk_row, first)
     return temperatures, calibration

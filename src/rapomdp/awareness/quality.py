@@ -58,28 +58,6 @@ def awareness_quality(model: ObservationModel, true_labels: np.ndarray,
     return quality_from_probabilities(p[x, t, predicted], p[x, t, t], predicted == t)
 
 
-def reliability(confidence: np.ndarray, correct: np.ndarray, bins: int = 10
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Reliability diagram: per equal-width confidence bin, the mean confidence, the accuracy
-    and the count (empty bins NaN, 0)."""
-    confidence = np.clip(np.ravel(confidence).astype(np.float64), 0.0, 1.0)
-    correct = np.ravel(correct).astype(np.float64)
-    which = np.minimum((confidence * bins).astype(np.int64), bins - 1)
-    count = np.bincount(which, minlength=bins).astype(np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean_conf = np.bincount(which, weights=confidence, minlength=bins) / count
-        accuracy = np.bincount(which, weights=correct, minlength=bins) / count
-    return mean_conf, accuracy, count
-
-
-def expected_calibration_error(confidence: np.ndarray, correct: np.ndarray,
-                               bins: int = 10) -> float:
-    """ECE: the count-weighted mean |accuracy − confidence| over the reliability bins."""
-    mean_conf, accuracy, count = reliability(confidence, correct, bins)
-    used = count > 0
-    return float(np.sum(count[used] * np.abs(accuracy[used] - mean_conf[used])) / count.sum())
-
-
 def quality_table(models: dict[str, ObservationModel], true_labels: np.ndarray,
                   predicted: np.ndarray) -> list[dict[str, float | str]]:
     return [{"model": name, **awareness_quality(m, true_labels, predicted)}

@@ -17,12 +17,11 @@ from rapomdp.awareness.figures import (
     most_salient_view,
     reliability_figure,
 )
-from rapomdp.awareness.quality import reliability
 from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
 from rapomdp.io import load_npz
-from rapomdp.recognition.belief import temper
+from rapomdp.recognition.belief import reliability, temper
 from rapomdp.workspace import StageError, Workspace
 
 FIGURES_DIR = "figures"

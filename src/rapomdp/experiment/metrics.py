@@ -250,7 +250,7 @@ def belief_calibration_cells(table: EpisodeTable) -> tuple[list[str], list[list[
     """Every method's final belief against its accuracy: the mean belief in the true class, the
     mean confidence (the belief in the declared class, which a calibrated belief's accuracy
     equals), their difference and the confidence's ECE (10 equal-width bins)."""
-    from rapomdp.awareness.quality import expected_calibration_error
+    from rapomdp.recognition.belief import expected_calibration_error
 
     confidence = table.final_confidence()
     cells = []

@@ -480,7 +480,7 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> Non
     """Every method's final belief against its accuracy (:func:`belief_calibration_cells`) and
     the reliability of its confidence."""
     from rapomdp.awareness.figures import reliability_figure
-    from rapomdp.awareness.quality import reliability
+    from rapomdp.recognition.belief import reliability
 
     confidence = table.final_confidence()
     mine = {m: table.method == m for m in table.methods}

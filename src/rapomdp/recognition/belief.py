@@ -3,9 +3,11 @@
 A belief over classes is updated by Bayes (Eq. 5) with an observation model P(o | c, x) (V, C, C)
 at every view. Views of one object are correlated, so naive Bayes over them is overconfident;
 the likelihood temperature t (P ** t, renormalised) that minimises the belief's log loss on
-held-out random walks over viewpoints keeps it calibrated. Nothing here depends on how the model
-was fitted: the observe stage tempers every awareness model with it, the vptree stage the
-VP-tree's confusion.
+held-out random walks over viewpoints keeps it calibrated. Held out: the outcome rows form
+groups; each group's walks are scored by the model fitted without it (leave-one-group-out).
+Nothing here depends on how a model was fitted: the observe stage tempers every awareness model
+with it (:func:`rapomdp.awareness.evidence.held_out_temperatures`), the vptree stage the
+VP-tree's confusion. Also here: the reliability and ECE of a confidence.
 """
 
 from __future__ import annotations
@@ -24,6 +26,32 @@ TEMPERATURE_WALKS_PER_ROW = 16
 TEMPERATURE_NEIGHBOURS = 8
 """A walk moves to one of this many nearest viewpoints not yet visited."""
 
+
+# -- the calibration of a confidence ---------------------------------------------------------
+
+def reliability(confidence: np.ndarray, correct: np.ndarray, bins: int = 10
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Reliability diagram: per equal-width confidence bin, the mean confidence, the accuracy
+    and the count (empty bins NaN, 0)."""
+    confidence = np.clip(np.ravel(confidence).astype(np.float64), 0.0, 1.0)
+    correct = np.ravel(correct).astype(np.float64)
+    which = np.minimum((confidence * bins).astype(np.int64), bins - 1)
+    count = np.bincount(which, minlength=bins).astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_conf = np.bincount(which, weights=confidence, minlength=bins) / count
+        accuracy = np.bincount(which, weights=correct, minlength=bins) / count
+    return mean_conf, accuracy, count
+
+
+def expected_calibration_error(confidence: np.ndarray, correct: np.ndarray,
+                               bins: int = 10) -> float:
+    """ECE: the count-weighted mean |accuracy − confidence| over the reliability bins."""
+    mean_conf, accuracy, count = reliability(confidence, correct, bins)
+    used = count > 0
+    return float(np.sum(count[used] * np.abs(accuracy[used] - mean_conf[used])) / count.sum())
+
+
+# -- the belief's temperature ----------------------------------------------------------------
 
 def temper(probabilities: np.ndarray, temperature: float) -> np.ndarray:
     """P(o | c, x) ** t, renormalised over o: a model whose evidence counts ``t`` times a
@@ -120,3 +148,66 @@ def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels:
                                    first_temperature),
                              options={"xatol": 1e-3})
     return float(result.x)
+
+
+# -- held out: the folds, their walks and the calibration of the beliefs on them -------------
+
+def held_out_groups(labels: np.ndarray, groups: np.ndarray) -> list[np.ndarray]:
+    """The rows (N,) bool of every group whose complement still covers every class: the groups
+    leave-one-group-out holds out (a model fitted without one must know every class). Empty
+    with one group only."""
+    labels, groups = np.asarray(labels), np.asarray(groups)
+    masks = []
+    everything = set(labels.tolist())
+    for g in np.unique(groups):
+        held = groups == g
+        if held.all() or set(labels[~held].tolist()) != everything:
+            continue
+        masks.append(held)
+    return masks
+
+
+def fold_of_rows(held: Sequence[np.ndarray], rows: int) -> np.ndarray:
+    """Each row's fold (N,): the index of the mask in ``held`` that holds it out, −1 for none
+    (``row_model`` of :func:`walk_log_beliefs`: row r is scored by the model of its fold)."""
+    row_model = np.full(rows, -1, dtype=np.int64)
+    for m, mask in enumerate(held):
+        row_model[mask] = m
+    return row_model
+
+
+def held_out_walks(row_model: np.ndarray, directions: np.ndarray, rng: np.random.Generator,
+                   length: int = TEMPERATURE_WALK_LENGTH,
+                   starts_per_row: int = TEMPERATURE_WALKS_PER_ROW,
+                   neighbours: int = TEMPERATURE_NEIGHBOURS
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Random walks (E, length) over ``directions`` (V, 3), ``starts_per_row`` from random
+    viewpoints per held-out row (``row_model`` >= 0), and each walk's row (E,)."""
+    walk_row = np.repeat(np.flatnonzero(row_model >= 0), starts_per_row)
+    starts = rng.integers(0, len(directions), size=walk_row.size)
+    return random_walks(directions, starts, length, neighbours, rng), walk_row
+
+
+def walk_calibration(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
+                     labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
+                     walk_row: np.ndarray, first_temperature: float | None = None
+                     ) -> dict[str, float]:
+    """The calibration of the held-out beliefs on ``walks`` naive (t = 1) and at
+    ``temperature``: each one's log loss (``log_loss_{naive,tempered}``) and, after the first
+    and the last step, the ECE and mean of the max belief against a right argmax
+    (``ece_{first,last}_*``, ``belief_{first,last}_*``; ``accuracy_{first,last}``: the
+    tempered belief's, whose argmax renormalising P ** t can move)."""
+    true = labels[walk_row]
+    report: dict[str, float] = {"temperature": temperature}
+    for label, value in (("naive", 1.0), ("tempered", temperature)):
+        report[f"log_loss_{label}"] = belief_log_loss(
+            value, models, row_model, labels, predicted, walks, walk_row, first_temperature)
+        belief = np.exp(walk_log_beliefs(value, models, row_model, predicted, walks, walk_row,
+                                         first_temperature))
+        for step, at in (("first", 0), ("last", walks.shape[1] - 1)):
+            confidence = belief[:, at].max(axis=1)
+            right = belief[:, at].argmax(axis=1) == true
+            report[f"ece_{step}_{label}"] = expected_calibration_error(confidence, right)
+            report[f"belief_{step}_{label}"] = float(confidence.mean())
+            report[f"accuracy_{step}"] = float(right.mean())
+    return report
