@@ -373,6 +373,9 @@ def vptree(workspace: WorkspaceOption, config: ConfigOption = None,
     console.print(f"  VP-tree single-view accuracy, test models at X_rho: {shown} "
                   f"(volume models {data.accuracy_volume_xrho:.1%}, chance "
                   f"{data.chance:.1%})", highlight=False)
+    if data.temperature is not None:
+        console.print(f"  its belief's likelihood temperature (held out): "
+                      f"{data.temperature:.3f}", highlight=False)
 
 
 FIG2_TARGET = "bicycle"

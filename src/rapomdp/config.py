@@ -310,6 +310,13 @@ class VPTreeConfig(Section):
         1, ge=1, description="best-matching training views voting (1: the best match's class)")
     pseudo_count: float = Field(
         0.1, gt=0, description="pseudo-count per (viewpoint, class, label) of the confusion")
+    belief_correction: Literal["none", "temperature"] = Field(
+        "temperature", description="temperature: the confusion's likelihoods raised to a power "
+        "fitted on held-out multi-view walks (leave-one-group-out over the volume models, the "
+        "k-th of each class in group k), so correlated views count less than independent ones, "
+        "as observe.belief_correction does for the other models (docs/awareness.md §4.5); with "
+        "fewer than two such groups (one volume model per class) t = 1; none: naive Bayes with "
+        "the raw confusion")
 
 
 class SolveConfig(Section):

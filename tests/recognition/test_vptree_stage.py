@@ -1,4 +1,5 @@
-"""The vptree stage: the VP-tree baseline fitted, its observation model and summary, the CLI."""
+"""The vptree stage: the VP-tree baseline fitted, its observation model and its held-out
+temperature, the summary, the CLI."""
 
 from __future__ import annotations
 
@@ -8,11 +9,27 @@ import numpy as np
 from typer.testing import CliRunner
 
 from rapomdp.cli import app
+from rapomdp.config import VPTreeConfig
 from rapomdp.data.dataset import load_dataset
-from rapomdp.data.test_views import TEST_STREAM
+from rapomdp.data.splits import class_seed
+from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM
+from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
-from rapomdp.recognition.vptree_stage import load_workspace_vptree, xrho_predictions
+from rapomdp.recognition.belief import (
+    TEMPERATURE_NEIGHBOURS,
+    TEMPERATURE_WALK_LENGTH,
+    TEMPERATURE_WALKS_PER_ROW,
+    fit_temperature,
+    random_walks,
+    temper,
+)
+from rapomdp.recognition.evaluation import viewpoint_confusion
+from rapomdp.recognition.vptree_stage import (
+    load_workspace_vptree,
+    vptree_observation,
+    xrho_predictions,
+)
 from rapomdp.workspace import Workspace
 from tests.conftest import TEST_CONTEXT, tiny_config
 
@@ -47,6 +64,11 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     # row is (1 + a) / (1 + 3a) on the label seen and a / (1 + 3a) elsewhere
     a = config.vptree.pseudo_count
     np.testing.assert_allclose(p.max(axis=2), (1 + a) / (1 + 3 * a))
+    # one volume model per class is one group: nothing to hold out, the raw confusion
+    assert float(model["temperature"]) == 1.0 and np.array_equal(model["untempered"], p)
+    assert summary["temperature"] == 1.0 and summary["held_out_belief"] == {}
+    assert summary["belief_correction"] == "temperature"
+    assert "0 held-out group(s)" in summary["temperature_note"]
     # the command line: cached now, and it prints the accuracy
     config_path = tmp_path / "tiny.yaml"
     config_path.write_text(config.to_yaml())
@@ -56,3 +78,92 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     assert "vptree" in result.output and "cached" in result.output
     shown = f"test models at X_rho: {summary['accuracy_test_xrho']:.1%}"
     assert shown in " ".join(result.output.split())
+    assert "temperature (held out): 1.000" in " ".join(result.output.split())
+
+
+def _by_hand(labels: np.ndarray, predicted: np.ndarray, groups: np.ndarray, classes: int,
+             pseudo_count: float, directions: np.ndarray, rng: np.random.Generator) -> float:
+    """The temperature fitted by hand: every group held out, scored by the confusion of the
+    others, on the walks the stage draws (starts, then moves, from ``rng``)."""
+    folds = np.unique(groups)
+    models = [viewpoint_confusion(labels[groups != g], predicted[groups != g], classes,
+                                  pseudo_count) for g in folds]
+    row_model = np.searchsorted(folds, groups)
+    walk_row = np.repeat(np.arange(len(labels)), TEMPERATURE_WALKS_PER_ROW)
+    starts = rng.integers(0, len(directions), size=walk_row.size)
+    walks = random_walks(directions, starts, TEMPERATURE_WALK_LENGTH, TEMPERATURE_NEIGHBOURS,
+                         rng)
+    return fit_temperature(models, row_model, labels, predicted, walks, walk_row)
+
+
+def test_vptree_temperature_is_fitted_on_held_out_walks_over_the_volume_groups() -> None:
+    """Planted: 3 classes, 3 volume models each (groups 0-2), 16 views; a model's label is
+    one draw repeated at every view (right with probability 0.7): the views are perfectly
+    correlated, naive Bayes counts one piece of evidence six times, and t drops well below 1."""
+    rng = np.random.default_rng(11)
+    classes, views = 3, 16
+    labels = np.repeat(np.arange(classes), 3)
+    groups = np.tile(np.arange(3), classes)
+    right = rng.random(labels.size) < 0.7
+    drawn = np.where(right, labels, (labels + rng.integers(1, classes, labels.size)) % classes)
+    predicted = np.repeat(drawn[:, None], views, axis=1)
+    directions = fibonacci_directions(views, hemisphere=True)
+    cfg = VPTreeConfig()
+    fitted = vptree_observation(labels, predicted, groups, classes, cfg, directions,
+                                np.random.default_rng(5))
+    t = _by_hand(labels, predicted, groups, classes, cfg.pseudo_count, directions,
+                 np.random.default_rng(5))
+    assert fitted.temperature == t and t < 0.6 and fitted.note is None
+    raw = viewpoint_confusion(labels, predicted, classes, cfg.pseudo_count)
+    np.testing.assert_array_equal(fitted.untempered, raw)
+    np.testing.assert_allclose(fitted.model, temper(raw, t))
+    report = fitted.held_out_belief
+    assert report["temperature"] == t
+    assert report["log_loss_tempered"] < report["log_loss_naive"]
+    # naive Bayes is overconfident after six views; the tempered belief is nearer its accuracy
+    gap = {k: report[f"belief_last_{k}"] - report["accuracy_last"] for k in ("naive", "tempered")}
+    assert gap["naive"] > 0.1 and abs(gap["tempered"]) < gap["naive"]
+    # switched off: naive Bayes with the raw confusion
+    off = vptree_observation(labels, predicted, groups, classes,
+                             VPTreeConfig(belief_correction="none"), directions,
+                             np.random.default_rng(5))
+    assert off.temperature == 1.0 and off.held_out_belief == {}
+    np.testing.assert_array_equal(off.model, raw)
+    assert off.note is not None and "none" in off.note
+    # one group (one volume model per class): t = 1, and why
+    one = vptree_observation(labels, predicted, np.zeros_like(groups), classes, cfg,
+                             directions, np.random.default_rng(5))
+    assert one.temperature == 1.0 and one.held_out_belief == {}
+    np.testing.assert_array_equal(one.model, raw)
+    assert one.note is not None and "0 held-out group(s)" in one.note
+
+
+def test_vptree_stage_tempers_its_model_over_two_volume_models_per_class(tmp_path: Path
+                                                                         ) -> None:
+    config = tiny_config(vptree={"branching": 4, "levels": 2},
+                         dataset={"classes": ["cup", "mug", "bicycle"],
+                                  "split": {"train": 2, "volume": 2, "test": 1}})
+    workspace = Workspace(tmp_path / "ws")
+    run_pipeline(config, workspace, until="vptree", context=TEST_CONTEXT)
+    stage = workspace.root / "vptree"
+    model, summary = load_npz(stage / "observation_model.npz"), read_json(stage / "vptree.json")
+    # the stage's labels of the volume models, by hand: the k-th of each class is group k
+    dataset = load_dataset(workspace.root / "dataset")
+    volume = dataset.with_role("volume")
+    labels, predicted = xrho_predictions(load_workspace_vptree(stage), dataset, volume, config,
+                                         VOLUME_STREAM, "", False)
+    groups = np.array([[m for m in volume if m.class_name == v.class_name].index(v)
+                       for v in volume])
+    assert sorted(groups.tolist()) == [0, 0, 0, 1, 1, 1]
+    t = _by_hand(labels, predicted, groups, 3, config.vptree.pseudo_count,
+                 fibonacci_directions(16, hemisphere=True),
+                 class_seed(config.seed, "vptree/temperature"))
+    assert summary["temperature"] == t == float(model["temperature"])
+    assert summary["temperature_note"] is None
+    np.testing.assert_array_equal(model["untempered"], viewpoint_confusion(
+        labels, predicted, 3, config.vptree.pseudo_count))
+    np.testing.assert_allclose(model["vptree"], temper(model["untempered"], t))
+    held = summary["held_out_belief"]
+    assert held["temperature"] == t and set(held) >= {
+        "log_loss_naive", "log_loss_tempered", "ece_first_naive", "ece_first_tempered",
+        "ece_last_naive", "ece_last_tempered", "accuracy_last"}

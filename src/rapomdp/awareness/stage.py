@@ -80,7 +80,7 @@ from rapomdp.awareness.visibility import visibility_from_depth
 from rapomdp.awareness.volume import SaliencyVolume, object_grid, saliency_volume
 from rapomdp.config import Config
 from rapomdp.context import RunContext
-from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
+from rapomdp.data.dataset import Dataset, ModelEntry, class_ranks, load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import CROSSFIT_STREAM, TEST_STREAM, VOLUME_STREAM, xrho_renders
 from rapomdp.data.training_views import TrainingViews, load_training_views
@@ -320,13 +320,13 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     raw = np.zeros((len(classes), config.viewpoints.count))
     area = np.zeros_like(raw)
     similarity = np.zeros((len(classes), config.viewpoints.count, config.viewpoints.count))
-    vol_labels, vol_pred, vol_rank, vol_probabilities = [], [], [], []
+    vol_labels, vol_pred, vol_probabilities = [], [], []
+    vol_models: list[ModelEntry] = []
     for c, class_name in enumerate(track(classes, "observe: volume models at X_rho", progress)):
         volume = volumes[class_name]
         voxel_scores = volume.flat_scores()
         per_model, per_model_area, per_model_similarity = [], [], []
-        for rank, model in enumerate(m for m in dataset.with_role("volume")
-                                     if m.class_name == class_name):
+        for model in (m for m in dataset.with_role("volume") if m.class_name == class_name):
             seen = outcomes(model, VOLUME_STREAM)
             vis = visibility_from_depth(seen.clean, seen.poses, intrinsics, volume.grid)
             per_model.append(viewpoint_scores(vis, voxel_scores))
@@ -336,7 +336,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
             vol_pred.append(seen.predicted)
             vol_probabilities.append(seen.probabilities)
             vol_labels.append(c)
-            vol_rank.append(rank)
+            vol_models.append(model)
         raw[c] = np.nanmean(np.stack(per_model), axis=0)
         area[c] = np.mean(np.stack(per_model_area), axis=0)
         similarity[c] = np.mean(np.stack(per_model_similarity), axis=0)
@@ -348,7 +348,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     softmax_t = (fit_softmax_temperature(np.stack(known), labels)
                  if len(known) == len(vol_probabilities) else 1.0)
     evidence = observation_evidence(cfg.evidence, labels, predicted, crossfit,
-                                    np.array(vol_rank, dtype=np.int64))
+                                    class_ranks(vol_models))
     if cfg.contrastive:
         if views is None:
             raise StageError("observe.contrastive needs the training renders (render stage)")

@@ -8,6 +8,7 @@ Output (``W/dataset/``): ``dataset.json`` (classes, models, roles, sources) and
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -54,6 +55,18 @@ class ModelEntry:
     def centroid(self) -> np.ndarray:
         """The bounding-box centre: on the z axis at half the model's height."""
         return np.array([0.0, 0.0, self.height_m / 2.0])
+
+
+def class_ranks(models: Sequence[ModelEntry]) -> np.ndarray:
+    """Each model's rank among the models of its class before it in ``models`` (M,): a volume
+    model's held-out group (the k-th volume model of every class is group k, so a group holds
+    one model of each class)."""
+    seen: dict[str, int] = {}
+    ranks = np.empty(len(models), dtype=np.int64)
+    for i, model in enumerate(models):
+        ranks[i] = seen.get(model.class_name, 0)
+        seen[model.class_name] = int(ranks[i]) + 1
+    return ranks
 
 
 @dataclass

@@ -2,8 +2,9 @@
 
 Reads ``W/observe/observation_models.npz`` (``models``: the names; per name an array (V, C, C) =
 P(o | class, viewpoint); ``classes``), ``W/vptree/observation_model.npz`` (``vptree`` (V, C, C),
-``classes``: the VP-tree baseline's model) and ``W/robot/robot.npz`` (``energy`` (V, V) E_M,
-``reachable`` (V,), ``distance_m``). Writes ``policy_<model>.npz`` and ``solve_summary.json``.
+``classes``: the VP-tree baseline's model, tempered by the vptree stage as the observe stage
+tempers its own) and ``W/robot/robot.npz`` (``energy`` (V, V) E_M, ``reachable`` (V,),
+``distance_m``). Writes ``policy_<model>.npz`` and ``solve_summary.json``.
 
 Moves to or from an unreachable viewpoint are not actions (the robot stage gives them +inf);
 the energy goes to the problem builder as it is, which handles those entries

@@ -6,8 +6,9 @@ the command line, the report and later stages go through (JSON and NumPy only: n
 ``W/classifier_eval/``: :data:`METRICS_FILE` (:class:`SingleViewMetrics` over X_rho and the
 whole sphere), :data:`PROBABILITIES_FILE`, ``confusion_{xrho,sphere}.csv|png``,
 :data:`HEMISPHERE_FIGURE`.
-``W/vptree/``: :data:`VPTREE_CLASSIFIER_FILE`, :data:`VPTREE_OBSERVATION_FILE` (the
-``vptree`` (V, C, C) confusion and ``classes``), :data:`VPTREE_SUMMARY_FILE`
+``W/vptree/``: :data:`VPTREE_CLASSIFIER_FILE`, :data:`VPTREE_OBSERVATION_FILE` (``vptree``
+(V, C, C) the confusion tempered by the held-out ``temperature``, the model the planner and the
+belief use, ``untempered`` the raw confusion, ``classes``), :data:`VPTREE_SUMMARY_FILE`
 (:class:`VPTreeSummary`).
 """
 
@@ -74,12 +75,14 @@ def load_single_view_metrics(folder: str | Path) -> SingleViewMetrics:
 @dataclass(frozen=True)
 class VPTreeSummary:
     """``W/vptree/vptree.json``: the VP-tree's single-view accuracy at X_rho on the test and the
-    volume models (None where the summary does not hold it) and chance."""
+    volume models, chance and its belief's likelihood temperature (None where the summary does
+    not hold it: the temperature from a workspace before the belief correction)."""
 
     accuracy_test_xrho: float | None
     accuracy_volume_xrho: float | None
     chance: float | None
     raw: dict[str, Any]
+    temperature: float | None = None
 
 
 def load_vptree_summary(folder: str | Path) -> VPTreeSummary:
@@ -93,4 +96,4 @@ def load_vptree_summary(folder: str | Path) -> VPTreeSummary:
         return None if value is None else float(value)
 
     return VPTreeSummary(number("accuracy_test_xrho"), number("accuracy_volume_xrho"),
-                         number("chance"), data)
+                         number("chance"), data, number("temperature"))

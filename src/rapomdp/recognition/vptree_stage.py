@@ -3,26 +3,33 @@
 Fits a :class:`~rapomdp.recognition.vocabulary_tree.VocabularyTreeClassifier` on the train
 models' training-viewsphere renders, classifies every class's volume model(s) at the test
 viewpoints X_rho and counts the per-viewpoint confusion P(o | class, x) with pseudo-counts (the
-same construction as the CNN's "Classifier" model), and records its single-view accuracy on the
-test models at X_rho.
+same construction as the CNN's "Classifier" model), tempers it for a multi-view belief with the
+likelihood temperature fitted on held-out walks (``vptree.belief_correction``; the k-th volume
+model of each class is held-out group k, as the observe stage's evidence), and records its
+single-view accuracy on the test models at X_rho.
 
 ``W/vptree/``: ``vocabulary_tree.npz`` (the classifier), ``observation_model.npz`` with
-``vptree`` (V, C, C) and ``classes``, and ``vptree.json`` (classes, train_images,
-descriptors_fit, leaves, accuracy_test_xrho, accuracy_volume_xrho, seconds).
+``vptree`` (V, C, C) the tempered model (the planner's and the belief's), ``untempered`` the
+raw confusion, ``temperature`` and ``classes``, and ``vptree.json`` (classes, train_images,
+descriptors_fit, leaves, accuracy_test_xrho, accuracy_volume_xrho, belief_correction,
+temperature, temperature_note, held_out_belief, seconds).
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.config import Config, VPTreeConfig
 from rapomdp.context import RunContext
-from rapomdp.data.dataset import Dataset, ModelEntry
+from rapomdp.data.dataset import Dataset, ModelEntry, class_ranks
+from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
 from rapomdp.data.training_views import TrainingViews, load_training_views
+from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import save_npz, write_json_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
@@ -31,6 +38,14 @@ from rapomdp.recognition.artefacts import (
     VPTREE_MODEL_NAME,
     VPTREE_OBSERVATION_FILE,
     VPTREE_SUMMARY_FILE,
+)
+from rapomdp.recognition.belief import (
+    fit_temperature,
+    fold_of_rows,
+    held_out_groups,
+    held_out_walks,
+    temper,
+    walk_calibration,
 )
 from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.recognition.vocabulary_tree import DescriptorParams, VocabularyTreeClassifier
@@ -91,9 +106,49 @@ def xrho_predictions(classifier: VocabularyTreeClassifier, dataset: Dataset,
     return np.array(labels, dtype=np.int64), np.stack([p for part in predicted for p in part])
 
 
+@dataclass
+class VPTreeObservation:
+    """The VP-tree's observation model: ``model`` (V, C, C) the planner's and the run-time
+    belief's, the ``untempered`` confusion raised to ``temperature``; ``held_out_belief`` the
+    held-out calibration of the fit (:func:`~rapomdp.recognition.belief.walk_calibration`,
+    empty without one) and ``note`` why t = 1 where none was fitted."""
+
+    model: np.ndarray
+    untempered: np.ndarray
+    temperature: float = 1.0
+    held_out_belief: dict[str, float] = field(default_factory=dict)
+    note: str | None = None
+
+
+def vptree_observation(labels: np.ndarray, predicted: np.ndarray, groups: np.ndarray,
+                       classes: int, cfg: VPTreeConfig, directions: np.ndarray,
+                       rng: np.random.Generator) -> VPTreeObservation:
+    """The confusion of the VP-tree's labels ``predicted`` (M, V) of models of true class
+    ``labels`` (M,), tempered as ``cfg.belief_correction`` says: t fitted on random walks over
+    ``directions`` (V, 3) drawn from ``rng``, each held-out group of ``groups`` (M,) scored by
+    the confusion of the others (naive Bayes over correlated views is overconfident). With
+    fewer than two groups to hold out t = 1."""
+    raw = viewpoint_confusion(labels, predicted, classes, cfg.pseudo_count)
+    if cfg.belief_correction == "none":
+        return VPTreeObservation(raw, raw, note="vptree.belief_correction is none")
+    held = held_out_groups(labels, groups)
+    if len(held) < 2:
+        return VPTreeObservation(raw, raw, note=(
+            f"t = 1: {len(held)} held-out group(s) of volume models, two are needed (two or "
+            "more volume models per class, dataset.split.volume)"))
+    models = [viewpoint_confusion(labels[~h], predicted[~h], classes, cfg.pseudo_count)
+              for h in held]
+    row_model = fold_of_rows(held, len(labels))
+    walks, walk_row = held_out_walks(row_model, directions, rng)
+    t = fit_temperature(models, row_model, labels, predicted, walks, walk_row)
+    report = walk_calibration(t, models, row_model, labels, predicted, walks, walk_row)
+    return VPTreeObservation(temper(raw, t), raw, t, report)
+
+
 def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
-    """Fit the VP-tree, count its per-viewpoint confusion on the volume models at X_rho."""
+    """Fit the VP-tree, count its per-viewpoint confusion on the volume models at X_rho and
+    temper it on held-out walks over them."""
     seconds: dict[str, float] = {}
     start = time.perf_counter()
     views = load_training_views(inputs.render, inputs.dataset)
@@ -101,12 +156,15 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     classifier = fit_vptree(config, views, context.progress)
     seconds["fit"] = time.perf_counter() - start
     step = time.perf_counter()
+    volume_models = dataset.with_role("volume")
     volume_labels, volume_pred = xrho_predictions(
-        classifier, dataset, dataset.with_role("volume"), config, VOLUME_STREAM,
+        classifier, dataset, volume_models, config, VOLUME_STREAM,
         "vptree: volume models at X_rho", context.progress, context.worker_count,
         context.scheduler)
-    confusion = viewpoint_confusion(volume_labels, volume_pred, len(dataset.classes),
-                                    config.vptree.pseudo_count)
+    observation = vptree_observation(
+        volume_labels, volume_pred, class_ranks(volume_models), len(dataset.classes),
+        config.vptree, fibonacci_directions(config.viewpoints.count, hemisphere=True),
+        class_seed(config.seed, "vptree/temperature"))
     seconds["observation_model"] = time.perf_counter() - step
     step = time.perf_counter()
     test_models = dataset.with_role("test")
@@ -119,7 +177,9 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
         test_accuracy = float((test_pred == test_labels[:, None]).mean())
     seconds["test"] = time.perf_counter() - step
     classifier.save(out / VPTREE_CLASSIFIER_FILE)
-    save_npz(out / VPTREE_OBSERVATION_FILE, **{VPTREE_MODEL_NAME: confusion},
+    save_npz(out / VPTREE_OBSERVATION_FILE, **{VPTREE_MODEL_NAME: observation.model},
+             untempered=observation.untempered,
+             temperature=np.array(observation.temperature),
              classes=np.array(dataset.classes))
     seconds["total"] = time.perf_counter() - start
     write_json_atomic(out / VPTREE_SUMMARY_FILE, {
@@ -130,6 +190,10 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
         "accuracy_test_xrho": test_accuracy,
         "accuracy_volume_xrho": float((volume_pred == volume_labels[:, None]).mean()),
         "chance": 1.0 / len(dataset.classes),
+        "belief_correction": config.vptree.belief_correction,
+        "temperature": observation.temperature,
+        "temperature_note": observation.note,
+        "held_out_belief": observation.held_out_belief,
         "seconds": seconds,
     })
 
