@@ -19,6 +19,8 @@ def test_default_has_the_papers_values() -> None:
     assert cfg.volume.models_per_class == 1 and cfg.observe.evidence == "volume"
     # the belief's likelihoods tempered (chosen on the held-out closed loop, docs/awareness.md)
     assert cfg.observe.belief_correction == "temperature"
+    # and the VP-tree's, fitted the same way over its volume models (docs/recognition.md)
+    assert cfg.vptree.belief_correction == "temperature"
     assert cfg.dataset.split.extra == "train"
     paper = load_config(Path(__file__).parents[1] / "configs" / "paper.yaml")
     assert (paper.dataset.split.train, paper.dataset.split.volume, paper.dataset.split.test) \
