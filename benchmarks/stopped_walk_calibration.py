@@ -25,11 +25,10 @@ from rapomdp.awareness.evidence import (
     Evidence,
     TransferKernel,
     leave_one_group_out,
-    random_walks,
-    walk_log_beliefs,
 )
 from rapomdp.data.splits import class_seed
 from rapomdp.io import load_npz, read_json
+from rapomdp.recognition.belief import fold_of_rows, held_out_walks, walk_log_beliefs
 from rapomdp.workspace import Workspace
 
 TEMPERATURES = (1.0, 0.75, 0.6, 0.5, 0.4, 0.3, 0.25, 0.2, 0.15)
@@ -65,15 +64,12 @@ def main() -> None:
                                 observe["directions"], kernel)
     if not folds:
         raise SystemExit(f"{args.workspace}: one group of evidence, nothing held out")
-    row_model = np.full(len(evidence.labels), -1, dtype=np.int64)
-    for m, (held, _) in enumerate(folds):
-        row_model[held] = m
-    rng = class_seed(config.seed, "benchmarks/stopped_walks")
-    walk_row = np.repeat(np.flatnonzero(row_model >= 0), args.walks_per_row)
-    starts = rng.integers(0, evidence.predicted.shape[1], size=walk_row.size)
+    row_model = fold_of_rows([held for held, _ in folds], len(evidence.labels))
     random_cfg = config.evaluate.random
-    walks = random_walks(observe["directions"], starts, random_cfg.max_moves + 1,
-                         args.neighbours, rng)
+    walks, walk_row = held_out_walks(row_model, observe["directions"],
+                                     class_seed(config.seed, "benchmarks/stopped_walks"),
+                                     random_cfg.max_moves + 1, args.walks_per_row,
+                                     args.neighbours)
     true = evidence.labels[walk_row]
     episodes = np.arange(len(walks))
     print(f"{len(walks)} held-out walks over {len(folds)} groups, stop at max belief >= "
