@@ -7,10 +7,14 @@ correction and temperature, same ``ra_transfer`` kernel), each POMDP method is s
 λ, and the methods run from ``--starts`` seeded reachable starts per held-out model on its
 labels at X_rho (noise off: the episode is exact). Random walks as `evaluate` configures it.
 Prints one row per (method, λ) and the λ rule: the largest λ whose RA-POMDP episodes spend no
-more energy than Random's.
+more energy than Random's. ``--models vptree`` runs the VP-tree baseline the same way on its own
+labels of the volume models (saved by the vptree stage), each group's model counted on the
+others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
+``--correction none``).
 
     python benchmarks/held_out_closed_loop.py --workspace W [--lambdas 2 8] [--starts 4]
-        [--correction none|temperature|after_first] [--draws K] [--lookahead] [--save F]
+        [--models ra classifier vptree] [--correction none|temperature|after_first]
+        [--draws K] [--lookahead] [--save F]
 """
 
 from __future__ import annotations
@@ -34,7 +38,9 @@ from rapomdp.io import load_npz, read_json, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
+from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
 from rapomdp.recognition.belief import expected_calibration_error, temper
+from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
 
@@ -120,6 +126,13 @@ def main() -> None:
         corrections = dict.fromkeys(corrections, args.correction)
         temperatures = {m: (1.0 if args.correction == "none" else fits[m][key]) for m in fits}
         temperatures["ra"] = temperatures[variant]
+    if "vptree" in args.models:
+        vptree = load_npz(ws.require("vptree") / VPTREE_OBSERVATION_FILE)
+        if "volume_predictions" not in vptree:
+            raise SystemExit(f"{args.workspace}: its vptree stage predates the saved volume "
+                             "labels: rapomdp run -w W --redo vptree")
+        temperatures["vptree"] = (1.0 if args.correction == "none"
+                                  else float(vptree["temperature"]))
     cfg = config.evaluate
     rows: dict[tuple[str, float], list[tuple[bool, float, float, float, float, float]]] = {}
     for g in volume_groups:
@@ -129,13 +142,24 @@ def main() -> None:
         fitted["ra"] = fitted[variant]
         part = evidence.subset(held)
         for name in ("random", *args.models):
-            key = cfg.random.observation_model if name == "random" else name
-            single = fitted[key].probabilities
-            if args.temperature is not None:
-                planner = first = temper(single, args.temperature)
+            held_labels, held_predicted = part.labels, part.predicted
+            if name == "vptree":  # its own labels of the same volume models, its own count
+                in_group = vptree["volume_groups"] == g
+                single = viewpoint_confusion(
+                    vptree["volume_labels"][~in_group], vptree["volume_predictions"][~in_group],
+                    len(classes), config.vptree.pseudo_count)
+                planner = first = temper(single, args.temperature if args.temperature
+                                         is not None else temperatures["vptree"])
+                held_labels = vptree["volume_labels"][in_group]
+                held_predicted = vptree["volume_predictions"][in_group]
             else:
-                planner = temper(single, temperatures[key])
-                first = single if corrections[key] == "after_first" else planner
+                key = cfg.random.observation_model if name == "random" else name
+                single = fitted[key].probabilities
+                if args.temperature is not None:
+                    planner = first = temper(single, args.temperature)
+                else:
+                    planner = temper(single, temperatures[key])
+                    first = single if corrections[key] == "after_first" else planner
             draws = (np.array([1.0]) if name == "random" or args.draws == 1
                      else np.linspace(1.0 - DRAW_SPREAD, 1.0 + DRAW_SPREAD, args.draws))
             for lam in ([0.0] if name == "random" else args.lambdas):
@@ -159,15 +183,15 @@ def main() -> None:
                         method = POMDPPolicy(policy, model, name, first_view_model=first_model,
                                              lookahead_over=(motion.reachable if args.lookahead
                                                              else None))
-                    for r in range(len(part.labels)):
+                    for r in range(len(held_labels)):
                         rng = class_seed(config.seed, f"held-out/{g}/{r}")
                         starts = rng.choice(np.flatnonzero(motion.reachable), args.starts,
                                             replace=False)
                         for s in starts:
                             episode = run_episode(
-                                LabelScene(), LabelRecogniser(part.predicted[r], len(classes)),
+                                LabelScene(), LabelRecogniser(held_predicted[r], len(classes)),
                                 method, motion, int(s), cfg.max_moves, rng)
-                            truth = int(part.labels[r])
+                            truth = int(held_labels[r])
                             rows.setdefault((name, lam), []).append(
                                 (episode.declared == truth, float(episode.move_energy.sum()),
                                  float(episode.beliefs[-1, truth]),
@@ -205,6 +229,8 @@ def main() -> None:
     if args.save is not None:
         save_npz(args.save, **{f"{name}@{lam:g}": np.array(v, dtype=np.float64)
                                for (name, lam), v in rows.items()})
+    if "ra" not in args.models:
+        return
     budget = table[("random", 0.0)]
     fitting = [lam for lam in args.lambdas if table[("ra", lam)] <= budget]
     print(f"λ rule: largest λ whose RA-POMDP held-out energy <= Random's ({budget:.3f}): "

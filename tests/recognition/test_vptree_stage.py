@@ -163,6 +163,10 @@ def test_vptree_stage_tempers_its_model_over_two_volume_models_per_class(tmp_pat
     np.testing.assert_array_equal(model["untempered"], viewpoint_confusion(
         labels, predicted, 3, config.vptree.pseudo_count))
     np.testing.assert_allclose(model["vptree"], temper(model["untempered"], t))
+    # the held-out evidence the fit read, saved for the held-out closed loop
+    np.testing.assert_array_equal(model["volume_labels"], labels)
+    np.testing.assert_array_equal(model["volume_predictions"], predicted)
+    np.testing.assert_array_equal(model["volume_groups"], groups)
     held = summary["held_out_belief"]
     assert held["temperature"] == t and set(held) >= {
         "log_loss_naive", "log_loss_tempered", "ece_first_naive", "ece_first_tempered",

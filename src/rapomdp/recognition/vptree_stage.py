@@ -10,7 +10,8 @@ single-view accuracy on the test models at X_rho.
 
 ``W/vptree/``: ``vocabulary_tree.npz`` (the classifier), ``observation_model.npz`` with
 ``vptree`` (V, C, C) the tempered model (the planner's and the belief's), ``untempered`` the
-raw confusion, ``temperature`` and ``classes``, and ``vptree.json`` (classes, train_images,
+raw confusion, ``temperature``, ``classes`` and the held-out evidence it was fitted on
+(``volume_labels`` (M,), ``volume_predictions`` (M, V), ``volume_groups`` (M,)), and ``vptree.json`` (classes, train_images,
 descriptors_fit, leaves, accuracy_test_xrho, accuracy_volume_xrho, belief_correction,
 temperature, temperature_note, held_out_belief, seconds).
 """
@@ -161,8 +162,9 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
         classifier, dataset, volume_models, config, VOLUME_STREAM,
         "vptree: volume models at X_rho", context.progress, context.worker_count,
         context.scheduler)
+    volume_groups = class_ranks(volume_models)
     observation = vptree_observation(
-        volume_labels, volume_pred, class_ranks(volume_models), len(dataset.classes),
+        volume_labels, volume_pred, volume_groups, len(dataset.classes),
         config.vptree, fibonacci_directions(config.viewpoints.count, hemisphere=True),
         class_seed(config.seed, "vptree/temperature"))
     seconds["observation_model"] = time.perf_counter() - step
@@ -180,7 +182,9 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     save_npz(out / VPTREE_OBSERVATION_FILE, **{VPTREE_MODEL_NAME: observation.model},
              untempered=observation.untempered,
              temperature=np.array(observation.temperature),
-             classes=np.array(dataset.classes))
+             classes=np.array(dataset.classes),
+             volume_labels=volume_labels, volume_predictions=volume_pred,
+             volume_groups=volume_groups)
     seconds["total"] = time.perf_counter() - start
     write_json_atomic(out / VPTREE_SUMMARY_FILE, {
         "classes": dataset.classes,
