@@ -25,12 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
-from rapomdp.awareness.evidence import (
-    DEFAULT_TRANSFER_KERNEL,
-    Evidence,
-    TransferKernel,
-    fit_observation_models,
-)
+from rapomdp.awareness.evidence import Evidence, fit_observation_models, recorded_transfer_kernel
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
@@ -115,8 +110,7 @@ def main() -> None:
     start = start_viewpoint(motion.reachable)
     variant = f"ra_{calibration['ra_model']}"
     # ra_transfer's kernel as the observe stage chose it (older workspaces: the default)
-    kernel = (TransferKernel.from_dict(calibration["transfer_kernel"])
-              if "transfer_kernel" in calibration else DEFAULT_TRANSFER_KERNEL)
+    kernel = recorded_transfer_kernel(calibration)
     temperatures, corrections = calibration["temperatures"], calibration["belief_corrections"]
     if args.naive:
         args.correction = "none"

@@ -20,10 +20,11 @@ from rapomdp.awareness.evidence import (
     fit_level,
     fit_observation_models,
     observed_probabilities,
+    recorded_transfer_kernel,
     shift_level,
 )
 from rapomdp.awareness.quality import quality_from_probabilities
-from rapomdp.io import load_npz
+from rapomdp.io import load_npz, read_json
 from rapomdp.workspace import Workspace
 
 
@@ -42,6 +43,7 @@ def main() -> None:
     scores = {"mean": observe["scores"], "area": observe["area_scores"],
               "similarity": observe["view_similarity"].astype(np.float64)}
     classes = [str(c) for c in observe["classes"]]
+    kernel = recorded_transfer_kernel(read_json(ws.require("observe") / "calibration.json"))
     pooled: dict[tuple[str, str], list[list[np.ndarray]]] = {}
     for g in np.unique(evidence.groups[evidence.volume_mask]):
         held = evidence.groups == g
@@ -49,7 +51,7 @@ def main() -> None:
         for kind in ("volume", "both"):
             rest = evidence.subset(~held & (evidence.volume_mask if kind == "volume" else True))
             fitted = fit_observation_models(rest, scores, classes, config.observe,
-                                            observe["directions"])
+                                            observe["directions"], kernel)
             volume = rest.subset(rest.volume_mask)
             for name, model in fitted.items():
                 p = model.probabilities

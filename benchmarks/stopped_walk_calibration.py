@@ -21,10 +21,9 @@ import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
 from rapomdp.awareness.evidence import (
-    DEFAULT_TRANSFER_KERNEL,
     Evidence,
-    TransferKernel,
     leave_one_group_out,
+    recorded_transfer_kernel,
 )
 from rapomdp.data.splits import class_seed
 from rapomdp.io import load_npz, read_json
@@ -57,8 +56,7 @@ def main() -> None:
                         observe["evidence_groups"], observe["evidence_from_volume"])
     scores = {"mean": observe["scores"], "area": observe["area_scores"],
               "similarity": observe["view_similarity"].astype(np.float64)}
-    kernel = (TransferKernel.from_dict(calibration["transfer_kernel"])
-              if "transfer_kernel" in calibration else DEFAULT_TRANSFER_KERNEL)
+    kernel = recorded_transfer_kernel(calibration)
     variant = f"ra_{calibration['ra_model']}"
     folds = leave_one_group_out(evidence, scores, classes, config.observe,
                                 observe["directions"], kernel)

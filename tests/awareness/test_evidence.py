@@ -16,6 +16,7 @@ from rapomdp.awareness.evidence import (
     choose_transfer_kernel,
     fit_observation_models,
     leave_one_group_out,
+    recorded_transfer_kernel,
     salient_view_similarity,
     transfer_confusion,
     validation_quality,
@@ -221,6 +222,13 @@ def test_transfer_kernel_choice_falls_back_to_the_default_without_two_folds() ->
                                   similarity, directions, 1.0) == (DEFAULT_TRANSFER_KERNEL, [])
     assert DEFAULT_TRANSFER_KERNEL.to_dict() == {"power": 4.0, "bandwidth_deg": 20.0,
                                                  "prior": TRANSFER_PRIOR}
+
+
+def test_the_recorded_kernel_is_read_back_and_older_workspaces_get_the_default() -> None:
+    chosen = TransferKernel(2.0, 10.0, 2.0)
+    recorded = {"transfer_kernel": {**chosen.to_dict(), "grid": []}, "ra_model": "transfer"}
+    assert recorded_transfer_kernel(recorded) == chosen
+    assert recorded_transfer_kernel({"ra_model": "transfer"}) == DEFAULT_TRANSFER_KERNEL
 
 
 def test_evidence_groups_volume_models_by_rank_and_folds_after_them():

@@ -205,6 +205,14 @@ TRANSFER_KERNEL_GRID: tuple[TransferKernel, ...] = tuple(
 """The 64 kernels :func:`choose_transfer_kernel` scores (the default among them)."""
 
 
+def recorded_transfer_kernel(calibration: Mapping[str, Any]) -> TransferKernel:
+    """The kernel an observe stage's ``calibration.json`` records (``transfer_kernel``), or
+    :data:`DEFAULT_TRANSFER_KERNEL` for a workspace from before the per-dataset choice: what a
+    refit of that workspace's ``ra_transfer`` must use."""
+    recorded = calibration.get("transfer_kernel")
+    return TransferKernel.from_dict(recorded) if recorded else DEFAULT_TRANSFER_KERNEL
+
+
 def salient_view_similarity(seen_saliency: np.ndarray | sparse.spmatrix) -> np.ndarray:
     """Cosine similarity (V, V) of the saliency each viewpoint sees: ``seen_saliency``
     (V, voxels), dense or sparse, = visibility x voxel saliency of a class's volume (1: the

@@ -11,9 +11,10 @@ single-view accuracy on the test models at X_rho.
 ``W/vptree/``: ``vocabulary_tree.npz`` (the classifier), ``observation_model.npz`` with
 ``vptree`` (V, C, C) the tempered model (the planner's and the belief's), ``untempered`` the
 raw confusion, ``temperature``, ``classes`` and the held-out evidence it was fitted on
-(``volume_labels`` (M,), ``volume_predictions`` (M, V), ``volume_groups`` (M,)), and ``vptree.json`` (classes, train_images,
-descriptors_fit, leaves, accuracy_test_xrho, accuracy_volume_xrho, belief_correction,
-temperature, temperature_note, held_out_belief, seconds).
+(``volume_labels`` (M,), ``volume_predictions`` (M, V), ``volume_groups`` (M,)), and
+``vptree.json`` (classes, train_images, descriptors_fit, leaves, accuracy_test_xrho,
+accuracy_volume_xrho, belief_correction, temperature, temperature_note, held_out_belief,
+seconds).
 """
 
 from __future__ import annotations
