@@ -25,7 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
-from rapomdp.awareness.evidence import Evidence, fit_observation_models, recorded_transfer_kernel
+from rapomdp.awareness.evidence import (
+    fit_observation_models,
+    recorded_evidence,
+    recorded_scores,
+    recorded_transfer_kernel,
+)
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
@@ -97,14 +102,12 @@ def main() -> None:
     observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
     calibration = read_json(ws.require("observe") / "calibration.json")
     classes = [str(c) for c in observe["classes"]]
-    evidence = Evidence(observe["evidence_labels"], observe["evidence_predictions"],
-                        observe["evidence_groups"], observe["evidence_from_volume"])
+    evidence = recorded_evidence(observe)
     if not evidence.volume_mask.all():
         raise SystemExit(f"{args.workspace}: its evidence holds cross-fitted rows; this closed "
                          "loop refits volume-only models: observe with observe.evidence=volume")
     volume_groups = np.unique(evidence.groups[evidence.volume_mask])
-    scores = {"mean": observe["scores"], "area": observe["area_scores"],
-              "similarity": observe["view_similarity"].astype(np.float64)}
+    scores = recorded_scores(observe)
     robot = load_robot(ws.require("robot"))
     motion = Motion.from_robot(robot)
     start = start_viewpoint(motion.reachable)

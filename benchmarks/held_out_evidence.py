@@ -16,10 +16,11 @@ import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
 from rapomdp.awareness.evidence import (
-    Evidence,
     fit_level,
     fit_observation_models,
     observed_probabilities,
+    recorded_evidence,
+    recorded_scores,
     recorded_transfer_kernel,
     shift_level,
 )
@@ -35,13 +36,11 @@ def main() -> None:
     ws = Workspace(args.workspace)
     config = ws.config()
     observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
-    evidence = Evidence(observe["evidence_labels"], observe["evidence_predictions"],
-                        observe["evidence_groups"], observe["evidence_from_volume"])
+    evidence = recorded_evidence(observe)
     if evidence.volume_mask.all():
         raise SystemExit(f"{args.workspace}: no cross-fitted rows; run observe with "
                          "observe.evidence=both")
-    scores = {"mean": observe["scores"], "area": observe["area_scores"],
-              "similarity": observe["view_similarity"].astype(np.float64)}
+    scores = recorded_scores(observe)
     classes = [str(c) for c in observe["classes"]]
     kernel = recorded_transfer_kernel(read_json(ws.require("observe") / "calibration.json"))
     pooled: dict[tuple[str, str], list[list[np.ndarray]]] = {}

@@ -21,8 +21,9 @@ import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
 from rapomdp.awareness.evidence import (
-    Evidence,
     leave_one_group_out,
+    recorded_evidence,
+    recorded_scores,
     recorded_transfer_kernel,
 )
 from rapomdp.data.splits import class_seed
@@ -52,10 +53,8 @@ def main() -> None:
     observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
     calibration = read_json(ws.require("observe") / "calibration.json")
     classes = [str(c) for c in observe["classes"]]
-    evidence = Evidence(observe["evidence_labels"], observe["evidence_predictions"],
-                        observe["evidence_groups"], observe["evidence_from_volume"])
-    scores = {"mean": observe["scores"], "area": observe["area_scores"],
-              "similarity": observe["view_similarity"].astype(np.float64)}
+    evidence = recorded_evidence(observe)
+    scores = recorded_scores(observe)
     kernel = recorded_transfer_kernel(calibration)
     variant = f"ra_{calibration['ra_model']}"
     folds = leave_one_group_out(evidence, scores, classes, config.observe,

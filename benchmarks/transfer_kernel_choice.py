@@ -21,10 +21,10 @@ from rapomdp.awareness.artefacts import OBSERVATION_FILE, TIMING_FILE
 from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
     TRANSFER_KERNEL_GRID,
-    Evidence,
     TransferKernel,
     choose_transfer_kernel,
     observed_probabilities,
+    recorded_evidence,
     transfer_confusion,
 )
 from rapomdp.awareness.quality import quality_from_probabilities
@@ -50,8 +50,7 @@ def main() -> None:
     observe = ws.require("observe")
     pseudo_count = ws.config().observe.confusion_pseudo_count
     with np.load(observe / OBSERVATION_FILE) as data:
-        evidence = Evidence(data["evidence_labels"], data["evidence_predictions"],
-                            data["evidence_groups"], data["evidence_from_volume"])
+        evidence = recorded_evidence(data)
         # stored as float32; the observe stage chose on its float64 original
         similarity = data["view_similarity"].astype(np.float64)
         directions = data["directions"]

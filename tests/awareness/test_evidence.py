@@ -16,6 +16,8 @@ from rapomdp.awareness.evidence import (
     choose_transfer_kernel,
     fit_observation_models,
     leave_one_group_out,
+    recorded_evidence,
+    recorded_scores,
     recorded_transfer_kernel,
     salient_view_similarity,
     transfer_confusion,
@@ -229,6 +231,23 @@ def test_the_recorded_kernel_is_read_back_and_older_workspaces_get_the_default()
     recorded = {"transfer_kernel": {**chosen.to_dict(), "grid": []}, "ra_model": "transfer"}
     assert recorded_transfer_kernel(recorded) == chosen
     assert recorded_transfer_kernel({"ra_model": "transfer"}) == DEFAULT_TRANSFER_KERNEL
+
+
+def test_the_recorded_evidence_and_scores_are_what_a_refit_reads() -> None:
+    artefact = {"evidence_labels": np.array([0, 1]),
+                "evidence_predictions": np.array([[0, 1], [1, 1]]),
+                "evidence_groups": np.array([0, 1]),
+                "evidence_from_volume": np.array([True, False]),
+                "scores": np.ones((2, 2)), "area_scores": np.zeros((2, 2)),
+                "view_similarity": np.eye(2, dtype=np.float32)[None].repeat(2, axis=0)}
+    evidence = recorded_evidence(artefact)
+    assert evidence.labels.tolist() == [0, 1] and evidence.volume_mask.tolist() == [True, False]
+    assert evidence.correct.tolist() == [[True, False], [True, True]]
+    scores = recorded_scores(artefact)
+    assert set(scores) == {"mean", "area", "similarity"}
+    assert scores["similarity"].dtype == np.float64
+    del artefact["view_similarity"]  # an artefact from before ra_transfer: no similarity
+    assert set(recorded_scores(artefact)) == {"mean", "area"}
 
 
 def test_evidence_groups_volume_models_by_rank_and_folds_after_them():

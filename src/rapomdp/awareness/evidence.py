@@ -90,6 +90,23 @@ class Evidence:
                    np.concatenate([p.volume_mask for p in parts]))
 
 
+
+def recorded_evidence(observe: Mapping[str, np.ndarray]) -> Evidence:
+    """The held-out evidence an observe stage's artefact (``observation_models.npz``) records:
+    what a refit of its models reads."""
+    return Evidence(observe["evidence_labels"], observe["evidence_predictions"],
+                    observe["evidence_groups"], observe["evidence_from_volume"])
+
+
+def recorded_scores(observe: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The viewpoint scores an observe stage's artefact records, keyed as
+    :func:`fit_observation_models` takes them (``similarity``: the saliency similarity
+    ``ra_transfer`` reads, where the artefact has it)."""
+    scores = {"mean": observe["scores"], "area": observe["area_scores"]}
+    if "view_similarity" in observe:
+        scores["similarity"] = np.asarray(observe["view_similarity"], dtype=np.float64)
+    return scores
+
 VIEWPOINT_BANDWIDTH_DEG = 20.0
 """Kernel width over viewpoints of the per-viewpoint evidence ``ra_viewpoint`` stacks (fixed a
 priori: about two neighbours' spacing on X_rho, not tuned)."""
