@@ -24,17 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import OBSERVATION_FILE
-from rapomdp.awareness.evidence import (
-    fit_observation_models,
-    recorded_evidence,
-    recorded_scores,
-    recorded_transfer_kernel,
-)
+from rapomdp.awareness.evidence import RecordedObservation, fit_observation_models
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
-from rapomdp.io import load_npz, read_json, save_npz
+from rapomdp.io import load_npz, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
@@ -99,21 +93,17 @@ def main() -> None:
     args = parser.parse_args()
     ws = Workspace(args.workspace)
     config = ws.config()
-    observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
-    calibration = read_json(ws.require("observe") / "calibration.json")
-    classes = [str(c) for c in observe["classes"]]
-    evidence = recorded_evidence(observe)
+    recorded = RecordedObservation.load(ws.require("observe"))
+    observe, calibration, classes = recorded.arrays, recorded.calibration, recorded.classes
+    evidence, scores, variant = recorded.evidence, recorded.scores, recorded.variant
+    kernel = recorded.transfer_kernel  # as the observe stage chose it (older: the default)
     if not evidence.volume_mask.all():
         raise SystemExit(f"{args.workspace}: its evidence holds cross-fitted rows; this closed "
                          "loop refits volume-only models: observe with observe.evidence=volume")
     volume_groups = np.unique(evidence.groups[evidence.volume_mask])
-    scores = recorded_scores(observe)
     robot = load_robot(ws.require("robot"))
     motion = Motion.from_robot(robot)
     start = start_viewpoint(motion.reachable)
-    variant = f"ra_{calibration['ra_model']}"
-    # ra_transfer's kernel as the observe stage chose it (older workspaces: the default)
-    kernel = recorded_transfer_kernel(calibration)
     temperatures, corrections = calibration["temperatures"], calibration["belief_corrections"]
     if args.naive:
         args.correction = "none"

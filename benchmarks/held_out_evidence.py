@@ -14,18 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import OBSERVATION_FILE
 from rapomdp.awareness.evidence import (
+    RecordedObservation,
     fit_level,
     fit_observation_models,
     observed_probabilities,
-    recorded_evidence,
-    recorded_scores,
-    recorded_transfer_kernel,
     shift_level,
 )
 from rapomdp.awareness.quality import quality_from_probabilities
-from rapomdp.io import load_npz, read_json
 from rapomdp.workspace import Workspace
 
 
@@ -35,14 +31,12 @@ def main() -> None:
     args = parser.parse_args()
     ws = Workspace(args.workspace)
     config = ws.config()
-    observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
-    evidence = recorded_evidence(observe)
+    recorded = RecordedObservation.load(ws.require("observe"))
+    observe, evidence, scores = recorded.arrays, recorded.evidence, recorded.scores
     if evidence.volume_mask.all():
         raise SystemExit(f"{args.workspace}: no cross-fitted rows; run observe with "
                          "observe.evidence=both")
-    scores = recorded_scores(observe)
-    classes = [str(c) for c in observe["classes"]]
-    kernel = recorded_transfer_kernel(read_json(ws.require("observe") / "calibration.json"))
+    classes, kernel = recorded.classes, recorded.transfer_kernel
     pooled: dict[tuple[str, str], list[list[np.ndarray]]] = {}
     for g in np.unique(evidence.groups[evidence.volume_mask]):
         held = evidence.groups == g

@@ -19,15 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import OBSERVATION_FILE
-from rapomdp.awareness.evidence import (
-    leave_one_group_out,
-    recorded_evidence,
-    recorded_scores,
-    recorded_transfer_kernel,
-)
+from rapomdp.awareness.evidence import RecordedObservation, leave_one_group_out
 from rapomdp.data.splits import class_seed
-from rapomdp.io import load_npz, read_json
 from rapomdp.recognition.belief import fold_of_rows, held_out_walks, walk_log_beliefs
 from rapomdp.workspace import Workspace
 
@@ -50,15 +43,11 @@ def main() -> None:
     args = parser.parse_args()
     ws = Workspace(args.workspace)
     config = ws.config()
-    observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
-    calibration = read_json(ws.require("observe") / "calibration.json")
-    classes = [str(c) for c in observe["classes"]]
-    evidence = recorded_evidence(observe)
-    scores = recorded_scores(observe)
-    kernel = recorded_transfer_kernel(calibration)
-    variant = f"ra_{calibration['ra_model']}"
-    folds = leave_one_group_out(evidence, scores, classes, config.observe,
-                                observe["directions"], kernel)
+    recorded = RecordedObservation.load(ws.require("observe"))
+    observe, calibration, evidence = recorded.arrays, recorded.calibration, recorded.evidence
+    variant = recorded.variant
+    folds = leave_one_group_out(evidence, recorded.scores, recorded.classes, config.observe,
+                                observe["directions"], recorded.transfer_kernel)
     if not folds:
         raise SystemExit(f"{args.workspace}: one group of evidence, nothing held out")
     row_model = fold_of_rows([held for held, _ in folds], len(evidence.labels))

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from rapomdp.awareness.evidence import RecordedObservation
 from rapomdp.awareness.observation import load_observation_models
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.cli import app
@@ -85,6 +86,14 @@ def test_observation_models_follow_the_planner_contract(workspace):
     best = max(grid, key=lambda r: r["held_out_log_likelihood"])
     assert chosen == {k: best[k] for k in ("power", "bandwidth_deg", "prior")}
     assert read_json(workspace.root / "observe" / "timing.json")["transfer_kernel_s"] >= 0
+    # read back for a refit: the same evidence, scores, kernel and RA variant
+    recorded = RecordedObservation.load(workspace.root / "observe")
+    assert recorded.classes == ["bicycle", "teapot"]
+    np.testing.assert_array_equal(recorded.evidence.predicted, data["evidence_predictions"])
+    np.testing.assert_array_equal(recorded.scores["area"], data["area_scores"])
+    assert recorded.transfer_kernel.to_dict() == chosen
+    assert recorded.variant == f"ra_{recorded.calibration['ra_model']}"
+    assert recorded.evidence.volume_mask.tolist() == data["evidence_from_volume"].tolist()
 
 
 def test_fig1_is_written_and_a_wrong_class_is_named(workspace):

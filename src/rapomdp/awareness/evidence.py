@@ -13,12 +13,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import sparse
 from scipy.optimize import minimize_scalar
 
+from rapomdp.awareness.artefacts import CALIBRATION_FILE, OBSERVATION_FILE
 from rapomdp.awareness.observation import (
     BlackBoxObservationModel,
     ClassifierObservationModel,
@@ -32,6 +34,7 @@ from rapomdp.awareness.observation import (
 )
 from rapomdp.awareness.quality import quality_from_probabilities
 from rapomdp.config import ObserveConfig
+from rapomdp.io import load_npz, read_json
 from rapomdp.recognition.belief import (
     fit_temperature,
     fold_of_rows,
@@ -228,6 +231,30 @@ def recorded_transfer_kernel(calibration: Mapping[str, Any]) -> TransferKernel:
     refit of that workspace's ``ra_transfer`` must use."""
     recorded = calibration.get("transfer_kernel")
     return TransferKernel.from_dict(recorded) if recorded else DEFAULT_TRANSFER_KERNEL
+
+
+@dataclass
+class RecordedObservation:
+    """What an observe stage recorded, read back for a refit of its models on its held-out
+    evidence (the benchmarks' held-out closed loop and walks): the artefact's ``arrays``, its
+    ``calibration.json``, the ``classes``, the ``evidence``, the viewpoint ``scores``,
+    ``ra_transfer``'s kernel and the RA ``variant`` it chose (``ra_<name>``)."""
+
+    arrays: Mapping[str, np.ndarray]
+    calibration: dict[str, Any]
+    classes: list[str]
+    evidence: Evidence
+    scores: dict[str, np.ndarray]
+    transfer_kernel: TransferKernel
+    variant: str
+
+    @classmethod
+    def load(cls, observe_dir: str | Path) -> RecordedObservation:
+        arrays = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+        calibration = read_json(Path(observe_dir) / CALIBRATION_FILE)
+        return cls(arrays, calibration, [str(c) for c in arrays["classes"]],
+                   recorded_evidence(arrays), recorded_scores(arrays),
+                   recorded_transfer_kernel(calibration), f"ra_{calibration['ra_model']}")
 
 
 def salient_view_similarity(seen_saliency: np.ndarray | sparse.spmatrix) -> np.ndarray:
