@@ -45,6 +45,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workspace", "-w", type=Path, required=True)
     parser.add_argument("--repeats", type=int, default=5, help="timed runs of the choice")
+    parser.add_argument("--pseudo-counts", type=float, nargs="*", default=[],
+                        help="also the best held-out log-likelihood over the grid with each of "
+                             "these confusion pseudo-counts (observe.confusion_pseudo_count, "
+                             "the class confusion row ra_transfer shrinks to)")
     args = parser.parse_args()
     ws = Workspace(args.workspace)
     observe = ws.require("observe")
@@ -88,6 +92,10 @@ def main() -> None:
     ranked = sorted(table, key=lambda r: -r["held_out_log_likelihood"])
     print("best five held-out: " + "; ".join(
         f"{_name(r)} {r['held_out_log_likelihood']:.4f}" for r in ranked[:5]))
+    for other in args.pseudo_counts:
+        best, rows = choose_transfer_kernel(evidence, similarity, directions, other)
+        print(f"pseudo-count {other:g}: best {_name(best)}, held-out log-likelihood "
+              f"{max(r['held_out_log_likelihood'] for r in rows):.4f}")
     print("test models, reported, not used:")
     for label, kernel in (("chosen ", chosen), ("default", DEFAULT_TRANSFER_KERNEL)):
         model = transfer_confusion(evidence, similarity, directions, pseudo_count, kernel)
