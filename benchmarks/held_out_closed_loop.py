@@ -14,7 +14,7 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
 
     python benchmarks/held_out_closed_loop.py --workspace W [--lambdas 2 8] [--starts 4]
         [--models ra classifier vptree] [--correction none|temperature|after_first]
-        [--draws K] [--lookahead] [--save F]
+        [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--lookahead] [--save F]
 """
 
 from __future__ import annotations
@@ -24,7 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import RecordedObservation, fit_observation_models
+from rapomdp.awareness.evidence import (
+    RecordedObservation,
+    TransferKernel,
+    fit_observation_models,
+    held_out_temperatures,
+    leave_one_group_out,
+)
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
@@ -33,7 +39,13 @@ from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
-from rapomdp.recognition.belief import expected_calibration_error, temper
+from rapomdp.recognition.belief import (
+    TEMPERATURE_NEIGHBOURS,
+    TEMPERATURE_WALK_LENGTH,
+    TEMPERATURE_WALKS_PER_ROW,
+    expected_calibration_error,
+    temper,
+)
 from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
@@ -84,6 +96,11 @@ def main() -> None:
                              f"spaced in [1 - {DRAW_SPREAD:g}, 1 + {DRAW_SPREAD:g}], and pool "
                              "their episodes: the solved policy changes a lot under such "
                              "changes, so one solve is one draw (docs/awareness.md §4.5)")
+    parser.add_argument("--kernel", type=float, nargs=3, default=None,
+                        metavar=("POWER", "BANDWIDTH_DEG", "PRIOR"),
+                        help="refit ra_transfer with this kernel instead of the one the observe "
+                             "stage chose (calibration.json: transfer_kernel), its walk "
+                             "temperature refitted alike")
     parser.add_argument("--iterations", type=int, default=None,
                         help="solver iterations (default: the workspace's solve.iterations)")
     parser.add_argument("--save", type=Path, default=None,
@@ -96,7 +113,8 @@ def main() -> None:
     recorded = RecordedObservation.load(ws.require("observe"))
     observe, calibration, classes = recorded.arrays, recorded.calibration, recorded.classes
     evidence, scores, variant = recorded.evidence, recorded.scores, recorded.variant
-    kernel = recorded.transfer_kernel  # as the observe stage chose it (older: the default)
+    kernel = (TransferKernel(*args.kernel) if args.kernel is not None
+              else recorded.transfer_kernel)  # as the observe stage chose it (older: default)
     if not evidence.volume_mask.all():
         raise SystemExit(f"{args.workspace}: its evidence holds cross-fitted rows; this closed "
                          "loop refits volume-only models: observe with observe.evidence=volume")
@@ -113,6 +131,16 @@ def main() -> None:
         corrections = dict.fromkeys(corrections, args.correction)
         temperatures = {m: (1.0 if args.correction == "none" else fits[m][key]) for m in fits}
         temperatures["ra"] = temperatures[variant]
+    if args.kernel is not None and variant == "ra_transfer" and corrections[variant] != "none":
+        # another kernel is another model: its walk temperature refitted as the observe stage
+        # fits it (the same folds and walks)
+        refit, _ = held_out_temperatures(
+            evidence, leave_one_group_out(evidence, scores, classes, config.observe,
+                                          observe["directions"], kernel),
+            observe["directions"], TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW,
+            TEMPERATURE_NEIGHBOURS, class_seed(config.seed, "observe/temperature"),
+            after_first=corrections[variant] == "after_first")
+        temperatures["ra"] = temperatures[variant] = refit[variant]
     if "vptree" in args.models:
         vptree = load_npz(ws.require("vptree") / VPTREE_OBSERVATION_FILE)
         if "volume_predictions" not in vptree:
@@ -191,7 +219,7 @@ def main() -> None:
     fitted_t = ", ".join(f"{m} {temperatures[m]:.3f}" for m in args.models)
     belief = (f"t = {args.temperature:g}" if args.temperature is not None
               else f"{args.correction} (t: {fitted_t})" if args.correction is not None
-              else "the observe stage corrections")
+              else f"the observe stage corrections (t: {fitted_t})")
     print(f"held-out closed loop on {len(volume_groups)} volume group(s) of "
           f"{len(classes)} classes ({args.starts} starts a model); RA model {variant}; "
           f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}")
