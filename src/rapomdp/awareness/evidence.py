@@ -34,6 +34,7 @@ from rapomdp.awareness.observation import (
 )
 from rapomdp.awareness.quality import quality_from_probabilities
 from rapomdp.config import ObserveConfig
+from rapomdp.geometry.viewsphere import geodesic_distance_matrix
 from rapomdp.io import load_npz, read_json
 from rapomdp.recognition.belief import (
     fit_temperature,
@@ -42,6 +43,7 @@ from rapomdp.recognition.belief import (
     held_out_walks,
     walk_calibration,
 )
+from rapomdp.recognition.evaluation import viewpoint_label_counts
 
 RA_VARIANTS = {
     "paper": ("mean", False),  # Eq. 6 mean saliency seen, one calibration for every class
@@ -117,14 +119,17 @@ VIEWPOINT_PRIOR = 2.0
 """Pseudo-observations of the class's accuracy added to each viewpoint's kernel count."""
 
 
+def _angle_deg(directions: np.ndarray) -> np.ndarray:
+    """Angles (V, V) in degrees between the viewpoints' unit ``directions`` (V, 3)."""
+    return np.degrees(geodesic_distance_matrix(directions, radius_m=1.0))
+
+
 def viewpoint_logit(labels: np.ndarray, predicted: np.ndarray, classes: int,
                     directions: np.ndarray) -> np.ndarray:
     """Logit (C, V) of the classifier's accuracy at each (class, viewpoint) on the evidence,
     kernel-smoothed over neighbouring viewpoints (Gaussian in the angle) and shrunk to the
     class's accuracy by :data:`VIEWPOINT_PRIOR` pseudo-observations."""
-    d = np.asarray(directions, dtype=np.float64)
-    angle = np.degrees(np.arccos(np.clip(d @ d.T, -1.0, 1.0)))
-    kernel = np.exp(-0.5 * (angle / VIEWPOINT_BANDWIDTH_DEG) ** 2)  # (V, V)
+    kernel = np.exp(-0.5 * (_angle_deg(directions) / VIEWPOINT_BANDWIDTH_DEG) ** 2)  # (V, V)
     onehot = np.eye(classes)[labels]  # (N, C)
     right = onehot.T @ (predicted == labels[:, None]).astype(np.float64)  # (C, V)
     seen = np.broadcast_to(onehot.sum(axis=0)[:, None], right.shape)
@@ -267,19 +272,10 @@ def salient_view_similarity(seen_saliency: np.ndarray | sparse.spmatrix) -> np.n
     return np.clip(gram / norm[:, None] / norm[None, :], 0.0, 1.0)
 
 
-def _angle_deg(directions: np.ndarray) -> np.ndarray:
-    """Angles (V, V) in degrees between the viewpoints' unit ``directions`` (V, 3)."""
-    d = np.asarray(directions, dtype=np.float64)
-    return np.degrees(np.arccos(np.clip(d @ d.T, -1.0, 1.0)))
-
-
 def _class_view_counts(labels: np.ndarray, predicted: np.ndarray, classes: int) -> np.ndarray:
-    """Label counts n(c, x, o) (C, V, C) of the outcomes: true ``labels`` (N,), ``predicted``
-    (N, V)."""
-    v = predicted.shape[1]
-    flat = (labels[:, None] * v + np.arange(v)[None]) * classes + predicted
-    return np.bincount(flat.ravel(), minlength=classes * v * classes).astype(
-        np.float64).reshape(classes, v, classes)
+    """Label counts n(c, x, o) (C, V, C) of the outcomes, class-major for the per-class
+    kernel product: true ``labels`` (N,), ``predicted`` (N, V)."""
+    return viewpoint_label_counts(labels, predicted, classes).transpose(1, 0, 2)
 
 
 def _transfer_weights(similarity: np.ndarray, angle_deg: np.ndarray, power: float,

@@ -17,6 +17,18 @@ import numpy as np
 from rapomdp.io import atomic_path
 
 
+def viewpoint_label_counts(true_labels: np.ndarray, predicted: np.ndarray,
+                           classes: int) -> np.ndarray:
+    """How often each label was output per viewpoint and true class: n(x, c, o) (V, C, C),
+    from labels (M,) and predictions (M, V)."""
+    true_labels = np.asarray(true_labels)  # (M,)
+    predicted = np.asarray(predicted)  # (M, V)
+    views = predicted.shape[1]
+    flat = (np.arange(views)[None] * classes + true_labels[:, None]) * classes + predicted
+    return np.bincount(flat.ravel(), minlength=views * classes * classes).astype(
+        np.float64).reshape(views, classes, classes)
+
+
 def viewpoint_confusion(true_labels: np.ndarray, predicted: np.ndarray, classes: int,
                         pseudo_count: float) -> np.ndarray:
     """A classifier's empirical confusion per viewpoint, with pseudo-counts: (V, C, C) with
@@ -24,16 +36,9 @@ def viewpoint_confusion(true_labels: np.ndarray, predicted: np.ndarray, classes:
 
     The "Classifier" observation model of the CNN and the VP-tree baseline's are both this.
     """
-    true_labels = np.asarray(true_labels)  # (M,)
-    predicted = np.asarray(predicted)  # (M, V)
     if pseudo_count <= 0:
         raise ValueError(f"the pseudo-count must be positive, got {pseudo_count}")
-    views = predicted.shape[1]
-    counts = np.zeros((views, classes, classes))
-    x = np.broadcast_to(np.arange(views)[None], predicted.shape)
-    t = np.broadcast_to(true_labels[:, None], predicted.shape)
-    np.add.at(counts, (x, t, predicted), 1.0)
-    counts += pseudo_count
+    counts = viewpoint_label_counts(true_labels, predicted, classes) + pseudo_count
     return counts / counts.sum(axis=2, keepdims=True)
 
 
