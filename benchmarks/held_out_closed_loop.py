@@ -14,7 +14,7 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
 
     python benchmarks/held_out_closed_loop.py --workspace W [--lambdas 2 8] [--starts 4]
         [--models ra classifier vptree] [--correction none|temperature|after_first]
-        [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--lookahead] [--save F]
+        [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead] [--save F]
 """
 
 from __future__ import annotations
@@ -88,9 +88,10 @@ def main() -> None:
     parser.add_argument("--temperature", type=float, default=None,
                         help="every model tempered by this t (planner and belief alike) "
                              "instead of the observe stage's correction")
-    parser.add_argument("--lookahead", action="store_true",
+    parser.add_argument("--lookahead", action=argparse.BooleanOptionalAction, default=None,
                         help="the POMDP methods act by a one-step lookahead on their value "
-                             "(evaluate.lookahead) instead of the solved plans")
+                             "(--no-lookahead: by the solved plans); default: as the "
+                             "workspace's evaluate.lookahead")
     parser.add_argument("--draws", type=int, default=1,
                         help="solve each POMDP K times, its model tempered by factors evenly "
                              f"spaced in [1 - {DRAW_SPREAD:g}, 1 + {DRAW_SPREAD:g}], and pool "
@@ -149,6 +150,7 @@ def main() -> None:
         temperatures["vptree"] = (1.0 if args.correction == "none"
                                   else float(vptree["temperature"]))
     cfg = config.evaluate
+    lookahead = cfg.lookahead if args.lookahead is None else args.lookahead
     rows: dict[tuple[str, float], list[tuple[bool, float, float, float, float, float]]] = {}
     for g in volume_groups:
         held = evidence.groups == g
@@ -196,7 +198,7 @@ def main() -> None:
                             problem, config.solve.precision, args.seconds,
                             max_iterations=args.iterations or config.solve.iterations).policy
                         method = POMDPPolicy(policy, model, name, first_view_model=first_model,
-                                             lookahead_over=(motion.reachable if args.lookahead
+                                             lookahead_over=(motion.reachable if lookahead
                                                              else None))
                     for r in range(len(held_labels)):
                         rng = class_seed(config.seed, f"held-out/{g}/{r}")
@@ -222,6 +224,7 @@ def main() -> None:
               else f"the observe stage corrections (t: {fitted_t})")
     print(f"held-out closed loop on {len(volume_groups)} volume group(s) of "
           f"{len(classes)} classes ({args.starts} starts a model); RA model {variant}; "
+          f"POMDPs act by {'a one-step lookahead' if lookahead else 'the solved plans'}; "
           f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}")
     print("belief: final belief in the true class; confidence: in the declared class; "
           "ECE over the confidence (10 bins)")

@@ -385,10 +385,10 @@ class EvaluateConfig(Section):
         False, description="let the POMDP methods move back to a viewpoint they have seen "
         "(the noiseless sensor would show the same image, counted as new evidence)")
     lookahead: bool = Field(
-        False, description="the POMDP methods act by a one-step lookahead on their solved "
-        "value (one backup at the belief reached) instead of the solved plans' first moves: "
-        "held out, steadier under small model changes, but less calibrated "
-        "(docs/awareness.md §4.5)")
+        True, description="the POMDP methods act by a one-step lookahead on their solved "
+        "value (one backup at the belief reached); false: by the solved plans' first moves. "
+        "Chosen held out: more accurate (RA-POMDP +0.045 [+0.014, +0.078]) at less energy, "
+        "steadier under small model changes, a little less calibrated (docs/awareness.md §4.5)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "

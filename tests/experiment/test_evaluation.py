@@ -155,6 +155,23 @@ def test_actions_do_not_depend_on_the_label(workspace) -> None:
         assert np.array_equal(a.episode.beliefs, b.episode.beliefs)
 
 
+def test_the_pomdp_methods_act_by_the_lookahead_unless_configured_off(workspace) -> None:
+    from rapomdp.experiment.methods import POMDPPolicy
+
+    ws, config = workspace
+    reachable = np.load(ws.require("robot") / "robot.npz")["reachable"]
+    assert config.evaluate.lookahead  # the default, chosen held out (docs/awareness.md §4.5)
+    on = ClosedLoop.load(config, _inputs(ws))
+    off_config = config.model_copy(update={
+        "evaluate": config.evaluate.model_copy(update={"lookahead": False})})
+    off = ClosedLoop.load(off_config, _inputs(ws))
+    pomdps = [k for k, m in on.methods.items() if isinstance(m, POMDPPolicy)]
+    assert sorted(pomdps) == ["classifier", "ra", "vptree"]
+    for key in pomdps:
+        assert np.array_equal(on.methods[key].lookahead_over, reachable)
+        assert off.methods[key].lookahead_over is None
+
+
 def test_same_seed_same_table_and_workers_do_not_matter(workspace, tmp_path) -> None:
     ws, config = workspace
     first = (ws.require("evaluate") / "table1.md").read_text()
