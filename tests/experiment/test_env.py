@@ -307,7 +307,7 @@ def test_the_docs_loops_run_as_written(pipeline_workspace, capsys) -> None:
     ws, _ = pipeline_workspace
     blocks = _docs_env_blocks()
     assert len(blocks) == 2 and "action_space.sample()" in blocks[0]
-    assert "forbidden=visited" in blocks[1]
+    assert "forbidden=visited" in blocks[1] and "policy.lookahead_act(" in blocks[1]
     for block in blocks:
         assert block.count('"runs/exp1"') == 1
         namespace: dict = {}
