@@ -74,3 +74,32 @@ def test_the_lookahead_takes_the_move_of_best_one_step_backup():
     assert policy.lookahead_act(0, np.array([0.0, 0.0, 1.0]), problem.observation_model,
                                 allowed) == ARAction("declare", 2)
 
+
+
+def test_the_lookahead_is_the_brute_force_backup_whatever_the_order_of_the_plans():
+    import dataclasses
+
+    lam = 30.0
+    problem = benchmark_problem(6, 3, seed=5, lambda_=lam)
+    policy = solve_active_recognition(problem, precision=1e-2, timeout=1e6,
+                                      max_iterations=10).policy
+    targets, counts = np.unique(policy.targets, return_counts=True)
+    assert counts.max() > 1 and targets.size > 1  # plans share first targets: groups are used
+    order = np.random.default_rng(0).permutation(len(policy.targets))
+    shuffled = dataclasses.replace(policy, betas=policy.betas[order],
+                                   targets=policy.targets[order])
+    allowed = np.ones(6, dtype=bool)
+    rng = np.random.default_rng(1)
+    kinds = set()
+    for viewpoint in range(6):
+        for _ in range(10):
+            belief = rng.dirichlet(np.full(3, 0.7))
+            q = _brute_force_lookahead(policy, problem, viewpoint, belief, allowed)
+            best = max(q, key=q.__getitem__)
+            expected = (ARAction("move", best) if q[best] > -lam * (1.0 - belief.max()) + 1e-9
+                        else ARAction("declare", int(np.argmax(belief))))
+            for plans in (policy, shuffled):
+                assert plans.lookahead_act(viewpoint, belief, problem.observation_model,
+                                           allowed) == expected
+            kinds.add(expected.kind)
+    assert kinds == {"move", "declare"}  # both branches were exercised
