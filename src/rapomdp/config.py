@@ -387,8 +387,8 @@ class EvaluateConfig(Section):
     lookahead: bool = Field(
         True, description="the POMDP methods act by a one-step lookahead on their solved "
         "value (one backup at the belief reached); false: by the solved plans' first moves. "
-        "Chosen held out: more accurate (RA-POMDP +0.045 [+0.014, +0.078]) at less energy, "
-        "steadier under small model changes, a little less calibrated (docs/awareness.md §4.5)")
+        "Chosen on held-out objects: more accurate at less energy and steadier under small "
+        "model changes, a little less calibrated (the figures: docs/awareness.md §4.5)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "
