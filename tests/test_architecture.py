@@ -18,9 +18,9 @@ SOURCE = Path(__file__).resolve().parents[1] / "src" / "rapomdp"
 
 #: The pipeline's stage packages in order; a package may import only itself and earlier ones.
 STAGE_ORDER = ["geometry", "data", "recognition", "awareness", "robot", "planning", "experiment",
-               "cli"]
+               "study", "cli"]
 #: Top-level modules that belong to the command line's level (they assemble every stage).
-TOP_LEVEL_STAGE = {"cli": "cli", "pipeline": "cli"}
+TOP_LEVEL_STAGE = {"cli": "cli", "pipeline": "study"}
 #: The level of the foundations: top-level helpers that import no stage package.
 FOUNDATION = "foundation"
 
