@@ -56,3 +56,25 @@ def test_a_killed_study_resumes_without_redoing_finished_work(tiny_study: TinySt
     assert ran == {"solve", "evaluate", "report"}
     assert tiny_study.spec == StudySpec.from_yaml(
         (tiny_study.root / "study.yaml").read_text())
+
+
+def test_on_a_dask_scheduler_each_seed_is_one_task(tiny_study: TinyStudy) -> None:
+    """The finished tiny study through a local Dask cluster: one task per seed, each seed's
+    stages as the local run recorded them (all current, so nothing is redone)."""
+    import dataclasses
+
+    import distributed
+
+    from rapomdp.study.runner import run_study
+    from tests.conftest import TEST_CONTEXT
+
+    before = {s: Workspace(tiny_study.root / "tiny" / f"seed-{s}").manifest() for s in (0, 1)}
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        context = dataclasses.replace(TEST_CONTEXT, scheduler=cluster.scheduler_address)
+        runs = run_study(tiny_study.spec, tiny_study.root, context)
+    assert [(r.dataset, r.seed) for r in runs] == [("tiny", 0), ("tiny", 1)]
+    assert all(result.cached for run in runs for result in run.results)
+    assert [r.name for r in runs[1].results] == STAGE_NAMES
+    for s in (0, 1):
+        assert Workspace(tiny_study.root / "tiny" / f"seed-{s}").manifest() == before[s]
