@@ -20,6 +20,7 @@ from rapomdp.planning.cli import pomdp_app
 
 if TYPE_CHECKING:
     from rapomdp.config import Config
+    from rapomdp.study.report import StudyReport
     from rapomdp.study.spec import StudySpec
     from rapomdp.workspace import StageResult, Workspace
 
@@ -618,7 +619,7 @@ def study(
                 "them, or use another study folder")
         return given
 
-    def action() -> Path:
+    def action() -> StudyReport:
         from rapomdp.study.report import update_study_readme, write_study_report
         from rapomdp.study.runner import run_study
 
@@ -629,13 +630,15 @@ def study(
                 _report(result)
 
             run_study(spec, folder, context, on_result=show)
-        html = write_study_report(spec, folder)
+        written = write_study_report(spec, folder)
         if readme is not None:
             sys.stdout.write(f"{update_study_readme(spec, folder, readme)}\n")
-        return html
+        return written
 
-    html = _guard(action)
-    sys.stdout.write(f"{html}\n{html.with_suffix('.md')}\n")
+    written = _guard(action)
+    for story in written.stories.values():
+        console.print(story, highlight=False)
+    sys.stdout.write(f"{written.html}\n{written.markdown}\n")
 
 
 @app.command("config")

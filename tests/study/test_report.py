@@ -30,8 +30,10 @@ def _rows(path: Path) -> list[dict[str, str]]:
 
 
 def test_report_pools_each_seed_and_pairs_against_ra(tiny_study: TinyStudy) -> None:
-    html = write_study_report(tiny_study.spec, tiny_study.root, resamples=500)
-    out = html.parent
+    written = write_study_report(tiny_study.spec, tiny_study.root, resamples=500)
+    out = written.html.parent
+    assert written.markdown == out / "report.md"
+    assert written.stories["tiny"].startswith("On 'tiny', over 2 seeds (0, 1; the same split")
     assert {p.name for p in out.iterdir()} >= {
         "report.html", "report.md", "table1_pooled.csv", "table1_seeds.csv",
         "tradeoff_pooled.csv", "tradeoff_tiny.png"}
@@ -89,6 +91,7 @@ def test_cli_reports_and_refuses_a_changed_study(tiny_study: TinyStudy) -> None:
     done = runner.invoke(app, ["study", "-s", str(tiny_study.root), "--report-only"])
     assert done.exit_code == 0, done.output
     assert str(tiny_study.root / "report" / "report.html") in done.output
+    assert "On 'tiny', over 2 seeds" in done.output
     changed = runner.invoke(app, ["study", "-s", str(tiny_study.root), "--seeds", "3",
                                   "--report-only"])
     assert changed.exit_code == 2

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from rapomdp.config import METHOD_NAMES
@@ -149,9 +150,19 @@ def _headroom_blocks(results: Sequence[SeedResult]) -> list[Block]:
     return blocks
 
 
-def write_study_report(spec: StudySpec, root: str | Path, resamples: int = 10_000) -> Path:
+@dataclass(frozen=True)
+class StudyReport:
+    """Where the report was written, and each configuration's sentence of who wins."""
+
+    html: Path
+    markdown: Path
+    stories: dict[str, str]
+
+
+def write_study_report(spec: StudySpec, root: str | Path,
+                       resamples: int = 10_000) -> StudyReport:
     """``S/report/``: report.md and .html, table1_pooled.csv, table1_seeds.csv,
-    tradeoff_pooled.csv and one ``tradeoff_<configuration>.png``; returns report.html."""
+    tradeoff_pooled.csv and one ``tradeoff_<configuration>.png``."""
     root = Path(root)
     out = root / REPORT_DIR
     out.mkdir(parents=True, exist_ok=True)
@@ -166,8 +177,10 @@ def write_study_report(spec: StudySpec, root: str | Path, resamples: int = 10_00
                   "a two-stage bootstrap that resamples seeds and, within them, test models "
                   "(crossed when every seed evaluated the same test models).")]
     pooled_csv, per_seed_csv, curves_csv = [], [], []
+    stories = {}
     for name, seeds in results.items():
         rows = pooled_table(seeds, resamples)
+        stories[name] = study_story(name, rows, spec.seeds, spec.vary)
         points = pooled_points(seeds)
         spent, shared = study_seconds(seeds)
         figure = f"tradeoff_{name}.png"
@@ -177,7 +190,7 @@ def write_study_report(spec: StudySpec, root: str | Path, resamples: int = 10_00
                      title=f"Accuracy against energy, {name}, {len(seeds)} seeds")
         header, cells = pooled_cells(rows)
         blocks += [Heading(f"Configuration '{name}'"),
-                   Paragraph(study_story(name, rows, spec.seeds, spec.vary)),
+                   Paragraph(stories[name]),
                    Table(header, cells),
                    Paragraph(f"Stage time of the study's {len(seeds)} seeds: {spent:.0f} s "
                              f"(shared stages counted once; sharing saved {shared:.0f} s).")]
@@ -194,8 +207,9 @@ def write_study_report(spec: StudySpec, root: str | Path, resamples: int = 10_00
     write_text_atomic(out / "table1_pooled.csv", _concat(pooled_csv))
     write_text_atomic(out / "table1_seeds.csv", _concat(per_seed_csv))
     write_text_atomic(out / "tradeoff_pooled.csv", _concat(curves_csv))
-    write_text_atomic(out / "report.md", to_markdown(blocks))
-    return write_text_atomic(out / "report.html", to_html(blocks, "rapomdp study"))
+    markdown = write_text_atomic(out / "report.md", to_markdown(blocks))
+    html = write_text_atomic(out / "report.html", to_html(blocks, "rapomdp study"))
+    return StudyReport(html, markdown, stories)
 
 
 def _concat(tables: Sequence[str]) -> str:
