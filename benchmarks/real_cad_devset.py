@@ -9,9 +9,18 @@
 Source: Debian bookworm package ``kicad-packages3d`` 6.0.10-1 (all; 379 MB download, 5.5 GB
 installed: 6227 models, each as STEP and VRML), the KiCad 3D library. Fetched with
 ``apt-get download`` into ``--cache`` (run ``apt-get update`` once first) and unpacked with
-``dpkg-deb``; only the VRML files of the folders below are extracted (about 200 MB). The VRML is
+``dpkg-deb``; only the VRML files of the folders below are extracted (about 240 MB). The VRML is
 KiCad StepUp's plain ``IndexedFaceSet`` export (absolute coordinates, no transforms), read by a
 small parser here (trimesh reads no VRML, and the STEP twins would need OpenCASCADE).
+
+Chosen over the other Debian packages with 3D models (measured 2026-12-02, bookworm):
+flightgear-data-models (144 MB; 523 AC3D models, but its folders are uses, not object
+categories: Residential 62, Maritime 55, Commercial 46 ...; of the 12 folders with 11 or more,
+4 are weather, effects, sky and test geometry),
+0ad-data (1.4 GB; 4010 models only as the engine's cached binary .pmd, mostly helmets, shields
+and building parts), supertuxkart-data (628 MB; 1220 models in the game's own binary .spm) and
+warzone2100-data (143 MB; 753 low-poly .pie game pieces). kicad-packages3d gives 61 folders of
+11 or more models in a format read here, of real object categories.
 
 Licence (the package's ``copyright`` file, DEP-5, read per file): CC-BY-SA-4.0 with KiCad's
 exception (article 3 waived for electronic designs that use the models) for most files;
@@ -36,10 +45,10 @@ measured on 6.0.10-1: files / candidates after the rules below / kept at the def
     Transformer_THT     -> transformer      29 /  21 / 16  encapsulated and EI transformers
     Battery             -> battery          27 /  27 / 16  cell holders and a coin cell
 
-Relay, transformer and potentiometer are all boxes with pins: hard classes on purpose (they
-differ in proportions, pin rows and knobs, not in outline).
+Relay, transformer and potentiometer are all boxes with pins: hard classes (they differ in
+proportions, pin rows, knobs and windows more than in outline).
 
-A model is a candidate unless it is unreadable (one Relay_THT file holds only line sets),
+A model is a candidate unless it is unreadable (one Relay_THT file is a Transform of line sets),
 degenerate (fewer than ``MIN_FACES`` triangles: 5 LEDs, 1 TO-92; non-finite; or flat: smallest
 extent under ``FLAT_RATIO`` of the largest) or a near-duplicate of a candidate before it in
 name order (same face count and the same normalised extents and area within ``DUP_TOL``:
@@ -431,8 +440,9 @@ def main(argv: list[str] | None = None) -> int:
     stanzas = parse_copyright((root / COPYRIGHT).read_text())
     out = args.out.resolve()
     out.parent.mkdir(parents=True, exist_ok=True)
+    for stale in out.parent.glob(f".{out.name}.*-*"):  # left by an interrupted run
+        shutil.rmtree(stale, ignore_errors=True)
     building = out.with_name(f".{out.name}.building-{os.getpid()}")
-    shutil.rmtree(building, ignore_errors=True)
     building.mkdir()
     reports = []
     for folder, name in CLASS_MAP.items():
