@@ -1,6 +1,6 @@
 """The package graph flows one way: geometry -> data -> recognition -> awareness -> robot ->
-planning -> experiment -> cli, with the top-level helpers (io, progress, parallel, workspace,
-section, config, context) beneath every stage. Every import counts, lazy ones inside functions
+planning -> experiment -> study (with pipeline) -> cli, with the top-level helpers (io,
+progress, parallel, workspace, section, config, context) beneath every stage. Every import counts, lazy ones inside functions
 included."""
 
 from __future__ import annotations
@@ -173,7 +173,7 @@ def test_the_graph_tool_sees_lazy_and_relative_imports(tmp_path: Path) -> None:
     assert "rapomdp.data.dataset" in graph["rapomdp.cli"]  # inside dataset_preview
     assert level_of("rapomdp.io") == FOUNDATION
     assert level_of("rapomdp.planning.cli") == "planning"
-    assert level_of("rapomdp.pipeline") == "cli"
+    assert level_of("rapomdp.pipeline") == "study"  # the study runs the pipeline; cli both
 
 
 def test_no_import_cycle_between_subpackages() -> None:
