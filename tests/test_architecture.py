@@ -1,7 +1,7 @@
 """The package graph flows one way: geometry -> data -> recognition -> awareness -> robot ->
 planning -> experiment -> study (with pipeline) -> cli, with the top-level helpers (io,
-progress, parallel, workspace, section, config, context) beneath every stage. Every import counts, lazy ones inside functions
-included."""
+progress, parallel, workspace, section, config, context) beneath every stage. Every import
+counts, lazy ones inside functions included."""
 
 from __future__ import annotations
 
