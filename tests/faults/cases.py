@@ -476,3 +476,6 @@ def worker_dies(root: Path) -> Outcome:
     except WorkerError as exc:
         return Outcome(2, str(exc))
     return Outcome(0, "no error")
+
+
+import tests.faults.cases_workspace  # noqa: E402, F401  (issue 28's data-loss cases register here)
