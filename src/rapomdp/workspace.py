@@ -627,8 +627,8 @@ class Workspace:
                 "workspace: put the folder it points to in its place (or link the whole "
                 "workspace instead)")
         if not stat.S_ISDIR(mode):
-            raise StageError(f"{target}: a file where stage '{name}' keeps its folder; move it "
-                             "away")
+            raise StageError(f"{target}: not a folder, where stage '{name}' keeps its folder; "
+                             "move it away")
         if (not (target / STAGE_RECORD).is_file()
                 and name not in self.manifest()["stages"]):
             raise StageError(f"{target}: a folder rapomdp did not make (no {STAGE_RECORD}); "
