@@ -32,6 +32,7 @@ from rapomdp.config import Config, ConfigError, config_from_dict, read_config_da
 from rapomdp.context import RunContext
 from rapomdp.io import (
     ArtefactError,
+    check_output_path,
     describe_os_error,
     read_json,
     stable_hash,
@@ -571,6 +572,7 @@ class Workspace:
             record = self.manifest()["stages"][stage.name]
             return StageResult(stage.name, key, True, 0.0, record.get("files", []))
         self._check_replaceable(stage.name)
+        check_output_path(self.manifest_path)  # refused before the work, not after it
         inputs = self.inputs(stage)
         tmp = self.scratch / f"{stage.name}.tmp-{os.getpid()}"
         try:
