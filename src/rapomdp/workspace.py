@@ -348,12 +348,9 @@ class Workspace:
     def _write_file(self, path: Path, text: str) -> None:
         """Write one of the workspace's own files atomically, its temporary in the scratch
         folder (so that a kill leaves nothing beside the user's files)."""
+        scratch = self._scratch_dir()
         try:
-            self.scratch.mkdir(exist_ok=True)
-        except OSError as exc:
-            raise ArtefactError(describe_os_error(exc)) from None
-        try:
-            write_text_atomic(path, text, self.scratch)
+            write_text_atomic(path, text, scratch)
         finally:
             self._drop_scratch()
 
@@ -413,13 +410,40 @@ class Workspace:
             if fd is not None:
                 os.close(fd)  # closing releases the flock
 
+    def _own(self, name: str, folder: bool) -> Path:
+        """``W/name``, one of the workspace's own files (or, ``folder``, folders), when it is
+        that or absent: a symbolic link or anything else there is refused by name, so that
+        nothing is written, truncated or emptied through it."""
+        path = self.root / name
+        try:
+            mode = os.lstat(path).st_mode
+        except FileNotFoundError:
+            return path
+        except OSError as exc:
+            raise ArtefactError(describe_os_error(exc, path)) from None
+        if not (stat.S_ISDIR(mode) if folder else stat.S_ISREG(mode)):
+            kind = "a symbolic link" if stat.S_ISLNK(mode) else "not a " + (
+                "folder" if folder else "regular file")
+            raise StageError(f"{path}: {kind}; it is the workspace's own "
+                             f"{'folder' if folder else 'file'}: remove it and rerun")
+        return path
+
+    def _scratch_dir(self) -> Path:
+        """The scratch folder, made when missing (a real folder: :meth:`_own`)."""
+        path = self._own(SCRATCH, folder=True)
+        try:
+            path.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise ArtefactError(describe_os_error(exc)) from None
+        return self._own(SCRATCH, folder=True)
+
     def _open_lock(self) -> int | None:
         try:
             self.root.mkdir(parents=True, exist_ok=True)
-            path = self.root / LOCK
+            path = self._own(LOCK, folder=False)
             if path.exists() and not os.access(path, os.W_OK):
-                return os.open(path, os.O_RDONLY)
-            return os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+                return os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+            return os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
         except OSError as exc:
             if exc.errno in (errno.EACCES, errno.EROFS, errno.EPERM) and self.root.is_dir():
                 return None
@@ -434,7 +458,7 @@ class Workspace:
         outside the scratch folder is looked at: only the project writes there.
         """
         try:
-            entries = sorted(self.scratch.iterdir())
+            entries = sorted(self._own(SCRATCH, folder=True).iterdir())
         except FileNotFoundError:
             return []
         cleaned = []
@@ -574,9 +598,8 @@ class Workspace:
         self._check_replaceable(stage.name)
         check_output_path(self.manifest_path)  # refused before the work, not after it
         inputs = self.inputs(stage)
-        tmp = self.scratch / f"{stage.name}.tmp-{os.getpid()}"
+        tmp = self._scratch_dir() / f"{stage.name}.tmp-{os.getpid()}"
         try:
-            self.scratch.mkdir(parents=True, exist_ok=True)
             if tmp.exists():
                 shutil.rmtree(tmp)
             tmp.mkdir()

@@ -233,6 +233,39 @@ def old_symlink_leftover(root: Path) -> Outcome:
     return _unchanged(outcome, before, root / "input")
 
 
+def _own_name_linked(root: Path, name: str, folder: bool) -> Outcome:
+    """W/``name`` (the workspace's lock or scratch folder) a symbolic link to a user's file or
+    folder, then `render`: refused by name, nothing emptied or truncated through the link."""
+    ws = cached_workspace(root)
+    precious = root / "input" / "precious"
+    precious.parent.mkdir()
+    if folder:
+        precious.mkdir()
+        (precious / "thesis.tex").write_text("years of work\n")
+    else:
+        precious.write_text("years of work\n")
+    if os.path.lexists(ws / name):
+        os.unlink(ws / name)
+    (ws / name).symlink_to(precious)
+    before, outside = snapshot(ws), tree(precious)
+    outcome = cli(["render", "-w", str(ws)])
+    outcome.lost = lost_files(before, snapshot(ws)) + [
+        f"input/precious/{k}" for k in lost_files(outside, tree(precious))]
+    return outcome
+
+
+@case("scratch folder a symlink", f"W/{SCRATCH} a symbolic link to a user's folder, then "
+      "`render`", f"{SCRATCH}: a symbolic link")
+def scratch_linked(root: Path) -> Outcome:
+    return _own_name_linked(root, SCRATCH, folder=True)
+
+
+@case(".lock a symlink", "W/.lock a symbolic link to a user's file, then `render`",
+      ".lock: a symbolic link")
+def lock_linked(root: Path) -> Outcome:
+    return _own_name_linked(root, ".lock", folder=False)
+
+
 # -- a stage folder that is a symbolic link --------------------------------------------------
 
 @case("symlinked stage --force", "W/render a symbolic link to a folder elsewhere, then "
