@@ -82,3 +82,56 @@ def test_os_errors_are_described_by_file_and_cause() -> None:
     assert describe_os_error(full) == "/w/render/x.npz: no space left on the device"
     read_only = OSError(errno.EROFS, "Read-only file system", "/w/.lock")
     assert describe_os_error(read_only) == "/w/.lock: the file system is read-only"
+
+
+def test_outputs_replace_only_a_regular_file(tmp_path: Path, monkeypatch) -> None:
+    """An output path may be new or a regular file; a folder, link, FIFO, socket or device is
+    refused by name before any temporary file is made beside it."""
+    import os
+    import re
+    import socket
+    import stat
+
+    from rapomdp.io import check_output_path, write_text_atomic
+
+    write_text_atomic(tmp_path / "new" / "a.txt", "one")
+    write_text_atomic(tmp_path / "new" / "a.txt", "two")  # a regular file is replaced
+    assert (tmp_path / "new" / "a.txt").read_text() == "two"
+    (tmp_path / "folder").mkdir()
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "link").symlink_to(tmp_path / "new" / "a.txt")
+    listener = socket.socket(socket.AF_UNIX)
+    monkeypatch.chdir(tmp_path)
+    listener.bind("sock")  # relative: socket paths are limited to 108 bytes
+    try:
+        for name, kind in (("folder", "a folder"), ("fifo", "a named pipe (FIFO)"),
+                           ("link", "a symbolic link"), ("sock", "a socket")):
+            with pytest.raises(ArtefactError, match=re.escape(f"{name}: {kind}, not a regular")):
+                write_text_atomic(tmp_path / name, "x")
+    finally:
+        listener.close()
+    assert (tmp_path / "new" / "a.txt").read_text() == "two", "not written through the link"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fifo", "folder", "link", "new",
+                                                          "sock"], "no temporary left"
+    real_lstat = os.lstat  # a device, without making one: lstat says what it is
+
+    def device(path: object, *args: object, **kwargs: object) -> os.stat_result:
+        result = real_lstat(path, *args, **kwargs)  # type: ignore[arg-type]
+        if os.fspath(path).endswith("dev"):  # type: ignore[arg-type]
+            return os.stat_result((stat.S_IFCHR | 0o666, *result[1:]))
+        return result
+
+    (tmp_path / "dev").write_text("")
+    monkeypatch.setattr(os, "lstat", device)
+    with pytest.raises(ArtefactError, match="dev: a character device, not a regular file"):
+        check_output_path(tmp_path / "dev")
+
+
+def test_atomic_temporary_in_a_given_folder(tmp_path: Path) -> None:
+    from rapomdp.io import write_text_atomic
+
+    (tmp_path / "scratch").mkdir()
+    write_text_atomic(tmp_path / "f.txt", "x" * 10, tmp_dir=tmp_path / "scratch")
+    write_text_atomic(tmp_path / ("n" * 250), "long names fit the temporary's name")
+    assert (tmp_path / "f.txt").read_text() == "x" * 10
+    assert list((tmp_path / "scratch").iterdir()) == []

@@ -1,3 +1,4 @@
+import os
 from pathlib import Path
 
 import numpy as np
@@ -78,7 +79,8 @@ def test_a_failed_stage_leaves_earlier_results_intact(workspace_dir: Path) -> No
         ws.run(Stage("s", bad, sections=("seed",)), cfg, force=True, context=TEST_CONTEXT)
     assert (ws.stage_dir("s") / "result.txt").read_text() == "good"
     assert ws.manifest() == before
-    assert [p.name for p in workspace_dir.iterdir() if p.name.startswith(".")] == []
+    assert [p.name for p in workspace_dir.iterdir() if p.name.startswith(".")] == [
+        ".rapomdp-workspace"], "the marker only: the scratch folder is gone"
 
 
 def test_missing_inputs_are_named(workspace_dir: Path) -> None:
@@ -179,13 +181,21 @@ def test_one_run_at_a_time_and_leftovers_of_dead_runs(workspace_dir: Path) -> No
     ws = Workspace(workspace_dir)
     run_pipeline(tiny_config(), ws, until="dataset", context=TEST_CONTEXT)
     os_replace = __import__("os").replace
-    os_replace(workspace_dir / "dataset", workspace_dir / ".dataset.old-12345")
-    (workspace_dir / ".render.tmp-12345").mkdir()
-    (workspace_dir / ".manifest.json.abc.tmp").write_text("{")
+    scratch = workspace_dir / ".rapomdp-tmp"  # what a run killed mid-swap leaves
+    scratch.mkdir()
+    os_replace(workspace_dir / "dataset", scratch / "dataset.old-12345")
+    (scratch / "render.tmp-12345").mkdir()
+    (scratch / ".manifest.json.abc.tmp").write_text("{")
+    users = [workspace_dir / ".photos.old-7", workspace_dir / ".render.tmp-1",
+             workspace_dir / ".notes.tmp"]  # named like a run's leftovers, but not in scratch
+    for path in users[:2]:
+        path.mkdir()
+    users[2].write_text("mine")
     with ws.locked(), ws.locked():  # the same process may nest
         assert (workspace_dir / "dataset" / "dataset.json").exists(), "moved back"
         assert sorted(p.name for p in workspace_dir.iterdir()) == [
-            ".lock", "config.yaml", "dataset", "manifest.json"]
+            ".lock", ".notes.tmp", ".photos.old-7", ".rapomdp-workspace", ".render.tmp-1",
+            "config.yaml", "dataset", "manifest.json"]
         holder = subprocess.run(
             [sys.executable, "-c", "import sys; from rapomdp.workspace import Workspace\n"
              f"with Workspace({str(workspace_dir)!r}).locked(): pass"],
@@ -205,3 +215,87 @@ def test_a_damaged_manifest_is_named(workspace_dir: Path) -> None:
         (workspace_dir / "manifest.json").write_text(content)
         with pytest.raises(ArtefactError, match=message):
             ws.manifest()
+
+
+def test_only_a_workspace_or_an_empty_folder_is_written_to(tmp_path: Path) -> None:
+    """A new or empty folder becomes a workspace (its marker); a workspace made before markers
+    (a valid manifest) gets one at its next locked run; any other folder is refused naming it,
+    its files (a .lock of its own too) untouched."""
+    import json
+
+    from rapomdp.workspace import MARKER, NotAWorkspaceError
+
+    new = Workspace(tmp_path / "a" / "new")
+    with new.locked():
+        pass
+    assert json.loads((new.root / MARKER).read_text())["format"] == 1
+    (tmp_path / "empty").mkdir()
+    assert Workspace(tmp_path / "empty").claim() is False
+    assert (tmp_path / "empty" / MARKER).is_file()
+
+    older = Workspace(tmp_path / "older")
+    older.root.mkdir()
+    (older.root / "manifest.json").write_text('{"stages": {}}')
+    assert older.check() == "older"
+    with older.locked():
+        assert (older.root / MARKER).is_file()
+    assert older.check() == "workspace"
+
+    user = tmp_path / "user"
+    (user / "train").mkdir(parents=True)
+    (user / ".lock").write_text("mine")
+    for ws in (Workspace(user), Workspace(user / "train" / ".." )):
+        with pytest.raises(NotAWorkspaceError, match=f"{user}.*: not a rapomdp workspace"):
+            with ws.locked():
+                pass
+    assert (user / ".lock").read_text() == "mine" and sorted(os.listdir(user)) == [
+        ".lock", "train"]
+    (user / "file").write_text("x")
+    with pytest.raises(NotAWorkspaceError, match="file: not a folder"):
+        Workspace(user / "file").claim()
+
+
+def test_a_stage_folder_is_replaced_only_when_the_project_made_it(workspace_dir: Path) -> None:
+    ws = Workspace(workspace_dir)
+    cfg = Config()
+
+    def good(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
+        (out / "result.txt").write_text("good")
+
+    stage = Stage("s", good, sections=("seed",))
+    ws.claim()  # a new workspace, in which the user then makes a folder
+    (workspace_dir / "s").mkdir()
+    (workspace_dir / "s" / "mine.txt").write_text("the user's")
+    with pytest.raises(StageError, match="s: a folder rapomdp did not make"):
+        ws.run(stage, cfg, context=TEST_CONTEXT)
+    (workspace_dir / "s" / "mine.txt").rename(workspace_dir / "mine.txt")
+    (workspace_dir / "s").rmdir()
+    ws.run(stage, cfg, context=TEST_CONTEXT)
+    os.replace(workspace_dir / "s", workspace_dir / "elsewhere")
+    (workspace_dir / "s").symlink_to(workspace_dir / "elsewhere")
+    assert ws.run(stage, cfg, context=TEST_CONTEXT).cached, "read through the link"
+    with pytest.raises(StageError, match="s: a symbolic link .*must be a folder"):
+        ws.run(stage, cfg, force=True, context=TEST_CONTEXT)
+    assert (workspace_dir / "s").is_symlink() and (workspace_dir / "mine.txt").exists()
+    assert sorted(os.listdir(workspace_dir)) == [
+        ".rapomdp-workspace", "config.yaml", "elsewhere", "manifest.json", "mine.txt", "s"]
+
+
+def test_a_lost_config_is_rebuilt_from_the_stage_records(workspace_dir: Path) -> None:
+    """Without W/config.yaml the configuration comes from the manifest's stage records (the
+    stage that finished last wins), never the default that would redo the stages."""
+    from rapomdp.pipeline import resolve_config
+
+    ws = Workspace(workspace_dir)
+    cfg = tiny_config()
+    run_pipeline(cfg, ws, until="dataset", context=TEST_CONTEXT)
+    ws.config_path.unlink()
+    notes: list[str] = []
+    config, stale = resolve_config(ws, on_note=notes.append)
+    assert stale == {} and config.dataset.classes == ["cup", "mug", "bicycle"]
+    assert config.seed == 3 and config.render == Config().render, "no stage read render"
+    assert len(notes) == 1 and "rebuilt from the stage records" in notes[0]
+    assert ws.recorded_config() == config and ws.config() == config
+    assert all(r.cached for r in run_pipeline(config, ws, until="dataset",
+                                              context=TEST_CONTEXT))
+    assert ws.config_path.exists(), "written back by a run that agrees with the records"

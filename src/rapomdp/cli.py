@@ -6,6 +6,7 @@ import os
 import sys
 from collections.abc import Callable
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, TypeVar
 
@@ -15,7 +16,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from rapomdp.context import RunContext
-from rapomdp.io import ArtefactError, check_plain_name, describe_os_error
+from rapomdp.io import ArtefactError, check_output_path, check_plain_name, describe_os_error
 from rapomdp.planning.cli import pomdp_app
 
 if TYPE_CHECKING:
@@ -96,8 +97,21 @@ OverridesArgument = Annotated[
                    help="Overrides of the configuration, e.g. train.epochs=5 "
                         "dataset.classes=[cup,mug] (YAML values, validated like the file)."),
 ]
+
+
+def _workspace_path(text: str) -> Path:
+    """The ``--workspace`` folder; an empty one (an unset shell variable?) is refused rather
+    than taken for the current folder."""
+    if not text.strip():
+        raise _fail("--workspace is empty; give the workspace folder (-w . for the current "
+                    "folder)")
+    return Path(text)
+
+
 WorkspaceOption = Annotated[
-    Path, typer.Option("--workspace", "-w", help="Workspace folder for the artefacts.")
+    Path, typer.Option("--workspace", "-w", parser=_workspace_path, metavar="DIR",
+                       help="Workspace folder for the artefacts (a new or empty folder "
+                            "becomes one).")
 ]
 SchedulerOption = Annotated[
     str | None,
@@ -150,6 +164,11 @@ def _report(result: StageResult, workspace: Workspace | None = None) -> None:
             console.print(f"  {line}", highlight=False, soft_wrap=True)
 
 
+def _note(message: str) -> None:
+    """Print one ``note:`` line (markup in the message shown as is)."""
+    console.print(f"note: {escape(message)}", highlight=False, soft_wrap=True)
+
+
 def _resolve(config_path: Path | None, workspace: Path, overrides: list[str] | None,
              reconfigure: bool) -> Config:
     """The workspace's configuration for this command (see :func:`resolve_config`); the
@@ -158,7 +177,7 @@ def _resolve(config_path: Path | None, workspace: Path, overrides: list[str] | N
     from rapomdp.workspace import Workspace
 
     config, stale = resolve_config(Workspace(workspace), config_path, overrides or (),
-                                   reconfigure)
+                                   reconfigure, on_note=_note)
     if stale:
         console.print(f"[yellow]configuration changed[/]: {len(stale)} recorded stage(s) "
                       f"differ:\n{escape(format_staleness(stale))}", highlight=False,
@@ -226,7 +245,8 @@ def run(
 @dataset_app.callback()
 def dataset(
     ctx: typer.Context,
-    workspace: Annotated[Path | None, typer.Option("--workspace", "-w")] = None,
+    workspace: Annotated[Path | None, typer.Option(
+        "--workspace", "-w", parser=_workspace_path, metavar="DIR")] = None,
     config: ConfigOption = None,
     force: ForceOption = False,
     reconfigure: ReconfigureOption = False,
@@ -252,6 +272,8 @@ def dataset_preview(
     """Write a labelled contact sheet: one depth render per model of the workspace's dataset."""
 
     _require_existing(workspace)
+    if out is not None:
+        _guard(partial(check_output_path, out))
 
     def action() -> Path:
         from rapomdp.data.dataset import load_dataset
@@ -538,6 +560,8 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
     results block is generated from the same workspace (`make readme` does it for the demo).
     """
     context = _context(threads, workers)
+    if readme is not None:  # refused before the stages run
+        _guard(partial(check_output_path, readme))
     if fig2:
         def make_fig2() -> tuple[Path, Path]:
             from rapomdp.pipeline import write_fig2
@@ -645,7 +669,8 @@ def study(
 def show_config(
     config: ConfigOption = None,
     workspace: Annotated[Path | None, typer.Option(
-        "--workspace", "-w", help="Show this workspace's configuration.")] = None,
+        "--workspace", "-w", parser=_workspace_path, metavar="DIR",
+        help="Show this workspace's configuration.")] = None,
     overrides: OverridesArgument = None,
     plain: Annotated[bool, typer.Option(
         "--plain", help="Without the comments (descriptions, units).")] = False,
@@ -662,7 +687,8 @@ def show_config(
         if workspace is None:
             data = read_config_data(config) if config is not None else {}
             return config_from_dict(apply_overrides(data, overrides or ()), str(config))
-        return resolve_config(Workspace(workspace), config, overrides or (), True)[0]
+        return resolve_config(Workspace(workspace), config, overrides or (), True,
+                              on_note=_note)[0]
 
     resolved = _guard(action)
     sys.stdout.write(resolved.to_yaml() if plain else resolved.to_commented_yaml())
@@ -681,12 +707,13 @@ def status(workspace: WorkspaceOption) -> None:
 
     def action() -> tuple[dict, dict[str, list[str]], bool]:
         ws = Workspace(workspace)
+        ws.check()  # a folder that is not a workspace is named, not shown as "not run"
         manifest = ws.manifest()
         config = ws.recorded_config()
         stale = ws.staleness(STAGES, config if config is not None else Config())
-        return manifest, stale, config is not None
+        return manifest, stale, config is not None and not ws.config_path.exists()
 
-    manifest, stale, configured = _guard(action)
+    manifest, stale, rebuilt = _guard(action)
     table = Table(title=str(workspace))
     for column in ("stage", "state", "files", "seconds", "finished", "key"):
         table.add_column(column, overflow="fold")
@@ -701,9 +728,9 @@ def status(workspace: WorkspaceOption) -> None:
                       escape(str(record.get("seconds", "-"))),
                       escape(str(record.get("finished", "-"))), escape(record["key"][:12]))
     Console().print(table)
-    if not configured and manifest["stages"]:
-        console.print(f"note: {Path(workspace) / 'config.yaml'} is missing; staleness is "
-                      "judged against the default configuration", highlight=False)
+    if rebuilt:
+        _note(f"{Path(workspace) / 'config.yaml'} is missing; staleness is judged against "
+              "the configuration the stage records hold")
     if stale:
         console.print(f"{len(stale)} stale stage(s): `rapomdp run -w {workspace}` redoes them",
                       highlight=False)

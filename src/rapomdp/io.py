@@ -8,6 +8,7 @@ import hashlib
 import json
 import os
 import re
+import stat
 import tempfile
 import zipfile
 from collections.abc import Iterator, Sequence
@@ -34,36 +35,68 @@ class ArtefactError(RuntimeError):
     """An artefact is missing, unreadable or not what the reader expects."""
 
 
-@contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; it replaces ``path`` only if the block succeeds."""
+def _kind_of(mode: int) -> str:
+    """What a file of this ``st_mode`` is, in words (for a refusal)."""
+    for test, words in ((stat.S_ISDIR, "a folder"), (stat.S_ISLNK, "a symbolic link"),
+                        (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                        (stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return words
+    return "a special file"
+
+
+def check_output_path(path: str | Path) -> Path:
+    """``path`` when a file may be written there: nothing is there yet, or a regular file
+    (which the new one replaces); a folder, symbolic link, device, FIFO, socket or other
+    special file is refused by name (an ArtefactError), before anything is written."""
     path = Path(path)
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return path
+    except OSError as exc:
+        raise ArtefactError(describe_os_error(exc, path)) from None
+    if not stat.S_ISREG(mode):
+        raise ArtefactError(f"{path}: {_kind_of(mode)}, not a regular file; an output replaces "
+                            "only a regular file (or makes a new one): give another path")
+    return path
+
+
+@contextmanager
+def atomic_path(path: str | Path, tmp_dir: str | Path | None = None) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` (or in ``tmp_dir``, a folder on the same file
+    system); it replaces ``path`` only if the block succeeds, and only when ``path`` is a
+    regular file or absent (:func:`check_output_path`, checked before and after the block)."""
+    path = check_output_path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    folder = path.parent if tmp_dir is None else Path(tmp_dir)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:200]}.", suffix=".tmp", dir=folder)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
         yield tmp_path
         os.chmod(tmp_path, _FILE_MODE)  # mkstemp makes 0600; artefacts get the usual mode
+        check_output_path(path)  # nothing else took its place meanwhile
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
 
 
-def write_bytes_atomic(path: str | Path, data: bytes) -> None:
-    with atomic_path(path) as tmp:
+def write_bytes_atomic(path: str | Path, data: bytes, tmp_dir: str | Path | None = None) -> None:
+    with atomic_path(path, tmp_dir) as tmp:
         tmp.write_bytes(data)
 
 
-def write_text_atomic(path: str | Path, text: str) -> Path:
+def write_text_atomic(path: str | Path, text: str, tmp_dir: str | Path | None = None) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically; returns the path."""
-    write_bytes_atomic(path, text.encode("utf-8"))
+    write_bytes_atomic(path, text.encode("utf-8"), tmp_dir)
     return Path(path)
 
 
-def write_json_atomic(path: str | Path, obj: Any) -> None:
-    write_bytes_atomic(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode())
+def write_json_atomic(path: str | Path, obj: Any, tmp_dir: str | Path | None = None) -> None:
+    write_bytes_atomic(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode(),
+                       tmp_dir)
 
 
 #: Why an operating-system error happened, in words a user acts on (by errno).
@@ -76,6 +109,7 @@ _OS_HINTS = {
     errno.ENOENT: "not found",
     errno.EISDIR: "is a folder, not a file",
     errno.ENOTDIR: "a part of the path is not a folder",
+    errno.ELOOP: "too many levels of symbolic links (a link that leads back to itself?)",
 }
 
 

@@ -237,17 +237,31 @@ def format_staleness(stale: dict[str, list[str]]) -> str:
 
 
 def resolve_config(workspace: Workspace, config_path: str | Path | None = None,
-                   overrides: Sequence[str] = (), reconfigure: bool = False
+                   overrides: Sequence[str] = (), reconfigure: bool = False,
+                   on_note: Callable[[str], None] | None = None
                    ) -> tuple[Config, dict[str, list[str]]]:
     """The configuration a command runs with, and the recorded stages it would redo (why).
 
-    The workspace owns its configuration: without ``config_path`` it is ``W/config.yaml`` (the
-    default for a new workspace); ``overrides`` (``train.epochs=5``) apply on top and are
-    validated with it. A file that would invalidate recorded stages needs ``reconfigure``;
-    overrides are explicit, so the stages they invalidate are only reported.
+    A folder that is not a workspace (:meth:`Workspace.check`) is refused first. The
+    workspace owns its configuration: without ``config_path`` it is ``W/config.yaml``;
+    when that is missing but stages are recorded, the configuration their records hold (never
+    the default, which would redo them; ``on_note`` is told); the default for a new
+    workspace. ``overrides`` (``train.epochs=5``) apply on top and are validated with it. A
+    file that would invalidate recorded stages needs ``reconfigure``; overrides are explicit,
+    so the stages they invalidate are only reported.
     """
+    workspace.check()  # a folder that is not a workspace is named before it is read
+    rebuilt = None
+    if config_path is None and not workspace.config_path.exists():
+        rebuilt = workspace.records_config_data()
     if config_path is not None:
         data, source = read_config_data(config_path), str(config_path)
+    elif rebuilt is not None:
+        data, source = rebuilt, workspace.records_source()
+        if on_note is not None:
+            on_note(f"{workspace.config_path} is missing: the configuration is rebuilt from the "
+                    f"stage records of {workspace.manifest_path}, not the default (a section no "
+                    "recorded stage reads is the default)")
     elif workspace.config_path.exists():
         data, source = read_config_data(workspace.config_path), str(workspace.config_path)
     else:

@@ -6,7 +6,10 @@ skipped. A stage writes into a temporary folder which replaces its folder only w
 finished, so an interrupted or failed run leaves the earlier artefacts intact.
 ``W/manifest.json`` lists, for every stage, its key, configuration and files;
 ``W/config.yaml`` is the configuration those artefacts were made with (written only together
-with them). One run at a time holds ``W/.lock``; the next run removes what a killed run left.
+with them). ``W/.rapomdp-workspace`` marks a folder as a workspace: a command writes only into
+one, or into an empty or new folder (which becomes one). One run at a time holds ``W/.lock``.
+Everything temporary lives in ``W/.rapomdp-tmp/``, the one folder the next run empties: nothing
+outside the stage folders and the files the project wrote is ever deleted, moved or replaced.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import json
 import os
 import re
 import shutil
+import stat
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -28,6 +32,7 @@ from rapomdp.config import Config, ConfigError, config_from_dict, read_config_da
 from rapomdp.context import RunContext
 from rapomdp.io import (
     ArtefactError,
+    check_output_path,
     describe_os_error,
     read_json,
     stable_hash,
@@ -40,10 +45,15 @@ MANIFEST = "manifest.json"
 CONFIG_FILE = "config.yaml"
 STAGE_RECORD = "stage.json"
 LOCK = ".lock"
+#: The file that makes a folder a workspace, written when the project makes it (JSON: the
+#: workspace format and the version that made it).
+MARKER = ".rapomdp-workspace"
+MARKER_FORMAT = 1
+#: The folder of a run's temporary files and folders: a stage's new folder
+#: (``STAGE.tmp-PID``), the folder it replaces (``STAGE.old-PID``), a file being written.
+SCRATCH = ".rapomdp-tmp"
 
-#: What a run leaves while it works: a stage's new folder, the folder it replaces, a file
-#: being written (:func:`rapomdp.io.atomic_path`).
-_LEFTOVER = re.compile(r"\.(?P<name>.+)\.(?P<kind>tmp|old)-(?P<pid>\d+)|\..+\.tmp")
+_LEFTOVER = re.compile(r"(?P<name>.+)\.(?P<kind>tmp|old)-(?P<pid>\d+)")
 
 #: Workspaces this process has locked (a nested run, e.g. Fig. 2's, takes the lock again).
 _HELD: dict[Path, int] = {}
@@ -55,6 +65,10 @@ class StageError(RuntimeError):
 
 class WorkspaceBusyError(StageError):
     """Another run holds the workspace's lock."""
+
+
+class NotAWorkspaceError(StageError):
+    """A folder a command would write into is not a workspace (nor empty), or not a folder."""
 
 
 class _Upstream:
@@ -222,12 +236,148 @@ class Workspace:
                                     " is damaged (no key or files); rerun it with --force")
         return data
 
-    def recorded_config(self) -> Config | None:
-        """The configuration the workspace's artefacts were made with (``W/config.yaml``), or
-        None for a new workspace."""
-        if not self.config_path.exists():
+    @property
+    def marker_path(self) -> Path:
+        return self.root / MARKER
+
+    @property
+    def scratch(self) -> Path:
+        """:data:`SCRATCH`: where a run keeps what it is still writing."""
+        return self.root / SCRATCH
+
+    def _named(self) -> str:
+        """The root as the user knows it (the current folder's path for ``.``)."""
+        return str(self.root) if str(self.root) not in ("", ".") else str(Path.cwd())
+
+    def _marker_format(self) -> int | None:
+        """The workspace format its marker names (1 when unreadable), None without one."""
+        try:
+            if not stat.S_ISREG(os.lstat(self.marker_path).st_mode):
+                return None
+        except OSError:
             return None
-        return config_from_dict(read_config_data(self.config_path), str(self.config_path))
+        try:
+            with open(self.marker_path, "rb") as handle:
+                data = json.loads(handle.read(4096).decode("utf-8"))
+            found = data.get("format") if isinstance(data, dict) else None
+            return found if isinstance(found, int) and not isinstance(found, bool) else 1
+        except (OSError, ValueError):
+            return 1  # damaged, but no one else writes a file of that name
+
+    def _write_marker(self) -> None:
+        """Write the marker unless it is there (another run may be making it too)."""
+        from rapomdp import __version__
+
+        text = json.dumps({"format": MARKER_FORMAT, "made_by": f"rapomdp {__version__}"}) + "\n"
+        try:
+            fd = os.open(self.marker_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        except FileExistsError:
+            return
+        try:
+            os.write(fd, text.encode())
+        finally:
+            os.close(fd)
+
+    def check(self) -> str:
+        """What the root is to a command that would write there, found without writing:
+        ``"new"`` (a missing or empty folder), ``"workspace"`` (its marker) or ``"older"``
+        (the valid ``manifest.json`` of a workspace made before markers existed). Anything
+        else is a :class:`NotAWorkspaceError` naming it."""
+        name = self._named()
+        try:
+            mode = os.stat(self.root).st_mode
+        except FileNotFoundError:
+            if os.path.islink(self.root):
+                raise NotAWorkspaceError(f"{name}: a symbolic link to a folder that does not "
+                                         f"exist ({os.readlink(self.root)[:200]})") from None
+            return "new"
+        except OSError as exc:
+            raise NotAWorkspaceError(describe_os_error(exc, name)) from None
+        if not stat.S_ISDIR(mode):
+            raise NotAWorkspaceError(f"{name}: not a folder; a workspace is a folder (give "
+                                     "the path of a new one)")
+        found = self._marker_format()
+        if found is not None:
+            if found > MARKER_FORMAT:
+                raise NotAWorkspaceError(
+                    f"{name}: a workspace of format {found}, made by a newer rapomdp (this one "
+                    f"knows format {MARKER_FORMAT}): upgrade rapomdp, or use another workspace")
+            return "workspace"
+        try:
+            entries = os.listdir(self.root)
+        except OSError as exc:
+            raise NotAWorkspaceError(describe_os_error(exc, name)) from None
+        if not entries:
+            return "new"
+        why = f"no {MARKER} or {MANIFEST}"
+        if MANIFEST in entries:
+            try:
+                self.manifest()
+                return "older"
+            except ArtefactError:
+                why = f"no {MARKER}, and its {MANIFEST} is not a rapomdp manifest"
+        raise NotAWorkspaceError(
+            f"{name}: not a rapomdp workspace ({why}) and not empty; rapomdp writes only into "
+            f"a workspace it made or an empty folder: give a new folder, e.g. "
+            f"{Path(name) / 'workspace'}")
+
+    def claim(self) -> bool:
+        """:meth:`check` the root before anything is written there; a missing or empty folder
+        becomes a new workspace (the folder and its marker). Returns whether the marker is
+        still to be written (an older workspace: its next locked run writes it)."""
+        state = self.check()
+        if state == "new":
+            self._create()
+        return state == "older"
+
+    def _create(self) -> None:
+        """Make the root (and its parents) a new workspace: the folder and its marker."""
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            self._write_marker()
+        except OSError as exc:
+            raise ArtefactError(describe_os_error(exc)) from None
+
+    def recorded_config(self) -> Config | None:
+        """The configuration the workspace's artefacts were made with (``W/config.yaml``; when
+        it is missing, the one the stage records hold, :meth:`records_config_data`), or None
+        for a new workspace."""
+        if self.config_path.exists():
+            return config_from_dict(read_config_data(self.config_path), str(self.config_path))
+        data = self.records_config_data()
+        return None if data is None else config_from_dict(data, self.records_source())
+
+    def records_config_data(self) -> dict[str, Any] | None:
+        """The configuration sections the manifest's stage records hold, merged (where two
+        disagree, the stage that finished last wins; a section no stage read is left out, so
+        it is the default), or None when no stage is recorded."""
+        records = [record for record in self.manifest()["stages"].values()
+                   if isinstance(record.get("config"), dict)]
+        if not records:
+            return None
+        data: dict[str, Any] = {}
+        for record in sorted(records, key=lambda r: str(r.get("finished", ""))):  # stable
+            data.update(record["config"])
+        return data
+
+    def records_source(self) -> str:
+        """How a configuration rebuilt from the stage records is named in messages."""
+        return f"the stage records of {self.manifest_path} ({CONFIG_FILE} is missing)"
+
+    def _write_file(self, path: Path, text: str) -> None:
+        """Write one of the workspace's own files atomically, its temporary in the scratch
+        folder (so that a kill leaves nothing beside the user's files)."""
+        scratch = self._scratch_dir()
+        try:
+            write_text_atomic(path, text, scratch)
+        finally:
+            self._drop_scratch()
+
+    def _drop_scratch(self) -> None:
+        try:
+            self.scratch.rmdir()  # only when empty
+        except OSError:
+            pass
 
     def record_config(self, config: Config) -> None:
         """Write ``W/config.yaml`` (skipped when unchanged, so a read-only cached run works)."""
@@ -237,13 +387,16 @@ class Workspace:
                 return
         except (OSError, UnicodeDecodeError):
             pass
-        write_text_atomic(self.config_path, text)
+        self._write_file(self.config_path, text)
 
     @contextmanager
     def locked(self) -> Iterator[None]:
         """Hold ``W/.lock`` (a second run exits naming the first's pid); then remove what a
         killed run left. The lock is the kernel's (flock): it ends with its process, even
-        on SIGKILL. A read-only workspace is used unlocked: nothing can be written to it."""
+        on SIGKILL. A read-only workspace is used unlocked: nothing can be written to it.
+        A folder that is not a workspace is refused first (:meth:`claim`), its files untouched.
+        """
+        needs_marker = self.claim()
         key = self.root.resolve()
         if key in _HELD:
             _HELD[key] += 1
@@ -265,6 +418,8 @@ class Workspace:
             if os.access(self.root / LOCK, os.W_OK):
                 os.ftruncate(fd, 0)
                 os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                if needs_marker:
+                    self._write_marker()
                 self.clean_leftovers()
         _HELD[key] = 1
         try:
@@ -274,37 +429,71 @@ class Workspace:
             if fd is not None:
                 os.close(fd)  # closing releases the flock
 
+    def _own(self, name: str, folder: bool) -> Path:
+        """``W/name``, one of the workspace's own files (or, ``folder``, folders), when it is
+        that or absent: a symbolic link or anything else there is refused by name, so that
+        nothing is written, truncated or emptied through it."""
+        path = self.root / name
+        try:
+            mode = os.lstat(path).st_mode
+        except FileNotFoundError:
+            return path
+        except OSError as exc:
+            raise ArtefactError(describe_os_error(exc, path)) from None
+        if not (stat.S_ISDIR(mode) if folder else stat.S_ISREG(mode)):
+            kind = "a symbolic link" if stat.S_ISLNK(mode) else "not a " + (
+                "folder" if folder else "regular file")
+            raise StageError(f"{path}: {kind}; it is the workspace's own "
+                             f"{'folder' if folder else 'file'}: remove it and rerun")
+        return path
+
+    def _scratch_dir(self) -> Path:
+        """The scratch folder, made when missing (a real folder: :meth:`_own`)."""
+        path = self._own(SCRATCH, folder=True)
+        try:
+            path.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise ArtefactError(describe_os_error(exc)) from None
+        return self._own(SCRATCH, folder=True)
+
     def _open_lock(self) -> int | None:
         try:
             self.root.mkdir(parents=True, exist_ok=True)
-            path = self.root / LOCK
+            path = self._own(LOCK, folder=False)
             if path.exists() and not os.access(path, os.W_OK):
-                return os.open(path, os.O_RDONLY)
-            return os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+                return os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+            return os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
         except OSError as exc:
             if exc.errno in (errno.EACCES, errno.EROFS, errno.EPERM) and self.root.is_dir():
                 return None
             raise ArtefactError(describe_os_error(exc)) from None
 
     def clean_leftovers(self) -> list[str]:
-        """Remove the temporary folders and files of runs that died (call holding the lock).
+        """Empty the scratch folder of runs that died (call holding the lock); returns the
+        names it held.
 
-        A folder a run had moved aside (``.STAGE.old-PID``) is moved back when the swap did not
-        finish, so a kill at any instant loses nothing.
+        A stage folder a run had moved aside (``STAGE.old-PID``) is moved back when the swap
+        did not finish, so a kill at any instant loses nothing; the rest is removed. Nothing
+        outside the scratch folder is looked at: only the project writes there.
         """
+        try:
+            entries = sorted(self._own(SCRATCH, folder=True).iterdir())
+        except FileNotFoundError:
+            return []
         cleaned = []
-        for path in sorted(self.root.iterdir()):
+        for path in entries:
             match = _LEFTOVER.fullmatch(path.name)
-            if match is None or path.name == LOCK:
-                continue
-            target = self.root / match["name"] if match["name"] else None
-            if match["kind"] == "old" and target is not None and not target.exists():
+            target = self.root / match["name"] if match is not None else None
+            if (match is not None and target is not None and match["kind"] == "old"
+                    and "/" not in match["name"] and match["name"] not in (".", "..")
+                    and not os.path.lexists(target)):
                 os.replace(path, target)
-            elif path.is_dir():
+            elif path.is_dir() and not path.is_symlink():
                 shutil.rmtree(path)
             else:
                 path.unlink()
             cleaned.append(path.name)
+        self._drop_scratch()
         return cleaned
 
     @property
@@ -411,14 +600,16 @@ class Workspace:
             context: RunContext = RunContext()) -> StageResult:
         """Run ``stage`` unless its cached output is current (or ``force``), with ``context``'s
         workers, threads and progress bars; a stage that ran is recorded in the manifest."""
+        self.claim()
         key, upstream, external = self._key_parts(stage, config)
         if not force and self.is_current(stage, config):
             record = self.manifest()["stages"][stage.name]
             return StageResult(stage.name, key, True, 0.0, record.get("files", []))
+        self._check_replaceable(stage.name)
+        check_output_path(self.manifest_path)  # refused before the work, not after it
         inputs = self.inputs(stage)
-        tmp = self.root / f".{stage.name}.tmp-{os.getpid()}"
+        tmp = self._scratch_dir() / f"{stage.name}.tmp-{os.getpid()}"
         try:
-            self.root.mkdir(parents=True, exist_ok=True)
             if tmp.exists():
                 shutil.rmtree(tmp)
             tmp.mkdir()
@@ -444,9 +635,11 @@ class Workspace:
             self._swap_in(tmp, self.stage_dir(stage.name))
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
+            self._drop_scratch()
         manifest = self.manifest()
         manifest["stages"][stage.name] = record
-        write_json_atomic(self.manifest_path, manifest)
+        self._write_file(self.manifest_path,
+                         json.dumps(manifest, indent=2, sort_keys=True) + "\n")
         self.record_config(config)
         return StageResult(stage.name, key, False, seconds, files)
 
@@ -468,9 +661,11 @@ class Workspace:
         folder = source.stage_dir(stage.name)
         if record is None or record.get("key") != key or not folder.is_dir():
             return None
-        tmp = self.root / f".{stage.name}.tmp-{os.getpid()}"
+        self.claim()
+        self._check_replaceable(stage.name)
+        check_output_path(self.manifest_path)
+        tmp = self._scratch_dir() / f"{stage.name}.tmp-{os.getpid()}"
         try:
-            self.root.mkdir(parents=True, exist_ok=True)
             if tmp.exists():
                 shutil.rmtree(tmp)
             shutil.copytree(folder, tmp, copy_function=_link_or_copy)
@@ -482,32 +677,66 @@ class Workspace:
             raise ArtefactError(describe_os_error(exc)) from None
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
+            self._drop_scratch()
         manifest = self.manifest()
         manifest["stages"][stage.name] = shared
-        write_json_atomic(self.manifest_path, manifest)
+        self._write_file(self.manifest_path,
+                         json.dumps(manifest, indent=2, sort_keys=True) + "\n")
         self.record_config(config)
         return StageResult(stage.name, key, True, 0.0, list(record.get("files", [])),
                            shared_from=str(source.root))
 
-    @staticmethod
-    def _swap_in(new: Path, target: Path) -> None:
-        """Replace ``target`` by ``new``: two renames, undone if the second fails."""
-        old = target.with_name(f".{target.name}.old-{os.getpid()}")
+    def _check_replaceable(self, name: str) -> None:
+        """Refuse, before stage ``name`` runs, to replace what is at its folder's path unless
+        the project made it: a real folder (no symbolic link: its new folder would replace the
+        link, and the artefacts the link points to would go stale unseen) holding the stage's
+        record or recorded in the manifest."""
+        target = self.stage_dir(name)
         try:
-            if target.exists():
+            mode = os.lstat(target).st_mode
+        except FileNotFoundError:
+            return
+        except OSError as exc:
+            raise ArtefactError(describe_os_error(exc, target)) from None
+        if stat.S_ISLNK(mode):
+            raise StageError(
+                f"{target}: a symbolic link (to {os.readlink(target)[:200]}); a stage's folder is "
+                "replaced whole when the stage is redone, so it must be a folder in the "
+                "workspace: put the folder it points to in its place (or link the whole "
+                "workspace instead)")
+        if not stat.S_ISDIR(mode):
+            raise StageError(f"{target}: not a folder, where stage '{name}' keeps its folder; "
+                             "move it away")
+        if (not (target / STAGE_RECORD).is_file()
+                and name not in self.manifest()["stages"]):
+            raise StageError(f"{target}: a folder rapomdp did not make (no {STAGE_RECORD}); "
+                             f"move it away so that stage '{name}' can write its own")
+
+    def _swap_in(self, new: Path, target: Path) -> None:
+        """Replace ``target`` (a stage's folder, :meth:`_check_replaceable`) by ``new``: two
+        renames, the old folder moved aside into the scratch folder, undone if the second
+        fails."""
+        old = self.scratch / f"{target.name}.old-{os.getpid()}"
+        moved = False
+        try:
+            if os.path.lexists(old):
+                shutil.rmtree(old)
+            if os.path.lexists(target):
                 os.replace(target, old)
+                moved = True
             try:
                 os.replace(new, target)
             except OSError:
-                if old.exists() and not target.exists():
+                if moved and not os.path.lexists(target):
                     os.replace(old, target)
+                    moved = False
                 raise
         except OSError as exc:
             raise ArtefactError(
                 f"{target}: the new artefacts could not be moved into place "
                 f"({describe_os_error(exc).split(': ', 1)[-1]}); the earlier ones are intact"
             ) from None
-        if old.exists():
+        if moved:
             shutil.rmtree(old, ignore_errors=True)
 
 

@@ -19,7 +19,7 @@ from rapomdp.data.dataset import role_count_lines
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.experiment.metrics import belief_calibration_cells, table1_story
 from rapomdp.experiment.report import evaluation_summaries
-from rapomdp.io import atomic_path, markdown_table, write_text_atomic
+from rapomdp.io import atomic_path, check_output_path, markdown_table, write_text_atomic
 from rapomdp.recognition.artefacts import load_single_view_metrics
 from rapomdp.workspace import StageError, Workspace
 
@@ -101,8 +101,10 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
 def update_readme(workspace: Workspace, readme: Path, figures: Path | None = None) -> Path:
     """Replace the README's generated block with ``workspace``'s results and copy its figures to
     ``figures`` (default: ``docs/figures`` beside the README). The README must hold the markers."""
-    readme = Path(readme)
+    readme = check_output_path(readme)  # a FIFO or device is neither read nor replaced
     figures = Path(figures) if figures is not None else readme.parent / "docs" / "figures"
+    for _, name in README_FIGURES:  # every output checked before any is written
+        check_output_path(figures / name)
     text = readme.read_text(encoding="utf-8")
     start, end = text.find(BEGIN), text.find(END)
     if start < 0 or end < start:

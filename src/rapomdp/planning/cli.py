@@ -20,7 +20,7 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
-from rapomdp.io import ArtefactError
+from rapomdp.io import ArtefactError, check_output_path, describe_os_error
 from rapomdp.planning.bounds import flat_solver_bytes
 from rapomdp.planning.io_pomdp import PomdpParseError, read_pomdp, write_pomdp
 from rapomdp.planning.io_pomdpx import write_pomdpx
@@ -100,6 +100,14 @@ def _error(console: Console, message: object) -> typer.Exit:
     return typer.Exit(2)
 
 
+def _check_out(console: Console, out: Path) -> None:
+    """Refuse an ``--out`` that is not a regular file or a new path (a folder, a device)."""
+    try:
+        check_output_path(out)
+    except ArtefactError as exc:
+        raise _error(console, exc) from None
+
+
 def _check_positive(console: Console, **options: float) -> None:
     """Refuse NaN, infinite, zero or negative values of the named options."""
     for name, value in options.items():
@@ -126,6 +134,8 @@ def solve_cmd(
     start = time.process_time()
     console = Console(soft_wrap=True)
     _check_positive(console, precision=precision, timeout=timeout, memory_gb=memory_gb)
+    if out is not None:
+        _check_out(console, out)  # before the solve, not after it
     try:
         pomdp = read_pomdp(file, memory_gb, solver_bytes=flat_solver_bytes)
         console.print(
@@ -141,7 +151,12 @@ def solve_cmd(
         raise _error(console, exc) from None
     _report(console, result, len(result.policy))
     if out is not None:
-        path = result.policy.save(out)
+        try:
+            path = result.policy.save(out)
+        except ArtefactError as exc:
+            raise _error(console, exc) from None
+        except OSError as exc:
+            raise _error(console, describe_os_error(exc, out)) from None
         console.print(f"wrote {path}")
 
 
@@ -204,6 +219,7 @@ def export_cmd(
 
     console = Console(soft_wrap=True)
     _check_positive(console, memory_gb=memory_gb)
+    _check_out(console, out)
     if not (math.isfinite(solve_seconds) and solve_seconds >= 0):
         raise _error(console, f"--solve must be a finite number of seconds, got {solve_seconds}")
     ar: ActiveRecognitionProblem
@@ -230,13 +246,16 @@ def export_cmd(
     except (ValueError, ArtefactError) as exc:
         console.print(f"[red]error:[/red] {exc}", soft_wrap=True)
         raise typer.Exit(2) from None
-    if out.suffix == ".pomdp":
-        path = write_pomdp(to_flat_pomdp(ar), out)
-    elif out.suffix == ".pomdpx":
-        path = write_pomdpx(ar, out)
-    else:
+    if out.suffix not in (".pomdp", ".pomdpx"):
         console.print("[red]error:[/red] --out must end in .pomdpx or .pomdp")
         raise typer.Exit(2)
+    try:
+        path = (write_pomdp(to_flat_pomdp(ar), out) if out.suffix == ".pomdp"
+                else write_pomdpx(ar, out))
+    except ArtefactError as exc:
+        raise _error(console, exc) from None
+    except OSError as exc:  # a full disk: the file and the cause
+        raise _error(console, describe_os_error(exc, out)) from None
     console.print(
         f"wrote {path}: {ar.n_viewpoints} viewpoints x {ar.n_classes} classes, "
         f"{ar.targets.size} move targets"
