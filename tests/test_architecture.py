@@ -18,9 +18,9 @@ SOURCE = Path(__file__).resolve().parents[1] / "src" / "rapomdp"
 
 #: The pipeline's stage packages in order; a package may import only itself and earlier ones.
 STAGE_ORDER = ["geometry", "data", "recognition", "awareness", "robot", "planning", "experiment",
-               "cli"]
+               "study", "cli"]
 #: Top-level modules that belong to the command line's level (they assemble every stage).
-TOP_LEVEL_STAGE = {"cli": "cli", "pipeline": "cli"}
+TOP_LEVEL_STAGE = {"cli": "cli", "pipeline": "study"}
 #: The level of the foundations: top-level helpers that import no stage package.
 FOUNDATION = "foundation"
 
@@ -173,7 +173,7 @@ def test_the_graph_tool_sees_lazy_and_relative_imports(tmp_path: Path) -> None:
     assert "rapomdp.data.dataset" in graph["rapomdp.cli"]  # inside dataset_preview
     assert level_of("rapomdp.io") == FOUNDATION
     assert level_of("rapomdp.planning.cli") == "planning"
-    assert level_of("rapomdp.pipeline") == "cli"
+    assert level_of("rapomdp.pipeline") == "study"
 
 
 def test_no_import_cycle_between_subpackages() -> None:

@@ -1,0 +1,1 @@
+"""Studies over seeds and datasets: pooled Table 1, hierarchical intervals, headroom."""
