@@ -43,10 +43,9 @@ def main() -> None:
     print("the learned row reproduces the evaluate stage's RA-POMDP episode for episode "
           "(0 differ)")
     print(f"labels at X_rho equal to the observe stage's record: {result.label_agreement:.4f}")
-    t = result.temperature
+    fitted = "".join(f", {row}: t = {t:.3f}" for row, t in result.temperatures.items())
     print(f"belief correction '{result.correction}': learned t = "
-          f"{result.learned_temperature:.3f}"
-          + (f", oracle t fitted on the test models = {t:.3f}" if t is not None else ""))
+          f"{result.learned_temperature:.3f} (held out); fitted on the test models{fitted}")
     for note in result.notes:
         print(note)
     print()

@@ -166,12 +166,15 @@ def test_the_oracle_temperature_is_fitted_on_the_test_labels(headroom_run) -> No
     walks, walk_row = held_out_walks(rows, directions,
                                      class_seed(config.seed, "headroom/temperature"))
     assert result.correction == "temperature"
-    t = fit_temperature([single], rows, result.labels, result.predicted, walks, walk_row)
-    assert result.temperature == t
-    assert TEMPERATURE_BOUNDS[0] <= t <= TEMPERATURE_BOUNDS[1]
-    np.testing.assert_allclose(result.models["oracle_temperature"], temper(single, t))
-    np.testing.assert_array_equal(result.first_view["oracle_temperature"],
-                                  result.models["oracle_temperature"])
+    for row, model in (("oracle_temperature", single),
+                       ("oracle_in_sample_temperature", result.models["oracle_in_sample"])):
+        t = fit_temperature([model], rows, result.labels, result.predicted, walks, walk_row)
+        assert result.temperatures[row] == t
+        assert TEMPERATURE_BOUNDS[0] <= t <= TEMPERATURE_BOUNDS[1]
+        np.testing.assert_allclose(result.models[row], temper(model, t))
+        np.testing.assert_array_equal(result.first_view[row], result.models[row])
+    assert result.temperatures["oracle_temperature"] != result.temperatures[
+        "oracle_in_sample_temperature"]
 
 
 def test_outputs_label_the_oracle_rows_and_touch_no_stage_folder(headroom_run) -> None:

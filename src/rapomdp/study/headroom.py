@@ -15,7 +15,12 @@ themselves, so it is an upper bound and never feeds a choice:
 - ``oracle_correct_in_sample`` / ``oracle_correct_cross_object``: the learned single-view rows
   with their P(correct) replaced by the oracle's (:func:`with_correct_probability`);
 - ``oracle_temperature``: the learned single-view rows tempered by the belief temperature
-  fitted on the test models' labels (the observe stage's rule: :func:`oracle_temperature`).
+  fitted on the test models' labels (the observe stage's rule: :func:`oracle_temperature`);
+  ``oracle_in_sample_temperature``: the in-sample oracle tempered alike (estimation and
+  belief both from the test models).
+
+The counted models and the oracle-P(correct) rows are used as counted (t = 1, naive Bayes);
+only the ``*temperature`` rows temper.
 
 The labels are the closed loop's own: every test model rendered at every viewpoint of X_rho and
 classified one image at a time (as an episode looks), and the episodes read them back. Writes
@@ -69,15 +74,17 @@ METHOD = "ra"
 
 ROWS: dict[str, tuple[str, bool]] = {
     "learned": ("(a) RA-POMDP as evaluated: the learned model", False),
-    "oracle_in_sample": ("(b) in-sample oracle: counted on the test models", True),
+    "oracle_in_sample": ("(b) in-sample oracle: counted on the test models, t = 1", True),
     "oracle_cross_object": ("(c) cross-object oracle: counted on the class's other test "
-                            "objects", True),
+                            "objects, t = 1", True),
     "oracle_correct_in_sample": ("(d) learned wrong labels, P(correct) of the in-sample "
-                                 "oracle", True),
+                                 "oracle, t = 1", True),
     "oracle_correct_cross_object": ("(d) learned wrong labels, P(correct) of the cross-object "
-                                    "oracle", True),
+                                    "oracle, t = 1", True),
     "oracle_temperature": ("(e) learned model, belief temperature fitted on the test "
                            "models", True),
+    "oracle_in_sample_temperature": ("(e) in-sample oracle, belief temperature fitted on the "
+                                     "test models", True),
 }
 """Row key -> (label, oracle?), in table order."""
 CROSS_ROWS = ("oracle_cross_object", "oracle_correct_cross_object")
@@ -118,7 +125,7 @@ class HeadroomResult:
     planner's and the belief's; ``first_view``, the belief's first update) the test model files
     it was counted on (``counted_on``, empty for the learned model); per row and test model file
     the observation model its episodes used (``assignment``); ``halves`` (N,) of the
-    cross-object split; ``temperature``: the oracle-fitted one (None when not asked for);
+    cross-object split; ``temperatures``: the oracle-fitted ones by row;
     ``evaluate_mismatches``: row (a)'s episodes that differ from the evaluate stage's RA-POMDP
     ones; ``label_agreement``: the share of labels equal to the observe stage's record."""
 
@@ -134,7 +141,7 @@ class HeadroomResult:
     halves: np.ndarray | None
     learned_temperature: float
     correction: str
-    temperature: float | None
+    temperatures: dict[str, float]
     evaluate_mismatches: int
     label_agreement: float
     seconds: dict[str, float] = field(default_factory=dict)
@@ -377,15 +384,18 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
             if row in wanted:
                 assignment[row] = {f: f"{row}_h{1 - h}" for f, h in zip(files, halves,
                                                                         strict=True)}
-    temperature = None
-    if "oracle_temperature" in wanted:
-        after_first = correction == "after_first"
-        temperature = oracle_temperature(single, labels, predicted,
-                                         np.asarray(recorded.arrays["directions"]),
-                                         config.seed, after_first)
-        tempered = temper(single, temperature)
-        add("oracle_temperature", tempered, everything, single if after_first else tempered)
-        assignment["oracle_temperature"] = dict.fromkeys(files, "oracle_temperature")
+    temperatures: dict[str, float] = {}
+    after_first = correction == "after_first"
+    for row, rows_of in (("oracle_temperature", single),
+                         ("oracle_in_sample_temperature", in_sample)):
+        if row in wanted:
+            t = oracle_temperature(rows_of, labels, predicted,
+                                   np.asarray(recorded.arrays["directions"]), config.seed,
+                                   after_first)
+            temperatures[row] = t
+            tempered = temper(rows_of, t)
+            add(row, tempered, everything, rows_of if after_first else tempered)
+            assignment[row] = dict.fromkeys(files, row)
     robot = load_robot(inputs.robot)
     motion = Motion.from_robot(robot)
     policies = out / POLICIES_DIR
@@ -434,7 +444,7 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
             float(table.cpu_seconds[mine].sum())))
     result = HeadroomResult(
         result_rows, table, files, labels, predicted, models, first, counted,
-        {r: assignment[r] for r in wanted}, halves, t_learned, correction, temperature,
+        {r: assignment[r] for r in wanted}, halves, t_learned, correction, temperatures,
         mismatches, agreement,
         {"labels_wall": labels_s, "solve_wall": solve_s, "episodes_wall": episodes_s,
          "total": time.perf_counter() - began}, notes)
@@ -486,7 +496,7 @@ def write_headroom(result: HeadroomResult, out: str | Path) -> None:
                  for r in result.rows],
         "learned_temperature": result.learned_temperature,
         "belief_correction": result.correction,
-        "oracle_temperature": result.temperature,
+        "oracle_temperatures": result.temperatures,
         "evaluate_mismatches": result.evaluate_mismatches,
         "label_agreement_with_observe": result.label_agreement,
         "counted_on": {k: list(v) for k, v in result.counted_on.items()},
