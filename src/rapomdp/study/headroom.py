@@ -197,6 +197,77 @@ def oracle_temperature(single_view: np.ndarray, labels: np.ndarray, predicted: n
                            first_temperature=1.0 if after_first else None)
 
 
+@dataclass
+class RowModels:
+    """Each row's observation models: by model key the planner's and belief's (``models``) and
+    the belief's first update (``first_view``), the test model files counted (``counted_on``);
+    per row and test model file the model its episodes use (``assignment``); the oracle-fitted
+    temperatures by row."""
+
+    models: dict[str, np.ndarray]
+    first_view: dict[str, np.ndarray]
+    counted_on: dict[str, tuple[str, ...]]
+    assignment: dict[str, dict[str, str]]
+    temperatures: dict[str, float]
+
+
+def row_models(rows: Sequence[str], files: Sequence[str], labels: np.ndarray,
+               predicted: np.ndarray, halves: np.ndarray | None, classes: int,
+               pseudo_count: float, learned: np.ndarray, learned_first: np.ndarray,
+               learned_temperature: float, correction: str, directions: np.ndarray,
+               seed: int) -> RowModels:
+    """The observation models of ``rows`` (keys of :data:`ROWS`) from the test models'
+    ``files``, ``labels`` (N,) and ``predicted`` labels (N, V) at X_rho, the cross-object
+    ``halves`` (N,) and the learned model as evaluated (``learned``, ``learned_first``,
+    tempered by ``learned_temperature`` under ``correction``). Counts use ``pseudo_count``."""
+    if halves is None and set(rows) & set(CROSS_ROWS):
+        raise ValueError("the cross-object rows need the halves (cross_object_halves)")
+    single = temper(learned, 1.0 / learned_temperature)  # the single-view rows it tempers
+    out = RowModels({"learned": learned}, {"learned": learned_first}, {"learned": ()},
+                    {"learned": dict.fromkeys(files, "learned")}, {})
+
+    def add(key: str, model: np.ndarray, on: np.ndarray, first_view: np.ndarray | None = None
+            ) -> None:
+        out.models[key] = model
+        out.first_view[key] = model if first_view is None else first_view
+        out.counted_on[key] = tuple(f for f, used in zip(files, on, strict=True) if used)
+
+    everything = np.ones(len(files), dtype=bool)
+    in_sample = viewpoint_confusion(labels, predicted, classes, pseudo_count)
+    if "oracle_in_sample" in rows:
+        add("oracle_in_sample", in_sample, everything)
+    if "oracle_correct_in_sample" in rows:
+        add("oracle_correct_in_sample",
+            with_correct_probability(single, np.diagonal(in_sample, axis1=1, axis2=2)),
+            everything)
+    after_first = correction == "after_first"
+    for row, rows_of in (("oracle_temperature", single),
+                         ("oracle_in_sample_temperature", in_sample)):
+        if row in rows:
+            t = oracle_temperature(rows_of, labels, predicted, directions, seed, after_first)
+            out.temperatures[row] = t
+            tempered = temper(rows_of, t)
+            add(row, tempered, everything, rows_of if after_first else tempered)
+    for row in rows:
+        if row in out.models:
+            out.assignment[row] = dict.fromkeys(files, row)
+    if halves is not None:
+        for h in (0, 1):
+            on = halves == h
+            half = viewpoint_confusion(labels[on], predicted[on], classes, pseudo_count)
+            if "oracle_cross_object" in rows:
+                add(f"oracle_cross_object_h{h}", half, on)
+            if "oracle_correct_cross_object" in rows:
+                add(f"oracle_correct_cross_object_h{h}",
+                    with_correct_probability(single, np.diagonal(half, axis1=1, axis2=2)), on)
+        for row in CROSS_ROWS:  # an object's episodes use the model of the other half
+            if row in rows:
+                out.assignment[row] = {f: f"{row}_h{1 - h}"
+                                       for f, h in zip(files, halves, strict=True)}
+    out.assignment = {row: out.assignment[row] for row in rows}  # in the rows' order
+    return out
+
+
 # -- the closed loop's labels and episodes (worker tasks) ----------------------------------------
 
 def _ra_only(config: Config) -> Config:
@@ -343,59 +414,14 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
 
     # 2. the observation models, each row's per test model, and their policies
     classes = recorded.classes
-    c = len(classes)
     learned = np.asarray(recorded.arrays[METHOD], dtype=np.float64)
-    learned_first = first_view_models(inputs.observe, {METHOD: learned})[METHOD]
     t_learned = float(recorded.calibration["temperatures"][METHOD])
     correction = str(recorded.calibration["belief_corrections"][METHOD])
-    single = temper(learned, 1.0 / t_learned)  # the single-view rows the belief tempers
-    pseudo = config.observe.classifier_pseudo_count
-    models: dict[str, np.ndarray] = {"learned": learned}
-    first: dict[str, np.ndarray] = {"learned": learned_first}
-    counted: dict[str, tuple[str, ...]] = {"learned": ()}
-    assignment: dict[str, dict[str, str]] = {"learned": dict.fromkeys(files, "learned")}
-
-    def add(key: str, model: np.ndarray, on: np.ndarray, first_view: np.ndarray | None = None
-            ) -> None:
-        models[key] = model
-        first[key] = model if first_view is None else first_view
-        counted[key] = tuple(f for f, used in zip(files, on, strict=True) if used)
-
-    everything = np.ones(len(files), dtype=bool)
-    in_sample = viewpoint_confusion(labels, predicted, c, pseudo)
-    if "oracle_in_sample" in wanted:
-        add("oracle_in_sample", in_sample, everything)
-        assignment["oracle_in_sample"] = dict.fromkeys(files, "oracle_in_sample")
-    if "oracle_correct_in_sample" in wanted:
-        add("oracle_correct_in_sample",
-            with_correct_probability(single, np.diagonal(in_sample, axis1=1, axis2=2)),
-            everything)
-        assignment["oracle_correct_in_sample"] = dict.fromkeys(files, "oracle_correct_in_sample")
-    if halves is not None:
-        for h in (0, 1):
-            on = halves == h
-            half = viewpoint_confusion(labels[on], predicted[on], c, pseudo)
-            if "oracle_cross_object" in wanted:
-                add(f"oracle_cross_object_h{h}", half, on)
-            if "oracle_correct_cross_object" in wanted:
-                add(f"oracle_correct_cross_object_h{h}",
-                    with_correct_probability(single, np.diagonal(half, axis1=1, axis2=2)), on)
-        for row in CROSS_ROWS:  # an object's episodes use the model of the other half
-            if row in wanted:
-                assignment[row] = {f: f"{row}_h{1 - h}" for f, h in zip(files, halves,
-                                                                        strict=True)}
-    temperatures: dict[str, float] = {}
-    after_first = correction == "after_first"
-    for row, rows_of in (("oracle_temperature", single),
-                         ("oracle_in_sample_temperature", in_sample)):
-        if row in wanted:
-            t = oracle_temperature(rows_of, labels, predicted,
-                                   np.asarray(recorded.arrays["directions"]), config.seed,
-                                   after_first)
-            temperatures[row] = t
-            tempered = temper(rows_of, t)
-            add(row, tempered, everything, rows_of if after_first else tempered)
-            assignment[row] = dict.fromkeys(files, row)
+    built = row_models(wanted, files, labels, predicted, halves, len(classes),
+                       config.observe.classifier_pseudo_count, learned,
+                       first_view_models(inputs.observe, {METHOD: learned})[METHOD], t_learned,
+                       correction, np.asarray(recorded.arrays["directions"]), config.seed)
+    models, first, assignment = built.models, built.first_view, built.assignment
     robot = load_robot(inputs.robot)
     motion = Motion.from_robot(robot)
     policies = out / POLICIES_DIR
@@ -421,8 +447,7 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
     tasks = []
     for share in _shares(files, count):
         idx = [files.index(f) for f in share]
-        tasks.append((config_json, inputs, arms, {r: assignment[r] for r in wanted}, share,
-                      [outputs[i] for i in idx]))
+        tasks.append((config_json, inputs, arms, assignment, share, [outputs[i] for i in idx]))
     records = [r for share in run_tasks(_episodes_task, tasks, count, "headroom: episodes",
                                         context.progress, context.scheduler) for r in share]
     episodes_s = time.perf_counter() - episodes_began
@@ -443,8 +468,8 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
             float(sum(float(summary[a]["seconds"]) for a in arms_of if a in summary)),
             float(table.cpu_seconds[mine].sum())))
     result = HeadroomResult(
-        result_rows, table, files, labels, predicted, models, first, counted,
-        {r: assignment[r] for r in wanted}, halves, t_learned, correction, temperatures,
+        result_rows, table, files, labels, predicted, models, first, built.counted_on,
+        assignment, halves, t_learned, correction, built.temperatures,
         mismatches, agreement,
         {"labels_wall": labels_s, "solve_wall": solve_s, "episodes_wall": episodes_s,
          "total": time.perf_counter() - began}, notes)
