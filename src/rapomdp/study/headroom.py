@@ -8,8 +8,8 @@ themselves, so it is an upper bound and never feeds a choice:
 - ``learned``: the learned model as evaluated (must reproduce the evaluate stage's RA-POMDP
   episodes one for one: :attr:`HeadroomResult.evaluate_mismatches`);
 - ``oracle_in_sample``: P(o | c, x) counted on the test models' own labels at X_rho (the
-  Classifier model's count and pseudo-count, :func:`~rapomdp.recognition.evaluation.
-  viewpoint_confusion`), untempered;
+  Classifier model's count and pseudo-count:
+  :func:`~rapomdp.recognition.evaluation.viewpoint_confusion`);
 - ``oracle_cross_object``: the same count on the other half of each class's test models only
   (:func:`cross_object_halves`): an object's episodes never use a model that counted it;
 - ``oracle_correct_in_sample`` / ``oracle_correct_cross_object``: the learned single-view rows
