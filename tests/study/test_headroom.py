@@ -1,22 +1,27 @@
 """The headroom decomposition on a tiny finished workspace: the learned row is the evaluate
 stage's RA-POMDP, the oracles are counted on what they claim (and the cross-object one never on
-the episode's own object), and every output labels the oracle rows."""
+the episode's own object), and every output labels the oracle rows. One tiny workspace whose
+RA-POMDP moves (two volume and two test models a class, a classifier between chance and
+perfect), built once for the module."""
 
 from __future__ import annotations
 
 import csv
 import io
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
+from rapomdp.config import Config, config_from_dict
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import TestViews
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.experiment.metrics import table1
 from rapomdp.io import load_npz
+from rapomdp.pipeline import run_pipeline
 from rapomdp.recognition.belief import (
     TEMPERATURE_BOUNDS,
     fit_temperature,
@@ -39,7 +44,41 @@ from rapomdp.study.headroom import (
     run_headroom,
     with_correct_probability,
 )
-from rapomdp.workspace import StageError
+from rapomdp.workspace import StageError, Workspace
+from tests.conftest import TEST_CONTEXT, TINY_PIPELINE
+
+#: Three classes, 2 volume models a class (a held-out temperature), 2 test models a class (a
+#: cross-object split), only RA-POMDP evaluated.
+TINY_HEADROOM = {
+    **TINY_PIPELINE,
+    "seed": 5,
+    "dataset": {"classes": ["cup", "bicycle", "teapot"],
+                "split": {"train": 3, "volume": 2, "test": 2}},
+    "train": {**TINY_PIPELINE["train"], "epochs": 3},
+    "viewpoints": {"count": 16},
+    "solve": {"timeout_s": 2.0, "models": ["ra"]},
+    "evaluate": {"methods": ["ra"], "starts_per_model": 3, "max_moves": 6, "lambdas": []},
+}
+
+
+def _files(root: Path, skip: str) -> dict[str, tuple[int, int]]:
+    """Every file under ``root`` but ``skip``: (size, mtime in ns) by relative path."""
+    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns)
+            for p in root.rglob("*") if p.is_file() and skip not in p.relative_to(root).parts}
+
+
+@pytest.fixture(scope="module")
+def headroom_run(tmp_path_factory: pytest.TempPathFactory
+                 ) -> tuple[Workspace, Config, HeadroomResult, dict[str, tuple[int, int]],
+                            dict[str, tuple[int, int]]]:
+    """The workspace, its configuration, the decomposition into ``W/headroom/`` and the
+    workspace's other files before and after it."""
+    config = config_from_dict(TINY_HEADROOM)
+    ws = Workspace(tmp_path_factory.mktemp("headroom"))
+    run_pipeline(config, ws, context=TEST_CONTEXT)
+    before = _files(ws.root, "headroom")
+    result = run_headroom(ws, context=TEST_CONTEXT)
+    return ws, config, result, before, _files(ws.root, "headroom")
 
 
 def _count(labels: np.ndarray, predicted: np.ndarray, classes: int, a: float) -> np.ndarray:
