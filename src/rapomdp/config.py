@@ -158,6 +158,10 @@ class TrainConfig(Section):
         0.1, ge=0, lt=1, description="training views held out per model for validation"
     )
     device: Literal["auto", "cpu", "cuda"] = "auto"
+    seed: int | None = Field(
+        None, ge=0, lt=2**32, description="the classifier's own seed (weights, batch order, "
+        "validation split, the crossfit folds' training); null: the run's seed. A study varies "
+        "it alone with --vary train")
     preprocess: PreprocessConfig = PreprocessConfig()
     augment: AugmentConfig = AugmentConfig()
 
@@ -464,6 +468,11 @@ class Config(Section):
                                  f"({self.dataset.radius_m}): the camera would be inside the "
                                  "object's bounding sphere")
         return self
+
+    @property
+    def train_seed(self) -> int:
+        """The classifier's seed: ``train.seed``, or the run's seed when that is null."""
+        return self.seed if self.train.seed is None else self.train.seed
 
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records)."""

@@ -35,7 +35,7 @@ from rapomdp.recognition.stage import (
 )
 from rapomdp.recognition.vptree_stage import VPTREE_SECTIONS, run_vptree_stage
 from rapomdp.robot.stage import run_robot_stage
-from rapomdp.workspace import Stage, StageError, StageResult, Workspace
+from rapomdp.workspace import Stage, StageError, StageResult, Workspace, stage_key
 
 STAGES: list[Stage] = [
     Stage(
@@ -152,6 +152,17 @@ def stages_up_to(name: str) -> list[Stage]:
     return [stage for stage in STAGES if stage.name in needed]
 
 
+def planned_keys(config: Config, stages: Sequence[Stage] = STAGES) -> dict[str, str]:
+    """Every stage's key as a run of ``config`` records it, computed without running: two
+    configurations share exactly the stages whose planned keys are equal."""
+    keys: dict[str, str] = {}
+    for stage in stages:
+        external = stage.fingerprint(config) if stage.fingerprint else None
+        keys[stage.name] = stage_key(stage, config, {n: keys[n] for n in stage.inputs},
+                                     external)
+    return keys
+
+
 def run_pipeline(
     config: Config,
     workspace: Workspace,
@@ -159,8 +170,10 @@ def run_pipeline(
     force: Iterable[str] = (),
     on_result: Callable[[StageResult], None] | None = None,
     context: RunContext = RunContext(),
+    share_from: Sequence[Workspace] = (),
 ) -> list[StageResult]:
-    """Run every stage (or those ``until`` needs) in order, skipping current ones."""
+    """Run every stage (or those ``until`` needs) in order, skipping current ones; a stage that
+    a workspace of ``share_from`` already made with the same key is taken from it instead."""
     force = set(force)
     unknown = force - set(STAGE_NAMES)
     if unknown:
@@ -169,7 +182,13 @@ def run_pipeline(
     results = []
     with workspace.locked():
         for stage in stages:
-            result = workspace.run(stage, config, force=stage.name in force, context=context)
+            shared = None
+            if stage.name not in force and not workspace.is_current(stage, config):
+                shared = next((r for source in share_from
+                               if (r := workspace.adopt(stage, config, source)) is not None),
+                              None)
+            result = shared or workspace.run(stage, config, force=stage.name in force,
+                                             context=context)
             results.append(result)
             if on_result is not None:
                 on_result(result)

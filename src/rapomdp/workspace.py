@@ -166,13 +166,32 @@ class Stage:
     description: str = ""
 
 
+def stage_key(stage: Stage, config: Config, upstream: Mapping[str, str],
+              external: str | None) -> str:
+    """The cache key of ``stage``: its name and version, the configuration sections it reads,
+    its inputs' keys (``upstream``) and its external fingerprint."""
+    return stable_hash(
+        {
+            "stage": stage.name,
+            "version": stage.version,
+            "config": {s: config.section(s) for s in stage.sections},
+            "inputs": dict(upstream),
+            "external": external,
+        }
+    )
+
+
 @dataclass
 class StageResult:
+    """What running a stage did: ``cached`` (nothing to do), or done in ``seconds``;
+    ``shared_from``: the workspace whose identical artefacts it took instead of running."""
+
     name: str
     key: str
     cached: bool
     seconds: float
     files: list[str] = field(default_factory=list)
+    shared_from: str | None = None
 
 
 class Workspace:
@@ -332,16 +351,7 @@ class Workspace:
                 raise StageError(f"stage '{stage.name}' needs stage '{name}', which has not run")
             upstream[name] = stages[name]["key"]
         external = stage.fingerprint(config) if stage.fingerprint else None
-        key = stable_hash(
-            {
-                "stage": stage.name,
-                "version": stage.version,
-                "config": {s: config.section(s) for s in stage.sections},
-                "inputs": upstream,
-                "external": external,
-            }
-        )
-        return key, upstream, external
+        return stage_key(stage, config, upstream, external), upstream, external
 
     def key_of(self, stage: Stage, config: Config) -> str:
         return self._key_parts(stage, config)[0]
@@ -440,6 +450,45 @@ class Workspace:
         self.record_config(config)
         return StageResult(stage.name, key, False, seconds, files)
 
+    def adopt(self, stage: Stage, config: Config, source: Workspace) -> StageResult | None:
+        """Take ``stage``'s finished artefacts from ``source`` when they are exactly what this
+        workspace would make (the same key), instead of running it; None when they are not.
+
+        The files are hard links (a copy across file systems): a stage's artefacts are only
+        ever replaced whole, never edited, so neither workspace can change the other's. The
+        record keeps the source's key and notes ``shared_from``; its seconds count 0 here.
+        """
+        if source.root.resolve() == self.root.resolve():
+            return None
+        try:
+            key = self.key_of(stage, config)
+            record = source.manifest()["stages"].get(stage.name)
+        except (StageError, ArtefactError):
+            return None
+        folder = source.stage_dir(stage.name)
+        if record is None or record.get("key") != key or not folder.is_dir():
+            return None
+        tmp = self.root / f".{stage.name}.tmp-{os.getpid()}"
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            if tmp.exists():
+                shutil.rmtree(tmp)
+            shutil.copytree(folder, tmp, copy_function=_link_or_copy)
+            shared = {**record, "seconds": 0.0, "shared_from": str(source.root),
+                      "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+            write_json_atomic(tmp / STAGE_RECORD, shared)  # a new file: the link is broken
+            self._swap_in(tmp, self.stage_dir(stage.name))
+        except OSError as exc:
+            raise ArtefactError(describe_os_error(exc)) from None
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        manifest = self.manifest()
+        manifest["stages"][stage.name] = shared
+        write_json_atomic(self.manifest_path, manifest)
+        self.record_config(config)
+        return StageResult(stage.name, key, True, 0.0, list(record.get("files", [])),
+                           shared_from=str(source.root))
+
     @staticmethod
     def _swap_in(new: Path, target: Path) -> None:
         """Replace ``target`` by ``new``: two renames, undone if the second fails."""
@@ -460,6 +509,14 @@ class Workspace:
             ) from None
         if old.exists():
             shutil.rmtree(old, ignore_errors=True)
+
+
+def _link_or_copy(source: str, target: str) -> None:
+    """A hard link of ``source`` at ``target``, or a copy where links cannot be made."""
+    try:
+        os.link(source, target)
+    except OSError:
+        shutil.copy2(source, target)
 
 
 def _flatten(value: Any, prefix: str) -> dict[str, Any]:

@@ -114,7 +114,7 @@ def crossfit_outcomes(config: Config, views: TrainingViews, device: object,
         trained_on.append(keys[seen])
         classifier, _ = train_classifier(
             data.subset(inside), data.subset(np.zeros(len(data), dtype=bool)), dataset.classes,
-            train_cfg, views.intrinsics.fx, views.intrinsics.fy, config.seed + 1 + f, device,
+            train_cfg, views.intrinsics.fx, views.intrinsics.fy, config.train_seed + 1 + f, device,
             config.render.noise)
         for i in np.flatnonzero(fold == f):
             predicted[i] = classifier.predict(sensed_at_xrho(models[i])).argmax(axis=1)

@@ -133,10 +133,11 @@ def trajectories(table: EpisodeTable, methods: Sequence[str], class_name: str,
         return save_png(fig, path)
 
 
-def tradeoff(points: Sequence[TradeoffPoint], path: Path) -> Path:
+def tradeoff(points: Sequence[TradeoffPoint], path: Path,
+             ylabel: str = "accuracy (95 % CI)", title: str = "Accuracy against energy") -> Path:
     """Accuracy against mean movement energy: one curve per method over its settings (POMDPs:
     the wrong-declaration cost λ; Random: its stop belief), Static one point; Table 1's
-    settings ringed."""
+    settings ringed; the error bars are what ``ylabel`` says (the points' low and high)."""
     with style():
         fig = new_figure(7.0, 4.8)
         ax = fig.subplots()
@@ -157,9 +158,8 @@ def tradeoff(points: Sequence[TradeoffPoint], path: Path) -> Path:
                 if p.parameter != "none":
                     ax.annotate(f"{p.value:g}", (x, y), textcoords="offset points",
                                 xytext=(5, -10), fontsize=9, color=colour)
-        ax.set(xlabel="mean movement energy per episode (m)", ylabel="accuracy (95 % CI)",
-               title="Accuracy against energy (labels: λ in m; Random: stop belief; "
-                     "ring: Table 1)")
+        ax.set(xlabel="mean movement energy per episode (m)", ylabel=ylabel,
+               title=f"{title} (labels: λ in m; Random: stop belief; ring: Table 1)")
         ax.grid(alpha=0.3)
         ax.legend(loc="lower right")
         return save_png(fig, path)

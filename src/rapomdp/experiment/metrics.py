@@ -143,13 +143,13 @@ def cluster_bootstrap_difference(per_model_sum: np.ndarray, per_model_pairs: np.
     return estimate, float(low), float(high)
 
 
-def paired_accuracy_difference(table: EpisodeTable, method: str, reference: str,
-                               resamples: int = 10_000, seed: int = 0) -> PairedDifference:
-    """``method``'s accuracy minus ``reference``'s over their common (test model, start) pairs.
+def paired_model_sums(table: EpisodeTable, method: str, reference: str
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each test model's summed paired accuracy difference ``method`` − ``reference`` and its
+    number of (model, start) pairs: ``(models, sums, pairs)``, models sorted.
 
     Both methods must have run from exactly the same pairs (the evaluation guarantees it; a
-    table that breaks it is an error). The interval resamples test models, keeping each model's
-    episodes together.
+    table that breaks it is an error).
     """
     keys = {}
     for key in (method, reference):
@@ -169,8 +169,17 @@ def paired_accuracy_difference(table: EpisodeTable, method: str, reference: str,
     models, cluster = np.unique(table.model[rows_m], return_inverse=True)
     sums = np.bincount(cluster, weights=diff, minlength=models.size)
     sizes = np.bincount(cluster, minlength=models.size).astype(np.float64)
+    return models, sums, sizes
+
+
+def paired_accuracy_difference(table: EpisodeTable, method: str, reference: str,
+                               resamples: int = 10_000, seed: int = 0) -> PairedDifference:
+    """``method``'s accuracy minus ``reference``'s over their common (test model, start) pairs
+    (:func:`paired_model_sums`); the interval resamples test models, keeping each model's
+    episodes together."""
+    models, sums, sizes = paired_model_sums(table, method, reference)
     estimate, low, high = cluster_bootstrap_difference(sums, sizes, resamples, seed)
-    return PairedDifference(method, reference, estimate, low, high, int(diff.size),
+    return PairedDifference(method, reference, estimate, low, high, int(sizes.sum()),
                             int(models.size))
 
 

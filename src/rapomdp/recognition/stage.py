@@ -103,13 +103,13 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
         raise StageError(f"{inputs.dataset}: training needs at least 2 classes, got {classes}")
     data = collect_views(views, "train")
     held = validation_mask(data, config.train.validation_fraction,
-                           class_seed(config.seed, "train/validation"))
+                           class_seed(config.train_seed, "train/validation"))
     device = configure_torch(config.train.device, context.threads)
     start = time.perf_counter()
     classifier, history = train_classifier(
         data.subset(~held), data.subset(held), classes, config.train,
-        views.intrinsics.fx, views.intrinsics.fy, config.seed, device, config.render.noise,
-        progress=context.progress,
+        views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device,
+        config.render.noise, progress=context.progress,
     )
     wall_s = time.perf_counter() - start
     train_images = int((~held).sum()) * config.train.epochs

@@ -1,0 +1,117 @@
+"""Run a study: each (configuration, seed) is a normal cached, resumable workspace
+``S/<configuration>/seed-<seed>``; a stage whose key another seed's workspace already holds is
+taken from it (hard links) instead of being run again.
+
+Seeds are independent tasks: with a Dask scheduler they run as one task each, after the stages
+they share have been made once; without one they run one after the other, each stage using the
+local worker pool as a plain run does. A killed study resumes where it stopped: finished seeds
+are cached whole, and the seed it was in resumes at its first unfinished stage.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from rapomdp.config import Config, config_from_dict
+from rapomdp.context import RunContext
+from rapomdp.parallel import run_tasks
+from rapomdp.pipeline import STAGE_NAMES, planned_keys, run_pipeline
+from rapomdp.study.spec import StudyDataset, StudySpec, write_study
+from rapomdp.workspace import StageResult, Workspace
+
+
+@dataclass(frozen=True)
+class SeedRun:
+    """One seed of one configuration: its workspace and what each stage did."""
+
+    dataset: str
+    seed: int
+    workspace: Path
+    results: list[StageResult]
+
+    @property
+    def seconds(self) -> float:
+        return sum(r.seconds for r in self.results)
+
+
+def seed_workspace(root: str | Path, dataset: str, seed: int) -> Workspace:
+    return Workspace(Path(root) / dataset / f"seed-{seed}")
+
+
+def shared_stages(spec: StudySpec, dataset: StudyDataset) -> dict[int, dict[str, int]]:
+    """For each seed, the stages it shares and the first seed that makes each (equal planned
+    keys; :func:`rapomdp.pipeline.planned_keys`)."""
+    first: dict[str, int] = {}
+    shared: dict[int, dict[str, int]] = {}
+    for seed in spec.seeds:
+        keys = planned_keys(spec.config(dataset, seed))
+        shared[seed] = {}
+        for name, key in keys.items():
+            if key in first:
+                shared[seed][name] = first[key]
+            else:
+                first[key] = seed
+    return shared
+
+
+def _run_seed(config: Config, root: Path, dataset: str, seed: int, sources: Sequence[int],
+              context: RunContext, until: str | None = None,
+              on_result: Callable[[StageResult], None] | None = None) -> SeedRun:
+    ws = seed_workspace(root, dataset, seed)
+    share = [seed_workspace(root, dataset, s) for s in sources]
+    results = run_pipeline(config, ws, until=until, on_result=on_result, context=context,
+                           share_from=share)
+    return SeedRun(dataset, seed, ws.root, results)
+
+
+def _seed_task(config_json: str, root: str, dataset: str, seed: int, sources: list[int],
+               context: RunContext) -> SeedRun:
+    """One seed as a task of a Dask worker (one thread, no bars of its own)."""
+    config = config_from_dict(json.loads(config_json))
+    return _run_seed(config, Path(root), dataset, seed, sources, context.in_worker())
+
+
+def run_study(spec: StudySpec, root: str | Path, context: RunContext = RunContext(),
+              on_result: Callable[[str, int, StageResult], None] | None = None
+              ) -> list[SeedRun]:
+    """Every (configuration, seed) of ``spec`` under ``root``, in order; ``spec`` is recorded
+    as the study's (``S/study.yaml``) before anything runs."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    write_study(root, spec)
+    plan = {d.name: shared_stages(spec, d) for d in spec.datasets}
+    sources = {name: sorted({s for by in shared.values() for s in by.values()})
+               for name, shared in plan.items()}
+
+    def report(dataset: str, seed: int) -> Callable[[StageResult], None] | None:
+        if on_result is None:
+            return None
+        return lambda result: on_result(dataset, seed, result)
+
+    if context.scheduler is None:
+        return [_run_seed(spec.config(d, seed), root, d.name, seed, sources[d.name], context,
+                          on_result=report(d.name, seed))
+                for d in spec.datasets for seed in spec.seeds]
+    # On a cluster: the shared stages once, here, then every seed as one task.
+    for d in spec.datasets:
+        makers: dict[int, set[str]] = {}
+        for by in plan[d.name].values():
+            for name, maker in by.items():
+                makers.setdefault(maker, set()).add(name)
+        for maker, names in makers.items():
+            for name in sorted(names, key=STAGE_NAMES.index):
+                _run_seed(spec.config(d, maker), root, d.name, maker, (), context, until=name,
+                          on_result=report(d.name, maker))
+    tasks = [(spec.config(d, seed).model_dump_json(), str(root), d.name, seed, sources[d.name],
+              replace(context, progress=False))
+             for d in spec.datasets for seed in spec.seeds]
+    runs = run_tasks(_seed_task, tasks, context.worker_count, "study: seeds", context.progress,
+                     context.scheduler)
+    if on_result is not None:
+        for run in runs:
+            for result in run.results:
+                on_result(run.dataset, run.seed, result)
+    return runs

@@ -1,0 +1,98 @@
+"""The study's report and README block, from the tiny study's seed workspaces."""
+
+from __future__ import annotations
+
+import csv
+import io
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from rapomdp.cli import app
+from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.io import save_npz
+from rapomdp.study.pooled import load_seed_results, pooled_table
+from rapomdp.study.report import (
+    BEGIN,
+    END,
+    study_markdown,
+    update_study_readme,
+    write_study_report,
+)
+from tests.study.conftest import TinyStudy
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(path.read_text())))
+
+
+def test_report_pools_each_seed_and_pairs_against_ra(tiny_study: TinyStudy) -> None:
+    written = write_study_report(tiny_study.spec, tiny_study.root, resamples=500)
+    out = written.html.parent
+    assert written.markdown == out / "report.md"
+    assert written.stories["tiny"].startswith("On 'tiny', over 2 seeds (0, 1; the same split")
+    assert {p.name for p in out.iterdir()} >= {
+        "report.html", "report.md", "table1_pooled.csv", "table1_seeds.csv",
+        "tradeoff_pooled.csv", "tradeoff_tiny.png"}
+    results = load_seed_results(tiny_study.spec, tiny_study.root)["tiny"]
+    pooled = {r["method"]: r for r in _rows(out / "table1_pooled.csv")}
+    for method, row in pooled.items():
+        per_seed = [r.table.correct[r.table.method == method].mean() for r in results]
+        assert float(row["accuracy"]) == pytest.approx(np.mean(per_seed), abs=1e-6)
+        assert int(row["seeds"]) == 2
+        if method == "ra":
+            assert row["difference_vs_ra"] == ""
+        else:
+            low, mid, high = (float(row[k]) for k in ("ci95_low", "difference_vs_ra",
+                                                      "ci95_high"))
+            assert low <= mid <= high
+            ra = [r.table.correct[r.table.method == "ra"].mean() for r in results]
+            assert mid == pytest.approx(np.mean(per_seed) - np.mean(ra), abs=1e-6)
+    seeds = _rows(out / "table1_seeds.csv")
+    assert len(seeds) == 2 * len(pooled)
+    assert {r["seed"] for r in seeds} == {"0", "1"}
+    text = (out / "report.md").read_text()
+    assert "2 seeds (0, 1), vary: train" in text and "### Seed 1" in text
+    assert "Stage time of the study's 2 seeds" in text
+
+
+def test_vary_train_pairs_crossed_over_the_same_test_models(tiny_study: TinyStudy) -> None:
+    rows = pooled_table(load_seed_results(tiny_study.spec, tiny_study.root)["tiny"], 200)
+    assert all(r.difference.crossed for r in rows if r.difference is not None)
+
+
+def test_the_readme_block_follows_the_study(tiny_study: TinyStudy, tmp_path: Path) -> None:
+    root = tmp_path / "study"
+    shutil.copytree(tiny_study.root, root)
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# x\n\n{BEGIN}\nold\n{END}\n\nafter\n")
+    update_study_readme(tiny_study.spec, root, readme)
+    first = readme.read_text()
+    assert "old" not in first and first.endswith(f"{END}\n\nafter\n")
+    assert "2 seeds (0, 1), vary train" in first and "'tiny'" in first
+    # another outcome in seed 1: every RA-POMDP episode right
+    path = root / "tiny" / "seed-1" / "evaluate" / EPISODES_FILE
+    table = EpisodeTable.load(path)
+    table.correct = np.where(table.method == "ra", True, table.correct)
+    path.unlink()  # a hard link shared with nothing, but replace rather than write through
+    save_npz(path, **table.arrays())
+    update_study_readme(tiny_study.spec, root, readme)
+    second = readme.read_text()
+    assert second != first
+    assert second.split(BEGIN)[1].split(END)[0].strip() == study_markdown(
+        tiny_study.spec, root).strip()
+
+
+def test_cli_reports_and_refuses_a_changed_study(tiny_study: TinyStudy) -> None:
+    runner = CliRunner()
+    done = runner.invoke(app, ["study", "-s", str(tiny_study.root), "--report-only"])
+    assert done.exit_code == 0, done.output
+    assert str(tiny_study.root / "report" / "report.html") in done.output
+    assert "On 'tiny', over 2 seeds" in done.output
+    changed = runner.invoke(app, ["study", "-s", str(tiny_study.root), "--seeds", "3",
+                                  "--report-only"])
+    assert changed.exit_code == 2
+    assert "seeds [0, 1]" in changed.output and "--reconfigure" in changed.output

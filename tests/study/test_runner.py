@@ -1,0 +1,80 @@
+"""Seeds share exactly the stages whose keys match; a killed study resumes where it stopped."""
+
+from __future__ import annotations
+
+from rapomdp.pipeline import STAGE_NAMES, planned_keys
+from rapomdp.study.runner import seed_workspace, shared_stages
+from rapomdp.study.spec import StudyDataset, StudySpec
+from rapomdp.workspace import Workspace
+from tests.study.conftest import TINY_STUDY, TinyStudy
+
+#: What a classifier's seed does not reach: the meshes, renders, the robot, the VP-tree.
+UNTRAINED = {"dataset", "render", "robot", "vptree"}
+
+
+def test_vary_train_shares_the_stages_the_classifier_does_not_reach() -> None:
+    spec = StudySpec((StudyDataset("tiny", TINY_STUDY),), seeds=(0, 1, 2), vary="train")
+    dataset = spec.datasets[0]
+    keys = {s: planned_keys(spec.config(dataset, s)) for s in spec.seeds}
+    equal = {name for name in STAGE_NAMES if keys[0][name] == keys[1][name] == keys[2][name]}
+    assert equal == UNTRAINED
+    assert shared_stages(spec, dataset) == {0: {}, 1: dict.fromkeys(sorted(UNTRAINED), 0),
+                                            2: dict.fromkeys(sorted(UNTRAINED), 0)}
+
+
+def test_vary_all_shares_nothing() -> None:
+    spec = StudySpec((StudyDataset("tiny", TINY_STUDY),), seeds=(0, 1), vary="all")
+    assert shared_stages(spec, spec.datasets[0]) == {0: {}, 1: {}}
+    assert spec.config(spec.datasets[0], 1).seed == 1
+    assert spec.config(spec.datasets[0], 1).train.seed is None
+
+
+def test_seeds_hold_shared_stages_under_the_same_keys(tiny_study: TinyStudy) -> None:
+    first = Workspace(tiny_study.root / "tiny" / "seed-0").manifest()["stages"]
+    second = Workspace(tiny_study.root / "tiny" / "seed-1").manifest()["stages"]
+    assert set(first) == set(second) == set(STAGE_NAMES)
+    for name in second:
+        same = first[name]["key"] == second[name]["key"]
+        assert same == (name in UNTRAINED), name
+        assert bool(second[name].get("shared_from")) == (name in UNTRAINED), name
+        assert not first[name].get("shared_from")
+    for name in UNTRAINED:  # hard links: the very same files
+        ws0 = seed_workspace(tiny_study.root, "tiny", 0).stage_dir(name)
+        ws1 = seed_workspace(tiny_study.root, "tiny", 1).stage_dir(name)
+        some = next(p for p in sorted(ws0.rglob("*")) if p.is_file() and p.name != "stage.json")
+        assert (ws1 / some.relative_to(ws0)).samefile(some)
+    # and the trained classifiers differ
+    assert first["train"]["config"]["train"]["seed"] == 0
+    assert second["train"]["config"]["train"]["seed"] == 1
+
+
+def test_a_killed_study_resumes_without_redoing_finished_work(tiny_study: TinyStudy) -> None:
+    assert "solve" not in tiny_study.interrupted and "observe" in tiny_study.interrupted
+    by_seed = {run.seed: run for run in tiny_study.resumed}
+    assert all(r.cached for r in by_seed[0].results)  # the finished seed: nothing redone
+    ran = {r.name for r in by_seed[1].results if not r.cached}
+    assert ran == {"solve", "evaluate", "report"}
+    assert tiny_study.spec == StudySpec.from_yaml(
+        (tiny_study.root / "study.yaml").read_text())
+
+
+def test_on_a_dask_scheduler_each_seed_is_one_task(tiny_study: TinyStudy) -> None:
+    """The finished tiny study through a local Dask cluster: one task per seed, each seed's
+    stages as the local run recorded them (all current, so nothing is redone)."""
+    import dataclasses
+
+    import distributed
+
+    from rapomdp.study.runner import run_study
+    from tests.conftest import TEST_CONTEXT
+
+    before = {s: Workspace(tiny_study.root / "tiny" / f"seed-{s}").manifest() for s in (0, 1)}
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        context = dataclasses.replace(TEST_CONTEXT, scheduler=cluster.scheduler_address)
+        runs = run_study(tiny_study.spec, tiny_study.root, context)
+    assert [(r.dataset, r.seed) for r in runs] == [("tiny", 0), ("tiny", 1)]
+    assert all(result.cached for run in runs for result in run.results)
+    assert [r.name for r in runs[1].results] == STAGE_NAMES
+    for s in (0, 1):
+        assert Workspace(tiny_study.root / "tiny" / f"seed-{s}").manifest() == before[s]
