@@ -185,7 +185,9 @@ def test_oracle_p_correct_rows_keep_the_learned_wrong_labels(headroom_run) -> No
     for oracle, mixed in (("oracle_in_sample", "oracle_correct_in_sample"),
                           ("oracle_cross_object_h0", "oracle_correct_cross_object_h0"),
                           ("oracle_cross_object_h1", "oracle_correct_cross_object_h1")):
-        p = result.models[mixed]
+        # as evaluated: the learned temperature on top (first view too, under "temperature")
+        np.testing.assert_array_equal(result.first_view[mixed], result.models[mixed])
+        p = temper(result.models[mixed], 1.0 / result.learned_temperature)
         np.testing.assert_allclose(p.sum(axis=2), 1.0, atol=1e-12)
         np.testing.assert_allclose(p[:, idx, idx], result.models[oracle][:, idx, idx],
                                    rtol=1e-12)

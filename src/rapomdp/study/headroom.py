@@ -13,14 +13,15 @@ themselves, so it is an upper bound and never feeds a choice:
 - ``oracle_cross_object``: the same count on the other half of each class's test models only
   (:func:`cross_object_halves`): an object's episodes never use a model that counted it;
 - ``oracle_correct_in_sample`` / ``oracle_correct_cross_object``: the learned single-view rows
-  with their P(correct) replaced by the oracle's (:func:`with_correct_probability`);
+  with their P(correct) replaced by the oracle's (:func:`with_correct_probability`), then
+  tempered by the learned temperature as evaluated (only P(correct) differs from ``learned``);
 - ``oracle_temperature``: the learned single-view rows tempered by the belief temperature
   fitted on the test models' labels (the observe stage's rule: :func:`oracle_temperature`);
   ``oracle_in_sample_temperature``: the in-sample oracle tempered alike (estimation and
   belief both from the test models).
 
-The counted models and the oracle-P(correct) rows are used as counted (t = 1, naive Bayes);
-only the ``*temperature`` rows temper.
+The counted models (``oracle_in_sample``, ``oracle_cross_object``) are used as counted (t = 1,
+naive Bayes); the ``*temperature`` rows temper by a temperature fitted on the test models.
 
 The labels are the closed loop's own: every test model rendered at every viewpoint of X_rho and
 classified one image at a time (as an episode looks), and the episodes read them back. Writes
@@ -78,9 +79,9 @@ ROWS: dict[str, tuple[str, bool]] = {
     "oracle_cross_object": ("(c) cross-object oracle: counted on the class's other test "
                             "objects, t = 1", True),
     "oracle_correct_in_sample": ("(d) learned wrong labels, P(correct) of the in-sample "
-                                 "oracle, t = 1", True),
+                                 "oracle, learned t", True),
     "oracle_correct_cross_object": ("(d) learned wrong labels, P(correct) of the cross-object "
-                                    "oracle, t = 1", True),
+                                    "oracle, learned t", True),
     "oracle_temperature": ("(e) learned model, belief temperature fitted on the test "
                            "models", True),
     "oracle_in_sample_temperature": ("(e) in-sample oracle, belief temperature fitted on the "
@@ -226,21 +227,27 @@ def row_models(rows: Sequence[str], files: Sequence[str], labels: np.ndarray,
     out = RowModels({"learned": learned}, {"learned": learned_first}, {"learned": ()},
                     {"learned": dict.fromkeys(files, "learned")}, {})
 
+    after_first = correction == "after_first"
+
     def add(key: str, model: np.ndarray, on: np.ndarray, first_view: np.ndarray | None = None
             ) -> None:
         out.models[key] = model
         out.first_view[key] = model if first_view is None else first_view
         out.counted_on[key] = tuple(f for f, used in zip(files, on, strict=True) if used)
 
+    def add_oracle_correct(key: str, oracle: np.ndarray, on: np.ndarray) -> None:
+        # the learned single-view rows with the oracle's P(correct), then the learned belief
+        # correction as evaluated (its temperature; the first view in full with after_first)
+        rows_of = with_correct_probability(single, np.diagonal(oracle, axis1=1, axis2=2))
+        tempered = temper(rows_of, learned_temperature)
+        add(key, tempered, on, rows_of if after_first else tempered)
+
     everything = np.ones(len(files), dtype=bool)
     in_sample = viewpoint_confusion(labels, predicted, classes, pseudo_count)
     if "oracle_in_sample" in rows:
         add("oracle_in_sample", in_sample, everything)
     if "oracle_correct_in_sample" in rows:
-        add("oracle_correct_in_sample",
-            with_correct_probability(single, np.diagonal(in_sample, axis1=1, axis2=2)),
-            everything)
-    after_first = correction == "after_first"
+        add_oracle_correct("oracle_correct_in_sample", in_sample, everything)
     for row, rows_of in (("oracle_temperature", single),
                          ("oracle_in_sample_temperature", in_sample)):
         if row in rows:
@@ -258,8 +265,7 @@ def row_models(rows: Sequence[str], files: Sequence[str], labels: np.ndarray,
             if "oracle_cross_object" in rows:
                 add(f"oracle_cross_object_h{h}", half, on)
             if "oracle_correct_cross_object" in rows:
-                add(f"oracle_correct_cross_object_h{h}",
-                    with_correct_probability(single, np.diagonal(half, axis1=1, axis2=2)), on)
+                add_oracle_correct(f"oracle_correct_cross_object_h{h}", half, on)
         for row in CROSS_ROWS:  # an object's episodes use the model of the other half
             if row in rows:
                 out.assignment[row] = {f: f"{row}_h{1 - h}"
