@@ -173,6 +173,10 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
         run_context = context or RunContext()
         if run_context.scheduler is None and config.parallel.scheduler is not None:
             run_context = replace(run_context, scheduler=config.parallel.scheduler)
+        if run_context.scheduler is not None:  # before any stage runs
+            from rapomdp.parallel import check_scheduler
+
+            check_scheduler(run_context.scheduler)
         ws = Workspace(workspace)
         run_pipeline(config, ws, until=until, force=force,
                      on_result=lambda result: _report(result, ws), context=run_context)

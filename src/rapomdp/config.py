@@ -432,11 +432,15 @@ class EvaluateConfig(Section):
         return values
 
 
+#: A ``dask.distributed`` scheduler's address (``inproc://``: a LocalCluster of this process).
+SCHEDULER_PATTERN = r"^(tcp|tls|ws|wss|inproc|ucx)://\S+$"
+
+
 class ParallelConfig(Section):
     """Where the stages' independent tasks run; in no stage's key (results do not depend on it)."""
 
     scheduler: str | None = Field(
-        None, pattern=r"^(tcp|tls|ws|wss|inproc|ucx)://\S+$",
+        None, pattern=SCHEDULER_PATTERN,
         description="a dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (null: the local "
         "process pool); the workers must see the workspace at the same path")
 
