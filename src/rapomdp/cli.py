@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from collections.abc import Callable
@@ -240,6 +241,10 @@ def dataset(
     _run(config, workspace, "dataset", ["dataset"] if force else [], None, None, reconfigure)
 
 
+#: The tile widths `dataset preview --width` accepts, in pixels.
+MIN_TILE_PX, MAX_TILE_PX = 8, 2048
+
+
 @dataset_app.command("preview")
 def dataset_preview(
     workspace: WorkspaceOption,
@@ -250,7 +255,10 @@ def dataset_preview(
     elevation_deg: Annotated[float, typer.Option(help="Camera elevation above the floor.")] = 30.0,
 ) -> None:
     """Write a labelled contact sheet: one depth render per model of the workspace's dataset."""
-
+    if not MIN_TILE_PX <= width <= MAX_TILE_PX:
+        raise _fail(f"--width must be {MIN_TILE_PX} to {MAX_TILE_PX} pixels, got {width}")
+    if not (math.isfinite(elevation_deg) and -90.0 <= elevation_deg <= 90.0):
+        raise _fail(f"--elevation-deg must be a finite angle in [-90, 90], got {elevation_deg}")
     _require_existing(workspace)
 
     def action() -> Path:
@@ -289,6 +297,9 @@ def _context(threads: int | None = None, workers: int | None = None,
              scheduler: str | None = None) -> RunContext:
     """The run context of the CLI's ``--threads``, ``--workers`` and ``--scheduler`` (progress
     bars on; without ``--scheduler``, the configuration's ``parallel.scheduler`` applies)."""
+    for name, value in (("workers", workers), ("threads", threads)):
+        if value is not None and value < 1:
+            raise _fail(f"--{name} must be at least 1, got {value}")
     return RunContext(workers=workers, threads=threads, scheduler=scheduler)
 
 
