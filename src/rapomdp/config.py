@@ -553,6 +553,35 @@ class _BoundedLoader(yaml.SafeLoader):
                                      "values out")
         return super().compose_node(parent, index)
 
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        """A mapping whose keys are unique: a key given twice (a second ``train:`` section,
+        ``seed: 1`` then ``seed: 2``) is an error naming it and both lines, not the last one
+        silently winning. Keys merged in by ``<<: *alias`` may still be overridden."""
+        first: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=True)
+            try:
+                line = first.get(key)
+            except TypeError:  # an unhashable key: the constructor names it
+                continue
+            if line is not None:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"the key {str(key)[:60]!r} is given twice (lines {line + 1} "
+                    f"and {key_node.start_mark.line + 1})", key_node.start_mark)
+            first[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep)
+
+    def construct_unordered_set(self, node: yaml.Node) -> None:
+        """``!!set``: refused, its order would follow the process's hash seed."""
+        raise yaml.constructor.ConstructorError(
+            None, None, "a !!set has no order (it would follow the process's hash seed); "
+            "write a list, e.g. [cup, mug]", node.start_mark)
+
+
+_BoundedLoader.add_constructor("tag:yaml.org,2002:set", _BoundedLoader.construct_unordered_set)
+
 
 def _expanded_size(node: yaml.Node, memo: dict[int, int]) -> int:
     """Nodes in ``node`` with every alias expanded (memoised: linear in the document)."""
