@@ -141,10 +141,14 @@ def _report(result: StageResult, workspace: Workspace | None = None) -> None:
     state = "cached" if result.cached else f"done in {result.seconds:.1f} s"
     console.print(f"[green]✓[/] {result.name:<10} {state}  ({len(result.files)} files)")
     if result.name == "dataset" and not result.cached and workspace is not None:
-        from rapomdp.data.dataset import role_count_lines
+        from rapomdp.data.dataset import duplicate_line, role_count_lines
 
         for line in role_count_lines(workspace.stage_dir("dataset")):
             console.print(f"  {line}", highlight=False, soft_wrap=True)
+        duplicated = duplicate_line(workspace.stage_dir("dataset"))
+        if duplicated is not None:
+            console.print(f"[yellow]warning:[/] {escape(duplicated)}", highlight=False,
+                          soft_wrap=True)
 
 
 def _resolve(config_path: Path | None, workspace: Path, overrides: list[str] | None,

@@ -445,6 +445,15 @@ class ParallelConfig(Section):
         "process pool); the workers must see the workspace at the same path")
 
 
+class LimitsConfig(Section):
+    """Bounds on the files read from outside; in no stage's key (they refuse an input, never
+    change a result)."""
+
+    mesh_file_mb: float = Field(
+        256.0, gt=0, description="the largest mesh file the dataset stage reads (loading takes "
+        "about 8x its size in memory); a larger one is refused, named, before it is read")
+
+
 class Config(Section):
     """Everything a run needs; ``Config()`` is the embedded default."""
 
@@ -462,6 +471,7 @@ class Config(Section):
     solve: SolveConfig = SolveConfig()
     evaluate: EvaluateConfig = EvaluateConfig()
     parallel: ParallelConfig = ParallelConfig()
+    limits: LimitsConfig = LimitsConfig()
 
     @model_validator(mode="after")
     def _cameras_outside_the_object(self) -> Config:
