@@ -646,6 +646,10 @@ def status(workspace: WorkspaceOption) -> None:
                       highlight=False)
 
 
+#: The exit status of a run stopped by Ctrl-C (128 + SIGINT), as typer gives it.
+INTERRUPTED = 130
+
+
 def main() -> None:
     """The console script: the app, then a quiet exit.
 
@@ -663,6 +667,10 @@ def main() -> None:
         else:
             sys.stderr.write(f"{exc.code}\n")
             code = 1
+    except KeyboardInterrupt:  # outside a command (typer handles it inside one)
+        code = INTERRUPTED
+    if code == INTERRUPTED:  # Ctrl-C: typer exits 130 with an empty line
+        sys.stderr.write("error: interrupted\n")
     if "roboticstoolbox" in sys.modules:
         sys.stdout.flush()
         sys.stderr.flush()
