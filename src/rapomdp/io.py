@@ -34,12 +34,19 @@ class ArtefactError(RuntimeError):
     """An artefact is missing, unreadable or not what the reader expects."""
 
 
+def _short_name(name: str, limit: int = 200) -> str:
+    """``name`` cut to at most ``limit`` bytes of UTF-8 (whole characters kept)."""
+    return name.encode("utf-8")[:limit].decode("utf-8", errors="ignore")
+
+
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; it replaces ``path`` only if the block succeeds."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    # the name cut so the temporary one fits the 255-byte limit of a file name
+    fd, tmp = tempfile.mkstemp(prefix=f".{_short_name(path.name)}.", suffix=".tmp",
+                               dir=path.parent)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -183,11 +190,17 @@ def save_npz(path: str | Path, compressed: bool = False, **arrays: np.ndarray) -
         if np.asarray(value).dtype == object:
             raise TypeError(f"array {name!r} has dtype object, which would need pickle")
     method = zipfile.ZIP_DEFLATED if compressed else zipfile.ZIP_STORED
-    with atomic_path(path) as tmp:
-        with zipfile.ZipFile(tmp, "w", compression=method, compresslevel=3) as archive:
-            for name, value in arrays.items():
-                with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
-                    np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+    try:
+        with atomic_path(path) as tmp:
+            with zipfile.ZipFile(tmp, "w", compression=method, compresslevel=3) as archive:
+                for name, value in arrays.items():
+                    with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                        np.lib.format.write_array(member, np.asanyarray(value),
+                                                  allow_pickle=False)
+    except OSError as exc:  # a write in the archive says no file (ENOSPC): name the target
+        if exc.filename is None:
+            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
+        raise
 
 
 def load_npz(path: str | Path) -> dict[str, np.ndarray]:
