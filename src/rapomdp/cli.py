@@ -590,6 +590,8 @@ def show_config(
     """Print the resolved configuration as YAML: the file's, else the workspace's, else the
     default, with any KEY=VALUE overrides, each section and key with a short comment and its
     unit; nothing is written."""
+    if workspace is not None and workspace.exists() and not workspace.is_dir():
+        raise _fail(f"workspace {workspace} is a file, not a folder")
 
     def action() -> Config:
         from rapomdp.config import apply_overrides, config_from_dict, read_config_data
