@@ -471,3 +471,6 @@ def worker_dies(root: Path) -> Outcome:
     except WorkerError as exc:
         return Outcome(2, str(exc))
     return Outcome(0, "no error")
+
+
+from tests.faults import cases_inputs  # noqa: E402, F401  (issue 28's cases, registered here)
