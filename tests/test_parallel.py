@@ -165,3 +165,20 @@ def test_a_service_that_is_not_a_scheduler_is_named_within_the_handshake_bound(
     finally:
         stop()  # type: ignore[operator]
     assert time.monotonic() - start < 6
+
+
+def blocked_signals(_: int) -> set[int]:
+    """The signals a worker holds blocked (a task of the test below)."""
+    import signal
+
+    return {int(s) for s in signal.pthread_sigmask(signal.SIG_BLOCK, [])}
+
+
+def test_workers_leave_ctrl_c_to_the_parent() -> None:
+    """A Ctrl-C reaches the whole process group: the workers hold SIGINT blocked, so only
+    the parent is interrupted (it stops them) and no worker prints a traceback."""
+    import signal
+
+    masks = run_tasks(blocked_signals, [(0,), (1,)], 2, "masks", progress=False)
+    assert all(int(signal.SIGINT) in mask for mask in masks)
+    assert int(signal.SIGINT) not in blocked_signals(0)  # the parent's block is lifted

@@ -117,6 +117,8 @@ def _guard(action: Callable[[], T]) -> T:
     """Run ``action``; a user error prints one clear message and exits with status 2."""
     try:
         return action()
+    except KeyboardInterrupt:  # first: the next clause imports, maybe a half-imported torch
+        raise
     except _user_errors() as exc:
         raise _fail(str(exc)) from None
     except OSError as exc:  # a read-only folder, a full disk: the file and the cause

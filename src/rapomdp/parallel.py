@@ -22,11 +22,13 @@ import asyncio
 import functools
 import os
 import re
+import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from multiprocessing import get_context
 from typing import Any, TypeVar
 
@@ -157,6 +159,21 @@ def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
     return [results[i] for i in range(len(tasks))]
 
 
+@contextmanager
+def _sigint_held() -> Iterator[None]:
+    """SIGINT held back (blocked, not lost) in this thread while it starts worker processes:
+    they inherit the block, so a Ctrl-C (sent to the whole process group) reaches only this
+    process, which stops them (no traceback of theirs); the held signal arrives at the end."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
     """Cancel what is queued and end the workers now (an interrupt must not wait for them)."""
     # taken before the shutdown, which drops the pool's table of processes
@@ -188,7 +205,9 @@ def run_tasks(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]], work
                                        initializer=_single_threaded_worker,
                                        initargs=(os.getpid(),))
             try:
-                futures = {pool.submit(function, *task): i for i, task in enumerate(tasks)}
+                with _sigint_held():  # the workers start on the first submissions
+                    futures = {pool.submit(function, *task): i
+                               for i, task in enumerate(tasks)}
                 for future in as_completed(futures):
                     results[futures[future]] = future.result()
                     bars.advance(bar)

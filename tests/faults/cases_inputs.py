@@ -8,6 +8,7 @@ from __future__ import annotations
 import errno
 import http.server
 import json
+import os
 import shutil
 import signal
 import socket
@@ -348,18 +349,19 @@ def pomdp_stderr(root: Path) -> Outcome:
     return Outcome(child.returncode, f"stdout empty; stderr: {lines[0]}")
 
 
-@case("Ctrl-C", "SIGINT while `rapomdp render` renders, as Ctrl-C sends it",
-      "exit 130; stderr ends: error: interrupted", succeeds=True)
+@case("Ctrl-C", "SIGINT to the process group (as Ctrl-C sends it) while `rapomdp render` "
+      "and its 2 workers render", "exit 130; stderr ends: error: interrupted", succeeds=True)
 def ctrl_c(root: Path) -> Outcome:
     ws = cached_workspace(root)
     before = snapshot(ws)
-    child = cli_process(["render", "-w", str(ws), "render.views=3000"],
+    child = cli_process(["render", "-w", str(ws), "--workers", "2", "render.views=3000"],
+                        start_new_session=True,
                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
-        wait_for(lambda: any(".render.tmp-" in p.name for p in ws.iterdir()), 120,
-                 "the render stage's temporary folder")
+        wait_for(lambda: any(".render.tmp-" in p.name and any(p.rglob("*.npz"))
+                             for p in ws.iterdir()), 120, "the workers' first images")
     finally:
-        child.send_signal(signal.SIGINT)
+        os.killpg(child.pid, signal.SIGINT)
         _, err = child.communicate(timeout=60)
     last = err.strip().splitlines()[-1]
     outcome = Outcome(0 if child.returncode == 130 else child.returncode,
