@@ -1,4 +1,5 @@
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -6,7 +7,14 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rapomdp.config import Config, ConfigError, config_from_dict, load_config, parse_yaml
+from rapomdp.config import (
+    Config,
+    ConfigError,
+    config_from_dict,
+    load_config,
+    parse_yaml,
+    read_config_data,
+)
 
 
 def test_default_has_the_papers_values() -> None:
@@ -212,3 +220,23 @@ def test_a_seed_is_accepted_exactly_within_32_bits(seed: int) -> None:
         assert not 0 <= seed < 2**32
         return
     assert 0 <= seed < 2**32
+
+
+@pytest.mark.parametrize(("text", "fragment"), [
+    ("seed: 1\ntrain: {epochs: 5}\nseed: 2\n", "line 3, column 1: the key 'seed' is given twice "
+                                                "(lines 1 and 3)"),
+    ("train:\n  epochs: 5\nrender: {views: 6}\ntrain:\n  epochs: 25\n",
+     "the key 'train' is given twice (lines 1 and 4)"),
+    ("train: {epochs: 5, epochs: 6}\n", "the key 'epochs' is given twice"),
+    ("dataset:\n  classes: !!set {cup, mug, bicycle}\n", "a !!set has no order")])
+def test_duplicate_keys_and_sets_are_refused_by_line(text: str, fragment: str,
+                                                    tmp_path: Path) -> None:
+    path = tmp_path / "c.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=re.escape(fragment)):
+        read_config_data(path)
+
+
+def test_a_merged_key_may_still_be_overridden() -> None:
+    data = parse_yaml("base: &b {epochs: 5, batch: 2}\ntrain:\n  <<: *b\n  epochs: 7\n", "c")
+    assert data["train"] == {"epochs": 7, "batch": 2}

@@ -135,3 +135,27 @@ def test_atomic_temporary_in_a_given_folder(tmp_path: Path) -> None:
     write_text_atomic(tmp_path / ("n" * 250), "long names fit the temporary's name")
     assert (tmp_path / "f.txt").read_text() == "x" * 10
     assert list((tmp_path / "scratch").iterdir()) == []
+
+
+def test_a_file_name_of_250_bytes_is_written_atomically(tmp_path: Path) -> None:
+    from rapomdp.io import write_text_atomic
+
+    save_npz(tmp_path / ("m" * 246 + ".npz"), a=np.zeros(3))
+    write_text_atomic(tmp_path / ("é" * 127), "x")  # 254 bytes of UTF-8
+    assert sorted(len(p.name.encode()) for p in tmp_path.iterdir()) == [250, 254]
+
+
+def test_a_full_disk_inside_an_npz_names_the_file(tmp_path: Path, monkeypatch) -> None:
+    import errno
+    import zipfile
+
+    from rapomdp.io import describe_os_error
+
+    def full(self, data):  # as the kernel's write(2) fails: no file name on the error
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(zipfile._ZipWriteFile, "write", full)
+    with pytest.raises(OSError) as info:
+        save_npz(tmp_path / "views.npz", a=np.zeros(3))
+    assert describe_os_error(info.value) == f"{tmp_path / 'views.npz'}: no space left on the device"
+    assert list(tmp_path.iterdir()) == []

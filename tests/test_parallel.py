@@ -100,3 +100,85 @@ def test_the_scheduler_is_validated_and_in_no_stage_key() -> None:
     with pytest.raises(ConfigError, match="parallel.scheduler"):
         config_from_dict({"parallel": {"scheduler": "10.0.0.5 8786"}})
     assert not any("parallel" in stage.sections for stage in STAGES)
+
+
+@pytest.mark.parametrize(("address", "expect"), [
+    ("garbage", "not a dask.distributed scheduler address"),
+    ("", "not a dask.distributed scheduler address"),
+    ("inproc://x", "no scheduler of this process has that address")])
+def test_a_scheduler_address_is_checked_before_any_task(address: str, expect: str) -> None:
+    from rapomdp.parallel import check_scheduler
+
+    with pytest.raises(WorkerError, match=expect):
+        check_scheduler(address)
+    with pytest.raises(WorkerError, match=expect):
+        run_tasks(seeded_draws, [(0, 1)], 1, "draws", scheduler=address)
+
+
+def test_an_inproc_scheduler_of_this_process_is_accepted(on_dask) -> None:
+    from rapomdp.parallel import check_scheduler
+
+    assert check_scheduler(on_dask) == on_dask
+
+
+def _serve(reply: bytes | None) -> tuple[int, object]:
+    """A TCP service on 127.0.0.1 that sends ``reply`` and stays silent (None: an HTTP server)."""
+    import http.server
+    import socket
+    import threading
+
+    if reply is None:
+        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0),
+                                                 http.server.BaseHTTPRequestHandler)
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+        return server.server_address[1], server.shutdown
+    listener = socket.create_server(("127.0.0.1", 0))
+    kept: list[socket.socket] = []
+
+    def answer() -> None:
+        while True:
+            try:
+                connection, _ = listener.accept()
+            except OSError:
+                return
+            connection.sendall(reply)
+            kept.append(connection)
+
+    threading.Thread(target=answer, daemon=True).start()
+    return listener.getsockname()[1], listener.close
+
+
+@pytest.mark.parametrize(("reply", "expect"), [
+    (None, "no Dask handshake within 2 s"),
+    (b"SSH-2.0-OpenSSH_9.6\r\n" + b"\xff" * 64, "the service there is not a Dask scheduler")])
+def test_a_service_that_is_not_a_scheduler_is_named_within_the_handshake_bound(
+        reply: bytes | None, expect: str) -> None:
+    import time
+
+    from rapomdp.parallel import check_scheduler
+
+    port, stop = _serve(reply)
+    start = time.monotonic()
+    try:
+        with pytest.raises(WorkerError, match=expect):
+            check_scheduler(f"tcp://127.0.0.1:{port}", timeout_s=2.0)
+    finally:
+        stop()  # type: ignore[operator]
+    assert time.monotonic() - start < 6
+
+
+def blocked_signals(_: int) -> set[int]:
+    """The signals a worker holds blocked (a task of the test below)."""
+    import signal
+
+    return {int(s) for s in signal.pthread_sigmask(signal.SIG_BLOCK, [])}
+
+
+def test_workers_leave_ctrl_c_to_the_parent() -> None:
+    """A Ctrl-C reaches the whole process group: the workers hold SIGINT blocked, so only
+    the parent is interrupted (it stops them) and no worker prints a traceback."""
+    import signal
+
+    masks = run_tasks(blocked_signals, [(0,), (1,)], 2, "masks", progress=False)
+    assert all(int(signal.SIGINT) in mask for mask in masks)
+    assert int(signal.SIGINT) not in blocked_signals(0)  # the parent's block is lifted

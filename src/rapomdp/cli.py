@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from collections.abc import Callable
@@ -132,6 +133,8 @@ def _guard(action: Callable[[], T]) -> T:
     """Run ``action``; a user error prints one clear message and exits with status 2."""
     try:
         return action()
+    except KeyboardInterrupt:  # first: the next clause imports, maybe a half-imported torch
+        raise
     except _user_errors() as exc:
         raise _fail(str(exc)) from None
     except OSError as exc:  # a read-only folder, a full disk: the file and the cause
@@ -158,10 +161,14 @@ def _report(result: StageResult, workspace: Workspace | None = None) -> None:
         state = f"shared from {Path(result.shared_from).name}"
     console.print(f"[green]✓[/] {result.name:<10} {state}  ({len(result.files)} files)")
     if result.name == "dataset" and not result.cached and workspace is not None:
-        from rapomdp.data.dataset import role_count_lines
+        from rapomdp.data.dataset import duplicate_line, role_count_lines
 
         for line in role_count_lines(workspace.stage_dir("dataset")):
             console.print(f"  {line}", highlight=False, soft_wrap=True)
+        duplicated = duplicate_line(workspace.stage_dir("dataset"))
+        if duplicated is not None:
+            console.print(f"[yellow]warning:[/] {escape(duplicated)}", highlight=False,
+                          soft_wrap=True)
 
 
 def _note(message: str) -> None:
@@ -196,6 +203,10 @@ def _run(config_path: Path | None, workspace: Path, until: str | None,
         run_context = context or RunContext()
         if run_context.scheduler is None and config.parallel.scheduler is not None:
             run_context = replace(run_context, scheduler=config.parallel.scheduler)
+        if run_context.scheduler is not None:  # before any stage runs
+            from rapomdp.parallel import check_scheduler
+
+            check_scheduler(run_context.scheduler)
         ws = Workspace(workspace)
         run_pipeline(config, ws, until=until, force=force,
                      on_result=lambda result: _report(result, ws), context=run_context)
@@ -260,6 +271,10 @@ def dataset(
     _run(config, workspace, "dataset", ["dataset"] if force else [], None, None, reconfigure)
 
 
+#: The tile widths `dataset preview --width` accepts, in pixels.
+MIN_TILE_PX, MAX_TILE_PX = 8, 2048
+
+
 @dataset_app.command("preview")
 def dataset_preview(
     workspace: WorkspaceOption,
@@ -270,7 +285,10 @@ def dataset_preview(
     elevation_deg: Annotated[float, typer.Option(help="Camera elevation above the floor.")] = 30.0,
 ) -> None:
     """Write a labelled contact sheet: one depth render per model of the workspace's dataset."""
-
+    if not MIN_TILE_PX <= width <= MAX_TILE_PX:
+        raise _fail(f"--width must be {MIN_TILE_PX} to {MAX_TILE_PX} pixels, got {width}")
+    if not (math.isfinite(elevation_deg) and -90.0 <= elevation_deg <= 90.0):
+        raise _fail(f"--elevation-deg must be a finite angle in [-90, 90], got {elevation_deg}")
     _require_existing(workspace)
     if out is not None:
         _guard(partial(check_output_path, out))
@@ -311,6 +329,9 @@ def _context(threads: int | None = None, workers: int | None = None,
              scheduler: str | None = None) -> RunContext:
     """The run context of the CLI's ``--threads``, ``--workers`` and ``--scheduler`` (progress
     bars on; without ``--scheduler``, the configuration's ``parallel.scheduler`` applies)."""
+    for name, value in (("workers", workers), ("threads", threads)):
+        if value is not None and value < 1:
+            raise _fail(f"--{name} must be at least 1, got {value}")
     return RunContext(workers=workers, threads=threads, scheduler=scheduler)
 
 
@@ -678,6 +699,8 @@ def show_config(
     """Print the resolved configuration as YAML: the file's, else the workspace's, else the
     default, with any KEY=VALUE overrides, each section and key with a short comment and its
     unit; nothing is written."""
+    if workspace is not None and workspace.exists() and not workspace.is_dir():
+        raise _fail(f"workspace {workspace} is a file, not a folder")
 
     def action() -> Config:
         from rapomdp.config import apply_overrides, config_from_dict, read_config_data
@@ -736,6 +759,10 @@ def status(workspace: WorkspaceOption) -> None:
                       highlight=False)
 
 
+#: The exit status of a run stopped by Ctrl-C (128 + SIGINT), as typer gives it.
+INTERRUPTED = 130
+
+
 def main() -> None:
     """The console script: the app, then a quiet exit.
 
@@ -753,6 +780,10 @@ def main() -> None:
         else:
             sys.stderr.write(f"{exc.code}\n")
             code = 1
+    except KeyboardInterrupt:  # outside a command (typer handles it inside one)
+        code = INTERRUPTED
+    if code == INTERRUPTED:  # Ctrl-C: typer exits 130 with an empty line
+        sys.stderr.write("error: interrupted\n")
     if "roboticstoolbox" in sys.modules:
         sys.stdout.flush()
         sys.stderr.flush()

@@ -432,13 +432,26 @@ class EvaluateConfig(Section):
         return values
 
 
+#: A ``dask.distributed`` scheduler's address (``inproc://``: a LocalCluster of this process).
+SCHEDULER_PATTERN = r"^(tcp|tls|ws|wss|inproc|ucx)://\S+$"
+
+
 class ParallelConfig(Section):
     """Where the stages' independent tasks run; in no stage's key (results do not depend on it)."""
 
     scheduler: str | None = Field(
-        None, pattern=r"^(tcp|tls|ws|wss|inproc|ucx)://\S+$",
+        None, pattern=SCHEDULER_PATTERN,
         description="a dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (null: the local "
         "process pool); the workers must see the workspace at the same path")
+
+
+class LimitsConfig(Section):
+    """Bounds on the files read from outside; in no stage's key (they refuse an input, never
+    change a result)."""
+
+    mesh_file_mb: float = Field(
+        256.0, gt=0, description="the largest mesh file the dataset stage reads (loading takes "
+        "about 8x its size in memory); a larger one is refused, named, before it is read")
 
 
 class Config(Section):
@@ -458,6 +471,7 @@ class Config(Section):
     solve: SolveConfig = SolveConfig()
     evaluate: EvaluateConfig = EvaluateConfig()
     parallel: ParallelConfig = ParallelConfig()
+    limits: LimitsConfig = LimitsConfig()
 
     @model_validator(mode="after")
     def _cameras_outside_the_object(self) -> Config:
@@ -548,6 +562,35 @@ class _BoundedLoader(yaml.SafeLoader):
                 raise yaml.YAMLError(f"more than {MAX_ALIASES} aliases (*name); write the "
                                      "values out")
         return super().compose_node(parent, index)
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        """A mapping whose keys are unique: a key given twice (a second ``train:`` section,
+        ``seed: 1`` then ``seed: 2``) is an error naming it and both lines, not the last one
+        silently winning. Keys merged in by ``<<: *alias`` may still be overridden."""
+        first: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=True)
+            try:
+                line = first.get(key)
+            except TypeError:  # an unhashable key: the constructor names it
+                continue
+            if line is not None:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"the key {str(key)[:60]!r} is given twice (lines {line + 1} "
+                    f"and {key_node.start_mark.line + 1})", key_node.start_mark)
+            first[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep)
+
+    def construct_unordered_set(self, node: yaml.Node) -> None:
+        """``!!set``: refused, its order would follow the process's hash seed."""
+        raise yaml.constructor.ConstructorError(
+            None, None, "a !!set has no order (it would follow the process's hash seed); "
+            "write a list, e.g. [cup, mug]", node.start_mark)
+
+
+_BoundedLoader.add_constructor("tag:yaml.org,2002:set", _BoundedLoader.construct_unordered_set)
 
 
 def _expanded_size(node: yaml.Node, memo: dict[int, int]) -> int:

@@ -35,6 +35,11 @@ class ArtefactError(RuntimeError):
     """An artefact is missing, unreadable or not what the reader expects."""
 
 
+def _short_name(name: str, limit: int = 200) -> str:
+    """``name`` cut to at most ``limit`` bytes of UTF-8 (whole characters kept)."""
+    return name.encode("utf-8")[:limit].decode("utf-8", errors="ignore")
+
+
 def _kind_of(mode: int) -> str:
     """What a file of this ``st_mode`` is, in words (for a refusal)."""
     for test, words in ((stat.S_ISDIR, "a folder"), (stat.S_ISLNK, "a symbolic link"),
@@ -70,7 +75,8 @@ def atomic_path(path: str | Path, tmp_dir: str | Path | None = None) -> Iterator
     path = check_output_path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     folder = path.parent if tmp_dir is None else Path(tmp_dir)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:200]}.", suffix=".tmp", dir=folder)
+    # the name cut so the temporary one fits the 255-byte limit of a file name
+    fd, tmp = tempfile.mkstemp(prefix=f".{_short_name(path.name)}.", suffix=".tmp", dir=folder)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -217,11 +223,17 @@ def save_npz(path: str | Path, compressed: bool = False, **arrays: np.ndarray) -
         if np.asarray(value).dtype == object:
             raise TypeError(f"array {name!r} has dtype object, which would need pickle")
     method = zipfile.ZIP_DEFLATED if compressed else zipfile.ZIP_STORED
-    with atomic_path(path) as tmp:
-        with zipfile.ZipFile(tmp, "w", compression=method, compresslevel=3) as archive:
-            for name, value in arrays.items():
-                with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
-                    np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+    try:
+        with atomic_path(path) as tmp:
+            with zipfile.ZipFile(tmp, "w", compression=method, compresslevel=3) as archive:
+                for name, value in arrays.items():
+                    with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                        np.lib.format.write_array(member, np.asanyarray(value),
+                                                  allow_pickle=False)
+    except OSError as exc:  # a write in the archive says no file (ENOSPC): name the target
+        if exc.filename is None:
+            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
+        raise
 
 
 def load_npz(path: str | Path) -> dict[str, np.ndarray]:

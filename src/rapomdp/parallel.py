@@ -18,16 +18,21 @@ file system). See docs/scale-out.md.
 
 from __future__ import annotations
 
+import asyncio
 import functools
 import os
+import re
+import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from multiprocessing import get_context
 from typing import Any, TypeVar
 
+from rapomdp.config import SCHEDULER_PATTERN
 from rapomdp.progress import progress_bar
 
 R = TypeVar("R")
@@ -35,6 +40,8 @@ R = TypeVar("R")
 
 #: How often a worker process checks that its parent is alive, in seconds.
 PARENT_POLL_S = 0.5
+#: How long the scheduler's handshake may take before the address is refused, in seconds.
+HANDSHAKE_TIMEOUT_S = 10.0
 
 
 class WorkerError(RuntimeError):
@@ -72,6 +79,54 @@ def _dask_task(function: Callable[..., R], client_pid: int, task: tuple[Any, ...
     return function(*task)
 
 
+async def _identity(address: str, timeout_s: float) -> object:
+    """What the service at ``address`` says it is (Dask's handshake, then ``identity``)."""
+    from distributed.comm import connect
+
+    comm = await connect(address, timeout=timeout_s)
+    try:
+        await comm.write({"op": "identity", "reply": True})
+        return await comm.read()
+    finally:
+        comm.abort()
+
+
+def check_scheduler(address: str, timeout_s: float | None = None) -> str:
+    """``address`` if a Dask scheduler answers there, else :class:`WorkerError` naming it: the
+    configuration's pattern first, then (``inproc://``) a scheduler of this process, else a
+    handshake bounded by ``timeout_s`` (default :data:`HANDSHAKE_TIMEOUT_S`)."""
+    if not isinstance(address, str) or not re.fullmatch(SCHEDULER_PATTERN, address):
+        raise WorkerError(f"scheduler {str(address)[:80]!r}: not a dask.distributed scheduler "
+                          "address (e.g. tcp://10.0.0.5:8786)")
+    try:
+        from distributed.comm.inproc import global_manager
+    except ImportError:
+        raise WorkerError(f"scheduler {address}: dask.distributed is not installed "
+                          "(pip install 'rapomdp[dask]')") from None
+    if address.startswith("inproc://"):
+        if address.removeprefix("inproc://") not in global_manager.listeners:
+            raise WorkerError(f"scheduler {address}: no scheduler of this process has that "
+                              "address (inproc:// is a LocalCluster in the same Python "
+                              "process; a separate one is tcp://host:port)")
+        return address
+    timeout_s = HANDSHAKE_TIMEOUT_S if timeout_s is None else timeout_s
+    try:
+        reply = asyncio.run(asyncio.wait_for(_identity(address, timeout_s), timeout_s + 1.0))
+    except (TimeoutError, asyncio.TimeoutError):
+        raise WorkerError(f"scheduler {address}: no Dask handshake within {timeout_s:g} s "
+                          "(another service on that port, or none?)") from None
+    except OSError as exc:
+        raise WorkerError(f"cannot reach the Dask scheduler at {address} "
+                          f"({' '.join(str(exc).split())[:200]})") from None
+    except Exception as exc:  # noqa: BLE001 - whatever a foreign service makes Dask read
+        raise WorkerError(f"scheduler {address}: the service there is not a Dask scheduler "
+                          f"(Dask cannot read what it sent: {type(exc).__name__})") from None
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise WorkerError(f"scheduler {address}: the service there is not a Dask scheduler "
+                          f"(it says it is {str(reply)[:60]!r})")
+    return address
+
+
 def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
                  description: str, scheduler: str, progress: bool) -> list[R]:
     try:
@@ -81,6 +136,7 @@ def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
     except ImportError:
         raise WorkerError(f"scheduler {scheduler}: dask.distributed is not installed "
                           "(pip install 'rapomdp[dask]')") from None
+    check_scheduler(scheduler)
     try:
         client = Client(scheduler, timeout="20s", set_as_default=False)
     except (OSError, TimeoutError) as exc:
@@ -101,6 +157,21 @@ def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
         finally:
             client.cancel([f for f in futures if not f.done()])
     return [results[i] for i in range(len(tasks))]
+
+
+@contextmanager
+def _sigint_held() -> Iterator[None]:
+    """SIGINT held back (blocked, not lost) in this thread while it starts worker processes:
+    they inherit the block, so a Ctrl-C (sent to the whole process group) reaches only this
+    process, which stops them (no traceback of theirs); the held signal arrives at the end."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
@@ -134,7 +205,9 @@ def run_tasks(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]], work
                                        initializer=_single_threaded_worker,
                                        initargs=(os.getpid(),))
             try:
-                futures = {pool.submit(function, *task): i for i, task in enumerate(tasks)}
+                with _sigint_held():  # the workers start on the first submissions
+                    futures = {pool.submit(function, *task): i
+                               for i, task in enumerate(tasks)}
                 for future in as_completed(futures):
                     results[futures[future]] = future.result()
                     bars.advance(bar)

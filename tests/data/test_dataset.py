@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from rapomdp.config import config_from_dict
-from rapomdp.data.dataset import load_dataset, role_count_lines
+from rapomdp.data.dataset import duplicate_line, load_dataset, role_count_lines
 from rapomdp.data.layouts import DatasetLayoutError
 from rapomdp.data.meshes import MeshLoadError, bounding_sphere_radius
 from rapomdp.data.splits import TooFewModelsError
@@ -87,3 +87,35 @@ def test_unknown_procedural_class_is_named(tmp_path: Path) -> None:
     cfg = config_from_dict({"dataset": {"classes": ["cup", "lamp"]}})
     with pytest.raises(DatasetLayoutError, match="unknown procedural class\\(es\\) lamp"):
         run_pipeline(cfg, Workspace(tmp_path / "ws"), until="dataset", context=TEST_CONTEXT)
+
+
+def test_models_of_two_roles_with_the_same_bytes_are_reported(tmp_path: Path) -> None:
+    root = tmp_path / "meshes"
+    _folder_dataset(root, {"box": 5, "crate": 5})
+    for i in range(1, 5):  # every box the same file: some land in different roles
+        (root / "box" / f"m{i}.stl").write_bytes((root / "box" / "m0.stl").read_bytes())
+    ws = Workspace(tmp_path / "ws")
+    run_pipeline(_cfg(root), ws, until="dataset", context=TEST_CONTEXT)
+    line = duplicate_line(ws.stage_dir("dataset"))
+    assert line is not None and "have the same bytes as a model of another role" in line
+    assert "box" in line and "crate" not in line
+    ws2 = Workspace(tmp_path / "ws2")
+    _folder_dataset(tmp_path / "distinct", {"box": 5, "crate": 5})
+    for i in range(5):  # the fixture's classes share sizes: make every file distinct
+        trimesh.creation.box(extents=(0.3, 0.1 + i * 0.01, 0.2)).export(
+            tmp_path / "distinct" / "crate" / f"m{i}.stl")
+    run_pipeline(_cfg(tmp_path / "distinct"), ws2, until="dataset", context=TEST_CONTEXT)
+    assert duplicate_line(ws2.stage_dir("dataset")) is None
+
+
+def test_a_mesh_file_over_the_cap_is_refused_before_it_is_read(tmp_path: Path) -> None:
+    root = tmp_path / "meshes"
+    _folder_dataset(root, {"box": 5, "crate": 5})
+    big = root / "box" / "m0.ply"
+    (root / "box" / "m0.stl").unlink()
+    with open(big, "wb") as handle:  # sparse: 2 GB that take no disk and are never read
+        handle.truncate(2 * 10**9)
+    config = config_from_dict({**_cfg(root).model_dump(mode="json"),
+                               "limits": {"mesh_file_mb": 100}})
+    with pytest.raises(MeshLoadError, match=r"m0.ply: 2000 MB, over the mesh file cap of 100 MB"):
+        run_pipeline(config, Workspace(tmp_path / "ws"), until="dataset", context=TEST_CONTEXT)

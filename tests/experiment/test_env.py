@@ -322,3 +322,29 @@ def test_the_docs_loops_run_as_written(pipeline_workspace, capsys) -> None:
     path = env._path
     assert len(set(path)) == len(path) and env.motion.reachable[path].all()
     assert printed[0] in env.class_names
+
+
+def test_actions_are_taken_as_action_space_contains_takes_them(env) -> None:
+    for action in (np.array(3), np.int64(3), np.array(3, dtype=np.uint8)):
+        env.reset(seed=0)
+        assert env.action_space.contains(action)
+        env.step(action)
+    env.reset(seed=0)
+    for action in (True, 3.0, np.array([3]), np.array(3.0), "3"):
+        with pytest.raises(ValueError, match="is not in"):
+            env.step(action)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("options", [{"start": True}, {"start": 2.0}, {"model": True},
+                                     {"model": np.array(0.5)}])
+def test_reset_refuses_booleans_and_fractions_by_name(env, options: dict) -> None:
+    name = "start viewpoint" if "start" in options else "model"
+    with pytest.raises(ValueError, match=f"reset: {name} .* \\(a whole number\\)"):
+        env.reset(options=options)
+    env.reset(options={"model": np.array(1)})
+
+
+@pytest.mark.parametrize("max_moves", [float("inf"), float("nan"), 2.7, True, 0])
+def test_max_moves_must_be_a_whole_number(tiny, max_moves: object) -> None:
+    with pytest.raises(ValueError, match="max_moves must be a whole number of at least 1"):
+        ActiveRecognitionEnv.from_workspace(tiny[0].root, max_moves=max_moves)  # type: ignore[arg-type]

@@ -53,3 +53,18 @@ def test_fig3_draws_both_panels_from_the_table(tmp_path: Path) -> None:
     path = fig3(_table(), ["static", "ra"], "mug", tmp_path / "fig3.png")
     with Image.open(path) as image:  # two side-by-side panels: wider than tall
         assert image.format == "PNG" and image.width > 2 * image.height
+
+
+def test_the_tradeoff_figure_draws_methods_always_or_never_right(tmp_path: Path) -> None:
+    from rapomdp.experiment.figures import tradeoff
+    from rapomdp.experiment.metrics import TradeoffPoint, summarise
+
+    def point(method: str, value: float, correct: list[bool]) -> TradeoffPoint:
+        n = len(correct)
+        summary = summarise(np.array(correct), np.full(n, 0.5), np.ones(n), np.ones(n),
+                            np.full(n, value), np.zeros(n, bool), method)
+        return TradeoffPoint(method, "lambda", value, False, summary)
+
+    points = [point("ra", 1.0, [True] * 10), point("ra", 2.0, [False] * 7),
+              point("random", 1.0, [False] * 3), point("random", 2.0, [False] * 6)]
+    assert tradeoff(points, tmp_path / "t.png").stat().st_size > 0

@@ -165,3 +165,12 @@ def test_the_tradeoff_csv_reads_back() -> None:
     assert back[0].summary.means["energy"] == 0.25
     with pytest.raises(ValueError, match="not an accuracy-energy table"):
         read_tradeoff_csv("method,accuracy\nra,x\n")
+
+
+@pytest.mark.parametrize(("successes", "n"), [(0, 3), (0, 6), (0, 7), (10, 10), (1, 1), (5, 9)])
+def test_wilson_interval_holds_the_proportion_at_0_and_100_percent(successes: int,
+                                                                    n: int) -> None:
+    low, high = wilson_interval(successes, n)
+    p = successes / n
+    assert 0.0 <= low <= p <= high <= 1.0
+    assert (low == 0.0) == (successes == 0) and (high == 1.0) == (successes == n)

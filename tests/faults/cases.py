@@ -479,3 +479,4 @@ def worker_dies(root: Path) -> Outcome:
 
 
 import tests.faults.cases_workspace  # noqa: E402, F401  (issue 28's data-loss cases register here)
+from tests.faults import cases_inputs  # noqa: E402, F401  (issue 28's cases, registered here)

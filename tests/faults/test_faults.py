@@ -34,3 +34,19 @@ def test_every_case_of_the_issue_is_covered() -> None:
                      "disk full", "failed folder swap", "Latin-1 OBJ", "kill -9 mid-stage",
                      "kill -9: workers", "two runs at once", "checkpoint class list"):
         assert required in names
+
+
+def test_every_case_of_issue_28_is_covered() -> None:
+    names = {c.name for c in CASES}
+    for required in ("Wilson at 0 % and 100 %", "--scheduler garbage", "--scheduler ''",
+                     "--scheduler inproc://x", "--scheduler at an HTTP server",
+                     "--scheduler at another service", "pomdp export --out DIR",
+                     "pomdp export: disk full", "--benchmark 100000x3", "pomdp solve /dev/zero",
+                     "run --workers 0", "preview --width 0", "preview --elevation-deg nan",
+                     "reward 1e308", ".pomdp 1_000", "YAML: a second train:", "YAML: seed twice",
+                     "YAML: !!set of classes", "2 GB PLY", "env.step(np.array(3))",
+                     "env reset start=True", "env reset model=True", "env max_moves=inf",
+                     "env max_moves=nan", "env max_moves=2.7", "pomdp errors on stderr", "Ctrl-C",
+                     "disk full: npz write", "250-byte mesh name", "config -w FILE",
+                     "test model = train file"):
+        assert required in names

@@ -54,3 +54,65 @@ def test_cli_export_pomdpx_and_flat(tmp_path):
     res = runner.invoke(pomdp_app, ["export", "--out", str(tmp_path / "x.pomdpx")])
     assert res.exit_code == 2
     assert "exactly one of --problem, --benchmark and --workspace" in res.output
+
+
+def _one_error_line(res) -> str:
+    """The single ``error:`` line a refused command writes on stderr (stdout holds none)."""
+    assert res.exit_code == 2, res.output
+    assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+    assert "error:" not in res.stdout
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:"), res.stderr
+    return lines[0]
+
+
+def test_cli_errors_are_one_line_on_stderr(tmp_path):
+    bad = tmp_path / "bad.pomdp"
+    bad.write_text("discount: 0.9\nstates: 2\nactions: 2\nobservations: 2\nT: 7 : 0 : 0 1\n")
+    assert "bad.pomdp:5" in _one_error_line(runner.invoke(pomdp_app, ["solve", str(bad)]))
+    line = _one_error_line(runner.invoke(pomdp_app, ["export", "--benchmark", "3x", "--out",
+                                                     str(tmp_path / "a.pomdp")]))
+    assert "expected VIEWPOINTSxCLASSES" in line
+
+
+def test_cli_export_to_a_folder_is_refused_and_the_folder_kept(tmp_path):
+    folder = tmp_path / "out.pomdp"
+    (folder / "inside").mkdir(parents=True)
+    line = _one_error_line(runner.invoke(pomdp_app, ["export", "--benchmark", "3x2", "--out",
+                                                     str(folder)]))
+    assert str(folder) in line
+    assert (folder / "inside").is_dir()
+
+
+def test_cli_export_on_a_full_disk_names_the_file(tmp_path, monkeypatch):
+    import errno
+
+    import rapomdp.planning.cli as cli
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "a.pomdp"))
+
+    monkeypatch.setattr(cli, "write_pomdp", full)
+    line = _one_error_line(runner.invoke(pomdp_app, ["export", "--benchmark", "3x2", "--out",
+                                                     str(tmp_path / "a.pomdp")]))
+    assert "a.pomdp" in line and "no space left" in line
+
+
+def test_cli_export_applies_the_memory_cap_before_allocating(tmp_path):
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    line = _one_error_line(runner.invoke(pomdp_app, ["export", "--benchmark", "100000x3",
+                                                     "--out", str(tmp_path / "a.pomdp")]))
+    assert "the benchmark problem 100000x3 needs about 320 GB" in line
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 500_000  # kB
+    line = _one_error_line(runner.invoke(pomdp_app, ["export", "--benchmark", "1000x10",
+                                                     "--out", str(tmp_path / "a.pomdp")]))
+    assert "the flat POMDP of 1000 viewpoints x 10 classes" in line
+    assert not (tmp_path / "a.pomdp").exists()
+
+
+def test_cli_solve_of_a_device_reads_no_further_than_the_cap():
+    line = _one_error_line(runner.invoke(pomdp_app, ["solve", "/dev/zero", "--memory-gb",
+                                                     "0.01"]))
+    assert "/dev/zero: not a regular file" in line

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import time
 
 import numpy as np
@@ -190,3 +191,32 @@ def test_the_reader_is_linear_in_the_names() -> None:
     p = parse_pomdp(small)
     assert p.T[0, 299, 0] == 1.0 and p.T[0, 299, 299] == 0.0  # names resolved, overwritten
     assert p.T[0, 5, 5] == 1.0
+
+
+_TINY = "discount: 0.9\nstates: 2\nactions: 1\nobservations: 1\nT: 0 identity\nO: 0 uniform\n"
+
+
+@pytest.mark.parametrize(("text", "fragment"), [
+    (_TINY + "R: 0 : 0 : * : * 1e308\n", "reward 1e+308 is outside"),
+    (_TINY + "R: 0 : 0 : * : * -2e12\n", "reward -2e+12 is outside"),
+    (_TINY + "R: 0 : 0 : * : * 1_000\n", "expected a reward but found '1_000'"),
+    (_TINY.replace("states: 2", "states: 1_000"), "'1_000' is neither a count"),
+    (_TINY + "R: 0 : 0 : * : * infinity\n", "expected a reward but found 'infinity'"),
+    (_TINY.replace("T: 0 identity", "T: 0 : 0 : 0 1_0e-1\nT: 0 : 1 : 1 1"),
+     "expected a probability but found '1_0e-1'")])
+def test_numbers_out_of_range_or_in_python_only_forms_are_refused(text, fragment):
+    with pytest.raises(PomdpParseError, match=re.escape(fragment)):
+        parse_pomdp(text, source="bad.pomdp")
+
+
+def test_a_large_file_is_sized_before_it_is_read(tmp_path):
+    big = tmp_path / "big.pomdp"
+    with open(big, "wb") as handle:  # sparse: no data is written
+        handle.truncate(2 * 10**9)
+    with pytest.raises(MemoryCapError, match=r"reading .*big.pomdp \(2 GB of text\)"):
+        read_pomdp(big)
+
+
+def test_a_device_is_read_no_further_than_the_cap():
+    with pytest.raises(PomdpParseError, match="not a regular file"):
+        read_pomdp("/dev/zero", memory_gb=0.01)

@@ -29,7 +29,7 @@ from rapomdp.awareness.observation import (
     TransferObservationModel,
     calibrate_correctness,
     calibrate_per_class,
-    newton_logistic,
+    ridge_logistic,
     wrong_label_distribution,
 )
 from rapomdp.awareness.quality import quality_from_probabilities
@@ -181,10 +181,10 @@ def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: in
     x = np.zeros((y.size, classes + 2))
     x[np.arange(y.size), g_of] = 1.0
     x[:, classes:] = f
-    w = newton_logistic(x, y.astype(np.float64), 1e-2)
+    w = ridge_logistic(x, y.astype(np.float64), 1e-2)
     while np.any(w[classes:] < 0):  # monotone in both: drop a falling feature, refit
         x[:, classes + int(np.argmin(w[classes:]))] = 0.0
-        w = newton_logistic(x, y.astype(np.float64), 1e-2)
+        w = ridge_logistic(x, y.astype(np.float64), 1e-2)
     final = viewpoint_logit(evidence.labels, evidence.predicted, classes, directions)
     z = w[:classes, None] + w[classes] * score + w[classes + 1] * final
     return FixedCorrectness(1.0 / (1.0 + np.exp(-z)), w[:classes].copy(), w[classes:].copy())

@@ -15,12 +15,15 @@ summing to 1; V follows the test viewpoints X_rho in order and C the dataset's c
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import isotonic_regression
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.linear_model import LogisticRegression
 
 from rapomdp.io import load_npz
 from rapomdp.recognition.evaluation import viewpoint_confusion
@@ -62,9 +65,10 @@ class ObservationModel:
 class ScoreCalibration:
     """A monotone non-decreasing map from a viewpoint score in [0, 1] to P(correct).
 
-    ``logistic``: ``sigmoid(a + b * s)`` with ``b >= 0``, fitted by maximum likelihood (Newton)
-    with a tiny ridge against separation. ``isotonic``: pool-adjacent-violators on the scores,
-    interpolated linearly between the pooled blocks' mean scores.
+    ``logistic``: ``sigmoid(a + b * s)`` with ``b >= 0``, fitted by maximum likelihood
+    (:func:`ridge_logistic`) with a tiny ridge against separation. ``isotonic``:
+    pool-adjacent-violators on the scores, interpolated linearly between the pooled blocks'
+    mean scores.
     """
 
     method: str
@@ -86,23 +90,24 @@ class ScoreCalibration:
                 "knots_x": self.knots_x.tolist(), "knots_y": self.knots_y.tolist()}
 
 
-def newton_logistic(x: np.ndarray, y: np.ndarray, ridge: float) -> np.ndarray:
-    """Ridge-penalised maximum-likelihood weights of sigmoid(x @ w) (Newton, 50 steps at most)."""
-    w = np.zeros(x.shape[1])
-    for _ in range(50):
-        p = 1.0 / (1.0 + np.exp(-(x @ w)))
-        grad = x.T @ (p - y) + ridge * w
-        hess = (x * (p * (1 - p))[:, None]).T @ x + ridge * np.eye(x.shape[1])
-        step = np.linalg.solve(hess, grad)
-        w = w - step
-        if np.max(np.abs(step)) < 1e-10:
-            break
-    return w
+def ridge_logistic(x: np.ndarray, y: np.ndarray, ridge: float) -> np.ndarray:
+    """Weights ``w`` minimising the log-loss of sigmoid(x @ w) plus ``ridge / 2 * |w|^2``:
+    scikit-learn's ``LogisticRegression`` (Newton-Cholesky, ``C = 1 / ridge``, the intercept a
+    column of ``x``). Two all-zero rows, one of each label, let it fit outcomes of one kind
+    (their gradient is zero: the weights are unchanged)."""
+    x = np.concatenate([np.asarray(x, dtype=np.float64), np.zeros((2, x.shape[1]))])
+    y = np.concatenate([np.asarray(y, dtype=np.float64), [0.0, 1.0]])
+    model = LogisticRegression(C=1.0 / ridge, fit_intercept=False, solver="newton-cholesky",
+                               tol=1e-10, max_iter=100)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        model.fit(x, y > 0.5)
+    return np.asarray(model.coef_[0], dtype=np.float64)
 
 
 def _fit_logistic(s: np.ndarray, y: np.ndarray, ridge: float = 1e-3) -> tuple[float, float]:
     """Maximum-likelihood (a, b) of sigmoid(a + b s) with b >= 0."""
-    w = newton_logistic(np.stack([np.ones_like(s), s], axis=1), y, ridge)
+    w = ridge_logistic(np.stack([np.ones_like(s), s], axis=1), y, ridge)
     if w[1] < 0:  # monotone: the best non-increasing fit is a constant
         mean = float(np.clip(y.mean(), 1e-6, 1 - 1e-6))
         return float(np.log(mean / (1 - mean))), 0.0
@@ -139,7 +144,7 @@ def calibrate_per_class(scores: np.ndarray, correct: np.ndarray, classes: np.nda
     x = np.zeros((s.size, count + 1))
     x[np.arange(s.size), g] = 1.0
     x[:, count] = s
-    w = newton_logistic(x, y, ridge)
+    w = ridge_logistic(x, y, ridge)
     if w[count] < 0:  # monotone in the score: refit the intercepts alone
         rate = np.clip((np.bincount(g, weights=y, minlength=count) + 0.5)
                        / (np.bincount(g, minlength=count) + 1.0), 1e-6, 1 - 1e-6)

@@ -13,7 +13,7 @@ import csv
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import rankdata
+from sklearn.metrics import roc_auc_score
 
 from rapomdp.awareness.artefacts import QUALITY_COLUMNS
 from rapomdp.awareness.observation import ObservationModel
@@ -21,14 +21,12 @@ from rapomdp.io import atomic_path, markdown_table
 
 
 def roc_auc(scores: np.ndarray, positive: np.ndarray) -> float:
-    """Area under the ROC curve (Mann-Whitney, ties counted half); NaN with one class only."""
+    """Area under the ROC curve (scikit-learn's; ties count half); NaN with one class only."""
     scores = np.asarray(scores, dtype=np.float64).reshape(-1)
     positive = np.asarray(positive, dtype=bool).reshape(-1)
-    n_pos, n_neg = int(positive.sum()), int((~positive).sum())
-    if n_pos == 0 or n_neg == 0:
+    if positive.all() or not positive.any():
         return float("nan")
-    ranks = rankdata(scores)
-    return float((ranks[positive].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
+    return float(roc_auc_score(positive, scores))
 
 
 def quality_from_probabilities(p_observed: np.ndarray, p_correct: np.ndarray,

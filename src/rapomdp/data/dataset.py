@@ -7,6 +7,7 @@ Output (``W/dataset/``): ``dataset.json`` (classes, models, roles, sources) and
 
 from __future__ import annotations
 
+import hashlib
 import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -88,6 +89,27 @@ class Dataset:
     def mesh(self, model: ModelEntry) -> trimesh.Trimesh:
         arrays = load_npz(self.root / model.file)
         return trimesh.Trimesh(arrays["vertices"], arrays["faces"], process=False)
+
+
+def _file_digest(path: Path) -> str:
+    """SHA-256 of a file's bytes (read in blocks)."""
+    digest = hashlib.sha256()
+    with path.open("rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def duplicate_line(stage_dir: str | Path) -> str | None:
+    """One warning line when models of different roles are the same file content (a test model
+    that is a training model is not unseen), else None."""
+    duplicates = read_json(Path(stage_dir) / DATASET_FILE).get("duplicates") or []
+    if not duplicates:
+        return None
+    shown = "; ".join(duplicates[:3]) + (f"; and {len(duplicates) - 3} more"
+                                         if len(duplicates) > 3 else "")
+    return (f"{len(duplicates)} model file(s) have the same bytes as a model of another role "
+            f"(the split is not held out): {shown}")
 
 
 def role_count_lines(stage_dir: str | Path) -> list[str]:
@@ -195,13 +217,18 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
     jobs = [(c, role, item) for c, roles in split.items() for role in ROLES for item in roles[role]]
     models: list[ModelEntry] = []
     used_ids: set[tuple[str, str]] = set()
+    same_bytes: dict[str, tuple[str, Path]] = {}  # file digest -> the first (role, file)
+    duplicates: list[str] = []  # a file of one role with the same bytes as one of another
     for class_name, role, item in track(jobs, "dataset: normalising meshes", context.progress):
         if isinstance(item, int):
             mesh, source = generate_model(class_name, config.seed, item), f"procedural:{item}"
             model_id = f"{class_name}_{item:03d}"
         else:
-            mesh, source = load_mesh(item), str(item)
+            mesh, source = load_mesh(item, int(config.limits.mesh_file_mb * 1e6)), str(item)
             model_id = _model_id(item, layout)
+            seen = same_bytes.setdefault(_file_digest(item), (role, item))
+            if seen[0] != role:
+                duplicates.append(f"{role} {item} = {seen[0]} {seen[1]}")
         base, n = model_id, 1
         while (class_name, model_id) in used_ids:
             n += 1
@@ -227,6 +254,7 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
             "up_axis": up_axis,
             "radius_m": cfg.radius_m,
             "dropped": dropped,
+            "duplicates": duplicates,
             "split_counts": counts,
             "extra_models": cfg.split.extra,
             "role_counts": {c: {r: len(roles[r]) for r in ROLES} for c, roles in split.items()},

@@ -42,8 +42,13 @@ def _read_off_bytes(path: Path) -> trimesh.Trimesh:
     return trimesh.load(io.BytesIO(data), file_type="off", force="mesh", process=False)
 
 
-def load_mesh(path: str | Path) -> trimesh.Trimesh:
-    """One triangle mesh from a file; a multi-part scene is merged with its transforms."""
+#: The largest mesh file :func:`load_mesh` reads by default (``limits.mesh_file_mb``).
+DEFAULT_MAX_MESH_BYTES = 256 * 10**6
+
+
+def load_mesh(path: str | Path, max_bytes: int = DEFAULT_MAX_MESH_BYTES) -> trimesh.Trimesh:
+    """One triangle mesh from a file; a multi-part scene is merged with its transforms. A file
+    larger than ``max_bytes`` is refused before it is read."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in MESH_EXTENSIONS:
@@ -52,6 +57,10 @@ def load_mesh(path: str | Path) -> trimesh.Trimesh:
         )
     if not path.is_file():
         raise MeshLoadError(f"{path}: no such file")
+    size = path.stat().st_size
+    if size > max_bytes:
+        raise MeshLoadError(f"{path}: {size / 1e6:.0f} MB, over the mesh file cap of "
+                            f"{max_bytes / 1e6:.0f} MB (limits.mesh_file_mb); not read")
     try:
         if suffix == ".off":
             mesh = _read_off_bytes(path)

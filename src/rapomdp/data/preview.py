@@ -3,6 +3,7 @@ object API)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,15 @@ def contact_sheet(
     elevation_deg: float = 30.0,
     azimuth_deg: float = -60.0,
 ) -> Path:
-    """Write the sheet; each tile is titled with the model's id and role."""
+    """Write the sheet; each tile is titled with the model's id and role. A camera that is not
+    finite (or ``elevation_deg`` outside [-90, 90]) is a ValueError: it would draw blank tiles."""
+    for name, value in (("radius_m", radius_m), ("elevation_deg", elevation_deg),
+                        ("azimuth_deg", azimuth_deg)):
+        if not math.isfinite(value):
+            raise ValueError(f"contact sheet: {name} must be finite, got {value}")
+    if radius_m <= 0 or not -90.0 <= elevation_deg <= 90.0:
+        raise ValueError(f"contact sheet: radius {radius_m} m must be positive and elevation "
+                         f"{elevation_deg} in [-90, 90] degrees")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

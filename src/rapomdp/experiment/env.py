@@ -45,6 +45,19 @@ Observation = dict[str, Any]
 ENV_ID = "rapomdp/ActiveRecognition-v0"
 
 
+def whole_number(value: object) -> int | None:
+    """``value`` as an int when it is one as ``Discrete.contains`` sees it (a Python or NumPy
+    integer, or a 0-d integer array), else None: a bool, a float (``2.7``, ``inf``, ``nan``),
+    anything else."""
+    if isinstance(value, bool | np.bool_):
+        return None
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, np.ndarray) and value.shape == () and value.dtype.kind in "iu":
+        return int(value)
+    return None
+
+
 class ActiveRecognitionEnv(gymnasium.Env):
     """Active recognition of one test model per episode: move the camera, then declare a class.
 
@@ -81,8 +94,10 @@ class ActiveRecognitionEnv(gymnasium.Env):
                                  f"motion {views}: build both from the same viewpoints.count")
         if not np.any(motion.reachable):
             raise ValueError("motion: no viewpoint is reachable")
-        if max_moves < 1:
-            raise ValueError(f"max_moves must be at least 1, got {max_moves}")
+        moves = whole_number(max_moves)
+        if moves is None or moves < 1:
+            raise ValueError(f"max_moves must be a whole number of at least 1, got "
+                             f"{max_moves!r}")
         if not lambda_ > 0:
             raise ValueError(f"lambda_ (cost of a wrong declaration) must be positive, got "
                              f"{lambda_}")
@@ -100,7 +115,7 @@ class ActiveRecognitionEnv(gymnasium.Env):
                              np.asarray(motion.distance_m, dtype=np.float64),
                              np.asarray(motion.reachable, dtype=bool))
         self.lambda_ = float(lambda_)
-        self.max_moves = int(max_moves)
+        self.max_moves = moves
         self.render_mode = render_mode
         valid = self.motion.energy[np.ix_(self.motion.reachable, self.motion.reachable)]
         valid = valid[np.isfinite(valid)]
@@ -193,18 +208,19 @@ class ActiveRecognitionEnv(gymnasium.Env):
         if unknown:
             raise ValueError(f"reset: unknown option(s) {sorted(unknown)}; options are "
                              f"'model' and 'start'")
-        model = options.get("model")
-        if model is None:
+        given, start_given = options.get("model"), options.get("start")
+        model, start = whole_number(given), whole_number(start_given)
+        if given is None:
             model = int(self.np_random.integers(len(self.scenes)))
-        elif not (isinstance(model, int | np.integer) and 0 <= model < len(self.scenes)):
-            raise ValueError(f"reset: model {model!r} is not a scene index in "
-                             f"[0, {len(self.scenes)})")
-        start = options.get("start")
+        elif model is None or not 0 <= model < len(self.scenes):
+            raise ValueError(f"reset: model {given!r} is not a scene index in "
+                             f"[0, {len(self.scenes)}) (a whole number)")
         reachable = np.flatnonzero(self.motion.reachable)
-        if start is None:
+        if start_given is None:
             start = int(self.np_random.choice(reachable))
-        elif not (isinstance(start, int | np.integer) and 0 <= start < self.viewpoints):
-            raise ValueError(f"reset: start viewpoint {start!r} is not in [0, {self.viewpoints})")
+        elif start is None or not 0 <= start < self.viewpoints:
+            raise ValueError(f"reset: start viewpoint {start_given!r} is not in "
+                             f"[0, {self.viewpoints}) (a whole number)")
         elif not self.motion.reachable[start]:
             raise ValueError(f"reset: start viewpoint {start} is not reachable by the arm")
         self._model, self._viewpoint = int(model), int(start)
@@ -222,10 +238,11 @@ class ActiveRecognitionEnv(gymnasium.Env):
         ``RuntimeError`` when the episode is over (call ``reset``)."""
         if self._model is None or self._done:
             raise RuntimeError("step: the episode is over (or never started); call reset()")
-        if not (isinstance(action, int | np.integer) and 0 <= action < self.action_space.n):
+        index = whole_number(action)
+        if index is None or not 0 <= index < self.action_space.n:
             raise ValueError(f"step: action {action!r} is not in [0, {self.action_space.n}) "
                              f"({self.viewpoints} moves, then {self.classes} declarations)")
-        action = int(action)
+        action = index
         if action >= self.viewpoints:
             return self.declare(action - self.viewpoints)
         if not self.action_mask()[action]:

@@ -146,8 +146,9 @@ def tradeoff(points: Sequence[TradeoffPoint], path: Path,
                           key=lambda p: p.summary.means["energy"])
             energy = np.array([p.summary.means["energy"] for p in mine])
             accuracy = np.array([p.summary.accuracy for p in mine])
-            errors = np.array([[p.summary.accuracy - p.summary.accuracy_low for p in mine],
-                               [p.summary.accuracy_high - p.summary.accuracy for p in mine]])
+            errors = np.maximum(  # never below 0, whatever rounding does at 0 % or 100 %
+                np.array([[p.summary.accuracy - p.summary.accuracy_low for p in mine],
+                          [p.summary.accuracy_high - p.summary.accuracy for p in mine]]), 0.0)
             colour = _METHOD_COLOURS[i % len(_METHOD_COLOURS)]
             line, marker = _LINES[i % len(_LINES)]
             ax.errorbar(energy, accuracy, yerr=errors, linestyle=line, marker=marker,

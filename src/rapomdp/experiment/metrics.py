@@ -26,19 +26,17 @@ from rapomdp.io import markdown_table
 if TYPE_CHECKING:
     from rapomdp.experiment.episode_table import EpisodeTable
 
-Z95 = float(stats.norm.ppf(0.975))
 QUANTITIES = ("belief", "moves", "distance_m", "energy")
 
 
-def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, float]:
-    """Wilson's score interval of a proportion (95 % by default)."""
+def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson's score interval of a proportion (SciPy's): exactly 0 and 1 at 0 % and 100 %
+    (a closed form lands ~1e-16 past them), always holding the proportion; NaN when ``n`` is 0."""
     if n == 0:
         return float("nan"), float("nan")
+    ci = stats.binomtest(int(successes), int(n)).proportion_ci(confidence, method="wilson")
     p = successes / n
-    denom = 1.0 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
+    return float(min(ci.low, p)), float(max(ci.high, p))
 
 
 def mean_interval(values: np.ndarray) -> tuple[float, float]:

@@ -11,6 +11,7 @@ import dataclasses
 import math
 import re
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,7 @@ import numpy as np
 import typer
 from rich.console import Console
 from rich.live import Live
+from rich.markup import escape
 from rich.table import Table
 
 from rapomdp.io import ArtefactError, check_output_path, describe_os_error
@@ -95,8 +97,14 @@ def _report(console: Console, result: SolveResult[Any], size: int) -> None:
     console.print(f"policy: {size} alpha vectors")
 
 
+#: Where the errors go (the bounds and the summary go to the command's console, stdout).
+_ERRORS = Console(stderr=True, soft_wrap=True, highlight=False)
+
+
 def _error(console: Console, message: object) -> typer.Exit:
-    console.print(f"[red]error:[/red] {message}", soft_wrap=True, highlight=False)
+    """Print one ``error:`` line on stderr (the message shown as is); the exit to raise."""
+    text = " ".join(str(message).split())
+    _ERRORS.print(f"[red]error:[/red] {escape(text)}", soft_wrap=True, highlight=False)
     return typer.Exit(2)
 
 
@@ -106,6 +114,16 @@ def _check_out(console: Console, out: Path) -> None:
         check_output_path(out)
     except ArtefactError as exc:
         raise _error(console, exc) from None
+
+
+def _write(console: Console, what: str, write: Callable[[], Path]) -> Path:
+    """``write()``; a file that cannot be written (a folder, a full disk) is one error line."""
+    try:
+        return write()
+    except OSError as exc:
+        raise _error(console, f"writing {what}: {describe_os_error(exc)}") from None
+    except (ArtefactError, ValueError) as exc:
+        raise _error(console, f"writing {what}: {exc}") from None
 
 
 def _check_positive(console: Console, **options: float) -> None:
@@ -151,20 +169,19 @@ def solve_cmd(
         raise _error(console, exc) from None
     _report(console, result, len(result.policy))
     if out is not None:
-        try:
-            path = result.policy.save(out)
-        except ArtefactError as exc:
-            raise _error(console, exc) from None
-        except OSError as exc:
-            raise _error(console, describe_os_error(exc, out)) from None
+        path = _write(console, f"the policy {out}", lambda: result.policy.save(out))
         console.print(f"wrote {path}")
 
 
 def _parse_size(text: str) -> tuple[int, int]:
-    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
+    m = re.fullmatch(r"\s*([0-9]+)\s*[xX×]\s*([0-9]+)\s*", text)
     if not m:
-        raise typer.BadParameter(f"expected VIEWPOINTSxCLASSES such as 128x35, got {text!r}")
-    return int(m.group(1)), int(m.group(2))
+        raise ValueError(f"--benchmark: expected VIEWPOINTSxCLASSES such as 128x35, got "
+                         f"{text[:40]!r}")
+    n_v, n_c = int(m.group(1)), int(m.group(2))
+    if n_v < 1 or n_c < 2:
+        raise ValueError(f"--benchmark {text.strip()}: at least 1 viewpoint and 2 classes")
+    return n_v, n_c
 
 
 def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
@@ -235,7 +252,8 @@ def export_cmd(
         elif benchmark is not None:
             n_v, n_c = _parse_size(benchmark)
             ar = benchmark_problem(n_v, n_c, seed,
-                                   BENCHMARK_LAMBDA if lambda_ is None else lambda_, discount)
+                                   BENCHMARK_LAMBDA if lambda_ is None else lambda_, discount,
+                                   memory_gb=memory_gb)
         else:
             assert problem is not None  # one of the three was given
             arrays = load_problem_arrays(problem)
@@ -243,19 +261,15 @@ def export_cmd(
                 arrays["observation_model"], arrays["move_energy"], arrays.get("reachable"),
                 DEFAULT_LAMBDA if lambda_ is None else lambda_, discount, start,
             )
-    except (ValueError, ArtefactError) as exc:
-        console.print(f"[red]error:[/red] {exc}", soft_wrap=True)
-        raise typer.Exit(2) from None
-    if out.suffix not in (".pomdp", ".pomdpx"):
-        console.print("[red]error:[/red] --out must end in .pomdpx or .pomdp")
-        raise typer.Exit(2)
-    try:
-        path = (write_pomdp(to_flat_pomdp(ar), out) if out.suffix == ".pomdp"
-                else write_pomdpx(ar, out))
-    except ArtefactError as exc:
+        if out.suffix not in (".pomdp", ".pomdpx"):
+            raise ValueError("--out must end in .pomdpx or .pomdp")
+        flat = to_flat_pomdp(ar, memory_gb) if out.suffix == ".pomdp" else None
+    except (ValueError, ArtefactError, MemoryCapError) as exc:
         raise _error(console, exc) from None
-    except OSError as exc:  # a full disk: the file and the cause
-        raise _error(console, describe_os_error(exc, out)) from None
+    if flat is not None:
+        path = _write(console, str(out), lambda: write_pomdp(flat, out))
+    else:
+        path = _write(console, str(out), lambda: write_pomdpx(ar, out))
     console.print(
         f"wrote {path}: {ar.n_viewpoints} viewpoints x {ar.n_classes} classes, "
         f"{ar.targets.size} move targets"

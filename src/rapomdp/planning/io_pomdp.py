@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import stat
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,11 +22,25 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.io import write_text_atomic
-from rapomdp.planning.memory import DEFAULT_MEMORY_GB, ENTRY_BYTES, MemoryCapError, check_memory
+from rapomdp.planning.memory import (
+    DEFAULT_MEMORY_GB,
+    ENTRY_BYTES,
+    MemoryCapError,
+    cap_bytes,
+    check_memory,
+    format_bytes,
+)
 from rapomdp.planning.pomdp import POMDP
 
 #: How far a row of T or O may sum from 1 in a file (rows are renormalised).
 SUM_TOL = 1e-3
+#: The largest magnitude of a reward in a file: the bounds sum rewards over 1 / (1 - discount)
+#: steps, and beyond this they lose every digit of a gap (1e308 made them inf - inf = NaN).
+MAX_ABS_REWARD = 1e12
+#: Memory the reader takes per byte of a file's text (tokens; measured at about 40 B).
+READ_BYTES_PER_BYTE = 48
+#: A number as the format writes one (no ``1_000``, ``inf``, ``nan`` or other Python forms).
+_NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
 
 
 class PomdpParseError(ValueError):
@@ -106,10 +121,9 @@ class _Parser:
 
     def number(self, what: str = "a number") -> float:
         tok = self.next(what)
-        try:
-            value = float(tok.text)
-        except ValueError:
-            raise self.error(f"expected {what} but found {tok.text!r}", tok) from None
+        if not _NUMBER.fullmatch(tok.text):
+            raise self.error(f"expected {what} but found {tok.text[:40]!r}", tok)
+        value = float(tok.text)
         if not math.isfinite(value):
             raise self.error(f"{what} must be finite, found {tok.text!r}", tok)
         return value
@@ -166,7 +180,7 @@ class _Parser:
         items = self.collect_until_keyword()
         if not items:
             raise self.error(f"'{key}:' needs a count or a list of names", keytok)
-        if len(items) == 1 and re.fullmatch(r"\d+", items[0].text):
+        if len(items) == 1 and re.fullmatch(r"[0-9]+", items[0].text):
             n = int(items[0].text)
             if n < 1:
                 raise self.error(f"'{key}:' count must be positive", items[0])
@@ -179,6 +193,10 @@ class _Parser:
                 dup = sorted(name for name, count in Counter(names).items() if count > 1)
                 shown = ", ".join(dup[:5]) + (f" and {len(dup) - 5} more" if len(dup) > 5 else "")
                 raise self.error(f"duplicate {key} name(s): {shown}", items[0])
+            numeric = next((t for t in items if re.match(r"[0-9+\-.]", t.text)), None)
+            if numeric is not None:  # a name starts with a letter; a count is digits only
+                raise self.error(f"{numeric.text[:40]!r} is neither a count (digits only) nor "
+                                 f"a name (starts with a letter) in '{key}:'", numeric)
             bad = [n for n in ("*", "T", "O", "R") if n in index]
             if bad:
                 raise self.error(f"{bad[0]!r} cannot be a name in '{key}:'", items[0])
@@ -204,7 +222,7 @@ class _Parser:
         index = self.index.get(kind)
         if index is not None and tok.text in index:
             return index[tok.text]
-        if re.fullmatch(r"\d+", tok.text):
+        if re.fullmatch(r"[0-9]+", tok.text):
             idx = int(tok.text)
             if idx < self.sizes[kind]:
                 return idx
@@ -225,12 +243,11 @@ class _Parser:
                     self.ref("states", items[0])
                 return np.ones(1)
             if len(items) == n_s:
-                try:
-                    b = np.array([float(t.text) for t in items])
-                except ValueError:
+                if not all(_is_float(t.text) for t in items):
                     raise PomdpParseError(
                         "start distribution must be numbers", line, self.source
-                    ) from None
+                    )
+                b = np.array([float(t.text) for t in items])
                 if not np.all(np.isfinite(b)) or np.any(b < 0):
                     raise PomdpParseError(
                         "start distribution has a negative or non-finite entry", line, self.source
@@ -402,6 +419,10 @@ class _Parser:
         else:
             value = self.numbers(n_s * n_z, "a reward").reshape(n_s, n_z)
         flat = np.ravel(value)
+        if np.any(np.abs(flat) > MAX_ABS_REWARD):
+            worst = float(flat[np.argmax(np.abs(flat))])
+            raise self.error(f"reward {worst:g} is outside [-{MAX_ABS_REWARD:g}, "
+                             f"{MAX_ABS_REWARD:g}] (the value bounds would overflow)", key)
         simple = isinstance(s2, slice) and isinstance(o, slice) and bool(np.all(flat == flat[0]))
         if R4 is None and simple:
             R2[a, s] = float(np.ravel(value)[0])
@@ -419,11 +440,7 @@ class _Parser:
 
 
 def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+    return _NUMBER.fullmatch(text) is not None
 
 
 def parse_pomdp(text: str, source: str = "<string>", memory_gb: float = DEFAULT_MEMORY_GB,
@@ -443,12 +460,29 @@ def parse_pomdp(text: str, source: str = "<string>", memory_gb: float = DEFAULT_
 def read_pomdp(path: str | os.PathLike[str], memory_gb: float = DEFAULT_MEMORY_GB,
                solver_bytes: SizeEstimate | None = None) -> POMDP:
     """Read a ``.pomdp`` file; a missing or undecodable file is a :class:`PomdpParseError`;
-    see :func:`parse_pomdp`."""
+    see :func:`parse_pomdp`. The file is sized before it is read (a device or pipe is read no
+    further than the memory cap allows): :class:`~rapomdp.planning.memory.MemoryCapError`."""
     path = Path(path)
+    limit = int(cap_bytes(memory_gb) // READ_BYTES_PER_BYTE)
     try:
-        text = path.read_text(encoding="utf-8", errors="strict")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise PomdpParseError(f"cannot read file: {exc}", 0, str(path)) from None
+        with path.open("rb") as handle:
+            info = os.fstat(handle.fileno())
+            if stat.S_ISREG(info.st_mode):
+                check_memory(f"reading {path} ({format_bytes(info.st_size)} of text)",
+                             READ_BYTES_PER_BYTE * info.st_size, memory_gb)
+                raw = handle.read()
+            else:
+                raw = handle.read(limit + 1)
+                if len(raw) > limit:
+                    raise PomdpParseError(
+                        f"not a regular file, and longer than the {format_bytes(limit)} of "
+                        f"text a memory cap of {memory_gb:g} GB lets the reader take", 0,
+                        str(path))
+        text = raw.decode("utf-8", errors="strict")
+    except OSError as exc:
+        raise PomdpParseError(f"cannot read file ({exc.strerror or exc})", 0, str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise PomdpParseError(f"not UTF-8 text (byte {exc.start})", 0, str(path)) from None
     return parse_pomdp(text, str(path), memory_gb, solver_bytes)
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
+from rapomdp.planning.memory import DEFAULT_MEMORY_GB, ENTRY_BYTES, check_memory
 from rapomdp.planning.pomdp import POMDP, PROB_TOL
 from rapomdp.planning.rules import declare_value, move_or_declare
 
@@ -203,8 +204,11 @@ def benchmark_problem(
     seed: int = 0,
     lambda_: float = BENCHMARK_LAMBDA,
     discount: float = 0.95,
+    memory_gb: float = DEFAULT_MEMORY_GB,
 ) -> ActiveRecognitionProblem:
-    """A synthetic problem of the family in ``pomdp-benchmarks/README.md`` (seeded).
+    """A synthetic problem of the family in ``pomdp-benchmarks/README.md`` (seeded); refused
+    with :class:`~rapomdp.planning.memory.MemoryCapError` before anything is allocated when its
+    arrays would exceed ``memory_gb``.
 
     Viewpoints: a Fibonacci lattice on the upper unit hemisphere, starting at the one nearest
     the pole with a uniform belief; moving to j costs great-circle distance + 0.5 (moving to
@@ -213,6 +217,10 @@ def benchmark_problem(
     labels, where f_c is the larger of two von Mises bumps exp(κ(μ·v − 1)), κ ~ U[3, 8] and μ
     uniform on the hemisphere, drawn per class.
     """
+    # the distance matrix and its temporaries (V x V), the observation model (V x C x C)
+    check_memory(f"the benchmark problem {n_viewpoints}x{n_classes}",
+                 ENTRY_BYTES * (4 * n_viewpoints**2 + 3 * n_viewpoints * n_classes**2),
+                 memory_gb)
     rng = np.random.default_rng(seed)
     dirs = fibonacci_directions(n_viewpoints, hemisphere=True)
     dist = geodesic_distance_matrix(dirs, radius_m=1.0)
@@ -241,8 +249,11 @@ def benchmark_problem(
 FORBIDDEN_REWARD = -1e6
 
 
-def to_flat_pomdp(problem: ActiveRecognitionProblem) -> POMDP:
-    """The same problem as a flat POMDP (for checks and for ``.pomdp`` export).
+def to_flat_pomdp(problem: ActiveRecognitionProblem,
+                  memory_gb: float = DEFAULT_MEMORY_GB) -> POMDP:
+    """The same problem as a flat POMDP (for checks and for ``.pomdp`` export); refused with
+    :class:`~rapomdp.planning.memory.MemoryCapError` before allocating when its dense arrays
+    would exceed ``memory_gb``.
 
     States (v, c) at index v·C + c, then one terminal state. Actions: move to each target,
     then declare each class. Observations (v, o) at v·C + o (the arrival viewpoint is
@@ -254,6 +265,9 @@ def to_flat_pomdp(problem: ActiveRecognitionProblem) -> POMDP:
     n_s, n_j = n_v * n_c + 1, targets.size
     n_a, n_z = n_j + n_c, n_v * n_c + 1
     term = n_s - 1
+    # T, Z and their copies in POMDP.from_arrays's checks
+    check_memory(f"the flat POMDP of {n_v} viewpoints x {n_c} classes ({n_s} states, {n_a} "
+                 "actions, dense)", ENTRY_BYTES * 2 * n_a * n_s * (n_s + n_z), memory_gb)
     v_of = np.repeat(np.arange(n_v), n_c)
     c_of = np.tile(np.arange(n_c), n_v)
     T = np.zeros((n_a, n_s, n_s))
