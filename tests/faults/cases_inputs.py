@@ -129,7 +129,7 @@ for _name, _reply, _expect in (
 
 
 @case("pomdp export --out DIR", "`rapomdp pomdp export --benchmark 8x3 --out D.pomdp`, D.pomdp "
-      "a folder holding a file", "writing")
+      "a folder holding a file", "a folder, not a regular file")
 def export_to_folder(root: Path) -> Outcome:
     folder = _input(root) / "out.pomdp"
     folder.mkdir()
