@@ -358,8 +358,10 @@ def ctrl_c(root: Path) -> Outcome:
                         start_new_session=True,
                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
-        wait_for(lambda: any(".render.tmp-" in p.name and any(p.rglob("*.npz"))
-                             for p in ws.iterdir()), 120, "the workers' first images")
+        scratch = ws / ".rapomdp-tmp"  # where a stage's new folder grows
+        wait_for(lambda: scratch.is_dir() and any(
+            p.name.startswith("render.tmp-") and any(p.rglob("*.npz"))
+            for p in scratch.iterdir()), 120, "the workers' first images")
     finally:
         os.killpg(child.pid, signal.SIGINT)
         _, err = child.communicate(timeout=60)
