@@ -78,7 +78,7 @@ def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ..
             episodes: bool = False):
     def run(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
         if episodes:
-            classes = load_dataset(out.parent / "dataset").classes
+            classes = load_dataset(inputs.dataset).classes
             save_npz(out / "episodes.npz", **_episodes(classes).arrays())
         for name, text in texts.items():
             (out / name).write_text(text)
@@ -119,7 +119,7 @@ def synthetic(tmp_path_factory: pytest.TempPathFactory) -> tuple[Workspace, Conf
     ws = Workspace(tmp_path_factory.mktemp("ws"))
     run_pipeline(config, ws, until="dataset", context=TEST_CONTEXT)
     for name, run in SYNTHETIC.items():
-        ws.run(Stage(name, run), config, context=TEST_CONTEXT)
+        ws.run(Stage(name, run, inputs=("dataset",)), config, context=TEST_CONTEXT)
     (ws.root / "config.yaml").write_text(config.to_yaml())
     return ws, config
 
