@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from rapomdp.parallel import WorkerError, run_tasks
+from tests.faults.harness import foreign_service
 
 distributed = pytest.importorskip("distributed")
 
@@ -121,33 +122,6 @@ def test_an_inproc_scheduler_of_this_process_is_accepted(on_dask) -> None:
     assert check_scheduler(on_dask) == on_dask
 
 
-def _serve(reply: bytes | None) -> tuple[int, object]:
-    """A TCP service on 127.0.0.1 that sends ``reply`` and stays silent (None: an HTTP server)."""
-    import http.server
-    import socket
-    import threading
-
-    if reply is None:
-        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0),
-                                                 http.server.BaseHTTPRequestHandler)
-        threading.Thread(target=server.serve_forever, daemon=True).start()
-        return server.server_address[1], server.shutdown
-    listener = socket.create_server(("127.0.0.1", 0))
-    kept: list[socket.socket] = []
-
-    def answer() -> None:
-        while True:
-            try:
-                connection, _ = listener.accept()
-            except OSError:
-                return
-            connection.sendall(reply)
-            kept.append(connection)
-
-    threading.Thread(target=answer, daemon=True).start()
-    return listener.getsockname()[1], listener.close
-
-
 @pytest.mark.parametrize(("reply", "expect"), [
     (None, "no Dask handshake within 2 s"),
     (b"SSH-2.0-OpenSSH_9.6\r\n" + b"\xff" * 64, "the service there is not a Dask scheduler")])
@@ -157,13 +131,10 @@ def test_a_service_that_is_not_a_scheduler_is_named_within_the_handshake_bound(
 
     from rapomdp.parallel import check_scheduler
 
-    port, stop = _serve(reply)
-    start = time.monotonic()
-    try:
+    with foreign_service(reply) as address:
+        start = time.monotonic()
         with pytest.raises(WorkerError, match=expect):
-            check_scheduler(f"tcp://127.0.0.1:{port}", timeout_s=2.0)
-    finally:
-        stop()  # type: ignore[operator]
+            check_scheduler(address, timeout_s=2.0)
     assert time.monotonic() - start < 6
 
 

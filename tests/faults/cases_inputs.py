@@ -6,17 +6,13 @@ weaker faults), as cases of the fault suite: registered through :func:`tests.fau
 from __future__ import annotations
 
 import errno
-import http.server
 import json
 import os
 import shutil
 import signal
-import socket
 import tempfile
-import threading
 import zipfile
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +24,7 @@ from tests.faults.harness import (
     cli,
     cli_process,
     disk_full,
+    foreign_service,
     snapshot,
     wait_for,
 )
@@ -79,42 +76,6 @@ for _name, _address, _expect in (
         return outcome
 
 
-@contextmanager
-def _service(reply: bytes | None) -> Iterator[str]:
-    """A service on 127.0.0.1 (a free port): an HTTP server (``reply`` None), else one that
-    sends ``reply`` to every connection and stays silent."""
-    if reply is None:
-        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0),
-                                                 http.server.BaseHTTPRequestHandler)
-        server.RequestHandlerClass.log_message = lambda *args: None  # type: ignore[method-assign]
-        threading.Thread(target=server.serve_forever, daemon=True).start()
-        try:
-            yield f"tcp://127.0.0.1:{server.server_address[1]}"
-        finally:
-            server.shutdown()
-            server.server_close()
-        return
-    listener = socket.create_server(("127.0.0.1", 0))
-    connections: list[socket.socket] = []
-
-    def answer() -> None:
-        while True:
-            try:
-                connection, _ = listener.accept()
-            except OSError:
-                return
-            connection.sendall(reply)
-            connections.append(connection)
-
-    threading.Thread(target=answer, daemon=True).start()
-    try:
-        yield f"tcp://127.0.0.1:{listener.getsockname()[1]}"
-    finally:
-        listener.close()
-        for connection in connections:
-            connection.close()
-
-
 for _name, _reply, _expect in (
         ("--scheduler at an HTTP server", None, "no Dask handshake within 10 s"),
         ("--scheduler at another service", b"SSH-2.0-OpenSSH_9.6\r\n" + b"\xff" * 64,
@@ -122,7 +83,7 @@ for _name, _reply, _expect in (
     @case(_name, f"`--scheduler tcp://127.0.0.1:PORT` where {_name.split(' at ')[1]} "
           "answers (a test server)", _expect)
     def _foreign_service(root: Path, reply: bytes | None = _reply) -> Outcome:
-        with _service(reply) as address:
+        with foreign_service(reply) as address:
             outcome = _on_workspace(root, ["solve", "--scheduler", address])
         assert outcome.seconds < 20, f"took {outcome.seconds:.1f} s"
         return outcome

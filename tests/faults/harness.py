@@ -10,12 +10,15 @@ from __future__ import annotations
 import builtins
 import errno
 import hashlib
+import http.server
 import io
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterator
@@ -240,3 +243,39 @@ def disk_full(root: Path) -> Iterator[None]:
         yield
     finally:
         builtins.open = io.open = real_open  # type: ignore[assignment]
+
+
+@contextmanager
+def foreign_service(reply: bytes | None) -> Iterator[str]:
+    """A service on 127.0.0.1 (a free port): an HTTP server (``reply`` None), else one that
+    sends ``reply`` to every connection and stays silent."""
+    if reply is None:
+        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0),
+                                                 http.server.BaseHTTPRequestHandler)
+        server.RequestHandlerClass.log_message = lambda *args: None  # type: ignore[method-assign]
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+        try:
+            yield f"tcp://127.0.0.1:{server.server_address[1]}"
+        finally:
+            server.shutdown()
+            server.server_close()
+        return
+    listener = socket.create_server(("127.0.0.1", 0))
+    connections: list[socket.socket] = []
+
+    def answer() -> None:
+        while True:
+            try:
+                connection, _ = listener.accept()
+            except OSError:
+                return
+            connection.sendall(reply)
+            connections.append(connection)
+
+    threading.Thread(target=answer, daemon=True).start()
+    try:
+        yield f"tcp://127.0.0.1:{listener.getsockname()[1]}"
+    finally:
+        listener.close()
+        for connection in connections:
+            connection.close()
