@@ -50,17 +50,25 @@ def _kind_of(mode: int) -> str:
     return "a special file"
 
 
+def file_mode(path: str | Path) -> int | None:
+    """The ``st_mode`` of what is at ``path`` itself (a link, not its target), or None when
+    nothing is there; any other failure is a named ArtefactError."""
+    try:
+        return os.lstat(path).st_mode
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise ArtefactError(describe_os_error(exc, path)) from None
+
+
 def check_output_path(path: str | Path) -> Path:
     """``path`` when a file may be written there: nothing is there yet, or a regular file
     (which the new one replaces); a folder, symbolic link, device, FIFO, socket or other
     special file is refused by name (an ArtefactError), before anything is written."""
     path = Path(path)
-    try:
-        mode = os.lstat(path).st_mode
-    except FileNotFoundError:
+    mode = file_mode(path)
+    if mode is None:
         return path
-    except OSError as exc:
-        raise ArtefactError(describe_os_error(exc, path)) from None
     if not stat.S_ISREG(mode):
         raise ArtefactError(f"{path}: {_kind_of(mode)}, not a regular file; an output replaces "
                             "only a regular file (or makes a new one): give another path")

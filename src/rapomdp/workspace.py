@@ -34,6 +34,7 @@ from rapomdp.io import (
     ArtefactError,
     check_output_path,
     describe_os_error,
+    file_mode,
     read_json,
     stable_hash,
     write_json_atomic,
@@ -434,12 +435,9 @@ class Workspace:
         that or absent: a symbolic link or anything else there is refused by name, so that
         nothing is written, truncated or emptied through it."""
         path = self.root / name
-        try:
-            mode = os.lstat(path).st_mode
-        except FileNotFoundError:
+        mode = file_mode(path)
+        if mode is None:
             return path
-        except OSError as exc:
-            raise ArtefactError(describe_os_error(exc, path)) from None
         if not (stat.S_ISDIR(mode) if folder else stat.S_ISREG(mode)):
             kind = "a symbolic link" if stat.S_ISLNK(mode) else "not a " + (
                 "folder" if folder else "regular file")
@@ -692,12 +690,9 @@ class Workspace:
         link, and the artefacts the link points to would go stale unseen) holding the stage's
         record or recorded in the manifest."""
         target = self.stage_dir(name)
-        try:
-            mode = os.lstat(target).st_mode
-        except FileNotFoundError:
+        mode = file_mode(target)
+        if mode is None:
             return
-        except OSError as exc:
-            raise ArtefactError(describe_os_error(exc, target)) from None
         if stat.S_ISLNK(mode):
             raise StageError(
                 f"{target}: a symbolic link (to {os.readlink(target)[:200]}); a stage's folder is "
