@@ -78,3 +78,16 @@ def test_on_a_dask_scheduler_each_seed_is_one_task(tiny_study: TinyStudy) -> Non
     assert [r.name for r in runs[1].results] == STAGE_NAMES
     for s in (0, 1):
         assert Workspace(tiny_study.root / "tiny" / f"seed-{s}").manifest() == before[s]
+
+
+def test_a_folder_that_is_no_study_is_refused_before_anything_is_written(tmp_path) -> None:
+    import pytest
+
+    from rapomdp.config import ConfigError
+    from rapomdp.study.runner import run_study
+
+    (tmp_path / "notes.txt").write_text("mine")
+    spec = StudySpec((StudyDataset("tiny", TINY_STUDY),), seeds=(0,), vary="all")
+    with pytest.raises(ConfigError, match="not a rapomdp study .no study.yaml. and not empty"):
+        run_study(spec, tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]

@@ -369,6 +369,23 @@ def read_tradeoff_csv(text: str) -> list[TradeoffPoint]:
         raise ValueError(f"not an accuracy-energy table ({exc})") from None
 
 
+def standing_phrases(differences: Sequence[tuple[str, float, float, float]]) -> list[str]:
+    """How a reference method stands against others from (name, that method's accuracy minus
+    the reference's, its 95 % interval's low and high): "more accurate than A (by 0.1)",
+    "less accurate than B (by 0.05)", "not distinguishable from C" (an interval holding 0)."""
+    below = [f"{n} (by {-d:.3f})" for n, d, _, high in differences if high < 0]
+    above = [f"{n} (by {d:.3f})" for n, d, low, _ in differences if low > 0]
+    level = [n for n, _, low, high in differences if low <= 0 <= high]
+    said = []
+    if below:
+        said.append(f"more accurate than {', '.join(below)}")
+    if above:
+        said.append(f"less accurate than {', '.join(above)}")
+    if level:
+        said.append(f"not distinguishable from {', '.join(level)}")
+    return said
+
+
 def table1_story(rows: Sequence[MethodSummary], paired: dict[str, PairedDifference],
                  points: Sequence[TradeoffPoint] = ()) -> str:
     """One paragraph saying what Table 1 and the accuracy-energy points show on this run,
@@ -385,18 +402,8 @@ def table1_story(rows: Sequence[MethodSummary], paired: dict[str, PairedDifferen
     if paired:
         ref = next(iter(paired.values())).reference
         ref_name = METHOD_NAMES.get(ref, ref)
-        above = [f"{name.get(m, m)} (by {p.difference:.3f})" for m, p in paired.items()
-                 if p.low > 0]
-        below = [f"{name.get(m, m)} (by {-p.difference:.3f})" for m, p in paired.items()
-                 if p.high < 0]
-        level = [name.get(m, m) for m, p in paired.items() if p.low <= 0 <= p.high]
-        said = []
-        if below:
-            said.append(f"more accurate than {', '.join(below)}")
-        if above:
-            said.append(f"less accurate than {', '.join(above)}")
-        if level:
-            said.append(f"not distinguishable from {', '.join(level)}")
+        said = standing_phrases([(name.get(m, m), p.difference, p.low, p.high)
+                                 for m, p in paired.items()])
         parts.append("Over the same (test model, start) pairs, with 95 % intervals that "
                      f"resample test models, {ref_name} is {'; '.join(said)}.")
         if ref in by_method:

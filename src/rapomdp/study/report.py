@@ -11,6 +11,7 @@ from pathlib import Path
 
 from rapomdp.config import METHOD_NAMES
 from rapomdp.experiment.figures import tradeoff
+from rapomdp.experiment.metrics import standing_phrases
 from rapomdp.experiment.report import Block, Heading, Image, Paragraph, Table, to_html, to_markdown
 from rapomdp.io import markdown_table, read_text, write_text_atomic
 from rapomdp.study.pooled import (
@@ -63,19 +64,8 @@ def study_story(dataset: str, rows: Sequence[PooledRow], seeds: Sequence[int],
              f"({best.accuracy:.3f}; per seed {per_seed})."]
     ra = by.get(REFERENCE)
     if ra is not None:
-        beats = [f"{r.name} ({-r.difference.estimate:+.3f})" for r in rows
-                 if r.difference is not None and r.difference.high < 0]
-        loses = [f"{r.name} ({r.difference.estimate:+.3f})" for r in rows
-                 if r.difference is not None and r.difference.low > 0]
-        level = [r.name for r in rows
-                 if r.difference is not None and r.difference.low <= 0 <= r.difference.high]
-        said = []
-        if beats:
-            said.append(f"more accurate than {', '.join(beats)}")
-        if loses:
-            said.append(f"less accurate than {', '.join(loses)}")
-        if level:
-            said.append(f"not distinguishable from {', '.join(level)}")
+        said = standing_phrases([(r.name, r.difference.estimate, r.difference.low,
+                                  r.difference.high) for r in rows if r.difference is not None])
         parts.append(f"With 95 % intervals that resample seeds and, within them, test models, "
                      f"{ra.name} ({ra.accuracy:.3f} at {ra.energy_m:.2f} m) is "
                      f"{'; '.join(said)}.")

@@ -19,7 +19,7 @@ from rapomdp.config import Config, config_from_dict
 from rapomdp.context import RunContext
 from rapomdp.parallel import run_tasks
 from rapomdp.pipeline import STAGE_NAMES, planned_keys, run_pipeline
-from rapomdp.study.spec import StudyDataset, StudySpec, write_study
+from rapomdp.study.spec import StudyDataset, StudySpec, check_study_folder, write_study
 from rapomdp.workspace import StageResult, Workspace
 
 
@@ -31,10 +31,6 @@ class SeedRun:
     seed: int
     workspace: Path
     results: list[StageResult]
-
-    @property
-    def seconds(self) -> float:
-        return sum(r.seconds for r in self.results)
 
 
 def seed_workspace(root: str | Path, dataset: str, seed: int) -> Workspace:
@@ -80,6 +76,7 @@ def run_study(spec: StudySpec, root: str | Path, context: RunContext = RunContex
     """Every (configuration, seed) of ``spec`` under ``root``, in order; ``spec`` is recorded
     as the study's (``S/study.yaml``) before anything runs."""
     root = Path(root)
+    check_study_folder(root)
     root.mkdir(parents=True, exist_ok=True)
     write_study(root, spec)
     plan = {d.name: shared_stages(spec, d) for d in spec.datasets}

@@ -114,6 +114,19 @@ def read_study(root: str | Path) -> StudySpec | None:
     return StudySpec.from_yaml(read_text(path), str(path))
 
 
+def check_study_folder(root: str | Path) -> None:
+    """Refuse, by name, a folder a study would write into that is neither a study (it holds
+    ``study.yaml``) nor empty (or missing): a study never writes among a user's files."""
+    root = Path(root)
+    if not root.exists() or study_file(root).is_file():
+        return
+    if not root.is_dir():
+        raise ConfigError(f"{root}: not a folder; give a study folder")
+    if any(root.iterdir()):
+        raise ConfigError(f"{root}: not a rapomdp study (no {STUDY_FILE}) and not empty; give "
+                          f"a new folder, e.g. {root / 'study'}")
+
+
 def write_study(root: str | Path, spec: StudySpec) -> Path:
     """Record ``spec`` as the study's own (atomically)."""
     return write_text_atomic(study_file(root), spec.to_yaml())
