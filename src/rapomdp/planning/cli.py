@@ -33,6 +33,7 @@ from rapomdp.planning.momdp import (
     ActiveRecognitionProblem,
     benchmark_problem,
     build_active_recognition_problem,
+    load_problem_arrays,
     to_flat_pomdp,
 )
 from rapomdp.planning.sarsop import Progress, SolveResult, solve_pomdp
@@ -187,10 +188,16 @@ def _parse_size(text: str) -> tuple[int, int]:
 def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
     """The problem the solve stage builds from a workspace, with the workspace's configuration
     (the only command that reads the pipeline's configuration: imported here). Its errors come
-    back as ValueError."""
-    from rapomdp.config import Config, ConfigError
-    from rapomdp.planning.stage import workspace_problem
-    from rapomdp.workspace import StageError, Workspace
+    back as ValueError, the pipeline's absence (the ``rapomdp-planning`` distribution) too."""
+    try:
+        from rapomdp.config import Config, ConfigError
+        from rapomdp.planning.stage import workspace_problem
+        from rapomdp.workspace import StageError, Workspace
+    except ModuleNotFoundError as exc:
+        raise ValueError(f"--workspace reads a pipeline workspace, which needs the full rapomdp "
+                         f"distribution (module {exc.name!r} is not installed; "
+                         f"rapomdp-planning holds the solver only): use --problem or "
+                         f"--benchmark") from None
 
     try:
         ws = Workspace(root)
@@ -232,8 +239,6 @@ def export_cmd(
     memory_gb: float = typer.Option(DEFAULT_MEMORY_GB, "--memory-gb", help=MEMORY_HELP),
 ) -> None:
     """Write an active-recognition problem as .pomdpx (viewpoint fully observed) or .pomdp."""
-    from rapomdp.planning.workspace import load_problem_arrays
-
     console = Console(soft_wrap=True)
     _check_positive(console, memory_gb=memory_gb)
     _check_out(console, out)
@@ -284,3 +289,9 @@ def export_cmd(
             except MemoryCapError as exc:
                 raise _error(console, exc) from None
         _report(console, result, int(np.size(result.policy.targets)))
+
+
+def main() -> None:
+    """The ``rapomdp-pomdp`` console script: these commands without the pipeline's CLI (the
+    ``rapomdp-planning`` distribution's command; ``rapomdp pomdp`` is the same app)."""
+    pomdp_app(prog_name="rapomdp-pomdp")

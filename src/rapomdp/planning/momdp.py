@@ -18,6 +18,7 @@ Array shapes (V viewpoints, C classes):
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -173,6 +174,24 @@ def build_active_recognition_problem(
         allow_stay,
         list(class_names or []),
     )
+
+
+#: The arrays of a problem file (``rapomdp pomdp export --problem``): the first two required.
+PROBLEM_KEYS = ("observation_model", "move_energy", "reachable")
+
+
+def load_problem_arrays(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
+    """Read ``observation_model`` (V, C, C), ``move_energy`` (V, V) and optionally
+    ``reachable`` (V,) from an ``.npz`` (no pickle); a clear ValueError when one is missing."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: cannot read problem arrays ({exc})") from None
+    for key in PROBLEM_KEYS[:2]:
+        if key not in arrays:
+            raise ValueError(f"{path}: missing array {key!r} (has {sorted(arrays)})")
+    return arrays
 
 
 def finite_move_energy(move_energy: np.ndarray, reachable: np.ndarray) -> np.ndarray:

@@ -27,22 +27,6 @@ from rapomdp.planning.momdp import (
 )
 from rapomdp.planning.sarsop import ProgressCallback
 
-PROBLEM_KEYS = ("observation_model", "move_energy", "reachable")
-
-
-def load_problem_arrays(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
-    """Read ``observation_model`` (V, C, C), ``move_energy`` (V, V) and optionally
-    ``reachable`` (V,) from an ``.npz`` (no pickle); a clear ValueError when one is missing."""
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path}: cannot read problem arrays ({exc})") from None
-    for key in PROBLEM_KEYS[:2]:
-        if key not in arrays:
-            raise ValueError(f"{path}: missing array {key!r} (has {sorted(arrays)})")
-    return arrays
-
 
 def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | None,
                out: Path, name: str, lambda_: float, discount: float, start_viewpoint: int,
