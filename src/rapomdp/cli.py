@@ -437,8 +437,10 @@ def figure_fig1(
     config: ConfigOption = None,
     class_name: Annotated[str | None, typer.Option("--class", help="Class (default: first).")]
     = None,
-    view: Annotated[int | None, typer.Option(help="Training view (default: most pixels).")]
-    = None,
+    view: Annotated[int | None, typer.Option(
+        help="The volume model's training view shown in (a)-(c) (default: the one nearest the "
+             "test viewpoint of highest score; where every score is equal, the one with the "
+             "most object pixels).")] = None,
     threads: ThreadsOption = None,
     reconfigure: ReconfigureOption = False,
     overrides: OverridesArgument = None,

@@ -28,6 +28,11 @@ OKABE_ITO = ("#E69F00", "#56B4E9", "#009E73", "#F0E442", "#0072B2", "#D55E00", "
 RIGHT_COLOUR, WRONG_COLOUR = OKABE_ITO[2], OKABE_ITO[5]
 PNG_DPI = 150
 MAX_WIDTH_IN = 10.0
+#: Azimuth labels of the hemisphere's top views: world axes, not angles (the rings are angles).
+AZIMUTH_LABELS = ("+x", "+y", "−x", "−y")
+#: Where the rings' labels sit: half-way between the +y and −x labels, so that no ring label
+#: (the 90° one at the rim above all) stands beside an azimuth label.
+RING_LABEL_AZIMUTH_DEG = 135.0
 STYLE: dict[str, Any] = {
     "font.size": 10, "axes.titlesize": 10.5, "axes.labelsize": 10, "legend.fontsize": 9,
     "xtick.labelsize": 9, "ytick.labelsize": 9, "figure.titlesize": 11,
@@ -72,3 +77,18 @@ def save_html(figure: Any, path: str | Path) -> Path:
     with atomic_path(path) as tmp:
         figure.write_html(str(tmp), include_plotlyjs=True, full_html=True)
     return path
+
+
+def hemisphere_axes(ax: Any, ring_fontsize: float = 8.0) -> None:
+    """Make a polar axes the top view of the upper hemisphere: radius the angle from the zenith
+    in degrees (0 to 90, rings at 30°, 60° and 90° labelled at :data:`RING_LABEL_AZIMUTH_DEG`
+    on a white ground, drawn under the data), azimuth labelled by the world axes
+    (:data:`AZIMUTH_LABELS`, nothing at the diagonals). Every hemisphere figure uses it."""
+    from math import radians
+
+    ax.set_ylim(0, 90)
+    ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=ring_fontsize,
+                  bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
+    ax.set_rlabel_position(RING_LABEL_AZIMUTH_DEG)
+    ax.yaxis.set_zorder(0.5)  # rings and their labels under the data: a label hides no point
+    ax.set_xticks([radians(a) for a in (0, 90, 180, 270)], AZIMUTH_LABELS)

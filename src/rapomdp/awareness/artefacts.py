@@ -13,11 +13,12 @@ self-awareness table, :func:`load_quality`), :data:`CALIBRATION_FILE`,
 from __future__ import annotations
 
 import csv
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from rapomdp.io import ArtefactError, load_npz
+from rapomdp.io import ArtefactError, load_npz, read_json
 
 SALIENCY_FILE = "saliency.json"
 VOLUME_FILE = "volume.json"
@@ -68,3 +69,33 @@ def load_softmax_temperature(observe_dir: str | Path) -> float:
     data = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     return float(np.asarray(data["softmax_temperature"])) if "softmax_temperature" in data \
         else 1.0
+
+
+@dataclass(frozen=True)
+class RAChoice:
+    """Which RA variant is RA-POMDP's model ``ra`` (calibration.json): ``variant`` (``ra`` is
+    the array of ``ra_<variant>``), the ``configured`` ``observe.ra_model`` (``auto``: chosen
+    on held-out log-likelihood) and ``method``, what the variant's fit is (``logistic``,
+    ``salient_view_transfer``, ...)."""
+
+    variant: str
+    configured: str
+    method: str
+
+    @property
+    def model(self) -> str:
+        return f"ra_{self.variant}"
+
+
+def load_ra_choice(observe_dir: str | Path) -> RAChoice:
+    """The observe stage's choice of RA-POMDP's model, from its :data:`CALIBRATION_FILE`."""
+    path = Path(observe_dir) / CALIBRATION_FILE
+    data = read_json(path)
+    try:
+        variant = str(data["ra_model"])
+        variants = data.get("variants", {})
+        method = variants.get(f"ra_{variant}", {}).get("method", data.get("method", ""))
+        return RAChoice(variant, str(data.get("ra_model_configured", variant)), str(method))
+    except (KeyError, TypeError, AttributeError):
+        raise ArtefactError(f"{path}: expected the key ra_model (the RA variant chosen) and "
+                            f"variants by name") from None

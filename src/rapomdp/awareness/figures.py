@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.awareness.observation import ClassScoreCalibration, ScoreCalibration
+from rapomdp.awareness.evidence import RA_VARIANTS
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.geometry.viewsphere import azimuth_zenith
-from rapomdp.plots import OKABE_ITO, new_figure, save_html, save_png, style
+from rapomdp.plots import OKABE_ITO, hemisphere_axes, new_figure, save_html, save_png, style
 
 CMAP = "inferno"
 DEPTH_CMAP = "viridis_r"  # near = yellow
@@ -29,41 +29,106 @@ SCORE_LABEL = "viewpoint score (Eq. 6, 0-1)"
 DEFAULT_VIEW_DEG = (20.0, -60.0)
 
 
-def calibration_figure(scores: np.ndarray, correct: np.ndarray,
-                       calibration: object,
-                       path: Path, bins: int = 10) -> Path:
-    """Accuracy of the classifier per score bin on the held-out evidence, and the fitted map
-    (a curve per class for a per-class fit; none for a fit on more than the score)."""
+#: calibration.json ``method`` of each fit that is a map from the viewpoint score to
+#: P(correct), which calibration.png draws: one curve, or one per class.
+SCORE_MAPS = {"logistic": "one", "isotonic": "one", "logistic_per_class": "per class"}
+#: What the RA fits without such a map do instead (the figure draws no curve for them).
+NO_SCORE_MAP = {
+    "salient_view_transfer": "it pools whole confusion rows over the viewpoints that see alike "
+                             "saliency",
+    "logistic_score_and_viewpoint_evidence": "its P(correct) also reads the held-out "
+                                             "per-viewpoint evidence",
+}
+#: The x axis of calibration.png per viewpoint score.
+SCORE_AXES = {"mean": "normalised mean saliency seen (Eq. 6)",
+              "area": "normalised salient area seen (Eq. 6's sum)",
+              "contrastive": "normalised contrastive saliency score"}
+
+
+def calibration_score(variant: str) -> str:
+    """The viewpoint score calibration.png bins RA variant ``variant`` by: the score its map
+    reads (:data:`~rapomdp.awareness.evidence.RA_VARIANTS`); ``transfer``, which reads none,
+    the salient area."""
+    kind = RA_VARIANTS.get(variant, ("mean", False))[0]
+    return "area" if kind == "similarity" else kind
+
+
+def calibration_caption(variant: str, method: str) -> str:
+    """The caption of calibration.png for RA-POMDP's model ``ra_<variant>`` fitted with
+    ``method`` (calibration.json's): what :func:`calibration_plot` draws for it, and no
+    more."""
+    model = f"ra_{variant}"
+    score = calibration_score(variant)
+    text = (f"Calibration on the held-out evidence: the classifier's accuracy per bin of the "
+            f"{SCORE_AXES.get(score, score)} (area ~ views), and the mean P(correct) that "
+            f"RA-POMDP's model ({model}) gives the same (class, viewpoint) pairs (in-sample: "
+            f"it was fitted on them)")
+    kind = SCORE_MAPS.get(method)
+    if kind == "one":
+        return text + f"; the curve is its fitted score-to-correctness map ({method})."
+    if kind == "per class":
+        return text + ("; the curves are its fitted score-to-correctness maps, one per class "
+                       "(thin) and their mean (thick).")
+    why = NO_SCORE_MAP.get(method, f"it is fitted by {method}")
+    return text + f". {model} has no map from the score alone ({why}), so no curve is drawn."
+
+
+def calibration_plot(scores: np.ndarray, correct: np.ndarray, calibration: Any,
+                     predicted: np.ndarray | None = None, variant: str = "paper",
+                     bins: int = 10) -> Any:
+    """The ``matplotlib.figure.Figure`` of :func:`calibration_figure`."""
     s, y = np.asarray(scores).ravel(), np.asarray(correct, dtype=float).ravel()
     edges = np.linspace(0, 1, bins + 1)
     which = np.clip(np.digitize(s, edges) - 1, 0, bins - 1)
     count = np.bincount(which, minlength=bins)
     hits = np.bincount(which, weights=y, minlength=bins)
     centres = (edges[:-1] + edges[1:]) / 2
+    model, score = f"ra_{variant}", calibration_score(variant)
+    method = str(getattr(calibration, "method", ""))
     with style():
-        fig = new_figure(5.5, 3.8)
+        fig = new_figure(5.5, 4.4)
         ax = fig.add_subplot()
         seen = count > 0
         ax.scatter(centres[seen], hits[seen] / count[seen],
                    s=10 + 60 * count[seen] / max(count.max(), 1), color=OKABE_ITO[4],
                    label="held-out evidence: accuracy per score bin (area ~ views)")
+        if predicted is not None:
+            mean_p = np.bincount(which, weights=np.asarray(predicted, float).ravel(),
+                                 minlength=bins)
+            ax.scatter(centres[seen], mean_p[seen] / count[seen], marker="x", s=36,
+                       color=OKABE_ITO[7], linewidths=1.2, zorder=3,
+                       label=f"{model}: mean predicted P(correct) per bin (in-sample)")
         grid = np.linspace(0, 1, 200)
-        if isinstance(calibration, ClassScoreCalibration):  # one curve per class
+        kind = SCORE_MAPS.get(method)
+        if kind == "per class":
             curves = calibration(np.broadcast_to(grid, (len(calibration.intercepts),
                                                         grid.size)))
             for curve in curves:
                 ax.plot(grid, curve, color=OKABE_ITO[5], alpha=0.25, lw=0.8)
             ax.plot(grid, curves.mean(axis=0), color=OKABE_ITO[5],
-                    label="per-class fit (the RA model's map), class mean")
-        elif isinstance(calibration, ScoreCalibration):
+                    label=f"{model}: per-class fitted maps, class mean")
+        elif kind == "one":
             ax.plot(grid, calibration(grid), color=OKABE_ITO[5],
-                    label=f"{calibration.method} fit (the RA model's map)")
-        ax.set(xlabel="normalised viewpoint saliency score (Eq. 6)",
-               ylabel="P(classifier right)", xlim=(0, 1), ylim=(0, 1.02),
-               title="Score-to-correctness calibration")
+                    label=f"{model}: fitted map ({method})")
+        ax.set(xlabel=SCORE_AXES.get(score, score), ylabel="P(classifier right)", xlim=(0, 1),
+               ylim=(0, 1.02), title=f"Score-to-correctness: RA-POMDP's model {model}"
+               + ("" if kind else "\n(no map from the score alone: no curve)"))
         ax.grid(alpha=0.3)
-        ax.legend(loc="lower right")
-        return save_png(fig, path)
+        fig.legend(loc="outside lower center", fontsize=8, frameon=False)  # hides no bin
+    return fig
+
+
+def calibration_figure(scores: np.ndarray, correct: np.ndarray, calibration: Any,
+                       path: Path, bins: int = 10, predicted: np.ndarray | None = None,
+                       variant: str = "paper") -> Path:
+    """Accuracy of the classifier per bin of :func:`calibration_score` on the held-out evidence
+    (``scores`` and ``correct`` (N, V) at its rows' classes), RA-POMDP's model
+    ``ra_<variant>``'s mean ``predicted`` P(correct) at the same pairs, and its fitted map
+    where it has one (:data:`SCORE_MAPS`: a curve, or one per class);
+    :func:`calibration_caption` says which."""
+    with style():
+        return save_png(calibration_plot(scores, correct, calibration, predicted, variant,
+                                         bins), path)
 
 
 # --- views ------------------------------------------------------------------------------------
@@ -178,11 +243,7 @@ def _hemisphere_panel(fig: Any, ax: Any, directions: np.ndarray, scores: np.ndar
         cam_az, cam_zen = azimuth_zenith(camera_direction[None])
         ax.scatter(cam_az, np.degrees(cam_zen), marker="+", s=140, color=OKABE_ITO[2],
                    linewidths=2.0, zorder=4, label="camera of (a)-(c)")
-    ax.set_ylim(0, 90)
-    ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=8,
-                  bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
-    ax.set_rlabel_position(112.5)
-    ax.set_xticks(np.radians([0, 90, 180, 270]), ["+x", "+y", "−x", "−y"])
+    hemisphere_axes(ax)
     ax.set_title(title, pad=14)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=2, frameon=False,
               fontsize=8.5)
@@ -324,26 +385,77 @@ def fig2(volumes: Sequence[SaliencyVolume], titles: Sequence[str], class_name: s
     return png, save_html(page, html)
 
 
+#: Reliability bins holding fewer outcomes than this are drawn hollow and left off the line:
+#: their accuracy is a ratio of at most 4 outcomes (a display rule; nothing is fitted on it).
+RELIABILITY_MIN_COUNT = 5
+#: Marker styles of the reliability curves when the caller gives none: (colour, marker).
+_CURVE_STYLES = tuple(zip(OKABE_ITO, "os^Dv<>P", strict=True))
+
+
+def reliability_plot(curves: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+                     xlabel: str, title: str,
+                     styles: dict[str, tuple[str, str]] | None = None) -> Any:
+    """The ``matplotlib.figure.Figure`` of :func:`reliability_figure`: above, observed against
+    predicted per bin, each marker's area proportional to its bin's count, bins of fewer than
+    :data:`RELIABILITY_MIN_COUNT` outcomes hollow and off the line; below, every bin's count
+    per curve, written above its bar (log scale)."""
+    from matplotlib.lines import Line2D
+
+    styles = dict(styles or {})
+    largest = max([float(np.max(c[2])) for c in curves.values()] + [1.0])
+    with style():
+        fig = new_figure(5.8, 5.8)
+        top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3.0, 1.5))
+        top.plot([0, 1], [0, 1], color="0.6", lw=0.8, ls="--")
+        handles = [Line2D([], [], color="0.6", lw=0.8, ls="--", label="perfectly calibrated")]
+        n = max(len(curves), 1)
+        for i, (name, (predicted, observed, count)) in enumerate(curves.items()):
+            colour, marker = styles.get(name, _CURVE_STYLES[i % len(_CURVE_STYLES)])
+            count = np.asarray(count, dtype=np.float64)
+            seen = count > 0
+            solid = count >= RELIABILITY_MIN_COUNT
+            sparse = seen & ~solid
+            area = 10.0 + 140.0 * count / largest
+            top.plot(predicted[solid], observed[solid], color=colour, lw=1.2, zorder=2)
+            top.scatter(predicted[solid], observed[solid], s=area[solid], marker=marker,
+                        color=colour, edgecolors="white", linewidths=0.5, zorder=3)
+            top.scatter(predicted[sparse], observed[sparse], s=area[sparse], marker=marker,
+                        facecolors="none", edgecolors=colour, linewidths=1.0, alpha=0.7,
+                        zorder=3)
+            handles.append(Line2D([], [], color=colour, lw=1.2, marker=marker, ms=5,
+                                  label=f"{name} ({int(count.sum())})"))
+            bins = count.size
+            x = (np.arange(bins) + (i + 0.5) / n) / bins  # the bin's share of this curve
+            bottom.bar(x[seen], count[seen], width=0.9 / (bins * n), color=colour,
+                       alpha=0.85)
+            for xi, k in zip(x[seen], count[seen], strict=True):
+                bottom.annotate(f"{int(k)}", (xi, k), xytext=(0, 1.5),
+                                textcoords="offset points", ha="center", va="bottom",
+                                rotation=90, fontsize=6.5, color=colour)
+        handles.append(Line2D([], [], ls="", marker="o", mfc="none", mec="0.4",
+                              label=f"hollow: < {RELIABILITY_MIN_COUNT} in the bin"))
+        top.set(ylabel="observed accuracy on the test models", xlim=(0, 1), ylim=(0, 1.02),
+                title=f"{title}\n(marker area ~ the bin's count; counts below)")
+        top.grid(alpha=0.3)
+        top.legend(handles=handles, loc="upper left", fontsize=8)
+        bottom.set_yscale("log")
+        bottom.set_ylim(0.7, largest * 8.0)
+        bottom.set(xlabel=xlabel, ylabel="count per bin")
+        bottom.grid(alpha=0.3, axis="y")
+    return fig
+
+
 def reliability_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
                        path: Path,
                        xlabel: str = "predicted P(classifier right) at (class, viewpoint)",
-                       title: str = "Self-awareness on unseen objects (10 bins)") -> Path:
-    """Predicted against observed P(correct) on the test models, one line per observation
+                       title: str = "Self-awareness on unseen objects (10 bins)",
+                       styles: dict[str, tuple[str, str]] | None = None) -> Path:
+    """Predicted against observed P(correct) on the test models, one curve per observation
     model (or per method): ``curves[name] = (mean predicted, observed accuracy, count)`` per
-    bin."""
+    bin (:func:`rapomdp.recognition.belief.reliability`), the counts shown
+    (:func:`reliability_plot`); ``styles[name]`` = (colour, marker). Returns the path."""
     with style():
-        fig = new_figure(5.5, 4.4)
-        ax = fig.add_subplot()
-        ax.plot([0, 1], [0, 1], color="0.6", lw=0.8, ls="--", label="perfectly calibrated")
-        for i, (name, (predicted, observed, count)) in enumerate(curves.items()):
-            seen = count > 0
-            ax.plot(predicted[seen], observed[seen], marker="os^Dv<>P"[i % 8], ms=4,
-                    color=OKABE_ITO[i % len(OKABE_ITO)], label=name)
-        ax.set(xlabel=xlabel, ylabel="observed accuracy on the test models", xlim=(0, 1),
-               ylim=(0, 1.02), title=title)
-        ax.grid(alpha=0.3)
-        ax.legend(loc="upper left")
-        return save_png(fig, path)
+        return save_png(reliability_plot(curves, xlabel, title, styles), path)
 
 
 def hemisphere_pair_figure(directions: np.ndarray, values: Sequence[np.ndarray],
@@ -357,8 +469,7 @@ def hemisphere_pair_figure(directions: np.ndarray, values: Sequence[np.ndarray],
         for ax, value, title in zip(np.atleast_1d(axes), values, titles, strict=True):
             points = ax.scatter(azimuth, np.degrees(zenith), c=value, cmap="viridis",
                                 vmin=0.0, vmax=1.0, s=40, edgecolors="k", linewidths=0.3)
-            ax.set_ylim(0, 90)
-            ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"])
+            hemisphere_axes(ax)
             ax.set_title(title, pad=12)
             fig.colorbar(points, ax=ax, fraction=0.046, pad=0.1, label="accuracy (0-1)")
         fig.suptitle(suptitle)

@@ -5,7 +5,8 @@ per-viewpoint accuracy)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import csv
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -20,11 +21,15 @@ from rapomdp.awareness.figures import (
 from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
-from rapomdp.io import load_npz
+from rapomdp.io import atomic_path, load_npz
 from rapomdp.recognition.belief import reliability, temper
 from rapomdp.workspace import StageError, Workspace
 
 FIGURES_DIR = "figures"
+AWARENESS_RELIABILITY = "awareness_reliability"
+#: The columns of a reliability diagram's data (``<figure>.csv`` beside its PNG).
+RELIABILITY_COLUMNS = ("curve", "bin", "bin_low", "bin_high", "mean_predicted", "observed",
+                       "count")
 
 
 def write_fig1(ws: Workspace, class_name: str | None = None, view: int | None = None,
@@ -58,6 +63,31 @@ def write_fig1(ws: Workspace, class_name: str | None = None, view: int | None = 
                 camera_pose=poses[view])
 
 
+def reliability_rows(curves: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+                     ) -> list[dict[str, str | int | float]]:
+    """A reliability diagram's data, one row per (curve, bin) of equal-width bins on [0, 1]:
+    the mean predicted value, the observed accuracy (NaN when empty) and the count of outcomes
+    the bin holds (``curves[name] = (mean predicted, observed, count)``, as
+    :func:`rapomdp.recognition.belief.reliability` returns them)."""
+    rows: list[dict[str, str | int | float]] = []
+    for name, (predicted, observed, count) in curves.items():
+        bins = len(count)
+        rows += [{"curve": name, "bin": b, "bin_low": b / bins, "bin_high": (b + 1) / bins,
+                  "mean_predicted": float(predicted[b]), "observed": float(observed[b]),
+                  "count": int(count[b])} for b in range(bins)]
+    return rows
+
+
+def write_reliability_csv(curves: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+                          path: Path) -> Path:
+    """:func:`reliability_rows` as CSV (atomically); returns the path."""
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(RELIABILITY_COLUMNS))
+        writer.writeheader()
+        writer.writerows(reliability_rows(curves))
+    return Path(path)
+
+
 def single_view_models(observe: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The observe stage's models before the belief's temperature (the single-view models the
     quality table scores): tempering by t is undone by tempering by 1 / t."""
@@ -67,12 +97,31 @@ def single_view_models(observe: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
                                                                    strict=True)}
 
 
+def identical_models(observe: dict[str, np.ndarray], atol: float = 1e-9) -> list[list[str]]:
+    """The groups (two or more names, in the artefact's order) of the observe stage's models
+    whose single-view P(o | c, x) (:func:`single_view_models`) are equal everywhere within
+    ``atol``: ``ra`` and the variant it is, and any variants whose fits coincide. Their rows
+    in the quality tables are then equal too."""
+    single = single_view_models(observe)
+    groups: list[list[str]] = []
+    for name, model in single.items():
+        for group in groups:
+            first = single[group[0]]
+            if first.shape == model.shape and np.allclose(first, model, rtol=0.0, atol=atol):
+                group.append(name)
+                break
+        else:
+            groups.append([name])
+    return [g for g in groups if len(g) > 1]
+
+
 def write_awareness_figures(observe_dir: Path, class_name: str, out_dir: Path,
                             models: Sequence[str] = ("ra", "classifier", "blackbox")
                             ) -> tuple[Path, Path]:
     """``awareness_reliability.png`` (predicted against observed P(correct) on the test
-    models, per model) and ``awareness_hemisphere_<class>.png`` (the RA and Classifier models'
-    predicted per-viewpoint accuracy of ``class_name`` beside the test models' actual one)."""
+    models, per model; its bins and counts in ``awareness_reliability.csv``) and
+    ``awareness_hemisphere_<class>.png`` (the RA and Classifier models' predicted
+    per-viewpoint accuracy of ``class_name`` beside the test models' actual one)."""
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     classes = [str(c) for c in observe["classes"]]
     if class_name not in classes:
@@ -85,7 +134,8 @@ def write_awareness_figures(observe_dir: Path, class_name: str, out_dir: Path,
         p_correct = np.diagonal(single[name], axis1=1, axis2=2)  # (V, C)
         curves[name] = reliability(p_correct.T[labels], correct, 10)
     out = Path(out_dir)
-    rel = reliability_figure(curves, out / "awareness_reliability.png")
+    rel = reliability_figure(curves, out / f"{AWARENESS_RELIABILITY}.png")
+    write_reliability_csv(curves, out / f"{AWARENESS_RELIABILITY}.csv")
     c = classes.index(class_name)
     mine = labels == c
     actual = correct[mine].mean(axis=0) if mine.any() else np.full(correct.shape[1], np.nan)

@@ -52,7 +52,6 @@ from rapomdp.awareness.artefacts import (
 from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit_outcomes
 from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
-    RA_VARIANTS,
     Evidence,
     TransferKernel,
     choose_belief_correction,
@@ -529,7 +528,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                       context: RunContext) -> None:
     """Viewpoint scores, the RA variants / Classifier / black-box observation models fitted on
     held-out evidence, their held-out validation and their quality on the test models."""
-    from rapomdp.awareness.figures import calibration_figure
+    from rapomdp.awareness.figures import calibration_figure, calibration_score
 
     dataset = load_dataset(inputs.dataset)
     classifier = load_stage_classifier(config, inputs.train, dataset.classes,
@@ -580,8 +579,9 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                                   == result.volume_labels[:, None]).mean()),
         "pairs": int(correct.size),
     })
-    kind = RA_VARIANTS[result.ra_variant][0]
-    figure_scores = result.score_kinds["area" if kind == "similarity" else kind]
-    calibration_figure(figure_scores[ev.labels], correct, result.calibration,
-                       out / CALIBRATION_FIGURE)
+    score = calibration_score(result.ra_variant)
+    p_correct = np.diagonal(result.single_view["ra"].probabilities, axis1=1, axis2=2)  # (V, C)
+    calibration_figure(result.score_kinds[score][ev.labels], correct, result.calibration,
+                       out / CALIBRATION_FIGURE, predicted=p_correct.T[ev.labels],
+                       variant=result.ra_variant)
     write_json_atomic(out / TIMING_FILE, result.seconds)

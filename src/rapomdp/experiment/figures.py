@@ -13,24 +13,46 @@ from matplotlib.ticker import MaxNLocator
 
 from rapomdp.config import METHOD_NAMES
 from rapomdp.geometry.viewsphere import azimuth_zenith
-from rapomdp.plots import OKABE_ITO, RIGHT_COLOUR, WRONG_COLOUR, new_figure, save_png, style
+from rapomdp.plots import (
+    OKABE_ITO,
+    RIGHT_COLOUR,
+    WRONG_COLOUR,
+    hemisphere_axes,
+    new_figure,
+    save_png,
+    style,
+)
 
 if TYPE_CHECKING:
     from rapomdp.experiment.episode_table import EpisodeTable
     from rapomdp.experiment.metrics import TradeoffPoint
 
-#: Line styles and markers per method (with the colour cycle, so curves differ without colour).
-_LINES = (("-", "o"), ("--", "s"), ("-.", "^"), (":", "D"), ("-", "v"), ("--", "P"),
-          ("-.", "X"))
+#: Each method's colour, line style and marker in every closed-loop figure (Fig. 3, the
+#: trade-off, the final beliefs' reliability): Okabe-Ito colours, no two methods alike in colour
+#: or marker — RA-POMDP blue, Static black — so a point drawn over another stays told apart.
+METHOD_STYLES: dict[str, tuple[str, str, str]] = {
+    "static": (OKABE_ITO[7], "-", "s"),
+    "random": (OKABE_ITO[0], "--", "o"),
+    "vptree": (OKABE_ITO[6], ":", "D"),
+    "classifier": (OKABE_ITO[2], "-.", "^"),
+    "ra": (OKABE_ITO[4], "-", "v"),
+    "ra_class": (OKABE_ITO[1], "--", "P"),
+    "blackbox": (OKABE_ITO[5], "-.", "X"),
+}
+#: A method without a style of its own (greys, and markers no styled method uses).
+_FALLBACK_STYLES = (("0.45", "-", "h"), ("0.6", "--", "*"), ("0.3", ":", "p"))
 #: Path colours of the trajectories: Okabe-Ito without the two outcome colours.
 _PATH_COLOURS = (OKABE_ITO[0], OKABE_ITO[1], OKABE_ITO[4], OKABE_ITO[6], OKABE_ITO[7],
                  OKABE_ITO[3])
-#: Curve colours of the methods: Okabe-Ito without the yellow (too pale on white).
-_METHOD_COLOURS = (OKABE_ITO[0], OKABE_ITO[1], OKABE_ITO[2], OKABE_ITO[4], OKABE_ITO[5],
-                   OKABE_ITO[6], OKABE_ITO[7])
 WRONG_MEANS = "wrong: the declared class is not the test model's true class"
-#: Azimuth labels of the top views: world axes, not angles (the rings are angles).
-AZIMUTH_LABELS = ("+x", "+y", "−x", "−y")
+
+
+def method_style(method: str, index: int = 0) -> tuple[str, str, str]:
+    """(colour, line style, marker) of ``method`` (:data:`METHOD_STYLES`; an unknown method the
+    ``index``-th fallback)."""
+    return METHOD_STYLES.get(method, _FALLBACK_STYLES[index % len(_FALLBACK_STYLES)])
+
+
 def belief_curves(table: EpisodeTable, methods: Sequence[str], class_index: int | None
                   ) -> dict[str, np.ndarray]:
     """Mean belief in the true class after each image (index 0: the start view), per method.
@@ -62,9 +84,9 @@ def fig3(table: EpisodeTable, methods: Sequence[str], class_name: str, path: Pat
         for ax, which, title in ((axes[0], c, f"test models of class {class_name}"),
                                  (axes[1], None, f"mean over the {len(table.classes)} classes")):
             for k, (key, curve) in enumerate(belief_curves(table, methods, which).items()):
-                line, marker = _LINES[k % len(_LINES)]
+                colour, line, marker = method_style(key, k)
                 ax.plot(np.arange(curve.size), curve, linestyle=line, marker=marker,
-                        markersize=4, color=_METHOD_COLOURS[k % len(_METHOD_COLOURS)],
+                        markersize=4, color=colour,
                         label=METHOD_NAMES.get(key, key) if ax is axes[0] else None)
             ax.set(xlabel="step (images after the first)", title=title, ylim=(0, 1.02))
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -107,10 +129,8 @@ def trajectories(table: EpisodeTable, methods: Sequence[str], class_name: str,
                            s=30 if right else 48, marker="o" if right else "X",
                            c=RIGHT_COLOUR if right else WRONG_COLOUR, edgecolors="white",
                            linewidths=0.5)
-            ax.set_ylim(0, 90)
-            ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=8)
-            ax.set_rlabel_position(112.5)
-            ax.set_xticks(np.radians([0, 90, 180, 270]), AZIMUTH_LABELS, fontsize=8)
+            hemisphere_axes(ax)
+            ax.tick_params(axis="x", labelsize=8)
             right = int(table.correct[episodes].sum())
             ax.set_title(f"{METHOD_NAMES.get(key, key)}: {right}/{episodes.size} right")
         handles = [
@@ -137,7 +157,11 @@ def tradeoff(points: Sequence[TradeoffPoint], path: Path,
              ylabel: str = "accuracy (95 % CI)", title: str = "Accuracy against energy") -> Path:
     """Accuracy against mean movement energy: one curve per method over its settings (POMDPs:
     the wrong-declaration cost λ; Random: its stop belief), Static one point; Table 1's
-    settings ringed; the error bars are what ``ylabel`` says (the points' low and high)."""
+    settings ringed; the error bars are what ``ylabel`` says (the points' low and high).
+
+    Each method has its own colour and marker (:func:`method_style`); a method of one point
+    (Static) is drawn above the curves, larger and white-edged, so that a curve's point at the
+    same place (a POMDP that declares at once) does not hide it. Returns the path."""
     with style():
         fig = new_figure(7.0, 4.8)
         ax = fig.subplots()
@@ -149,13 +173,16 @@ def tradeoff(points: Sequence[TradeoffPoint], path: Path,
             errors = np.maximum(  # never below 0, whatever rounding does at 0 % or 100 %
                 np.array([[p.summary.accuracy - p.summary.accuracy_low for p in mine],
                           [p.summary.accuracy_high - p.summary.accuracy for p in mine]]), 0.0)
-            colour = _METHOD_COLOURS[i % len(_METHOD_COLOURS)]
-            line, marker = _LINES[i % len(_LINES)]
+            colour, line, marker = method_style(key, i)
+            single = len(mine) == 1
             ax.errorbar(energy, accuracy, yerr=errors, linestyle=line, marker=marker,
-                        markersize=5, capsize=2, color=colour, label=METHOD_NAMES.get(key, key))
+                        markersize=8 if single else 5, capsize=3 if single else 2,
+                        color=colour, markeredgecolor="white" if single else colour,
+                        zorder=4 if single else 2, label=METHOD_NAMES.get(key, key))
             for p, x, y in zip(mine, energy, accuracy, strict=True):
                 if p.configured:
-                    ax.plot(x, y, marker="o", markersize=12, fillstyle="none", color=colour)
+                    ax.plot(x, y, marker="o", markersize=12, fillstyle="none", color=colour,
+                            zorder=4 if single else 2)
                 if p.parameter != "none":
                     ax.annotate(f"{p.value:g}", (x, y), textcoords="offset points",
                                 xytext=(5, -10), fontsize=9, color=colour)

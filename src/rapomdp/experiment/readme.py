@@ -5,7 +5,8 @@
 dataset's roles, the stages' times, single-view accuracy, Table 1 with its paired column, the
 accuracy–energy sweep, the final beliefs' calibration and the self-awareness table; its
 figures are copied next to the README (``--readme-figures``, default ``docs/figures`` beside
-it). Nothing in the block is typed by hand.
+it), and so is the report's Fig. 1, the README's lead figure (:data:`LEAD_FIGURE`). Nothing in
+the block is typed by hand.
 """
 
 from __future__ import annotations
@@ -15,11 +16,17 @@ import shutil
 from pathlib import Path
 
 from rapomdp.config import Config
-from rapomdp.data.dataset import role_count_lines
-from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.data.dataset import load_dataset, role_count_lines
+from rapomdp.experiment.episode_table import EPISODES_FILE, SUMMARY_FILE, EpisodeTable
 from rapomdp.experiment.metrics import belief_calibration_cells, table1_story
-from rapomdp.experiment.report import evaluation_summaries
-from rapomdp.io import atomic_path, check_output_path, markdown_table, write_text_atomic
+from rapomdp.experiment.report import evaluation_summaries, figure_class
+from rapomdp.io import (
+    atomic_path,
+    check_output_path,
+    markdown_table,
+    read_json,
+    write_text_atomic,
+)
 from rapomdp.recognition.artefacts import load_single_view_metrics
 from rapomdp.workspace import StageError, Workspace
 
@@ -29,6 +36,9 @@ END = "<!-- END generated results -->"
 #: Figures of the evaluate stage shown in the README: (file in W/evaluate, name beside it).
 README_FIGURES = (("tradeoff.png", "demo_tradeoff.png"), ("fig3.png", "demo_fig3.png"),
                   ("trajectories.png", "demo_trajectories.png"))
+#: The README's lead figure, beside it: the report's Fig. 1 of the figure class
+#: (:func:`lead_figure`).
+LEAD_FIGURE = "demo_fig1.png"
 
 
 def _read(path: Path) -> str:
@@ -98,12 +108,28 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
     return "\n".join(lines)
 
 
+def lead_figure(workspace: Workspace) -> Path | None:
+    """The report's Fig. 1 (``W/report/fig1_<class>.png``, the class of Figs. 1 and 3:
+    :func:`rapomdp.experiment.report.figure_class`), or None before the report has run."""
+    if "report" not in workspace.manifest()["stages"]:
+        return None
+    summary = workspace.require("evaluate") / SUMMARY_FILE
+    evaluation = read_json(summary) if summary.exists() else None
+    classes = load_dataset(workspace.require("dataset")).classes
+    name = figure_class(evaluation if isinstance(evaluation, dict) else None,
+                        workspace.config(default=Config()), classes)
+    png = workspace.require("report") / f"fig1_{name}.png"
+    return png if png.is_file() else None
+
+
 def update_readme(workspace: Workspace, readme: Path, figures: Path | None = None) -> Path:
     """Replace the README's generated block with ``workspace``'s results and copy its figures to
-    ``figures`` (default: ``docs/figures`` beside the README). The README must hold the markers."""
+    ``figures`` (default: ``docs/figures`` beside the README): the evaluate stage's
+    (:data:`README_FIGURES`) and, once the report has run, its Fig. 1 as the README's lead
+    figure (:data:`LEAD_FIGURE`). The README must hold the markers."""
     readme = check_output_path(readme)  # a FIFO or device is neither read nor replaced
     figures = Path(figures) if figures is not None else readme.parent / "docs" / "figures"
-    for _, name in README_FIGURES:  # every output checked before any is written
+    for name in (*(n for _, n in README_FIGURES), LEAD_FIGURE):  # all checked before any write
         check_output_path(figures / name)
     text = readme.read_text(encoding="utf-8")
     start, end = text.find(BEGIN), text.find(END)
@@ -117,9 +143,13 @@ def update_readme(workspace: Workspace, readme: Path, figures: Path | None = Non
     block = results_markdown(workspace, link, workspace.config(default=Config()).seed)
     figures.mkdir(parents=True, exist_ok=True)
     evaluate = workspace.require("evaluate")
-    for source, name in README_FIGURES:
-        if (evaluate / source).exists():
+    copies = [(evaluate / source, name) for source, name in README_FIGURES]
+    lead = lead_figure(workspace)
+    if lead is not None:
+        copies.append((lead, LEAD_FIGURE))
+    for source, name in copies:
+        if source.exists():
             with atomic_path(figures / name) as tmp:
-                shutil.copyfile(evaluate / source, tmp)
+                shutil.copyfile(source, tmp)
     write_text_atomic(readme, text[:start] + BEGIN + "\n" + block + "\n" + text[end:])
     return readme

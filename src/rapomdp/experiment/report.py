@@ -26,12 +26,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
+
 from rapomdp.awareness.artefacts import (
     CALIBRATION_FIGURE,
+    CALIBRATION_FILE,
+    OBSERVATION_FILE,
     QUALITY_CSV,
     VALIDATION_CSV,
+    RAChoice,
     load_quality,
+    load_ra_choice,
 )
+from rapomdp.awareness.figures import RELIABILITY_MIN_COUNT, calibration_caption
 from rapomdp.awareness.quality import quality_cells
 from rapomdp.awareness.report import FIGURES_DIR, write_fig1
 from rapomdp.config import METHOD_NAMES, Config
@@ -63,7 +70,14 @@ from rapomdp.experiment.metrics import (
     table1_cells,
     table1_story,
 )
-from rapomdp.io import ArtefactError, atomic_path, read_json, stable_hash, write_text_atomic
+from rapomdp.io import (
+    ArtefactError,
+    atomic_path,
+    load_npz,
+    read_json,
+    stable_hash,
+    write_text_atomic,
+)
 from rapomdp.planning.artefacts import SOLVE_SUMMARY
 from rapomdp.recognition.artefacts import (
     HEMISPHERE_FIGURE,
@@ -395,9 +409,12 @@ def _evaluation(b: _Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any
         b.add(Paragraph("Per class:"), Paragraph(PER_CLASS_NOTE),
               Table(*per_class_cells(per_class(table, table.methods), table.methods)))
     figure = (data or {}).get("figure_class", "the figure class")
+    classes = f"the {len(table.classes)} classes" if table is not None else "every class"
     b.figure(folder / FIG3_FILE,
-             f"Fig. 3: belief in the true class along the episodes of class {figure}, per "
-             f"method (step 0 is the start viewpoint).", how)
+             f"Fig. 3: the mean belief in the true class after each image, per method: left, "
+             f"the test models of class {figure}; right, the mean over {classes} (step 0 is "
+             f"the start viewpoint; an episode that has declared keeps its final belief).",
+             how)
     b.figure(folder / TRAJECTORIES_FILE,
              "The camera's trajectories on the test viewsphere X_rho, per method.", how)
     if (folder / TRADEOFF_FIGURE).exists():
@@ -435,40 +452,109 @@ def _awareness(b: _Builder, config: Config, inputs: StageInputs, class_name: str
         b.add(Paragraph(f"Fig. 2 (one class's saliency volume in two-class problems) is "
                         f"optional: {fig2_how}."))
     observe_how = f"made by `{cmd} observe -w {b.root}`"
+    choice = _ra_choice(b, inputs.observe, observe_how)
     b.add(Paragraph("How well each observation model predicts the classifier's correctness on "
-                    "the test models over X_rho:"))
+                    "the test models over X_rho (single view, before the belief's "
+                    "temperature):"))
     quality = b.load(inputs.observe / QUALITY_CSV, lambda p: load_quality(p.parent),
                      observe_how)
     if quality is not None:
         b.add(Table(*quality_cells(quality)))
+        note = _identical_rows(inputs.observe, choice)
+        if note:
+            b.add(Paragraph(note))
     b.figure(inputs.observe / CALIBRATION_FIGURE,
+             calibration_caption(choice.variant, choice.method) if choice is not None else
              "Calibration: the classifier's accuracy per viewpoint-score bin on the held-out "
-             "evidence, and the fitted score-to-correctness map of RA-POMDP's model.",
+             "evidence (which RA variant is RA-POMDP's model could not be read).",
              observe_how)
     _self_awareness(b, inputs, class_name, observe_how)
 
 
+def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
+    """Which RA variant RA-POMDP's model is and what chose it: the held-out validation table
+    (the chosen row marked), or why there is none."""
+    choice = b.load(observe / CALIBRATION_FILE, lambda p: load_ra_choice(p.parent), how)
+    if choice is None:
+        return None
+    validation = (b.load(observe / VALIDATION_CSV,
+                         lambda p: load_quality(p.parent, VALIDATION_CSV), how)
+                  if (observe / VALIDATION_CSV).exists() else None)
+    if choice.configured != "auto":
+        why = (f"as configured (`observe.ra_model: {choice.configured}`)"
+               + ("; the held-out validation below shows how the variants compare"
+                  if validation else ""))
+    elif validation:
+        why = ("chosen by `observe.ra_model: auto` as the RA variant of best held-out "
+               "log-likelihood in the validation below: each group of the held-out evidence "
+               "(the k-th volume model of every class is group k, each cross-fitting fold one "
+               "more) scored by the variants fitted without it; the test models play no part")
+    else:
+        why = (f"the fallback of `observe.ra_model: auto`: the held-out evidence forms "
+               f"{_evidence_groups(observe)} group(s) (the k-th volume model of every class is "
+               f"group k, each cross-fitting fold one more) and leave-one-group-out validation "
+               f"needs two or more, so the variants were not compared")
+    b.add(Paragraph(f"RA-POMDP's observation model (`ra`) is `{choice.model}`, {why}. The row "
+                    f"`ra` in the tables is that variant itself."))
+    if validation:
+        header, rows = quality_cells(validation)
+        header = [*header[:-1], "held-out accuracy"]  # the accuracy of these groups' outcomes
+        rows = [[f"{row[0]} (chosen)" if row[0] == choice.model else row[0], *row[1:]]
+                for row in rows]
+        b.add(Paragraph("Held-out validation (the groups of held-out evidence, each scored by "
+                        "the models fitted without it):"), Table(header, rows))
+    return choice
+
+
+def _evidence_groups(observe: Path) -> int | str:
+    """How many groups the held-out evidence forms (``?`` when the artefact lacks them)."""
+    try:
+        groups = load_npz(observe / OBSERVATION_FILE).get("evidence_groups")
+    except ArtefactError:
+        return "?"
+    return "?" if groups is None else int(np.unique(groups).size)
+
+
+def _identical_rows(observe: Path, choice: RAChoice | None) -> str:
+    """Which rows of the quality tables are equal because their models are, and why."""
+    from rapomdp.awareness.report import identical_models
+
+    try:
+        groups = identical_models(load_npz(observe / OBSERVATION_FILE))
+    except (ArtefactError, KeyError, ValueError):
+        return ""
+    parts = []
+    for group in groups:
+        if choice is not None and {"ra", choice.model} <= set(group):
+            others = [f"`{n}`" for n in group if n not in ("ra", choice.model)]
+            parts.append(f"`ra` and `{choice.model}` are one model (`ra` is the chosen "
+                         f"variant), so their rows are equal by construction"
+                         + (f"; {', '.join(others)} coincide with it on this evidence"
+                            if others else ""))
+        else:
+            names = " and ".join(f"`{n}`" for n in group)
+            parts.append(f"{names} give the same P(o | c, x) at every viewpoint on this "
+                         f"evidence (their fits coincide), so their rows are equal")
+    return ("Equal rows: " + "; ".join(parts) + ".") if parts else ""
+
+
 def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str) -> None:
-    """Held-out validation, predicted vs observed P(correct), one class's hemispheres and the
-    calibration of every method's final belief."""
-    from rapomdp.awareness.report import write_awareness_figures
+    """Predicted vs observed P(correct), one class's hemispheres and the calibration of every
+    method's final belief."""
+    from rapomdp.awareness.report import AWARENESS_RELIABILITY, write_awareness_figures
 
     observe = inputs.observe
-    if (observe / VALIDATION_CSV).exists():
-        b.add(Paragraph("Held-out validation (what chose RA-POMDP's model): each group of the "
-                        "held-out evidence scored by the models fitted without it:"))
-        validation = b.load(observe / VALIDATION_CSV,
-                            lambda p: load_quality(p.parent, VALIDATION_CSV), how)
-        if validation is not None:
-            b.add(Table(*quality_cells(validation)))
     try:
         rel, hemi = write_awareness_figures(observe, class_name, b.out)
     except (StageError, ArtefactError, KeyError) as exc:
         b.missing(f"the self-awareness figures could not be made ({exc})", how)
     else:
         b.figure(rel, "Predicted against observed P(correct) on the test models, per "
-                      "observation model (single view, before the belief's temperature).",
-                 how, rel.name)
+                      "observation model (single view, before the belief's temperature; "
+                      "marker area and the bars below: (test model, viewpoint) pairs per "
+                      "bin).", how, rel.name)
+        b.add(Link("Its bins and counts:", f"{AWARENESS_RELIABILITY}.csv",
+                   f"{AWARENESS_RELIABILITY}.csv"))
         b.figure(hemi, f"Class {class_name}: predicted P(correct) per viewpoint (RA, "
                        f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
     episodes = inputs.evaluate / EPISODES_FILE
@@ -480,12 +566,12 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> Non
     """Every method's final belief against its accuracy (:func:`belief_calibration_cells`) and
     the reliability of its confidence."""
     from rapomdp.awareness.figures import reliability_figure
-    from rapomdp.recognition.belief import reliability
+    from rapomdp.awareness.report import write_reliability_csv
+    from rapomdp.experiment.figures import method_style
 
-    confidence = table.final_confidence()
-    mine = {m: table.method == m for m in table.methods}
-    curves = {METHOD_NAMES.get(m, m): reliability(confidence[rows], table.correct[rows], 10)
-              for m, rows in mine.items()}
+    curves = belief_reliability(table)
+    styles = {METHOD_NAMES.get(m, m): method_style(m, i)[::2]
+              for i, m in enumerate(table.methods)}
     b.add(Paragraph("Calibration of every method's final belief in the closed loop on the test "
                     "models: the mean belief in the true class; the confidence (the belief in "
                     "the declared class), which a calibrated belief's accuracy equals; ECE of "
@@ -493,10 +579,29 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> Non
     b.add(Table(*belief_calibration_cells(table)))
     figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
                                 xlabel="final belief in the declared class",
-                                title="Final beliefs on the test models (10 bins)")
+                                title="Final beliefs on the test models (10 bins)",
+                                styles=styles)
+    data = write_reliability_csv(curves, figure.with_suffix(".csv"))
     b.add(Image(figure.name, "Reliability of every method's final belief: accuracy against "
                              "confidence (belief in the declared class), from "
-                             f"{b.shown(evaluate / EPISODES_FILE)}."))
+                             f"{b.shown(evaluate / EPISODES_FILE)}; marker area and the bars "
+                             "below: episodes per bin (legend: episodes in all), bins of "
+                             f"fewer than {RELIABILITY_MIN_COUNT} episodes hollow and off the "
+                             "line."),
+          Link("Its bins and counts:", data.name, data.name))
+
+
+def belief_reliability(table: EpisodeTable, bins: int = 10
+                       ) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Every method's final confidence (the belief in the declared class) against its
+    accuracy, per equal-width bin: (mean confidence, accuracy, episodes), by display name (the
+    reliability figure's and ``belief_reliability.csv``'s data)."""
+    from rapomdp.recognition.belief import reliability
+
+    confidence = table.final_confidence()
+    return {METHOD_NAMES.get(m, m): reliability(confidence[table.method == m],
+                                                table.correct[table.method == m], bins)
+            for m in table.methods}
 
 
 def _classifier(b: _Builder, inputs: StageInputs, cmd: str) -> None:
@@ -529,7 +634,8 @@ def _classifier(b: _Builder, inputs: StageInputs, cmd: str) -> None:
         b.missing(f"VP-tree baseline accuracy (vptree/{VPTREE_SUMMARY_FILE} not found)", how)
 
 
-def _robot_and_solver(b: _Builder, inputs: StageInputs, cmd: str) -> None:
+def _robot_and_solver(b: _Builder, config: Config, inputs: StageInputs, cmd: str
+                      ) -> None:
     b.add(Heading("Robot and planner"))
     how = f"made by `{cmd} robot -w {b.root}`"
     summary = b.json(inputs.robot / ROBOT_SUMMARY, how)
@@ -544,12 +650,77 @@ def _robot_and_solver(b: _Builder, inputs: StageInputs, cmd: str) -> None:
     how = f"made by `{cmd} solve -w {b.root}`"
     bounds = b.json(inputs.solve / SOLVE_SUMMARY, how)
     if bounds is not None:
-        rows = [[str(name), _fmt(v.get("lower", "-"), 4), _fmt(v.get("upper", "-"), 4),
-                 _fmt(v.get("seconds", "-"), 1), _fmt(v.get("vectors", "-"))]
-                for name, v in bounds.items() if isinstance(v, dict)]
+        solved = {str(name): v for name, v in bounds.items() if isinstance(v, dict)}
+        rows = [[name, _fmt(v.get("lower", "-"), 4), _fmt(v.get("upper", "-"), 4),
+                 _gap(v), _fmt(v.get("seconds", "-"), 1), _fmt(v.get("vectors", "-"))]
+                for name, v in solved.items()]
         b.add(Paragraph("The solver's bounds on the value of the start belief, per observation "
                         "model (values are negative costs, metres of energy):"),
-              Table(["observation model", "lower", "upper", "seconds", "alpha vectors"], rows))
+              Table(["observation model", "lower", "upper", "gap", "seconds", "alpha vectors"],
+                    rows),
+              Paragraph(solver_gap_note(solved, config.solve, _mean_energies(inputs))))
+
+
+def _gap(row: dict[str, Any]) -> str:
+    lower, upper = row.get("lower"), row.get("upper")
+    if isinstance(lower, int | float) and isinstance(upper, int | float):
+        return f"{max(upper - lower, 0.0):.4f}"  # bounds equal up to rounding: 0, not -0
+    return "-"
+
+
+def _mean_energies(inputs: StageInputs) -> dict[str, float]:
+    """Each method's mean movement energy per episode in Table 1's episodes (none without
+    them)."""
+    episodes = inputs.evaluate / EPISODES_FILE
+    if not episodes.is_file():
+        return {}
+    try:
+        table = EpisodeTable.load(episodes)
+    except (ArtefactError, KeyError, ValueError):
+        return {}
+    return {m: float(table.energy[table.method == m].mean()) for m in table.methods}
+
+
+def solver_gap_note(solved: dict[str, dict[str, Any]], solve: Any,
+                    energies: dict[str, float]) -> str:
+    """What the solver's gap (upper − lower bound at the start belief) means for each policy:
+    the lower bound is the expected discounted value of the policy the solver returned, the
+    upper bound one no policy exceeds, so the policy is at most the gap worse than optimal —
+    for the observation model it was solved on — in metres, set against a wrong declaration's
+    cost λ and the method's mean episode energy in Table 1 (``energies``, by method: the
+    observation model's name). ``solve`` is the configuration's solve section."""
+    lam, discount = float(solve.wrong_declaration_cost_m), float(solve.discount)
+    parts, converged = [], []
+    for name, row in solved.items():
+        lower, upper = row.get("lower"), row.get("upper")
+        if not (isinstance(lower, int | float) and isinstance(upper, int | float)):
+            continue
+        gap = max(upper - lower, 0.0)
+        if row.get("converged") or gap <= solve.precision:
+            converged.append(f"`{name}`")
+            continue
+        stop = ("stopped at the CPU-time limit (solve.timeout_s)" if row.get("timed_out")
+                else f"stopped at the iteration budget (solve.iterations: "
+                     f"{row.get('iterations', solve.iterations)})")
+        energy = energies.get(name)
+        against = (f"; its mean episode energy in Table 1 is {energy:.2f} m, so the gap is "
+                   f"{gap / energy:.2g} times what an episode spends moving"
+                   if energy is not None and energy > 0 else "")
+        parts.append(f"`{name}`: {stop} with a gap of {gap:.2f} m: its policy may cost up to "
+                     f"{gap:.2f} m more per episode than an optimal one, as much as "
+                     f"{gap / lam:.2g} wrong declaration(s) at λ = {lam:g} m{against}")
+    if converged:
+        parts.insert(0, f"{', '.join(converged)}: converged (gap within the precision "
+                        f"{solve.precision:g} m), so each policy is optimal to that amount")
+    if not parts:
+        return ""
+    return ("What the gap means: the lower bound is the expected discounted (γ = "
+            f"{discount:g}) value, from the start belief, of the policy the solver returned; "
+            "no policy is worth more than the upper bound. A policy is therefore at most its "
+            "gap worse than optimal — optimal for the observation model it was solved on; how "
+            "it does on the test models is Table 1's — and the bound does not say how much of "
+            "the gap is the policy's and how much the upper bound's looseness. "
+            + "; ".join(parts) + ".")
 
 
 def write_report(config: Config, inputs: StageInputs, out: Path,
@@ -579,7 +750,7 @@ def write_report(config: Config, inputs: StageInputs, out: Path,
     _awareness(b, config, inputs, figure_class(evaluation, config, classes),
                fig1 or write_fig1, command)
     _classifier(b, inputs, command)
-    _robot_and_solver(b, inputs, command)
+    _robot_and_solver(b, config, inputs, command)
     md = write_text_atomic(out / REPORT_MD, to_markdown(b.blocks))
     page = write_text_atomic(out / REPORT_HTML, to_html(b.blocks, title))
     return page, md

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.geometry.viewsphere import azimuth_zenith
-from rapomdp.plots import MAX_WIDTH_IN, new_figure, save_png, style
+from rapomdp.plots import MAX_WIDTH_IN, hemisphere_axes, new_figure, save_png, style
 
 __all__ = ["confusion_figure", "hemisphere_figure", "save_png", "training_curves"]
 
@@ -81,10 +81,7 @@ def hemisphere_figure(directions: np.ndarray, values: Sequence[np.ndarray],
         for ax, value, title in zip(axes, values, titles, strict=True):
             points = ax.scatter(azimuth, zenith_deg, c=value, cmap="viridis", vmin=0.0,
                                 vmax=1.0, s=50, edgecolors="k", linewidths=0.3)
-            ax.set_ylim(0, 90)
-            ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=8)
-            ax.set_rlabel_position(112.5)
-            ax.set_xticks(np.radians([0, 90, 180, 270]), ["+x", "+y", "−x", "−y"])
+            hemisphere_axes(ax)
             ax.set_title(title, pad=20)
         fig.colorbar(points, ax=list(axes), shrink=0.8, label=label)
         fig.suptitle(suptitle + "\n(seen from above; radius: angle from the zenith; "
