@@ -183,3 +183,15 @@ def test_workers_and_threads_reach_the_stages_as_one_run_context(tmp_path: Path,
     assert seen == [RunContext(workers=3, threads=2, progress=True)]
     runner.invoke(app, ["train", "-w", str(tmp_path / "ws")])
     assert seen[-1] == RunContext()
+
+
+def test_fig1_view_help_says_what_write_fig1_picks() -> None:
+    """`figure fig1 --view` defaults to awareness.figures.most_salient_view: the training view
+    nearest the test viewpoint of highest score, the most object pixels only when every score
+    is equal."""
+    import typer.main
+
+    fig1 = typer.main.get_command(app).commands["figure"].commands["fig1"]
+    (view,) = [p for p in fig1.params if "--view" in p.opts]
+    assert "nearest the test viewpoint of highest score" in view.help
+    assert "where every score is equal, the one with the most object pixels" in view.help

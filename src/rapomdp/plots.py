@@ -81,14 +81,19 @@ def save_html(figure: Any, path: str | Path) -> Path:
 
 def hemisphere_axes(ax: Any, ring_fontsize: float = 8.0) -> None:
     """Make a polar axes the top view of the upper hemisphere: radius the angle from the zenith
-    in degrees (0 to 90, rings at 30°, 60° and 90° labelled at :data:`RING_LABEL_AZIMUTH_DEG`
-    on a white ground, drawn under the data), azimuth labelled by the world axes
-    (:data:`AZIMUTH_LABELS`, nothing at the diagonals). Every hemisphere figure uses it."""
+    in degrees (0 to 90; rings at 30° and 60° labelled at :data:`RING_LABEL_AZIMUTH_DEG` on a
+    white ground, drawn under the data; the rim, 90°, labelled just outside it there), azimuth
+    labelled by the world axes (:data:`AZIMUTH_LABELS`, nothing at the diagonals), so that no
+    ring label stands beside an azimuth label or hides a viewpoint. Every hemisphere figure
+    uses it."""
     from math import radians
 
     ax.set_ylim(0, 90)
-    ax.set_yticks([30, 60, 90], ["30°", "60°", "90°"], fontsize=ring_fontsize,
+    ax.set_yticks([30, 60], ["30°", "60°"], fontsize=ring_fontsize,
                   bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
     ax.set_rlabel_position(RING_LABEL_AZIMUTH_DEG)
-    ax.yaxis.set_zorder(0.5)  # rings and their labels under the data: a label hides no point
+    ax.yaxis.set_zorder(0.5)  # rings and their labels under the data
+    ax.annotate("90°", (radians(RING_LABEL_AZIMUTH_DEG), 90.0), xytext=(-1.0, 1.0),
+                textcoords="offset points", ha="right", va="bottom", fontsize=ring_fontsize,
+                annotation_clip=False)
     ax.set_xticks([radians(a) for a in (0, 90, 180, 270)], AZIMUTH_LABELS)

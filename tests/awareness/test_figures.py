@@ -1,5 +1,6 @@
 """Figs. 1 and 2 on small synthetic inputs: one camera for (a)-(c), the default view facing the
-salient part, a colour bar with its unit on every image panel, self-contained HTML."""
+salient part, a colour bar with its unit on every image panel, self-contained HTML; the
+calibration figure against its caption; the reliability diagrams' counts."""
 
 from __future__ import annotations
 
@@ -10,6 +11,12 @@ import numpy as np
 import pytest
 
 from rapomdp.awareness import figures
+from rapomdp.awareness.evidence import FixedCorrectness
+from rapomdp.awareness.observation import (
+    ClassScoreCalibration,
+    ScoreCalibration,
+    TransferCalibration,
+)
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.geometry.camera import look_at, look_at_many
 from rapomdp.geometry.viewsphere import fibonacci_directions
@@ -118,3 +125,79 @@ def test_remote_references_finds_what_a_browser_would_fetch() -> None:
             '<img src="//host/a.png"><script>var u = "<a href=\\"https://x\\">"</script>'
             '<link href="data:text/css,">')
     assert remote_references(page) == ["https://cdn.plot.ly/plotly.min.js", "//host/a.png"]
+
+
+# --- calibration.png and its caption ----------------------------------------------------------
+
+def _calibration_evidence() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Scores (N, V) of 40 held-out pairs in two halves, right when the score is high, and a
+    model's P(correct) for them: 0.2 in the low half, 0.9 in the high one."""
+    scores = np.linspace(0.01, 0.99, 40).reshape(4, 10)
+    correct = scores > 0.5
+    predicted = np.where(correct, 0.9, 0.2)
+    return scores, correct, predicted
+
+
+@pytest.mark.parametrize(("variant", "calibration", "curves"), [
+    ("paper", ScoreCalibration("logistic", -2.0, 4.0), 1),
+    ("class_area", ClassScoreCalibration(np.array([-1.0, 0.0, 1.0]), 2.0), 4),
+    ("transfer", TransferCalibration(), 0),
+    ("viewpoint", FixedCorrectness(np.full((3, 10), 0.5), np.zeros(3), np.ones(2)), 0),
+])
+def test_calibration_figure_and_caption_say_the_same(variant: str, calibration: object,
+                                                     curves: int) -> None:
+    scores, correct, predicted = _calibration_evidence()
+    fig = figures.calibration_plot(scores, correct, calibration, predicted, variant)
+    ax = fig.axes[0]
+    assert len(ax.lines) == curves  # the map (per class: each class's and their mean) or none
+    caption = figures.calibration_caption(variant, calibration.method)
+    assert f"RA-POMDP's model (ra_{variant})" in caption and f"ra_{variant}" in ax.get_title()
+    if curves:
+        assert "fitted score-to-correctness map" in caption and "no curve" not in caption
+    else:
+        assert "has no map from the score alone" in caption and "no curve is drawn" in caption
+        assert "score-to-correctness map" not in caption
+    # the model's P(correct) per bin is drawn at the bins' means: 0.2 below 0.5, 0.9 above
+    crosses = next(c for c in ax.collections if c.get_label().startswith(f"ra_{variant}:"))
+    x, y = np.asarray(crosses.get_offsets()).T
+    np.testing.assert_allclose(y, np.where(x < 0.5, 0.2, 0.9))
+    accuracy = next(c for c in ax.collections if c.get_label().startswith("held-out"))
+    np.testing.assert_allclose(np.asarray(accuracy.get_offsets())[:, 1], (x > 0.5) * 1.0)
+    assert ax.get_xlabel() == figures.SCORE_AXES[figures.calibration_score(variant)]
+
+
+def test_the_transfer_model_is_binned_by_the_salient_area() -> None:
+    assert figures.calibration_score("transfer") == "area"
+    assert figures.calibration_score("paper") == "mean"
+    assert figures.calibration_score("class_area") == "area"
+
+
+# --- reliability diagrams: the counts shown -------------------------------------------------
+
+def test_reliability_diagram_shows_every_bins_count_and_hollows_small_bins() -> None:
+    from rapomdp.recognition.belief import reliability
+
+    confidence = np.concatenate([np.full(341, 0.95), [0.55], [0.35, 0.36]])
+    correct = np.concatenate([np.arange(341) < 300, [True], [False, True]])
+    curves = {"RA-POMDP": reliability(confidence, correct, 10),
+              "Static": reliability(np.full(6, 0.75), np.ones(6, bool), 10)}
+    fig = figures.reliability_plot(curves, "confidence", "Final beliefs",
+                                   styles={"RA-POMDP": ("#0072B2", "v")})
+    top, bottom = fig.axes
+    counts = sorted(int(t.get_text()) for t in bottom.texts)
+    assert counts == [1, 2, 6, 341]  # every non-empty bin's count written under the diagram
+    # the line joins the bins of at least RELIABILITY_MIN_COUNT only: 341 (and Static's 6)
+    ra_line, static_line = top.lines[1:]
+    np.testing.assert_allclose(ra_line.get_xdata(), [0.95])
+    np.testing.assert_allclose(static_line.get_xdata(), [0.75])
+    hollow = [c for c in top.collections if len(c.get_offsets())
+              and len(c.get_facecolors()) == 0]
+    assert sorted(len(c.get_offsets()) for c in hollow) == [2]  # the 1- and 2-outcome bins
+    legend = [t.get_text() for t in top.get_legend().get_texts()]
+    assert "RA-POMDP (344)" in legend and "Static (6)" in legend
+    assert f"hollow: < {figures.RELIABILITY_MIN_COUNT} in the bin" in legend
+    # marker area grows with the count
+    filled = next(c for c in top.collections if len(c.get_offsets()) == 1
+                  and np.allclose(c.get_offsets(), [[0.95, 300 / 341]]))
+    small = next(c for c in hollow)
+    assert filled.get_sizes()[0] > 5 * small.get_sizes().max()

@@ -68,3 +68,43 @@ def test_the_tradeoff_figure_draws_methods_always_or_never_right(tmp_path: Path)
     points = [point("ra", 1.0, [True] * 10), point("ra", 2.0, [False] * 7),
               point("random", 1.0, [False] * 3), point("random", 2.0, [False] * 6)]
     assert tradeoff(points, tmp_path / "t.png").stat().st_size > 0
+
+
+def test_every_method_has_its_own_colour_and_marker() -> None:
+    from rapomdp.config import METHOD_NAMES
+    from rapomdp.experiment.figures import METHOD_STYLES, method_style
+
+    assert set(METHOD_STYLES) == set(METHOD_NAMES)
+    colours = [c for c, _, _ in METHOD_STYLES.values()]
+    markers = [m for _, _, m in METHOD_STYLES.values()]
+    assert len(set(colours)) == len(colours) and len(set(markers)) == len(markers)
+    unknown = method_style("learned", 0)
+    assert unknown[0] not in colours and unknown[2] not in markers
+
+
+def test_static_stays_visible_under_a_pomdp_point_at_the_same_place() -> None:
+    """The trade-off draws Static (one point) above the curves as a large hollow marker of its
+    own colour, so RA-POMDP's λ point at the same (energy, accuracy) shows through it."""
+    from matplotlib.colors import to_rgba
+
+    from rapomdp.experiment import figures
+    from rapomdp.experiment.metrics import TradeoffPoint, summarise
+
+    def point(method: str, parameter: str, value: float, energy: float) -> TradeoffPoint:
+        correct = np.arange(10) < 6
+        summary = summarise(correct, np.full(10, 0.5), np.ones(10), np.ones(10),
+                            np.full(10, energy), np.zeros(10, bool), method)
+        return TradeoffPoint(method, parameter, value, value == 8.0, summary)
+
+    points = [point("ra", "lambda", 0.5, 0.0), point("ra", "lambda", 8.0, 1.2),
+              point("static", "none", 0.0, 0.0)]
+    ax = figures.tradeoff_plot(points).axes[0]
+    lines = {c.get_label(): c.lines[0] for c in ax.containers}  # each errorbar's data line
+    static, ra = lines["Static"], lines["RA-POMDP"]
+    assert static.get_zorder() > ra.get_zorder()
+    assert static.get_markerfacecolor() == "none" and static.get_markersize() > 2 * \
+        ra.get_markersize()
+    assert to_rgba(static.get_color()) != to_rgba(ra.get_color())
+    assert static.get_marker() != ra.get_marker()
+    assert (static.get_xdata()[0], static.get_ydata()[0]) == (ra.get_xdata()[0],
+                                                              ra.get_ydata()[0])

@@ -19,6 +19,7 @@ TABLE1 = "| Method | Accuracy [95 % CI] |\n|---|---|\n| Static | 0.421 [0.380, 0
 TRADEOFF = "| Method | λ | Accuracy |\n|---|---|---|\n| RA-POMDP | 2 | 0.612 |\n"
 QUALITY = "| model | AUC |\n|---|---|\n| ra | 0.733 |\n"
 PNG = b"\x89PNG\r\n\x1a\n-not-a-real-image-"
+FIG1 = b"\x89PNG\r\n\x1a\n-the-report's-fig-1-"
 
 
 def _writer(files: dict[str, str | bytes], metrics: dict | None = None):
@@ -44,6 +45,9 @@ def finished(tmp_path_factory: pytest.TempPathFactory) -> Workspace:
         "observe": _writer({"quality.md": QUALITY}),
         "evaluate": _writer({"table1.md": TABLE1, "tradeoff.md": TRADEOFF, "fig3.png": PNG,
                              "tradeoff.png": PNG}),
+        # the report's Fig. 1 of the figure class (no evaluate.json: the configured bicycle),
+        # and one of another class, which is not the lead figure
+        "report": _writer({"fig1_bicycle.png": FIG1, "fig1_cup.png": PNG}),
     }
     for name, run in stages.items():
         ws.run(Stage(name, run), config, context=TEST_CONTEXT)
@@ -65,6 +69,8 @@ def test_the_block_holds_the_workspace_numbers_and_is_idempotent(finished, tmp_p
     assert "1 test model(s) per class (3 classes" in block  # the tiny split, from the dataset
     assert "](docs/figures/demo_tradeoff.png)" in block
     assert (tmp_path / "docs" / "figures" / "demo_fig3.png").read_bytes() == PNG
+    # the README's lead figure: the report's Fig. 1 of the figure class
+    assert (tmp_path / "docs" / "figures" / "demo_fig1.png").read_bytes() == FIG1
     update_readme(finished, readme)
     assert readme.read_text() == text
 
@@ -75,7 +81,7 @@ def test_figures_go_where_the_user_says(finished, tmp_path: Path) -> None:
     update_readme(finished, readme, tmp_path / "pictures")
     assert "](pictures/demo_fig3.png)" in readme.read_text()
     assert sorted(p.name for p in (tmp_path / "pictures").iterdir()) == [
-        "demo_fig3.png", "demo_tradeoff.png"]
+        "demo_fig1.png", "demo_fig3.png", "demo_tradeoff.png"]
     assert not (tmp_path / "docs").exists()
 
 
@@ -116,6 +122,7 @@ def test_the_block_shows_every_methods_final_belief_calibration(tmp_path) -> Non
     readme = tmp_path / "README.md"
     readme.write_text(f"{BEGIN}\n{END}\n")
     text = update_readme(ws, readme).read_text()
+    assert not (tmp_path / "docs" / "figures" / "demo_fig1.png").exists()  # no report yet
     assert "**Calibration of the final belief**" in text
     # Static right 9 of 25 with belief 0.8 / 0.3 in the true class, uniform over 3 classes
     assert "| Static | 0.360 | 0.480 | 0.333 | -0.027 | 0.027 |" in text

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import re
 from pathlib import Path
@@ -42,6 +43,26 @@ QUALITY = """model,log_likelihood,brier,auc,mean_p_correct,accuracy
 ra,-0.412,0.131,0.74,0.61,0.58
 classifier,-0.533,0.17,0.66,0.55,0.58
 """
+VALIDATION = """model,log_likelihood,brier,auc,mean_p_correct,accuracy
+ra_paper,-0.61,0.2,0.6,0.5,0.52
+ra_transfer,-0.45,0.15,0.7,0.52,0.52
+classifier,-0.7,0.22,0.62,0.5,0.52
+"""
+#: The observe stage's choice: ra_transfer, chosen on held-out log-likelihood.
+CALIBRATION = {"ra_model": "transfer", "ra_model_configured": "auto", "method": "logistic",
+               "variants": {"ra_paper": {"method": "logistic"},
+                            "ra_transfer": {"method": "salient_view_transfer"}}}
+
+
+def _observation_models(out: Path) -> None:
+    """ra is ra_transfer (one array); ra_paper and classifier differ; two evidence groups."""
+    rng = np.random.default_rng(1)
+    chosen, other, third = (rng.dirichlet(np.ones(3), size=(16, 3)) for _ in range(3))
+    save_npz(out / "observation_models.npz", models=np.array(["ra", "ra_paper", "ra_transfer",
+                                                              "classifier"]),
+             temperatures=np.ones(4), ra=chosen, ra_paper=other, ra_transfer=chosen,
+             classifier=third, evidence_groups=np.array([0, 0, 0, 1, 1, 1]))
+
 METHODS = ["static", "ra"]
 
 
@@ -75,8 +96,10 @@ def _png(path: Path) -> None:
 
 
 def _writer(texts: dict[str, str], jsons: dict[str, object], pngs: tuple[str, ...],
-            episodes: bool = False):
+            episodes: bool = False, models: bool = False):
     def run(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
+        if models:
+            _observation_models(out)
         if episodes:
             classes = load_dataset(inputs.dataset).classes
             save_npz(out / "episodes.npz", **_episodes(classes).arrays())
@@ -100,7 +123,8 @@ SYNTHETIC = {
         "xrho": {"images": 48, "accuracy": 0.6458, "chance": 0.3333},
         "sphere": {"images": 18, "accuracy": 0.7222, "chance": 0.3333}}},
         ("confusion_xrho.png", "accuracy_hemisphere.png")),
-    "observe": _writer({"quality.csv": QUALITY}, {}, ("calibration.png",)),
+    "observe": _writer({"quality.csv": QUALITY, "validation.csv": VALIDATION},
+                       {"calibration.json": CALIBRATION}, ("calibration.png",), models=True),
     "robot": _writer({}, {"robot.json": {
         "viewpoints": 16, "reachable": 9, "reachable_fraction": 0.5625, "ik_seconds": 1.25,
         "manipulability": {"min": 0.02, "median": 0.08, "max": 0.11}}}, ("robot.png",)),
@@ -173,7 +197,37 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
     assert "wrong_declaration_cost_m: 8.0  # lambda" in text
     assert "<details><summary>The configuration of this run" in html
     assert "| test viewpoints X_rho | 48 | 0.646 | 0.333 |" in text
-    assert "| ra | -3.2100 | -3.2000 | 1.5 | 40 |" in text
+    assert "| ra | -3.2100 | -3.2000 | 0.0100 | 1.5 | 40 |" in text
+    # the solver's gap, with what it means for the policy
+    assert ("`ra`: stopped at the iteration budget (solve.iterations: 25) with a gap of 0.01 m: "
+            "its policy may cost up to 0.01 m more per episode than an optimal one, as much as "
+            "0.0012 wrong declaration(s) at λ = 8 m; its mean episode energy in Table 1 is "
+            "6.00 m, so the gap is 0.0017 times what an episode spends moving") in text
+    assert "`classifier`: stopped at the iteration budget" in text  # no episodes: no energy
+    assert "the policy the solver returned; no policy is worth more than the upper" in text
+    # RA-POMDP's model named, with the held-out table that chose it
+    assert ("RA-POMDP's observation model (`ra`) is `ra_transfer`, chosen by "
+            "`observe.ra_model: auto` as the RA variant of best held-out log-likelihood") in text
+    assert "| ra_transfer (chosen) | -0.450 | 0.150 | 0.700 | 0.520 | 0.520 |" in text
+    assert "| ra_paper | -0.610 |" in text and "held-out accuracy |" in text
+    assert text.index("(chosen)") < text.index("| ra | -0.412 |")  # the choice, then the test
+    assert ("Equal rows: `ra` and `ra_transfer` are one model (`ra` is the chosen variant), so "
+            "their rows are equal by construction.") in text
+    # calibration.png's caption says what the chosen model draws: no map
+    assert ("RA-POMDP's model (ra_transfer) gives the same (class, viewpoint) pairs") in text
+    assert "ra_transfer has no map from the score alone" in text
+    assert "fitted score-to-correctness map of RA-POMDP's model" not in text
+    # Fig. 3's caption names both panels
+    assert ("Fig. 3: the mean belief in the true class after each image, per method: left, the "
+            "test models of class bicycle; right, the mean over the 3 classes") in text
+    # the final beliefs' reliability data carry every bin's count (uniform beliefs: 1/3)
+    with open(out / "belief_reliability.csv", newline="") as handle:
+        bins = list(csv.DictReader(handle))
+    assert {r["curve"] for r in bins} == {"Static", "RA-POMDP"}
+    for method in ("Static", "RA-POMDP"):
+        counts = [int(r["count"]) for r in bins if r["curve"] == method]
+        assert counts == [0, 0, 0, 25, 0, 0, 0, 0, 0, 0]
+    assert "[belief_reliability.csv](belief_reliability.csv)" in text
     assert "9/16 viewpoints reachable (56 %)" in text
     assert f"seed {config.seed}" in text and "Configuration hash" in text
     # every image the report links lies in its folder, as a PNG
@@ -185,9 +239,9 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
                           "robot.png", "belief_reliability.png"}
     for name in links:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # one <table> per markdown table: Table 1, per class, quality, the final beliefs'
-    # calibration, provenance, classifier, solver
-    assert html.count("<table>") == len(re.findall(r"^\|---", text, flags=re.M)) == 7
+    # one <table> per markdown table: Table 1, per class, held-out validation, quality, the
+    # final beliefs' calibration, provenance, classifier, solver
+    assert html.count("<table>") == len(re.findall(r"^\|---", text, flags=re.M)) == 8
     assert ("| Method | Accuracy | Belief in the true class | Confidence | "
             "Confidence − accuracy | ECE |") in text
     # the fixture's beliefs stay uniform over 3 classes: confidence 1/3 whatever was declared

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.lines import Line2D
@@ -155,13 +155,21 @@ def trajectories(table: EpisodeTable, methods: Sequence[str], class_name: str,
 
 def tradeoff(points: Sequence[TradeoffPoint], path: Path,
              ylabel: str = "accuracy (95 % CI)", title: str = "Accuracy against energy") -> Path:
+    """:func:`tradeoff_plot` written as a PNG; returns the path."""
+    with style():
+        return save_png(tradeoff_plot(points, ylabel, title), path)
+
+
+def tradeoff_plot(points: Sequence[TradeoffPoint], ylabel: str = "accuracy (95 % CI)",
+                  title: str = "Accuracy against energy") -> Any:
     """Accuracy against mean movement energy: one curve per method over its settings (POMDPs:
     the wrong-declaration cost λ; Random: its stop belief), Static one point; Table 1's
     settings ringed; the error bars are what ``ylabel`` says (the points' low and high).
 
     Each method has its own colour and marker (:func:`method_style`); a method of one point
-    (Static) is drawn above the curves, larger and white-edged, so that a curve's point at the
-    same place (a POMDP that declares at once) does not hide it. Returns the path."""
+    (Static) is drawn above the curves as a large hollow marker, so that it and a curve's point
+    at the same place (a POMDP that declares at once) both stay visible. Returns the
+    ``matplotlib.figure.Figure``."""
     with style():
         fig = new_figure(7.0, 4.8)
         ax = fig.subplots()
@@ -176,13 +184,13 @@ def tradeoff(points: Sequence[TradeoffPoint], path: Path,
             colour, line, marker = method_style(key, i)
             single = len(mine) == 1
             ax.errorbar(energy, accuracy, yerr=errors, linestyle=line, marker=marker,
-                        markersize=8 if single else 5, capsize=3 if single else 2,
-                        color=colour, markeredgecolor="white" if single else colour,
-                        zorder=4 if single else 2, label=METHOD_NAMES.get(key, key))
+                        markersize=11 if single else 5, capsize=4 if single else 2,
+                        color=colour, markerfacecolor="none" if single else colour,
+                        markeredgewidth=1.8 if single else 1.0, zorder=4 if single else 2,
+                        label=METHOD_NAMES.get(key, key))
             for p, x, y in zip(mine, energy, accuracy, strict=True):
-                if p.configured:
-                    ax.plot(x, y, marker="o", markersize=12, fillstyle="none", color=colour,
-                            zorder=4 if single else 2)
+                if p.configured and not single:  # a method of one point: that is Table 1's
+                    ax.plot(x, y, marker="o", markersize=12, fillstyle="none", color=colour)
                 if p.parameter != "none":
                     ax.annotate(f"{p.value:g}", (x, y), textcoords="offset points",
                                 xytext=(5, -10), fontsize=9, color=colour)
@@ -190,4 +198,4 @@ def tradeoff(points: Sequence[TradeoffPoint], path: Path,
                title=f"{title} (labels: λ in m; Random: stop belief; ring: Table 1)")
         ax.grid(alpha=0.3)
         ax.legend(loc="lower right")
-        return save_png(fig, path)
+    return fig
