@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from rapomdp.config import (
     Config,
     ConfigError,
+    SplitConfig,
     config_from_dict,
     load_config,
     parse_yaml,
@@ -21,15 +22,16 @@ def test_default_has_the_papers_values() -> None:
     cfg = Config()
     assert cfg.viewpoints.count == 128 and cfg.viewpoints.radius_m == 0.6
     assert cfg.dataset.radius_m == 0.2
-    # 4 test models a class for statistics over test models, 3 volume models a class of held-out
-    # evidence; the paper's 3 / 1 / 1 is a config
-    assert (cfg.dataset.split.train, cfg.dataset.split.volume, cfg.dataset.split.test) == (4, 3, 4)
+    # split: auto (every model used; 4 / 3 / 4 at eleven models a class, the procedural
+    # default); the paper's 3 / 1 / 1 is a config
+    assert cfg.dataset.split == "auto" and cfg.dataset.models_per_class is None
+    assert (SplitConfig().train, SplitConfig().volume, SplitConfig().test) == (4, 3, 4)
     assert cfg.volume.models_per_class == 1 and cfg.observe.evidence == "volume"
     # the belief's likelihoods tempered (chosen on the held-out closed loop, docs/awareness.md)
     assert cfg.observe.belief_correction == "temperature"
     # and the VP-tree's, fitted the same way over its volume models (docs/recognition.md)
     assert cfg.vptree.belief_correction == "temperature"
-    assert cfg.dataset.split.extra == "train"
+    assert SplitConfig().extra == "train"
     paper = load_config(Path(__file__).parents[1] / "configs" / "paper.yaml")
     assert (paper.dataset.split.train, paper.dataset.split.volume, paper.dataset.split.test) \
         == (3, 1, 1)
@@ -56,6 +58,14 @@ def test_wrong_keys_and_values_are_named(tmp_path: Path) -> None:
     assert "dataset.radiuss: unknown key" in message
     assert "renderr: unknown key" in message
     assert "dataset.split.train: Input should be greater than or equal to 1 (got 0)" in message
+    # the split's two forms: the word auto or fixed counts; the union's tags are no keys
+    assert config_from_dict({"dataset": {"split": "auto"}}) == Config()
+    assert config_from_dict({"dataset": {"split": {"test": 2}}}).dataset.split.test == 2
+    with pytest.raises(ConfigError) as wrong:
+        config_from_dict({"dataset": {"split": "automatic"}})
+    assert "dataset.split: Input should be 'auto' (got 'automatic')" in str(wrong.value)
+    with pytest.raises(ConfigError, match="dataset.split.tset: unknown key"):
+        config_from_dict({"dataset": {"split": {"tset": 2}}})
 
 
 def test_cross_field_rules_and_unreadable_files(tmp_path: Path) -> None:

@@ -161,13 +161,13 @@ def _report(result: StageResult, workspace: Workspace | None = None) -> None:
         state = f"shared from {Path(result.shared_from).name}"
     console.print(f"[green]✓[/] {result.name:<10} {state}  ({len(result.files)} files)")
     if result.name == "dataset" and not result.cached and workspace is not None:
-        from rapomdp.data.dataset import duplicate_line, role_count_lines
+        from rapomdp.data.dataset import role_count_lines, split_line, warning_lines
 
-        for line in role_count_lines(workspace.stage_dir("dataset")):
-            console.print(f"  {line}", highlight=False, soft_wrap=True)
-        duplicated = duplicate_line(workspace.stage_dir("dataset"))
-        if duplicated is not None:
-            console.print(f"[yellow]warning:[/] {escape(duplicated)}", highlight=False,
+        folder = workspace.stage_dir("dataset")
+        for line in [split_line(folder), *role_count_lines(folder)]:
+            console.print(f"  {escape(line)}", highlight=False, soft_wrap=True)
+        for line in warning_lines(folder):
+            console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False,
                           soft_wrap=True)
 
 

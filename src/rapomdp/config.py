@@ -12,10 +12,18 @@ import copy
 import re
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from rapomdp.io import ArtefactError, check_plain_name, decode_text
 from rapomdp.section import Section
@@ -26,12 +34,16 @@ class ConfigError(ValueError):
 
 
 class SplitConfig(Section):
-    """Models per class for each role, and what becomes of a class's models beyond their total
-    (a folder with more): ``train`` adds them to the training models, ``drop`` leaves them out.
-    Default 4 / 3 / 4: 4 test models a class for paired statistics over test models, 3 volume
-    models a class as held-out evidence of the trained classifier (the first of them also
-    makes the saliency volume, ``volume.models_per_class``); the paper's 3 / 1 / 1 is
-    ``configs/paper.yaml``."""
+    """Fixed models per class for each role, and what becomes of a class's models beyond
+    their total (a folder with more): ``train`` adds them to the training models, ``drop``
+    leaves them out.
+
+    The default split is ``auto`` (rapomdp.data.splits: every model used, 3 / 1 / 1 at five
+    models a class up to 4 / 3 / 4 at eleven); these counts are for a fixed split, e.g. the
+    paper's 3 / 1 / 1 in ``configs/paper.yaml``. 4 / 3 / 4: 4 test models a class for paired
+    statistics over test models, 3 volume models a class as held-out evidence of the trained
+    classifier (the first of them also makes the saliency volume, ``volume.models_per_class``).
+    """
 
     train: int = Field(4, ge=1)
     volume: int = Field(3, ge=1)
@@ -41,6 +53,12 @@ class SplitConfig(Section):
     @property
     def total(self) -> int:
         return self.train + self.volume + self.test
+
+
+def _split_kind(value: Any) -> str:
+    """``dataset.split``'s form: the word ``auto`` or a mapping of counts (a tag in errors'
+    locations only, which :func:`_describe` leaves out)."""
+    return "<auto>" if isinstance(value, str) else "<counts>"
 
 
 class DatasetConfig(Section):
@@ -55,11 +73,19 @@ class DatasetConfig(Section):
     synset_map: Path | None = Field(None, description="ShapeNet synset-to-name JSON")
     classes: list[str] | None = Field(None, description="use only these classes")
     models_per_class: int | None = Field(
-        None, ge=1, description="procedural models per class (default: the split's total)"
+        None, ge=1, description="procedural models per class (default: the split's total; "
+        "auto: the size at which it reaches 4 / 3 / 4)"
     )
     radius_m: float = Field(0.2, gt=0, description="bounding-sphere radius after normalisation")
-    split: SplitConfig = SplitConfig()
-    too_few_models: Literal["error", "drop"] = "error"
+    split: Annotated[
+        Annotated[Literal["auto"], Tag("<auto>")] | Annotated[SplitConfig, Tag("<counts>")],
+        Discriminator(_split_kind),
+    ] = Field("auto", description="auto: every model of a class used, its roles by the "
+              "documented rule (docs/conventions.md); or fixed counts {train, volume, test, "
+              "extra}")
+    too_few_models: Literal["error", "drop"] = Field(
+        "error", description="a class with fewer models than the split needs: an error "
+        "naming it, or drop: the class left out (one warning line)")
 
     @field_validator("classes")
     @classmethod
@@ -75,7 +101,8 @@ class DatasetConfig(Section):
     def _folder_needs_path(self) -> DatasetConfig:
         if self.source == "folder" and self.path is None:
             raise ValueError("source 'folder' needs dataset.path")
-        if self.models_per_class is not None and self.models_per_class < self.split.total:
+        if (isinstance(self.split, SplitConfig) and self.models_per_class is not None
+                and self.models_per_class < self.split.total):
             raise ValueError(
                 f"models_per_class ({self.models_per_class}) is below the split's total "
                 f"({self.split.total})"
@@ -211,7 +238,7 @@ class ObserveConfig(Section):
         1.0, ge=0, description="RA / black-box: pseudo-count per (class, label) of the confusion")
     evidence: Literal["volume", "crossfit", "both"] = Field(
         "volume", description="held-out evidence the models are fitted on: the volume models "
-        "under the trained classifier (dataset.split.volume a class), cross-fitted training "
+        "under the trained classifier (the dataset split's volume role), cross-fitted training "
         "models (weaker fold classifiers), or both")
     crossfit_folds: int = Field(3, ge=2, description="cross-fitting folds over training models")
     crossfit_epochs: int = Field(
@@ -645,7 +672,8 @@ def _shown(value: Any) -> str:
 
 
 def _describe(error: dict[str, Any]) -> str:
-    where = ".".join(str(part) for part in error["loc"]) or "(top level)"
+    where = ".".join(str(part) for part in error["loc"]
+                     if not str(part).startswith("<")) or "(top level)"
     if error["type"] == "extra_forbidden":
         return f"{where}: unknown key"
     shown = _shown(error["input"]) if "input" in error else ""

@@ -1,14 +1,15 @@
 """The dataset stage: normalised meshes of every class and their train / volume / test roles.
 
-Output (``W/dataset/``): ``dataset.json`` (classes, models, roles, sources) and
-``meshes/<class>/<model>.npz`` (vertices in metres, faces), normalised by
-:func:`rapomdp.data.meshes.normalise_mesh`.
+Output (``W/dataset/``): ``dataset.json`` (classes, models, roles, sources; the split's rule,
+its role counts per class, the classes left out, and ``held_out_groups``: the fewest volume
+models of any class, i.e. how many complete groups of held-out evidence the observe stage's
+leave-one-group-out choices have) and ``meshes/<class>/<model>.npz`` (vertices in metres,
+faces), normalised by :func:`rapomdp.data.meshes.normalise_mesh`.
 """
 
 from __future__ import annotations
 
 import hashlib
-import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -21,7 +22,7 @@ from rapomdp.context import RunContext
 from rapomdp.data.layouts import LAYOUT_UP_AXIS, DatasetLayoutError, discover_models
 from rapomdp.data.meshes import MeshLoadError, centroid, load_mesh, normalise_mesh
 from rapomdp.data.procedural import PROCEDURAL_CLASSES, generate_model
-from rapomdp.data.splits import ROLES, split_models
+from rapomdp.data.splits import AUTO_FULL_MODELS, ROLES, split_models
 from rapomdp.io import (
     ArtefactError,
     check_plain_name,
@@ -83,6 +84,20 @@ class Dataset:
             raise ValueError(f"unknown role '{role}'; roles are: {', '.join(ROLES)}")
         return [m for m in self.models if m.role == role]
 
+    def role_counts(self) -> dict[str, dict[str, int]]:
+        """Each class's number of models per role."""
+        counts = {c: dict.fromkeys(ROLES, 0) for c in self.classes}
+        for model in self.models:
+            counts[model.class_name][model.role] += 1
+        return counts
+
+    @property
+    def held_out_groups(self) -> int:
+        """The fewest volume models of any class: how many groups of held-out evidence (the
+        k-th volume model of every class is group k, :func:`class_ranks`) hold every class.
+        Below 2, a leave-one-group-out choice has no held-out group to score on."""
+        return min((c["volume"] for c in self.role_counts().values()), default=0)
+
     def label(self, model: ModelEntry) -> int:
         return self.classes.index(model.class_name)
 
@@ -110,6 +125,27 @@ def duplicate_line(stage_dir: str | Path) -> str | None:
                                          if len(duplicates) > 3 else "")
     return (f"{len(duplicates)} model file(s) have the same bytes as a model of another role "
             f"(the split is not held out): {shown}")
+
+
+def warning_lines(stage_dir: str | Path) -> list[str]:
+    """The dataset's warnings, one line each: classes left out for too few models, model files
+    shared between roles."""
+    dropped = read_json(Path(stage_dir) / DATASET_FILE).get("dropped_message")
+    duplicated = duplicate_line(stage_dir)
+    return [line for line in (dropped, duplicated) if line]
+
+
+def split_line(stage_dir: str | Path) -> str:
+    """One line: the split's rule and the held-out evidence it leaves the observe stage."""
+    data = read_json(Path(stage_dir) / DATASET_FILE)
+    rule = ("auto (every model used)" if data.get("split_rule") == "auto"
+            else "fixed counts" + (", extra models trained on"
+                                   if data.get("extra_models") == "train" else ""))
+    groups = data.get("held_out_groups")
+    held = ("" if groups is None else f"; held-out groups (volume models of the smallest "
+            f"class): {groups}" + (" (too few for a leave-one-group-out choice)"
+                                  if groups < 2 else ""))
+    return f"split: {rule}{held}"
 
 
 def role_count_lines(stage_dir: str | Path) -> list[str]:
@@ -190,7 +226,8 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
                       context: RunContext) -> None:
     """Build the dataset: pick, split, load, normalise and store every model."""
     cfg = config.dataset
-    counts = {role: getattr(cfg.split, role) for role in ROLES}
+    auto = cfg.split == "auto"
+    counts = None if auto else {role: getattr(cfg.split, role) for role in ROLES}
     if cfg.source == "procedural":
         classes = list(cfg.classes) if cfg.classes is not None else list(PROCEDURAL_CLASSES)
         unknown = [c for c in classes if c not in PROCEDURAL_CLASSES]
@@ -199,20 +236,16 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
                 f"unknown procedural class(es) {', '.join(unknown)}; "
                 f"classes are: {', '.join(PROCEDURAL_CLASSES)}"
             )
-        per_class = cfg.models_per_class or cfg.split.total
+        per_class = cfg.models_per_class or (AUTO_FULL_MODELS if auto else cfg.split.total)
         candidates = {c: list(range(per_class)) for c in classes}
         layout, up_axis = "procedural", "z"
     else:
         layout, candidates = _folder_models(config)
         up_axis = LAYOUT_UP_AXIS[layout] if cfg.up_axis == "auto" else cfg.up_axis
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        split = split_models(candidates, counts, config.seed, cfg.too_few_models,
-                             cfg.split.extra)
-    dropped = [str(w.message) for w in caught]
-    for message in dropped:
-        warnings.warn(message, stacklevel=2)
+    drawn = split_models(candidates, counts, config.seed, cfg.too_few_models,
+                         "train" if auto else cfg.split.extra)
+    split = drawn.roles
 
     jobs = [(c, role, item) for c, roles in split.items() for role in ROLES for item in roles[role]]
     models: list[ModelEntry] = []
@@ -253,11 +286,14 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
             "layout": layout,
             "up_axis": up_axis,
             "radius_m": cfg.radius_m,
-            "dropped": dropped,
+            "dropped": drawn.dropped,
+            "dropped_message": drawn.dropped_message,
             "duplicates": duplicates,
+            "split_rule": "auto" if auto else "fixed",
             "split_counts": counts,
-            "extra_models": cfg.split.extra,
+            "extra_models": "train" if auto else cfg.split.extra,
             "role_counts": {c: {r: len(roles[r]) for r in ROLES} for c, roles in split.items()},
+            "held_out_groups": min(len(roles["volume"]) for roles in split.values()),
             "models": [asdict(m) for m in models],
             "content_hash": stable_hash([asdict(m) for m in models]),
         },
