@@ -1,94 +1,130 @@
-"""The stages in pipeline order; data flows one way, each stage reading only earlier ones."""
+"""The stages in pipeline order; data flows one way, each stage reading only earlier ones.
+
+The stage graph (names, sections, inputs, versions, fingerprints) is read from light modules; a
+stage's code (torch, the robot, rendering) is imported when the stage runs, so that reading the
+graph (``rapomdp status``, staleness, planned keys) loads none of it.
+"""
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Callable, Iterable, Sequence
+from functools import partial
 from pathlib import Path
 
-from rapomdp.awareness.artefacts import volume_file
-from rapomdp.awareness.figures import fig2
-from rapomdp.awareness.report import FIGURES_DIR
-from rapomdp.awareness.stage import (
+from rapomdp.awareness.artefacts import (
     CROSSFIT_SECTIONS,
     OBSERVE_SECTIONS,
     SALIENCY_SECTIONS,
     VOLUME_SECTIONS,
     crossfit_fingerprint,
-    run_crossfit_stage,
-    run_observe_stage,
-    run_saliency_stage,
-    run_volume_stage,
+    volume_file,
 )
-from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.config import Config, apply_overrides, config_from_dict, read_config_data
 from rapomdp.context import RunContext
-from rapomdp.data.dataset import dataset_fingerprint, run_dataset_stage
-from rapomdp.data.training_views import load_training_views, run_render_stage
-from rapomdp.experiment.evaluation import EVALUATE_SECTIONS, run_evaluate_stage
-from rapomdp.experiment.report import REPORT_INPUTS, REPORT_SECTIONS, run_report_stage
-from rapomdp.planning.stage import run_solve_stage
-from rapomdp.recognition.stage import (
-    EVAL_SECTIONS,
-    TRAIN_SECTIONS,
-    run_classifier_eval_stage,
-    run_train_stage,
-)
-from rapomdp.recognition.vptree_stage import VPTREE_SECTIONS, run_vptree_stage
-from rapomdp.robot.stage import run_robot_stage
-from rapomdp.workspace import Stage, StageError, StageResult, Workspace, stage_key
+from rapomdp.data.layouts import dataset_fingerprint
+from rapomdp.experiment.sections import EVALUATE_SECTIONS, REPORT_INPUTS, REPORT_SECTIONS
+from rapomdp.recognition.artefacts import EVAL_SECTIONS, TRAIN_SECTIONS, VPTREE_SECTIONS
+from rapomdp.workspace import Stage, StageError, StageInputs, StageResult, Workspace, stage_key
+
+StageRun = Callable[[Config, StageInputs, Path, RunContext], None]
+
+
+def stage_code(name: str) -> StageRun:
+    """The function that runs stage ``name``, imported now (not with the stage graph)."""
+    if name == "dataset":
+        from rapomdp.data.dataset import run_dataset_stage as run
+    elif name == "render":
+        from rapomdp.data.training_views import run_render_stage as run
+    elif name == "train":
+        from rapomdp.recognition.stage import run_train_stage as run
+    elif name == "classifier_eval":
+        from rapomdp.recognition.stage import run_classifier_eval_stage as run
+    elif name == "saliency":
+        from rapomdp.awareness.stage import run_saliency_stage as run
+    elif name == "volume":
+        from rapomdp.awareness.stage import run_volume_stage as run
+    elif name == "robot":
+        from rapomdp.robot.stage import run_robot_stage as run
+    elif name == "crossfit":
+        from rapomdp.awareness.stage import run_crossfit_stage as run
+    elif name == "observe":
+        from rapomdp.awareness.stage import run_observe_stage as run
+    elif name == "vptree":
+        from rapomdp.recognition.vptree_stage import run_vptree_stage as run
+    elif name == "solve":
+        from rapomdp.planning.stage import run_solve_stage as run
+    elif name == "evaluate":
+        from rapomdp.experiment.evaluation import run_evaluate_stage as run
+    elif name == "report":
+        from rapomdp.experiment.report import run_report_stage as run
+    else:
+        raise KeyError(unknown_stages_message([name]))
+    return run
+
+
+def _run_stage(name: str, config: Config, inputs: StageInputs, out: Path,
+               context: RunContext) -> None:
+    stage_code(name)(config, inputs, out, context)
+
+
+def _deferred(name: str) -> StageRun:
+    """A stage's ``run``: :func:`stage_code` of ``name``, called when the stage runs."""
+    return partial(_run_stage, name)
+
 
 STAGES: list[Stage] = [
     Stage(
         name="dataset",
-        run=run_dataset_stage,
+        run=_deferred("dataset"),
         sections=("seed", "dataset"),
         fingerprint=dataset_fingerprint,
         description="normalised meshes and the per-class train/volume/test split",
     ),
     Stage(
         name="render",
-        run=run_render_stage,
+        run=_deferred("render"),
         sections=("seed", "camera", "render"),
         inputs=("dataset",),
         description="depth images of every model over the training viewsphere",
     ),
     Stage(
         name="train",
-        run=run_train_stage,
+        run=_deferred("train"),
         sections=TRAIN_SECTIONS,
         inputs=("dataset", "render"),
         description="depth CNN classifier trained on the train models' renders",
     ),
     Stage(
         name="classifier_eval",
-        run=run_classifier_eval_stage,
+        run=_deferred("classifier_eval"),
         sections=EVAL_SECTIONS,
         inputs=("dataset", "render", "train"),
         description="single-view accuracy on the test models, confusion, per viewpoint",
     ),
     Stage(
         name="saliency",
-        run=run_saliency_stage,
+        run=_deferred("saliency"),
         sections=SALIENCY_SECTIONS,
         inputs=("dataset", "render", "train"),
         description="2D saliency maps of each class's volume model over the training viewsphere",
     ),
     Stage(
         name="volume",
-        run=run_volume_stage,
+        run=_deferred("volume"),
         sections=VOLUME_SECTIONS,
         inputs=("dataset", "render", "saliency"),
         description="3D dense saliency volume per class (voxel median of back-projected saliency)",
     ),
     Stage(
         name="robot",
-        run=run_robot_stage,
+        run=_deferred("robot"),
         sections=("seed", "viewpoints", "robot"),
         description="Panda IK, reachability and manipulability per test viewpoint; energy E_M",
     ),
     Stage(
         name="crossfit",
-        run=run_crossfit_stage,
+        run=_deferred("crossfit"),
         sections=CROSSFIT_SECTIONS,
         inputs=("dataset", "render"),
         fingerprint=crossfit_fingerprint,
@@ -96,7 +132,7 @@ STAGES: list[Stage] = [
     ),
     Stage(
         name="observe",
-        run=run_observe_stage,
+        run=_deferred("observe"),
         sections=OBSERVE_SECTIONS,
         inputs=("dataset", "render", "train", "volume", "crossfit"),
         version="2",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence
@@ -104,28 +140,28 @@ STAGES: list[Stage] = [
     ),
     Stage(
         name="vptree",
-        run=run_vptree_stage,
+        run=_deferred("vptree"),
         sections=VPTREE_SECTIONS,
         inputs=("dataset", "render"),
         description="VP-tree baseline: vocabulary-tree classifier, its confusion P(o | class, x)",
     ),
     Stage(
         name="solve",
-        run=run_solve_stage,
+        run=_deferred("solve"),
         sections=("solve",),
         inputs=("observe", "vptree", "robot"),
         description="one active-recognition POMDP policy per observation model",
     ),
     Stage(
         name="evaluate",
-        run=run_evaluate_stage,
+        run=_deferred("evaluate"),
         sections=EVALUATE_SECTIONS,
         inputs=("dataset", "train", "observe", "vptree", "robot", "solve"),
         description="closed-loop episodes of every method on the test models: Table 1, Fig. 3",
     ),
     Stage(
         name="report",
-        run=run_report_stage,
+        run=_deferred("report"),
         sections=REPORT_SECTIONS,
         inputs=REPORT_INPUTS,
         description="markdown + HTML report: Table 1, Figs. 1-3, classifier, robot, solver",
@@ -135,11 +171,21 @@ STAGES: list[Stage] = [
 STAGE_NAMES = [stage.name for stage in STAGES]
 
 
+def unknown_stages_message(names: Iterable[str]) -> str:
+    """``unknown stage 'evalute' (did you mean 'evaluate'?); stages are: ...``."""
+    parts = []
+    for name in names:
+        close = difflib.get_close_matches(name, STAGE_NAMES, n=1, cutoff=0.6)
+        parts.append(f"'{name}'" + (f" (did you mean '{close[0]}'?)" if close else ""))
+    return (f"unknown stage{'s' if len(parts) > 1 else ''} {', '.join(parts)}; stages are: "
+            f"{', '.join(STAGE_NAMES)}")
+
+
 def get_stage(name: str) -> Stage:
     for stage in STAGES:
         if stage.name == name:
             return stage
-    raise KeyError(f"unknown stage '{name}'; stages are: {', '.join(STAGE_NAMES)}")
+    raise KeyError(unknown_stages_message([name]))
 
 
 def stages_up_to(name: str) -> list[Stage]:
@@ -177,7 +223,7 @@ def run_pipeline(
     force = set(force)
     unknown = force - set(STAGE_NAMES)
     if unknown:
-        raise KeyError(f"unknown stage(s) {sorted(unknown)}; stages are: {', '.join(STAGE_NAMES)}")
+        raise KeyError(unknown_stages_message(sorted(unknown)))
     stages = STAGES if until is None else stages_up_to(until)
     results = []
     with workspace.locked():
@@ -205,6 +251,11 @@ def write_fig2(config: Config, ws: Workspace, target: str, against: Sequence[str
                context: RunContext = RunContext()) -> tuple[Path, Path]:
     """Fig. 2: ``target``'s volume in one two-class problem per opponent (each with its own
     classifier, in ``W/fig2/<target>-vs-<other>``) and in the all-class problem (``W``)."""
+    from rapomdp.awareness.figures import fig2
+    from rapomdp.awareness.report import FIGURES_DIR
+    from rapomdp.awareness.volume import SaliencyVolume
+    from rapomdp.data.training_views import load_training_views
+
     volumes, titles = [], []
     for other in against:
         if other == target:

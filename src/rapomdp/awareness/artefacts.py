@@ -18,7 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.io import ArtefactError, load_npz, read_json
+from rapomdp.config import Config
+from rapomdp.io import ArtefactError, load_npz, read_json, stable_hash
+from rapomdp.recognition.artefacts import TRAIN_SECTIONS
 
 SALIENCY_FILE = "saliency.json"
 VOLUME_FILE = "volume.json"
@@ -33,6 +35,12 @@ VALIDATION_MD = "validation.md"
 CALIBRATION_FILE = "calibration.json"
 CALIBRATION_FIGURE = "calibration.png"
 TIMING_FILE = "timing.json"
+#: The configuration sections the keys of the saliency, volume, observe and crossfit stages
+#: hash (here, with no torch, so that the stage graph is read without loading their code).
+SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency", "volume")
+VOLUME_SECTIONS = ("volume",)
+OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
+CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
 #: The self-awareness table's columns: the model's name, then its scores on the test models.
 QUALITY_COLUMNS = ("model", "log_likelihood", "brier", "auc", "mean_p_correct", "accuracy")
 
@@ -99,3 +107,11 @@ def load_ra_choice(observe_dir: str | Path) -> RAChoice:
     except (KeyError, TypeError, AttributeError):
         raise ArtefactError(f"{path}: expected the key ra_model (the RA variant chosen) and "
                             f"variants by name") from None
+
+
+def crossfit_fingerprint(config: Config) -> str:
+    """The crossfit stage reads these ``observe`` keys only (the rest would retrain for
+    nothing)."""
+    cfg = config.observe
+    return stable_hash({"crossfit": cfg.evidence != "volume", "folds": cfg.crossfit_folds,
+                        "epochs": cfg.crossfit_epochs})

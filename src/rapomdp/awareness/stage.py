@@ -85,7 +85,7 @@ from rapomdp.data.test_views import CROSSFIT_STREAM, TEST_STREAM, VOLUME_STREAM,
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.geometry.viewsphere import fibonacci_directions
-from rapomdp.io import load_npz, save_npz, stable_hash, write_json_atomic
+from rapomdp.io import load_npz, save_npz, write_json_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
 from rapomdp.recognition.belief import (
@@ -96,13 +96,8 @@ from rapomdp.recognition.belief import (
 )
 from rapomdp.recognition.classifier import Classifier, configure_torch
 from rapomdp.recognition.preprocess import input_to_image
-from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
+from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.workspace import StageError, StageInputs
-
-SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency", "volume")
-VOLUME_SECTIONS = ("volume",)
-OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
-CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
 
 
 def saliency_models(dataset: Dataset, per_class: int | None) -> list[ModelEntry]:
@@ -514,14 +509,6 @@ def run_crossfit_stage(config: Config, inputs: StageInputs, out: Path,
         "held_out_accuracy": float(correct.mean()) if correct.size else None,
         "seconds": time.perf_counter() - start,
     })
-
-
-def crossfit_fingerprint(config: Config) -> str:
-    """The crossfit stage reads these ``observe`` keys only (the rest would retrain for
-    nothing)."""
-    cfg = config.observe
-    return stable_hash({"crossfit": cfg.evidence != "volume", "folds": cfg.crossfit_folds,
-                        "epochs": cfg.crossfit_epochs})
 
 
 def run_observe_stage(config: Config, inputs: StageInputs, out: Path,

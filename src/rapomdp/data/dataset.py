@@ -19,14 +19,13 @@ import trimesh
 
 from rapomdp.config import Config
 from rapomdp.context import RunContext
-from rapomdp.data.layouts import LAYOUT_UP_AXIS, DatasetLayoutError, discover_models
+from rapomdp.data.layouts import LAYOUT_UP_AXIS, DatasetLayoutError, folder_models
 from rapomdp.data.meshes import MeshLoadError, centroid, load_mesh, normalise_mesh
 from rapomdp.data.procedural import PROCEDURAL_CLASSES, generate_model
 from rapomdp.data.splits import AUTO_FULL_MODELS, ROLES, split_models
 from rapomdp.io import (
     ArtefactError,
     check_plain_name,
-    fingerprint_files,
     load_npz,
     plain_name,
     read_json,
@@ -38,7 +37,6 @@ from rapomdp.progress import track
 from rapomdp.workspace import StageInputs
 
 DATASET_FILE = "dataset.json"
-PROCEDURAL_VERSION = "2"
 
 
 @dataclass(frozen=True)
@@ -194,29 +192,6 @@ def _model_id(path: Path, layout: str) -> str:
     return plain_name(path.parent.parent.name if layout == "shapenet" else path.stem)
 
 
-def _folder_models(config: Config) -> tuple[str, dict[str, list[Path]]]:
-    cfg = config.dataset
-    assert cfg.path is not None
-    layout, found = discover_models(cfg.path, cfg.layout, cfg.synset_map)
-    if cfg.classes is not None:
-        missing = [c for c in cfg.classes if c not in found]
-        if missing:
-            raise DatasetLayoutError(
-                f"{cfg.path}: class folder(s) not found: {', '.join(missing)} "
-                f"(found: {', '.join(found) or 'none'})"
-            )
-        found = {c: found[c] for c in cfg.classes}
-    return layout, found
-
-
-def dataset_fingerprint(config: Config) -> str:
-    """What the stage reads from outside the config: the mesh files, or the generator's version."""
-    if config.dataset.source == "procedural":
-        return f"procedural-{PROCEDURAL_VERSION}"
-    _, found = _folder_models(config)
-    return fingerprint_files([p for paths in found.values() for p in paths])
-
-
 def _write_mesh(out: Path, rel: str, mesh: trimesh.Trimesh) -> None:
     save_npz(out / rel, vertices=np.asarray(mesh.vertices, dtype=np.float64),
              faces=np.asarray(mesh.faces, dtype=np.int32))
@@ -240,7 +215,7 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
         candidates = {c: list(range(per_class)) for c in classes}
         layout, up_axis = "procedural", "z"
     else:
-        layout, candidates = _folder_models(config)
+        layout, candidates = folder_models(config)
         up_axis = LAYOUT_UP_AXIS[layout] if cfg.up_axis == "auto" else cfg.up_axis
 
     drawn = split_models(candidates, counts, config.seed, cfg.too_few_models,

@@ -18,10 +18,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from rapomdp.data.meshes import MESH_EXTENSIONS
-from rapomdp.io import ArtefactError, check_plain_name, read_text
+from rapomdp.config import Config
+from rapomdp.io import ArtefactError, check_plain_name, fingerprint_files, read_text
 
 LAYOUT_UP_AXIS = {"generic": "z", "objectnet3d": "y", "modelnet": "z", "shapenet": "y"}
+#: The mesh files a layout reads (and :func:`rapomdp.data.meshes.load_mesh` loads).
+MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
+#: The procedural generator's version: the dataset stage's external input when the source is
+#: the generator (a new version redoes the stage).
+PROCEDURAL_VERSION = "2"
 
 
 class DatasetLayoutError(ValueError):
@@ -143,3 +148,28 @@ def discover_models(
     for name in found:
         _checked_name(name, root)
     return layout, dict(sorted(found.items()))
+
+
+def folder_models(config: Config) -> tuple[str, dict[str, list[Path]]]:
+    """The layout and, per class, the mesh files of ``dataset.source: folder`` (only
+    ``dataset.classes`` when given; a class named there but not found is an error)."""
+    cfg = config.dataset
+    assert cfg.path is not None
+    layout, found = discover_models(cfg.path, cfg.layout, cfg.synset_map)
+    if cfg.classes is not None:
+        missing = [c for c in cfg.classes if c not in found]
+        if missing:
+            raise DatasetLayoutError(
+                f"{cfg.path}: class folder(s) not found: {', '.join(missing)} "
+                f"(found: {', '.join(found) or 'none'})"
+            )
+        found = {c: found[c] for c in cfg.classes}
+    return layout, found
+
+
+def dataset_fingerprint(config: Config) -> str:
+    """What the stage reads from outside the config: the mesh files, or the generator's version."""
+    if config.dataset.source == "procedural":
+        return f"procedural-{PROCEDURAL_VERSION}"
+    _, found = folder_models(config)
+    return fingerprint_files([p for paths in found.values() for p in paths])

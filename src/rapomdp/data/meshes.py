@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
+from rapomdp.data.layouts import MESH_EXTENSIONS
 
 # ModelNet writes some headers as "OFF490 518 0": the keyword runs into the counts.
 _FUSED_OFF_HEADER = re.compile(rb"^\s*OFF(?=[\s\d-])(?!\s*\n)")

@@ -65,14 +65,13 @@ from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import first_view_models, offered_observation_models
-from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
+from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
 
 if TYPE_CHECKING:
     from rapomdp.experiment.metrics import TradeoffPoint
 
-EVALUATE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "evaluate")
 #: The method every other is compared with, pair by pair, in Table 1.
 PAIRED_REFERENCE = "ra"
 VPTREE_RECOGNISER = "vptree"

@@ -70,6 +70,7 @@ from rapomdp.experiment.metrics import (
     table1_cells,
     table1_story,
 )
+from rapomdp.experiment.sections import REPORT_INPUTS
 from rapomdp.io import (
     ArtefactError,
     atomic_path,
@@ -91,8 +92,6 @@ from rapomdp.recognition.artefacts import (
 from rapomdp.robot.artefacts import ROBOT_FIGURE, ROBOT_SUMMARY, describe
 from rapomdp.workspace import StageError, StageInputs, Workspace, read_stage_record
 
-REPORT_SECTIONS = ("seed",)
-REPORT_INPUTS = ("dataset", "train", "classifier_eval", "observe", "robot", "solve", "evaluate")
 REPORT_MD = "report.md"
 REPORT_HTML = "report.html"
 BELIEF_RELIABILITY_FIGURE = "belief_reliability.png"

@@ -28,6 +28,12 @@ HEMISPHERE_FIGURE = "accuracy_hemisphere.png"
 VPTREE_CLASSIFIER_FILE = "vocabulary_tree.npz"
 VPTREE_OBSERVATION_FILE = "observation_model.npz"
 VPTREE_SUMMARY_FILE = "vptree.json"
+
+#: The configuration sections the keys of the train, classifier_eval and vptree stages hash
+#: (here, with no torch, so that the stage graph is read without loading the stages' code).
+TRAIN_SECTIONS = ("seed", "dataset", "camera", "render", "train")
+EVAL_SECTIONS = ("seed", "camera", "render", "viewpoints")
+VPTREE_SECTIONS = ("seed", "camera", "render", "viewpoints", "vptree")
 #: The VP-tree's observation model's name (its array in :data:`VPTREE_OBSERVATION_FILE`).
 VPTREE_MODEL_NAME = "vptree"
 

@@ -31,6 +31,7 @@ from rapomdp.recognition.artefacts import (
     HISTORY_FILE,
     METRICS_FILE,
     PROBABILITIES_FILE,
+    TRAIN_SECTIONS,
     TRAINING_FIGURE,
     confusion_file,
 )
@@ -50,8 +51,6 @@ from rapomdp.recognition.training import (
 )
 from rapomdp.workspace import StageError, StageInputs, Workspace
 
-TRAIN_SECTIONS = ("seed", "dataset", "camera", "render", "train")
-EVAL_SECTIONS = ("seed", "camera", "render", "viewpoints")
 
 def _finite(value: float) -> float | None:
     """JSON has no NaN: no validation views gives null."""

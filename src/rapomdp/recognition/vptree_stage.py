@@ -53,8 +53,6 @@ from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.recognition.vocabulary_tree import DescriptorParams, VocabularyTreeClassifier
 from rapomdp.workspace import StageError, StageInputs
 
-VPTREE_SECTIONS = ("seed", "camera", "render", "viewpoints", "vptree")
-
 
 def descriptor_params(cfg: VPTreeConfig) -> DescriptorParams:
     return DescriptorParams(cfg.patch_size_m, cfg.patch_samples, cfg.stride_px)
