@@ -21,15 +21,14 @@ $(STAMP): $(PY) pyproject.toml constraints.txt
 
 install: $(STAMP)
 
-# Every stage on the embedded dataset, then Table 1; the report is W/report/report.html.
-# Two PyTorch threads for the serial stages (train, crossfit, observe): 1.97x
-# the training throughput of one on an idle 2-core machine (benchmarks/classifier_speed.py);
-# the parallel stages use two single-threaded processes whatever this says.
+# `rapomdp demo` (what pip users run): the dataset, its contact sheet, every stage, Table 1
+# and the summary (report path, who won, wall time, memory); W/report/report.html.
+# Two PyTorch threads for the serial stages (train, crossfit, observe): the training throughput
+# against one thread is in benchmarks/results/classifier_speed.txt; the parallel stages use two
+# single-threaded processes whatever this says.
 DEMO_THREADS ?= 2
 demo: $(STAMP)
-	$(VENV)/bin/rapomdp dataset --workspace $(DEMO_WORKSPACE)
-	$(VENV)/bin/rapomdp dataset preview --workspace $(DEMO_WORKSPACE) --out $(DEMO_WORKSPACE)/contact_sheet.png
-	$(VENV)/bin/rapomdp run --workspace $(DEMO_WORKSPACE) --threads $(DEMO_THREADS)
+	$(VENV)/bin/rapomdp demo --workspace $(DEMO_WORKSPACE) --threads $(DEMO_THREADS)
 
 # The README's generated results block (and docs/figures/demo_*.png) from the demo workspace.
 readme: demo

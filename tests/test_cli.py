@@ -195,3 +195,220 @@ def test_fig1_view_help_says_what_write_fig1_picks() -> None:
     (view,) = [p for p in fig1.params if "--view" in p.opts]
     assert "nearest the test viewpoint of highest score" in view.help
     assert "where every score is equal, the one with the most object pixels" in view.help
+
+
+# --- help texts, status, errors, the end of a run, the demo -----------------------------------
+
+import json  # noqa: E402
+import re  # noqa: E402
+
+from tests.experiment.conftest import pipeline_workspace  # noqa: E402, F401 (a fixture)
+
+
+def _commands() -> list[tuple[list[str], object]]:
+    """Every command of the app (sub-apps' too), with its path of names."""
+    import typer.main
+
+    found = []
+
+    def walk(command: object, path: list[str]) -> None:
+        found.append((path, command))
+        for name, sub in getattr(command, "commands", {}).items():
+            if not sub.hidden:
+                walk(sub, [*path, name])
+
+    walk(typer.main.get_command(app), [])
+    return found
+
+
+def test_help_paragraphs_wrap_at_the_terminal_width_not_at_the_docstrings_breaks() -> None:
+    width = 100
+    for path, _ in _commands():
+        result = runner.invoke(app, [*path, "--help"], env={"COLUMNS": str(width)})
+        assert result.exit_code == 0, path
+        prose = result.output.split("╭")[0].splitlines()
+        lines = [line.strip() for line in prose]
+        for this, after in zip(lines, lines[1:], strict=False):
+            if this and after and not this.startswith("Usage:"):
+                # the next line's first word would not have fitted on this one
+                assert len(this) + 1 + len(after.split()[0]) > width - 4, (path, this)
+    run_help = runner.invoke(app, ["run", "--help"], env={"COLUMNS": "100"}).output
+    assert "rapomdp run -w W reruns what changed," in run_help
+    assert "dataset.classes=[cup,mug]" in run_help  # not taken for markup
+
+
+#: Figures a run can change, typed into a help text or a configuration description: percents,
+#: counts of classes / episodes / test models, "x 4 = 512" sums, correlations, measured times.
+TYPED_FIGURE = re.compile(
+    r"\d+(\.\d+)?\s?%|\b\d+\s+(classes|episodes|images|test models)\b|=\s*\d{2,}\b"
+    r"|\br\s?=\s?0?\.\d|\b\d+(\.\d+)?\s?(s|min|minutes|seconds|hours?)\b")
+
+
+def _config_texts() -> list[tuple[str, str]]:
+    """What `rapomdp config` comments with: each section's first paragraph, each key's
+    description."""
+    from pydantic import BaseModel
+
+    texts = []
+
+    def walk(model: BaseModel, prefix: str) -> None:
+        doc = (type(model).__doc__ or "").strip().split("\n\n")[0]
+        texts.append((prefix or "(top level)", " ".join(doc.split())))
+        for name, field in type(model).model_fields.items():
+            value = getattr(model, name)
+            if isinstance(value, BaseModel):
+                walk(value, f"{prefix}{name}.")
+            elif field.description:
+                texts.append((prefix + name, " ".join(field.description.split())))
+
+    walk(Config(), "")
+    return texts
+
+
+def test_no_figure_a_run_can_change_is_typed_into_help_or_config_descriptions() -> None:
+    found = []
+    for path, command in _commands():
+        texts = [command.help or ""] + [getattr(p, "help", None) or "" for p in command.params]
+        found += [f"rapomdp {' '.join(path)}: {m.group(0)!r} in {' '.join(t.split())[:80]!r}"
+                  for t in texts for m in TYPED_FIGURE.finditer(" ".join(t.split()))]
+    found += [f"config {where}: {m.group(0)!r} in {text[:80]!r}"
+              for where, text in _config_texts() for m in TYPED_FIGURE.finditer(text)]
+    assert found == []
+    # the pattern sees what it is for
+    for typed in ("57.0 %", "32 classes", "560 episodes", "x 4 = 512", "r = 0.989",
+                  "under 5 min", "4 test models"):
+        assert TYPED_FIGURE.search(typed), typed
+
+
+def _tiny_dataset(tmp_path: Path) -> tuple[Path, Path]:
+    path = tmp_path / "tiny.yaml"
+    path.write_text(tiny_config().to_yaml())
+    ws = tmp_path / "ws"
+    assert runner.invoke(app, ["dataset", "-w", str(ws), "-c", str(path)]).exit_code == 0
+    return path, ws
+
+
+def test_status_json_matches_the_manifest_and_the_table_fits_80_columns(tmp_path: Path) -> None:
+    _, ws = _tiny_dataset(tmp_path)
+    shown = runner.invoke(app, ["status", "-w", str(ws), "--json"])
+    assert shown.exit_code == 0, shown.output
+    data = json.loads(shown.stdout)
+    manifest = json.loads((ws / "manifest.json").read_text())["stages"]
+    from rapomdp.pipeline import STAGE_NAMES
+
+    assert [s["name"] for s in data["stages"]] == STAGE_NAMES
+    assert data["workspace"] == str(ws) and data["config_missing"] is False
+    for stage in data["stages"]:
+        record = manifest.get(stage["name"])
+        if record is None:
+            assert stage["state"] == "not run" and stage["key"] is None
+            continue
+        assert stage["state"] == "current" and stage["reasons"] == []
+        assert (stage["key"], stage["files"], stage["seconds"], stage["finished"]) == (
+            record["key"], len(record["files"]), record["seconds"], record["finished"])
+    assert {s["name"] for s in data["stages"] if s["state"] != "not run"} == set(manifest)
+    # a changed configuration: the stage is stale, and says why
+    config = yaml.safe_load((ws / "config.yaml").read_text())
+    config["seed"] = 11
+    (ws / "config.yaml").write_text(yaml.safe_dump(config))
+    stale = json.loads(runner.invoke(app, ["status", "-w", str(ws), "--json"]).stdout)
+    assert stale["stages"][0]["state"] == "stale"
+    assert stale["stages"][0]["reasons"] == ["seed 3 -> 11"]
+    table = runner.invoke(app, ["status", "-w", str(ws)], env={"COLUMNS": "80"})
+    assert table.exit_code == 0
+    lines = table.output.splitlines()
+    assert max(len(line) for line in lines) <= 80
+    finished = manifest["dataset"]["finished"][:16].replace("T", " ")
+    row = next(line for line in lines if line.startswith("│ dataset"))
+    assert "stale" in row and finished in row  # one line, the time to the minute
+    seconds = manifest["dataset"]["seconds"]
+    assert f"{seconds:.1f} s" in row
+    assert "1 stale stage(s)" in table.output and "dataset: seed 3 -> 11" in table.output
+
+
+def test_stage_durations_read_as_a_person_would() -> None:
+    from rapomdp.cli import _duration
+
+    assert [_duration(s) for s in (0.004, 3.016, 42.4, 555.0, 7322.0)] == [
+        "0.0 s", "3.0 s", "42 s", "9 min 15 s", "2 h 02 min"]
+
+
+def test_a_mistyped_stage_or_key_is_named_with_what_was_meant(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["run", "-w", str(tmp_path / "ws"), "--until", "evalute"])
+    assert result.exit_code == 2
+    assert "unknown stage 'evalute' (did you mean 'evaluate'?)" in result.output
+    assert not (tmp_path / "ws").exists()
+    typo = runner.invoke(app, ["config", "train.epohcs=5"])
+    assert typo.exit_code == 2
+    assert "None" not in typo.output
+    assert ("error: the default configuration with train.epohcs=5: invalid configuration"
+            in typo.output)
+    assert "train.epohcs: unknown key (did you mean train.epochs?)" in typo.output
+    path = tmp_path / "typo.yaml"
+    path.write_text("trian:\n  epochs: 3\n")
+    in_file = runner.invoke(app, ["run", "-w", str(tmp_path / "ws2"), "-c", str(path)])
+    assert f"error: {path}: invalid configuration" in in_file.output
+    assert "trian: unknown key (did you mean train?)" in in_file.output
+
+
+def test_a_folder_dataset_prints_its_split_and_one_warning_line_per_problem(tmp_path: Path) -> None:
+    import trimesh
+
+    root = tmp_path / "meshes"
+    for c, (name, count) in enumerate({"bench": 5, "lamp": 7, "vase": 3}.items()):
+        for i in range(count):
+            (root / name).mkdir(parents=True, exist_ok=True)
+            trimesh.creation.box(extents=(0.1 + i * 0.01, 0.2 + c * 0.01, 0.4)).export(
+                root / name / f"m{i}.stl")
+    args = ["dataset", "-w", str(tmp_path / "ws")]
+    config = tmp_path / "folder.yaml"
+    config.write_text(yaml.safe_dump({"dataset": {"source": "folder", "path": str(root)}}))
+    refused = runner.invoke(app, [*args, "-c", str(config)])
+    assert refused.exit_code == 2
+    assert ("error: class 'vase' has 3 model(s); split: auto needs at least 5 a class (3 train, "
+            "1 volume, 1 test)") in refused.output
+    config.write_text(yaml.safe_dump({"dataset": {"source": "folder", "path": str(root),
+                                                  "too_few_models": "drop"}}))
+    done = runner.invoke(app, [*args, "-c", str(config)], env={"COLUMNS": "200"})
+    assert done.exit_code == 0, done.output
+    lines = done.output.splitlines()
+    assert "  split: auto (every model used); held-out groups (volume models of the smallest " \
+           "class): 1 (too few for a leave-one-group-out choice)" in lines
+    assert "  3 train, 2 volume, 2 test model(s) per class (1 classes: lamp)" in lines
+    warnings = [line for line in lines if line.startswith("warning:")]
+    assert warnings == ["warning: class 'vase' has 3 model(s); split: auto needs at least 5 a "
+                        "class (3 train, 1 volume, 1 test): class(es) left out"]
+    assert "UserWarning" not in done.output and "stage.run(" not in done.output
+
+
+def test_run_and_demo_end_with_the_report_who_won_the_wall_time_and_memory(
+        pipeline_workspace) -> None:  # noqa: ANN001, F811
+    from rapomdp.cli import _story
+
+    ws, _ = pipeline_workspace
+    result = runner.invoke(app, ["run", "-w", str(ws.root), "--threads", "1"],
+                           env={"COLUMNS": "2000"})
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    tail = lines[lines.index(f"report: {ws.root / 'report' / 'report.html'}"):]
+    story, paired, timing = tail[1:]
+    assert [story, paired] == _story(ws)
+    assert story.startswith("On this run ") and "with 95 % intervals" in story
+    assert paired.startswith("accuracy minus RA-POMDP's over the same pairs [95 % interval]: "
+                             "Static ")
+    assert re.fullmatch(r"wall time \d+\.\d s, peak memory \d+ MB( \(its largest worker "
+                        r"process \d+(\.\d)? [MG]B\))?|wall time .*GB.*", timing), timing
+    assert "Table 1 (closed-loop episodes on the test models)" in result.output
+    demo = runner.invoke(app, ["demo", "-w", str(ws.root), "--threads", "1"],
+                         env={"COLUMNS": "2000"})
+    assert demo.exit_code == 0, demo.output
+    assert f"contact sheet written to {ws.root / 'contact_sheet.png'}" in demo.output
+    assert (ws.root / "contact_sheet.png").read_bytes()[:4] == b"\x89PNG"
+    assert demo.output.splitlines()[-3:-1] == [story, paired]
+
+
+def test_make_demo_runs_the_demo_command() -> None:
+    makefile = (Path(__file__).parents[1] / "Makefile").read_text()
+    recipe = makefile.split("\ndemo: ")[1].split("\n\n")[0]
+    assert "rapomdp demo --workspace $(DEMO_WORKSPACE)" in recipe
+    assert "rapomdp run" not in recipe and "dataset preview" not in recipe

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
@@ -12,8 +14,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, TypeVar
 
 import typer
+from rich import box
 from rich.console import Console
 from rich.markup import escape
+from rich.measure import Measurement
 from rich.table import Table
 
 from rapomdp.context import RunContext
@@ -39,10 +43,12 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode="markdown",  # docstrings are markdown: wrapped lines join, `code` shows
 )
 dataset_app = typer.Typer(
     help="Build the dataset stage (normalised meshes and split), or preview it.",
     invoke_without_command=True,
+    rich_markup_mode="markdown",
 )
 app.add_typer(dataset_app, name="dataset")
 app.add_typer(pomdp_app, name="pomdp")
@@ -247,10 +253,108 @@ def run(
     """
     if force:
         from rapomdp.pipeline import STAGE_NAMES as every_stage
-    _run(config, workspace, until, list(every_stage) if force else list(redo or []),
-         _context(threads, workers, scheduler), overrides, reconfigure)
+    _run_and_summarise(config, workspace, until,
+                       list(every_stage) if force else list(redo or []),
+                       _context(threads, workers, scheduler), overrides, reconfigure)
+
+
+def _run_and_summarise(config_path: Path | None, workspace: Path, until: str | None,
+                       force: list[str], context: RunContext,
+                       overrides: list[str] | None = None, reconfigure: bool = False,
+                       began: float | None = None) -> None:
+    """:func:`_run`, then Table 1 and the end-of-run summary (:func:`run_summary_lines`)."""
+    began = time.perf_counter() if began is None else began
+    _run(config_path, workspace, until, force, context, overrides, reconfigure)
     if until is None:
         _print_table1(workspace)
+    lines = _guard(lambda: run_summary_lines(workspace, time.perf_counter() - began,
+                                             peak_memory_gb(), until is None))
+    for line in lines:
+        console.print(escape(line), highlight=False)
+
+
+def peak_memory_gb() -> tuple[float, float]:
+    """The peak resident memory so far of this process and of its largest finished child
+    process (a stage's worker), in GB (``resource.getrusage``; 0 where it cannot tell)."""
+    try:
+        import resource
+    except ImportError:  # not a POSIX system
+        return 0.0, 0.0
+    scale = 1 if sys.platform == "darwin" else 1024  # ru_maxrss: bytes on macOS, else KiB
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    return own * scale / 1e9, children * scale / 1e9
+
+
+def _memory(gb: float) -> str:
+    return f"{gb:.1f} GB" if gb >= 1 else f"{gb * 1000:.0f} MB"
+
+
+def run_summary_lines(workspace: Path, seconds: float, peak_gb: tuple[float, float],
+                      whole: bool = True) -> list[str]:
+    """The lines that end a run: the report's path, the generated sentences of who won (the
+    report's own story, ``metrics.table1_story``, from the same episodes and seed) and the
+    paired differences with their 95 % intervals, when the run went to the end (``whole``)
+    and made them; then the wall time and the peak memory (this process, its largest worker
+    process)."""
+    from rapomdp.workspace import Workspace
+
+    lines = []
+    root = Path(workspace)
+    report_html = root / "report" / "report.html"
+    if whole and report_html.is_file():
+        lines.append(f"report: {report_html}")
+        lines += _story(Workspace(root))
+    own, worker = peak_gb
+    memory = f"peak memory {_memory(own)}" + (
+        f" (its largest worker process {_memory(worker)})" if worker > 0 else "")
+    lines.append(f"wall time {_duration(seconds)}, {memory}")
+    return lines
+
+
+def _story(ws: Workspace) -> list[str]:
+    """What Table 1 says, as the report says it (who won, which paired differences exclude 0),
+    and each paired difference with its interval."""
+    from rapomdp.config import METHOD_NAMES, Config
+    from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+    from rapomdp.experiment.metrics import table1_story
+    from rapomdp.experiment.report import evaluation_summaries
+
+    folder = ws.stage_dir("evaluate")
+    if not (folder / EPISODES_FILE).is_file():
+        return []
+    rows, paired, points, _ = evaluation_summaries(EpisodeTable.load(folder / EPISODES_FILE),
+                                                   folder, ws.config(default=Config()).seed)
+    lines = [table1_story(rows, paired, points)]
+    if paired:
+        reference = next(iter(paired.values())).reference
+        lines.append(f"accuracy minus {METHOD_NAMES.get(reference, reference)}'s over the same "
+                     "pairs [95 % interval]: " + "; ".join(
+                         f"{METHOD_NAMES.get(m, m)} {p.difference:+.3f} "
+                         f"[{p.low:+.3f}, {p.high:+.3f}]" for m, p in paired.items()))
+    return lines
+
+
+@app.command()
+def demo(
+    workspace: Annotated[Path, typer.Option(
+        "--workspace", "-w", parser=_workspace_path, metavar="DIR",
+        help="Workspace folder of the demo.")] = Path("runs/demo"),
+    threads: ThreadsOption = None,
+    workers: WorkersOption = None,
+) -> None:
+    """Run the demo: the dataset, its contact sheet, then every stage (what `make demo` runs).
+
+    On the embedded procedural dataset with the default configuration (a workspace that has
+    its own configuration keeps it). Writes W/contact_sheet.png and W/report/report.html, and
+    ends like `rapomdp run`: Table 1, the report's path, who won, the wall time and memory.
+    A second run finds every stage cached.
+    """
+    began = time.perf_counter()
+    context = _context(threads, workers)
+    _run(None, workspace, "dataset", [], context)
+    _write_preview(workspace, None)
+    _run_and_summarise(None, workspace, None, [], context, began=began)
 
 
 @dataset_app.callback()
@@ -290,6 +394,12 @@ def dataset_preview(
     if not (math.isfinite(elevation_deg) and -90.0 <= elevation_deg <= 90.0):
         raise _fail(f"--elevation-deg must be a finite angle in [-90, 90], got {elevation_deg}")
     _require_existing(workspace)
+    _write_preview(workspace, out, width, elevation_deg)
+
+
+def _write_preview(workspace: Path, out: Path | None, width: int = 320,
+                   elevation_deg: float = 30.0) -> None:
+    """The contact sheet of the workspace's dataset (``dataset preview``)."""
     if out is not None:
         _guard(partial(check_output_path, out))
 
@@ -307,7 +417,7 @@ def dataset_preview(
                              elevation_deg=elevation_deg)
 
     path = _guard(action)
-    console.print(f"[green]✓[/] contact sheet written to {path}")
+    console.print(f"[green]✓[/] contact sheet written to {escape(str(path))}")
 
 
 @app.command()
@@ -427,7 +537,8 @@ def vptree(workspace: WorkspaceOption, config: ConfigOption = None,
 
 FIG2_TARGET = "bicycle"
 FIG2_AGAINST = ("teapot", "eyeglasses", "motorbike")
-figure_app = typer.Typer(help="Figures of recognition self-awareness (paper Figs. 1 and 2).")
+figure_app = typer.Typer(help="Figures of recognition self-awareness (paper Figs. 1 and 2).",
+                         rich_markup_mode="markdown")
 app.add_typer(figure_app, name="figure")
 
 
@@ -538,12 +649,31 @@ WorkersOption = Annotated[
 
 
 def _print_table1(workspace: Path) -> None:
+    """Table 1 (``W/evaluate/table1.md``) on the console, as a table that fits its width, and
+    the notes under it."""
     from rapomdp.experiment.episode_table import TABLE1_MD
 
-    table = Path(workspace) / "evaluate" / TABLE1_MD
-    if table.exists():
-        sys.stdout.write("\nTable 1 (closed-loop episodes on the test models):\n\n"
-                         + table.read_text())
+    path = Path(workspace) / "evaluate" / TABLE1_MD
+    if not path.exists():
+        return
+    lines = path.read_text(encoding="utf-8").splitlines()
+    cells = [[escape(c.strip()) for c in line.strip().strip("|").split("|")]
+             for line in lines if line.startswith("|") and not set(line) <= set("|-: ")]
+    out = Console()
+    if cells:
+        table = Table(title="Table 1 (closed-loop episodes on the test models)",
+                      title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+        for name in cells[0]:  # a header's interval or unit on a line of its own
+            table.add_column(name.replace(" [", "\n[").replace(" (", "\n("))
+        for row in cells[1:]:
+            table.add_row(*row)
+        wide = Measurement.get(out, out.options.update_width(10**6), table).maximum <= out.width
+        for column in table.columns[:-1]:  # the cells whole where the table fits
+            column.no_wrap = wide
+        out.print(table)
+    for line in lines:
+        if line.strip() and not line.startswith("|"):
+            out.print(escape(line), highlight=False)
 
 
 @app.command()
@@ -711,7 +841,10 @@ def show_config(
 
         if workspace is None:
             data = read_config_data(config) if config is not None else {}
-            return config_from_dict(apply_overrides(data, overrides or ()), str(config))
+            source = str(config) if config is not None else "the default configuration"
+            if overrides:
+                source += f" with {' '.join(o[:60] for o in overrides)}"
+            return config_from_dict(apply_overrides(data, overrides or ()), source)
         return resolve_config(Workspace(workspace), config, overrides or (), True,
                               on_note=_note)[0]
 
@@ -719,46 +852,78 @@ def show_config(
     sys.stdout.write(resolved.to_yaml() if plain else resolved.to_commented_yaml())
 
 
-@app.command()
-def status(workspace: WorkspaceOption) -> None:
-    """Show which stages a workspace holds, when they ran, and which are stale and why
-    (against W/config.yaml, the stages' code and their input files)."""
+def _duration(seconds: float) -> str:
+    """A duration as a person reads it: ``0.4 s``, ``12 s``, ``3 min 05 s``, ``1 h 02 min``."""
+    if seconds < 10:
+        return f"{seconds:.1f} s"
+    whole = round(seconds)
+    if whole < 60:
+        return f"{whole} s"
+    if whole < 3600:
+        return f"{whole // 60} min {whole % 60:02d} s"
+    return f"{whole // 3600} h {whole % 3600 // 60:02d} min"
 
+
+def _finished(recorded: str | None) -> str:
+    """A record's ``finished`` time to the minute (``2026-12-02 15:21``), as recorded."""
+    if not recorded:
+        return "-"
+    return recorded[:16].replace("T", " ")
+
+
+@app.command()
+def status(
+    workspace: WorkspaceOption,
+    as_json: Annotated[bool, typer.Option(
+        "--json", help="Print the status as JSON (one object: the workspace, whether its "
+                       "config.yaml is missing, and per stage its state, reasons, files, key, "
+                       "seconds and finish time as the manifest records them).")] = False,
+) -> None:
+    """Show which stages a workspace holds, when they ran, and which are stale and why.
+
+    Staleness is judged against W/config.yaml, the stages' code and their input files; it reads
+    the manifest and the input files' sizes and times, and loads no stage code.
+    """
     from rapomdp.config import Config
-    from rapomdp.pipeline import STAGES
+    from rapomdp.pipeline import STAGES, format_staleness
     from rapomdp.workspace import Workspace
 
     _require_existing(workspace)
 
-    def action() -> tuple[dict, dict[str, list[str]], bool]:
+    def action() -> tuple[list, bool]:
         ws = Workspace(workspace)
         ws.check()  # a folder that is not a workspace is named, not shown as "not run"
-        manifest = ws.manifest()
         config = ws.recorded_config()
-        stale = ws.staleness(STAGES, config if config is not None else Config())
-        return manifest, stale, config is not None and not ws.config_path.exists()
+        rows = ws.status(STAGES, config if config is not None else Config())
+        return rows, config is not None and not ws.config_path.exists()
 
-    manifest, stale, rebuilt = _guard(action)
-    table = Table(title=str(workspace))
-    for column in ("stage", "state", "files", "seconds", "finished", "key"):
-        table.add_column(column, overflow="fold")
-    for stage in STAGES:
-        record = manifest["stages"].get(stage.name)
-        if record is None:
-            table.add_row(stage.name, "not run", "-", "-", "-", "-")
-            continue
-        state = ("[yellow]stale[/]: " + escape("; ".join(stale[stage.name]))
-                 if stage.name in stale else "[green]current[/]")
-        table.add_row(stage.name, state, str(len(record["files"])),
-                      escape(str(record.get("seconds", "-"))),
-                      escape(str(record.get("finished", "-"))), escape(record["key"][:12]))
+    rows, rebuilt = _guard(action)
+    if as_json:
+        from dataclasses import asdict
+
+        sys.stdout.write(json.dumps({"workspace": str(workspace), "config_missing": rebuilt,
+                                     "stages": [asdict(r) for r in rows]}, indent=2) + "\n")
+        return
+    table = Table(title=escape(str(workspace)), title_justify="left")
+    table.add_column("stage", no_wrap=True)
+    table.add_column("state", no_wrap=True)
+    table.add_column("files", justify="right", no_wrap=True)
+    table.add_column("took", justify="right", no_wrap=True)
+    table.add_column("finished", no_wrap=True)
+    styles = {"current": "[green]current[/]", "stale": "[yellow]stale[/]", "not run": "not run"}
+    for row in rows:
+        state = styles[row.state] + (" (shared)" if row.shared_from else "")
+        table.add_row(row.name, state, "-" if row.files is None else str(row.files),
+                      "-" if row.seconds is None else _duration(row.seconds),
+                      _finished(row.finished))
     Console().print(table)
+    stale = {row.name: row.reasons for row in rows if row.state == "stale"}
     if rebuilt:
         _note(f"{Path(workspace) / 'config.yaml'} is missing; staleness is judged against "
               "the configuration the stage records hold")
     if stale:
-        console.print(f"{len(stale)} stale stage(s): `rapomdp run -w {workspace}` redoes them",
-                      highlight=False)
+        console.print(f"{len(stale)} stale stage(s), `rapomdp run -w {escape(str(workspace))}` "
+                      f"redoes them:\n{escape(format_staleness(stale))}", highlight=False)
 
 
 #: The exit status of a run stopped by Ctrl-C (128 + SIGINT), as typer gives it.

@@ -9,7 +9,9 @@ that reading a configuration loads no arm, network or solver.
 from __future__ import annotations
 
 import copy
+import difflib
 import re
+import typing
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -140,7 +142,7 @@ class RenderConfig(Section):
     """The training viewsphere: near-uniform views over the whole sphere."""
 
     views: int = Field(60, ge=1, description="views per model (the training images: train "
-                       "models x views; 60 keeps the demo's training under 5 min on 2 cores)")
+                       "models x views; the default is the demo's time budget)")
     radius_m: float = Field(0.6, gt=0)
     noise: NoiseConfig = NoiseConfig()
 
@@ -203,7 +205,8 @@ class SaliencyConfig(Section):
     method: Literal["mask", "gradient", "smoothgrad", "gradcam", "integrated_gradients",
                     "occlusion"] = "mask"
     iterations: int = Field(
-        50, ge=1, description="mask: Adam steps (reference 300; 50 measured r = 0.989 to it)")
+        50, ge=1, description="mask: Adam steps (against a 300-step reference: "
+        "docs/awareness.md, Convergence)")
     learning_rate: float = Field(0.1, gt=0, description="mask: Adam learning rate")
     l1: float = Field(1e-2, ge=0, description="mask: weight of mean(1 - m)")
     tv: float = Field(1e-4, ge=0, description="mask: weight of the mean TV_beta")
@@ -409,7 +412,7 @@ class EvaluateConfig(Section):
         "(vptree, classifier, ra, ra_class, blackbox)")
     starts_per_model: int = Field(
         4, ge=1, description="start viewpoints per test model, drawn (seeded) among reachable "
-        "(default 4: 32 classes x 4 test models x 4 = 512 episodes per method)")
+        "(the episodes per method: test models x starts)")
     max_moves: int = Field(
         30, ge=0, description="step budget: after this many moves a method must declare")
     revisit: bool = Field(
@@ -671,11 +674,36 @@ def _shown(value: Any) -> str:
     return f" (got {text[:80]})"
 
 
+def _section_of(annotation: Any) -> type[BaseModel] | None:
+    """The section class a field's annotation holds (through Optional, unions, Annotated)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in typing.get_args(annotation):
+        found = _section_of(arg)
+        if found is not None:
+            return found
+    return None
+
+
+def _near_key(loc: Sequence[Any]) -> str | None:
+    """The known key of the same section closest to an unknown one (``epohcs``: ``epochs``)."""
+    section: type[BaseModel] | None = Config
+    for part in [p for p in loc if not str(p).startswith("<")][:-1]:
+        field = section.model_fields.get(str(part)) if section is not None else None
+        section = _section_of(field.annotation) if field is not None else None
+    if section is None or not loc:
+        return None
+    close = difflib.get_close_matches(str(loc[-1]), list(section.model_fields), n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
 def _describe(error: dict[str, Any]) -> str:
-    where = ".".join(str(part) for part in error["loc"]
-                     if not str(part).startswith("<")) or "(top level)"
+    parts = [str(part) for part in error["loc"] if not str(part).startswith("<")]
+    where = ".".join(parts) or "(top level)"
     if error["type"] == "extra_forbidden":
-        return f"{where}: unknown key"
+        near = _near_key(error["loc"])
+        hint = f" (did you mean {'.'.join([*parts[:-1], near])}?)" if near else ""
+        return f"{where}: unknown key{hint}"
     shown = _shown(error["input"]) if "input" in error else ""
     message = error["msg"].removeprefix("Value error, ")
     return f"{where}: {message[:300]}{shown}"

@@ -209,6 +209,22 @@ class StageResult:
     shared_from: str | None = None
 
 
+@dataclass(frozen=True)
+class StageStatus:
+    """What a workspace holds of one stage (``rapomdp status``): ``state`` is ``current``,
+    ``stale`` (``reasons`` say why) or ``not run``; the rest is the stage's manifest record
+    (``seconds``: its run's wall time; ``finished``: when, as recorded)."""
+
+    name: str
+    state: str
+    reasons: list[str] = field(default_factory=list)
+    files: int | None = None
+    key: str | None = None
+    seconds: float | None = None
+    finished: str | None = None
+    shared_from: str | None = None
+
+
 class Workspace:
     """A folder of stage outputs plus ``manifest.json``."""
 
@@ -585,6 +601,26 @@ class Workspace:
             if reasons:
                 stale[stage.name] = reasons
         return stale
+
+    def status(self, stages: Sequence[Stage], config: Config) -> list[StageStatus]:
+        """One :class:`StageStatus` per stage of ``stages`` (pipeline order), from the manifest
+        and :meth:`staleness` under ``config`` (input files included)."""
+        records = self.manifest()["stages"]
+        stale = self.staleness(stages, config)
+        rows = []
+        for stage in stages:
+            record = records.get(stage.name)
+            if record is None:
+                rows.append(StageStatus(stage.name, "not run"))
+                continue
+            seconds = record.get("seconds")
+            rows.append(StageStatus(
+                stage.name, "stale" if stage.name in stale else "current",
+                stale.get(stage.name, []), len(record["files"]), record["key"],
+                float(seconds) if isinstance(seconds, int | float) else None,
+                str(record["finished"]) if record.get("finished") is not None else None,
+                record.get("shared_from")))
+        return rows
 
     def is_current(self, stage: Stage, config: Config) -> bool:
         record = self.manifest()["stages"].get(stage.name)

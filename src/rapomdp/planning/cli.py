@@ -41,6 +41,7 @@ from rapomdp.planning.sarsop import Progress, SolveResult, solve_pomdp
 pomdp_app = typer.Typer(
     help="Solve POMDPs (Cassandra .pomdp) with the SARSOP-style solver; export problems.",
     no_args_is_help=True,
+    rich_markup_mode="markdown",  # docstrings are markdown: wrapped lines join
 )
 
 
