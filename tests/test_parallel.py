@@ -153,3 +153,45 @@ def test_workers_leave_ctrl_c_to_the_parent() -> None:
     masks = run_tasks(blocked_signals, [(0,), (1,)], 2, "masks", progress=False)
     assert all(int(signal.SIGINT) in mask for mask in masks)
     assert int(signal.SIGINT) not in blocked_signals(0)  # the parent's block is lifted
+
+
+def counted_steps(steps: int, report) -> int:  # noqa: ANN001 - a TaskReport
+    """A task that reports one unit per step (as evaluate reports episodes)."""
+    for _ in range(steps):
+        report(1)
+    return steps
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_bar_counts_units_the_tasks_report_as_they_go(monkeypatch, workers: int) -> None:
+    from rich.progress import Progress
+
+    from rapomdp import parallel
+
+    made: list[Progress] = []
+    advances: list[float] = []
+
+    class Recording(Progress):
+        def advance(self, task_id, advance=1):  # noqa: ANN001, ANN201
+            advances.append(advance)
+            super().advance(task_id, advance)
+
+    def bar(enabled: bool = True, status: bool = False) -> Progress:
+        made.append(Recording(disable=True))
+        return made[-1]
+
+    monkeypatch.setattr(parallel, "progress_bar", bar)
+    sizes = [3, 5, 2]
+    done = run_tasks(counted_steps, [(n,) for n in sizes], workers, "episodes", unit="episodes",
+                     sizes=sizes, reports=True)
+    assert done == sizes
+    task = made[-1].tasks[0]
+    assert (task.total, task.completed, task.fields["unit"]) == (10, 10, "episodes")
+    assert sum(advances) == 10 and max(advances) <= 1  # step by step, nothing counted twice
+    # without reports a task's units count when it ends
+    advances.clear()
+    assert run_tasks(_power, [(2, 1), (2, 2)], workers, "models", unit="models",
+                     sizes=[4, 6]) == [2, 4]
+    assert sorted(advances) == [4, 6] and made[-1].tasks[0].completed == 10
+    with pytest.raises(ValueError, match="2 sizes for 3 tasks"):
+        run_tasks(_power, [(1, 1)] * 3, 1, "x", progress=False, sizes=[1, 2])

@@ -16,3 +16,15 @@ def test_a_disabled_bar_is_invisible() -> None:
     assert progress_bar(False).disable
     assert not progress_bar(True).disable
     assert progress_bar(True, status=True).columns[3].text_format == "{task.fields[status]}"
+
+
+def test_the_count_names_what_it_counts() -> None:
+    from rapomdp.progress import CountColumn
+
+    bar = progress_bar(False)
+    counted = bar.add_task("render", total=385, unit="models")
+    bar.advance(counted, 12)
+    plain = bar.add_task("plain", total=None)
+    assert str(CountColumn().render(bar.tasks[counted])) == "12/385 models"
+    assert str(CountColumn().render(bar.tasks[plain])) == "0/?"
+    assert isinstance(progress_bar(True).columns[2], CountColumn)

@@ -26,7 +26,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from multiprocessing import get_context
@@ -42,6 +42,8 @@ R = TypeVar("R")
 PARENT_POLL_S = 0.5
 #: How long the scheduler's handshake may take before the address is refused, in seconds.
 HANDSHAKE_TIMEOUT_S = 10.0
+#: How often the parent reads the workers' progress reports, in seconds.
+REPORT_POLL_S = 0.25
 
 
 class WorkerError(RuntimeError):
@@ -128,7 +130,8 @@ def check_scheduler(address: str, timeout_s: float | None = None) -> str:
 
 
 def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
-                 description: str, scheduler: str, progress: bool) -> list[R]:
+                 description: str, scheduler: str, progress: bool, unit: str = "tasks",
+                 sizes: Sequence[int] | None = None) -> list[R]:
     try:
         from distributed import Client
         from distributed import as_completed as dask_completed
@@ -143,14 +146,15 @@ def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
         raise WorkerError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
     results: dict[int, R] = {}
     with client, progress_bar(progress) as bars:
-        bar = bars.add_task(f"{description} (dask)", total=len(tasks))
+        sizes = [1] * len(tasks) if sizes is None else sizes
+        bar = bars.add_task(f"{description} (dask)", total=sum(sizes), unit=unit)
         futures = [client.submit(_dask_task, function, os.getpid(), task, pure=False)
                    for task in tasks]
         index = {future.key: i for i, future in enumerate(futures)}
         try:
             for future in dask_completed(futures, loop=client.loop):
                 results[index[future.key]] = future.result()
-                bars.advance(bar)
+                bars.advance(bar, sizes[index[future.key]])
         except KilledWorker as exc:
             raise WorkerError(f"{description}: Dask workers died running a task ({exc}); "
                               "out of memory?") from None
@@ -184,38 +188,110 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
             process.terminate()
 
 
+class TaskReport:
+    """What a task of :func:`run_tasks` (with ``reports``) is given as its last argument:
+    ``report(units)`` advances the bar by ``units`` as the task goes (from a worker process,
+    through a queue the parent reads); picklable."""
+
+    def __init__(self, index: int, queue: Any = None,
+                 advance: Callable[[int, int], None] | None = None) -> None:
+        self.index, self._queue, self._advance = index, queue, advance
+
+    def __call__(self, units: int = 1) -> None:
+        if self._queue is not None:
+            self._queue.put((self.index, int(units)))
+        elif self._advance is not None:
+            self._advance(self.index, int(units))
+
+    def __getstate__(self) -> dict[str, Any]:  # the bar's callback stays in the parent
+        return {"index": self.index, "_queue": self._queue, "_advance": None}
+
+
+def _report_queue(parent_pid: int) -> Any:
+    """A queue the workers' reports reach the parent through: a manager process's, started
+    with SIGINT held (a Ctrl-C is the parent's to handle) and ending with its parent."""
+    from multiprocessing.managers import SyncManager
+
+    manager = SyncManager(ctx=get_context("spawn"))
+    with _sigint_held():
+        manager.start(_watched_helper, (parent_pid,))
+    return manager
+
+
+def _watched_helper(parent_pid: int) -> None:
+    """A helper process's set-up: watch the parent (no PyTorch)."""
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
+                     name="rapomdp-parent-watch").start()
+
+
 def run_tasks(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]], workers: int,
               description: str, progress: bool = True,
-              scheduler: str | None = None) -> list[R]:
+              scheduler: str | None = None, unit: str = "tasks",
+              sizes: Sequence[int] | None = None, reports: bool = False) -> list[R]:
     """``[function(*task) for task in tasks]``, on the Dask ``scheduler`` when one is named,
     else over ``workers`` processes when more than one (in this process otherwise), with a
-    progress bar when ``progress``. A worker that dies raises :class:`WorkerError`."""
+    progress bar when ``progress``. A worker that dies raises :class:`WorkerError`.
+
+    The bar counts ``unit`` (``models``, ``solves``, ``episodes``): each task is ``sizes[i]``
+    of them (default 1). With ``reports`` each task is called with a :class:`TaskReport` as
+    its last argument and reports its units as it goes (on a Dask cluster the bar moves when
+    a task ends); whatever a task did not report is counted when it ends.
+    """
+    sizes = [1] * len(tasks) if sizes is None else [int(n) for n in sizes]
+    if len(sizes) != len(tasks):
+        raise ValueError(f"{description}: {len(sizes)} sizes for {len(tasks)} tasks")
     if scheduler is not None and tasks:
-        return _run_on_dask(function, tasks, description, scheduler, progress)
+        if reports:
+            tasks = [(*task, TaskReport(i)) for i, task in enumerate(tasks)]
+        return _run_on_dask(function, tasks, description, scheduler, progress, unit, sizes)
     workers = max(1, min(workers, len(tasks)))
     results: dict[int, R] = {}
+    reported = [0] * len(tasks)
     with progress_bar(progress) as bars:
-        bar = bars.add_task(description, total=len(tasks))
+        bar = bars.add_task(description, total=sum(sizes), unit=unit)
+
+        def advance(index: int, units: int) -> None:
+            units = max(0, min(units, sizes[index] - reported[index]))
+            reported[index] += units
+            bars.advance(bar, units)
+
         if workers == 1:
             for i, task in enumerate(tasks):
-                results[i] = function(*task)
-                bars.advance(bar)
-        else:
-            pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
-                                       initializer=_single_threaded_worker,
-                                       initargs=(os.getpid(),))
-            try:
-                with _sigint_held():  # the workers start on the first submissions
-                    futures = {pool.submit(function, *task): i
-                               for i, task in enumerate(tasks)}
-                for future in as_completed(futures):
+                extra = (TaskReport(i, advance=advance),) if reports else ()
+                results[i] = function(*task, *extra)
+                advance(i, sizes[i])
+            return [results[i] for i in range(len(tasks))]
+        manager = _report_queue(os.getpid()) if reports else None
+        queue = manager.Queue() if manager is not None else None
+
+        def drain() -> None:
+            while queue is not None and not queue.empty():
+                advance(*queue.get())
+
+        pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
+                                   initializer=_single_threaded_worker,
+                                   initargs=(os.getpid(),))
+        try:
+            with _sigint_held():  # the workers start on the first submissions
+                futures = {pool.submit(function, *task,
+                                       *((TaskReport(i, queue),) if reports else ())): i
+                           for i, task in enumerate(tasks)}
+            pending = set(futures)
+            while pending:
+                done, pending = wait(pending, timeout=REPORT_POLL_S,
+                                     return_when=FIRST_COMPLETED)
+                drain()
+                for future in done:
                     results[futures[future]] = future.result()
-                    bars.advance(bar)
-            except BrokenProcessPool:
-                raise WorkerError(f"{description}: a worker process died (killed, or out of "
-                                  "memory); nothing of this stage was kept") from None
-            except BaseException:
-                _stop_pool(pool)
-                raise
-            pool.shutdown(wait=True)
+                    advance(futures[future], sizes[futures[future]])
+        except BrokenProcessPool:
+            raise WorkerError(f"{description}: a worker process died (killed, or out of "
+                              "memory); nothing of this stage was kept") from None
+        except BaseException:
+            _stop_pool(pool)
+            raise
+        finally:
+            if manager is not None:
+                manager.shutdown()
+        pool.shutdown(wait=True)
     return [results[i] for i in range(len(tasks))]

@@ -202,7 +202,9 @@ def test_cli_prints_table1_from_the_cached_stage(workspace, tmp_path) -> None:
     result = CliRunner().invoke(app, ["evaluate", "-w", str(ws.root), "-c", str(path)])
     assert result.exit_code == 0, result.output
     assert "evaluate   cached" in result.output
-    assert "| RA-POMDP |" in result.output and "Table 1" in result.output
+    assert "Table 1 (closed-loop episodes on the test models)" in result.output
+    rows = [line.split()[0] for line in result.output.splitlines() if line.strip()]
+    assert {"Static", "RA-POMDP"} <= set(rows)  # Table 1's rows, a table on the console
     bad = tmp_path / "bad.yaml"
     bad.write_text("evaluate: {methods: [static, oracle]}\n")
     result = CliRunner().invoke(app, ["evaluate", "-w", str(ws.root), "-c", str(bad)])

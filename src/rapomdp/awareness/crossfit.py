@@ -94,11 +94,12 @@ class CrossfitOutcomes:
 
 def crossfit_outcomes(config: Config, views: TrainingViews, device: object,
                       sensed_at_xrho: Callable[[ModelEntry], np.ndarray],
-                      progress: Callable[[Classifier, int], None] | None = None
-                      ) -> CrossfitOutcomes:
+                      progress: Callable[[Classifier, int], None] | None = None,
+                      bar: bool = True) -> CrossfitOutcomes:
     """Train one classifier per fold on the other folds' training renders (the train stage's
     recipe with ``observe.crossfit_epochs`` epochs, no validation split) and label the fold's
-    models at X_rho (``sensed_at_xrho(model)`` -> depth (V, H, W))."""
+    models at X_rho (``sensed_at_xrho(model)`` -> depth (V, H, W)); ``progress`` is called
+    after each fold, a bar shows the folds when ``bar``."""
     dataset = views.dataset
     models = dataset.with_role("train")
     k = config.observe.crossfit_folds
@@ -108,7 +109,7 @@ def crossfit_outcomes(config: Config, views: TrainingViews, device: object,
     train_cfg = config.train.model_copy(update={"epochs": config.observe.crossfit_epochs})
     predicted = np.zeros((len(models), config.viewpoints.count), dtype=np.int64)
     trained_on = []
-    for f in track(range(k), f"crossfit: {k} folds"):
+    for f in track(range(k), "crossfit: fold classifiers", bar, unit="folds"):
         inside = fold[data.models] != f
         seen = np.unique(data.models[inside])
         trained_on.append(keys[seen])

@@ -179,8 +179,8 @@ def run_saliency_stage(config: Config, inputs: StageInputs, out: Path,
     tasks = [(config.model_dump_json(), str(inputs.render), str(inputs.dataset),
               str(inputs.train), str(out), m.file, task_threads)
              for m in saliency_models(dataset, config.volume.models_per_class)]
-    done = run_tasks(_saliency_task, tasks, workers, f"saliency ({cfg.method}): volume models",
-                     context.progress, context.scheduler)
+    done = run_tasks(_saliency_task, tasks, workers, f"saliency ({cfg.method})",
+                     context.progress, context.scheduler, unit="volume models")
     total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
     classifier = load_stage_classifier(config, inputs.train, dataset.classes,
                                        context.threads)
@@ -226,7 +226,7 @@ def run_volume_stage(config: Config, inputs: StageInputs, out: Path,
     dataset = views.dataset
     start = time.perf_counter()
     info = {}
-    for class_name in track(dataset.classes, "volume: classes", context.progress):
+    for class_name in track(dataset.classes, "volume", context.progress, unit="classes"):
         volume = class_volume(dataset, views, inputs.saliency, class_name,
                               config.volume.resolution, config.volume.models_per_class)
         volume.save(out / volume_file(class_name))
@@ -316,7 +316,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     similarity = np.zeros((len(classes), config.viewpoints.count, config.viewpoints.count))
     vol_labels, vol_pred, vol_probabilities = [], [], []
     vol_models: list[ModelEntry] = []
-    for c, class_name in enumerate(track(classes, "observe: volume models at X_rho", progress)):
+    for c, class_name in enumerate(track(classes, "observe: volume models at X_rho", progress,
+                                                 unit="classes")):
         volume = volumes[class_name]
         voxel_scores = volume.flat_scores()
         per_model, per_model_area, per_model_similarity = [], [], []
@@ -405,7 +406,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     test_models = dataset.with_role("test")
     test_labels = np.array([dataset.label(m) for m in test_models])
     test_pred = np.stack([outcomes(m, TEST_STREAM).predicted
-                          for m in track(test_models, "observe: test models at X_rho", progress)])
+                          for m in track(test_models, "observe: test models at X_rho", progress,
+                                         unit="test models")])
     rows = quality_table(single_view, test_labels, test_pred)
     calibration = single_view["ra"].calibration  # type: ignore[attr-defined]
     return Observation(models, raw, scores["mean"], scores["area"], calibration, labels,
@@ -434,7 +436,8 @@ def contrastive_scores(config: Config, views: TrainingViews, classifier: Classif
     intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
     against = most_confused(evidence, len(classes))
     raw = np.zeros((len(classes), config.viewpoints.count))
-    for c, class_name in enumerate(track(classes, "observe: contrastive volumes", progress)):
+    for c, class_name in enumerate(track(classes, "observe: contrastive volumes", progress,
+                                                 unit="classes")):
         models = [m for m in saliency_models(dataset, config.volume.models_per_class)
                   if m.class_name == class_name]
         depth, poses, maps = [], [], []
@@ -500,7 +503,8 @@ def run_crossfit_stage(config: Config, inputs: StageInputs, out: Path,
         device = configure_torch(config.train.device, context.threads)
         result = crossfit_outcomes(
             config, views, device,
-            lambda m: xrho_renders(dataset, m, config, CROSSFIT_STREAM)[1])
+            lambda m: xrho_renders(dataset, m, config, CROSSFIT_STREAM)[1],
+            bar=context.progress)
     result.save(out / CROSSFIT_FILE)
     correct = result.predicted == result.labels[:, None]
     write_json_atomic(out / "crossfit.json", {

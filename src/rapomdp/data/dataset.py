@@ -227,7 +227,8 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
     used_ids: set[tuple[str, str]] = set()
     same_bytes: dict[str, tuple[str, Path]] = {}  # file digest -> the first (role, file)
     duplicates: list[str] = []  # a file of one role with the same bytes as one of another
-    for class_name, role, item in track(jobs, "dataset: normalising meshes", context.progress):
+    for class_name, role, item in track(jobs, "dataset: normalising meshes", context.progress,
+                                          unit="meshes"):
         if isinstance(item, int):
             mesh, source = generate_model(class_name, config.seed, item), f"procedural:{item}"
             model_id = f"{class_name}_{item:03d}"

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -186,12 +186,19 @@ class ClosedLoop:
 
 
 def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | None,
-                     model_files: list[str]) -> list[list[EpisodeRecord]]:
-    """A worker's task: load the closed loop once, run each of its test models."""
+                     model_files: list[str],
+                     report: Callable[[int], None] | None = None) -> list[list[EpisodeRecord]]:
+    """A worker's task: load the closed loop once, run each of its test models (``report``:
+    told each model's episodes as they finish)."""
     loop = ClosedLoop.load(Config.model_validate_json(config_json), inputs, threads=1,
                            sweep_dir=sweep_dir)
     by_file = {m.file: m for m in loop.dataset.with_role("test")}
-    return [loop.run_model(by_file[name]) for name in model_files]
+    out = []
+    for name in model_files:
+        out.append(loop.run_model(by_file[name]))
+        if report is not None:
+            report(len(out[-1]))
+    return out
 
 
 def run_episodes(config: Config, inputs: StageInputs,
@@ -203,22 +210,26 @@ def run_episodes(config: Config, inputs: StageInputs,
     models as listed, then start, then method), whatever the number of workers."""
     dataset = load_dataset(inputs.dataset)
     models = dataset.with_role("test")
+    per_model = config.evaluate.starts_per_model * (
+        len(config.evaluate.methods) + (len(sweep_settings(config)) if sweep_dir else 0))
     # On a Dask cluster every test model is a task of its own (the cluster spreads them).
     count = len(models) if context.uses_cluster else min(context.worker_count, len(models))
     if count <= 1 and not context.uses_cluster:
         loop = ClosedLoop.load(config, inputs, context.threads, sweep_dir)
-        per_model = run_tasks(loop.run_model, [(m,) for m in models], 1,
-                              "evaluate: test models", context.progress)
+        per_model_records = run_tasks(loop.run_model, [(m,) for m in models], 1,
+                                      "evaluate: episodes", context.progress,
+                                      unit="episodes", sizes=[per_model] * len(models))
     else:
         config_json = config.model_dump_json()
         shares = [[models[i].file for i in share]
                   for share in np.array_split(np.arange(len(models)), count)]
         per_share = run_tasks(_run_models_task, [(config_json, inputs, sweep_dir, share)
                                                    for share in shares],
-                              count, f"evaluate: test models ({count} shares)",
-                              context.progress, context.scheduler)
-        per_model = [records for share in per_share for records in share]
-    return [r for records in per_model for r in records], dataset
+                              count, "evaluate: episodes", context.progress,
+                              context.scheduler, unit="episodes",
+                              sizes=[per_model * len(share) for share in shares], reports=True)
+        per_model_records = [records for share in per_share for records in share]
+    return [r for records in per_model_records for r in records], dataset
 
 
 #: The methods that are POMDP policies (solved per λ); the others are Static and Random.
@@ -278,13 +289,15 @@ def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
     gap = {name: float(row["upper"]) - float(row["lower"]) for name, row in rows.items()
            if isinstance(row, dict) and {"upper", "lower"} <= row.keys()}
     solve = config.solve
+    sweep_lambdas = ", ".join(f"{lam:g}" for lam, _ in folders.values())
     solve_problem_sets(
         [(sweep_dir / folder, lam, {m: models[m] for m in methods})
          for folder, (lam, methods) in folders.items()],
         energy, reachable, discount=solve.discount, start_viewpoint=start_viewpoint(reachable),
         precision=solve.precision, timeout=solve.timeout_s, max_iterations=solve.iterations,
         workers=context.worker_count, allow_stay=False, class_names=classes,
-        memory_gb=solve.memory_gb, scheduler=context.scheduler, cost=gap)
+        memory_gb=solve.memory_gb, scheduler=context.scheduler, cost=gap,
+        description=f"evaluate: λ sweep ({sweep_lambdas} m)")
 
 
 def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],

@@ -89,8 +89,8 @@ def solve_workspace_problems(
               class_names, memory_gb)
     if (workers > 1 or scheduler is not None) and callback is None:
         rows = run_tasks(_solve_one, [(observation_models[n], move_energy, reachable, out, n,
-                                       *common) for n in names], workers, "solve: models",
-                         scheduler=scheduler)
+                                       *common) for n in names], workers, "solve: POMDPs",
+                         scheduler=scheduler, unit="solves")
     else:
         rows = [_solve_one(observation_models[n], move_energy, reachable, out, n, *common,
                            callback) for n in names]
@@ -115,6 +115,7 @@ def solve_problem_sets(
     memory_gb: float = DEFAULT_MEMORY_GB,
     scheduler: str | None = None,
     cost: Mapping[str, float] | None = None,
+    description: str = "solve: POMDPs",
 ) -> dict[Path, dict[str, Path]]:
     """Several :func:`solve_workspace_problems` calls, (folder, λ, models) each, in one pool.
 
@@ -122,7 +123,8 @@ def solve_problem_sets(
     share the ``workers`` processes, started in decreasing order of λ and then of ``cost[name]``
     (a relative estimate of a model's solve time; larger λ, deeper plans, longer solves), so the
     longest start first instead of one folder's tail holding up the next folder. The order
-    decides only the wall time: each solve is the one it would be alone.
+    decides only the wall time: each solve is the one it would be alone. ``description``
+    labels the progress bar (which counts solves).
     """
     common = (discount, start_viewpoint, precision, timeout, max_iterations, allow_stay,
               class_names, memory_gb)
@@ -133,7 +135,8 @@ def solve_problem_sets(
                    key=lambda i: (-jobs[i][1], -weights.get(jobs[i][2], 0.0)))
     tasks = [(jobs[i][3], move_energy, reachable, jobs[i][0], jobs[i][2], jobs[i][1], *common)
              for i in order]
-    solved = run_tasks(_solve_one, tasks, workers, "solve: models", scheduler=scheduler)
+    solved = run_tasks(_solve_one, tasks, workers, description, scheduler=scheduler,
+                       unit="solves")
     rows = dict(zip(order, solved, strict=True))
     paths: dict[Path, dict[str, Path]] = {}
     for folder, _, models in sets:

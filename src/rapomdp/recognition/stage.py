@@ -144,7 +144,8 @@ def _classify_test_models(config: Config, render_dir: Path, dataset_dir: Path,
     classifier = load_stage_classifier(config, train_dir, dataset.classes, threads)
     by_file = {m.file: m for m in dataset.models}
     out = []
-    for model in track([by_file[f] for f in model_files], "classifier: test models", progress):
+    for model in track([by_file[f] for f in model_files], "classifier: test models", progress,
+                       unit="test models"):
         sensed = TestViews.of_model(config, dataset, model).sensed(
             xrho_noise_rng(config.seed, TEST_STREAM, model))
         out.append((classifier.predict(sensed), classifier.predict(views.load(model)[0])))
@@ -176,7 +177,8 @@ def run_classifier_eval_stage(config: Config, inputs: StageInputs, out: Path,
                           [(config, inputs.render, inputs.dataset, inputs.train,
                             [files[i] for i in share], threads) for share in shares],
                           context.worker_count, "classifier: test models", context.progress,
-                          context.scheduler)
+                          context.scheduler, unit="test models",
+                          sizes=[len(share) for share in shares])
         per_model = [result for part in parts for result in part]
     xrho = [x for x, _ in per_model]
     sphere = [s for _, s in per_model]

@@ -155,7 +155,7 @@ def train_classifier(
     history = History()
     batches = -(-len(train) // cfg.batch_size)
     with progress_bar(progress, status=True) as bar:
-        task = bar.add_task("train", total=cfg.epochs * batches, status="")
+        task = bar.add_task("train", total=cfg.epochs * batches, status="", unit="batches")
         for epoch in range(1, cfg.epochs + 1):
             start_s = time.perf_counter()
             network.train()

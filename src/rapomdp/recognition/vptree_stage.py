@@ -66,7 +66,7 @@ def fit_vptree(config: Config, views: TrainingViews,
     if not train:
         raise StageError(f"{dataset.root}: the dataset has no train models")
     depth, labels = [], []
-    for model in track(train, "vptree: loading training views", progress):
+    for model in track(train, "vptree: loading training views", progress, unit="models"):
         images, _ = views.load(model)
         depth.append(images)
         labels.append(np.full(images.shape[0], dataset.label(model)))
@@ -101,7 +101,8 @@ def xrho_predictions(classifier: VocabularyTreeClassifier, dataset: Dataset,
               for share in np.array_split(np.arange(len(models)), min(shares, len(models)))]
     predicted = run_tasks(_xrho_labels, [(classifier, dataset, g, config, purpose)
                                          for g in groups],
-                          workers, description, progress, scheduler)
+                          workers, description, progress, scheduler, unit="models",
+                          sizes=[len(g) for g in groups])
     labels = [dataset.label(model) for model in models]
     return np.array(labels, dtype=np.int64), np.stack([p for part in predicted for p in part])
 

@@ -119,7 +119,7 @@ def solve_viewpoints(
     target_out = np.full((n, 4, 4), np.nan)
     converged_count = np.zeros(n, dtype=np.int64)
     # the solver is per target (C++); keep the Python work per try minimal
-    for i in track(range(n), "robot: IK per viewpoint", progress):
+    for i in track(range(n), "robot: IK", progress, unit="viewpoints"):
         found_q, found_roll = [], []
         for r in np.flatnonzero(may_reach[i]):
             for q0 in starts:

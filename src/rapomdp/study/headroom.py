@@ -405,10 +405,11 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
     count = context.worker_count
 
     # 1. the recogniser's labels of every test model at X_rho, as the episodes see them
-    per_share = run_tasks(_outputs_task, [(config_json, inputs, share)
-                                          for share in _shares(files, count)],
+    shares = _shares(files, count)
+    per_share = run_tasks(_outputs_task, [(config_json, inputs, share) for share in shares],
                           count, "headroom: test models at X_rho", context.progress,
-                          context.scheduler)
+                          context.scheduler, unit="test models",
+                          sizes=[len(share) for share in shares])
     outputs = [o for share in per_share for o in share]
     predicted = np.stack([o.argmax(axis=1) for o in outputs])
     recorded = RecordedObservation.load(inputs.observe)
@@ -455,7 +456,9 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
         idx = [files.index(f) for f in share]
         tasks.append((config_json, inputs, arms, assignment, share, [outputs[i] for i in idx]))
     records = [r for share in run_tasks(_episodes_task, tasks, count, "headroom: episodes",
-                                        context.progress, context.scheduler) for r in share]
+                                        context.progress, context.scheduler,
+                                        unit="test models", sizes=[len(t[4]) for t in tasks])
+               for r in share]
     episodes_s = time.perf_counter() - episodes_began
     table = EpisodeTable.from_records(records, dataset, wanted)
     mismatches = _mismatches(table, EpisodeTable.load(evaluate_dir / EPISODES_FILE))

@@ -105,8 +105,8 @@ def run_study(spec: StudySpec, root: str | Path, context: RunContext = RunContex
     tasks = [(spec.config(d, seed).model_dump_json(), str(root), d.name, seed, sources[d.name],
               replace(context, progress=False))
              for d in spec.datasets for seed in spec.seeds]
-    runs = run_tasks(_seed_task, tasks, context.worker_count, "study: seeds", context.progress,
-                     context.scheduler)
+    runs = run_tasks(_seed_task, tasks, context.worker_count, "study", context.progress,
+                     context.scheduler, unit="seed runs")
     if on_result is not None:
         for run in runs:
             for result in run.results:
