@@ -127,8 +127,11 @@ def status_marks_stale(root: Path) -> Outcome:
     first = cli(["run", "-w", str(ws), "--until", "dataset", "seed=4"])
     assert first.exit_code == 0, first.detail
     outcome = cli(["status", "-w", str(ws)])
-    row = next((line for line in outcome.detail.splitlines() if "│ render " in line), "")
-    outcome.message = " ".join(row.replace("│", " ").split()[:11])
+    lines = outcome.detail.splitlines()
+    row = next((line for line in lines if "│ render " in line), "")
+    why = next((line for line in lines if line.startswith("  render: ")), "")
+    outcome.message = (" ".join(row.replace("│", " ").split()[:2]) + ": "
+                       + why.removeprefix("  render: "))
     return _kept(outcome, before, ws, changed=("config.yaml", "dataset/", "manifest.json"))
 
 
@@ -316,7 +319,8 @@ def read_only_cached(root: Path) -> Outcome:
     before = snapshot(ws)
     with read_only(ws):
         outcome = cli(["run", "-w", str(ws), "--until", "render"])
-    outcome.message = outcome.detail.strip().splitlines()[-1]
+    stages = [line for line in outcome.detail.splitlines() if line.startswith("✓")]
+    outcome.message = stages[-1] if stages else outcome.detail.strip()[-300:]
     return _kept(outcome, before, ws)
 
 
