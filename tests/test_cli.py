@@ -1,3 +1,5 @@
+import json
+import re
 from pathlib import Path
 
 import yaml
@@ -199,10 +201,6 @@ def test_fig1_view_help_says_what_write_fig1_picks() -> None:
 
 # --- help texts, status, errors, the end of a run, the demo -----------------------------------
 
-import json  # noqa: E402
-import re  # noqa: E402
-
-from tests.experiment.conftest import pipeline_workspace  # noqa: E402, F401 (a fixture)
 
 
 def _commands() -> list[tuple[list[str], object]]:
@@ -379,32 +377,6 @@ def test_a_folder_dataset_prints_its_split_and_one_warning_line_per_problem(tmp_
     assert warnings == ["warning: class 'vase' has 3 model(s); split: auto needs at least 5 a "
                         "class (3 train, 1 volume, 1 test): class(es) left out"]
     assert "UserWarning" not in done.output and "stage.run(" not in done.output
-
-
-def test_run_and_demo_end_with_the_report_who_won_the_wall_time_and_memory(
-        pipeline_workspace) -> None:  # noqa: ANN001, F811
-    from rapomdp.cli import _story
-
-    ws, _ = pipeline_workspace
-    result = runner.invoke(app, ["run", "-w", str(ws.root), "--threads", "1"],
-                           env={"COLUMNS": "2000"})
-    assert result.exit_code == 0, result.output
-    lines = result.output.splitlines()
-    tail = lines[lines.index(f"report: {ws.root / 'report' / 'report.html'}"):]
-    story, paired, timing = tail[1:]
-    assert [story, paired] == _story(ws)
-    assert story.startswith("On this run ") and "with 95 % intervals" in story
-    assert paired.startswith("accuracy minus RA-POMDP's over the same pairs [95 % interval]: "
-                             "Static ")
-    assert re.fullmatch(r"wall time \d+\.\d s, peak memory \d+ MB( \(its largest worker "
-                        r"process \d+(\.\d)? [MG]B\))?|wall time .*GB.*", timing), timing
-    assert "Table 1 (closed-loop episodes on the test models)" in result.output
-    demo = runner.invoke(app, ["demo", "-w", str(ws.root), "--threads", "1"],
-                         env={"COLUMNS": "2000"})
-    assert demo.exit_code == 0, demo.output
-    assert f"contact sheet written to {ws.root / 'contact_sheet.png'}" in demo.output
-    assert (ws.root / "contact_sheet.png").read_bytes()[:4] == b"\x89PNG"
-    assert demo.output.splitlines()[-3:-1] == [story, paired]
 
 
 def test_make_demo_runs_the_demo_command() -> None:

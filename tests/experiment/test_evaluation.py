@@ -255,3 +255,37 @@ def test_every_html_the_pipeline_writes_works_offline(workspace) -> None:
     report = (ws.root / "report" / "report.html").read_text()
     assert '<a href="fig1_bicycle.html">' in report
     assert (ws.root / "report" / "fig1_bicycle.html").stat().st_size > 1_000_000
+
+
+def test_run_and_demo_end_with_the_report_who_won_the_wall_time_and_memory(
+        workspace, tmp_path) -> None:
+    """`rapomdp run` and `rapomdp demo` (on a copy of the cached tiny workspace) end with the
+    report's path, its story of who won and the paired intervals, the wall time and memory."""
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from rapomdp.cli import _story, app
+
+    runner = CliRunner()
+    ws = Workspace(tmp_path / "ws")
+    shutil.copytree(workspace[0].root, ws.root)
+    result = runner.invoke(app, ["run", "-w", str(ws.root), "--threads", "1"],
+                           env={"COLUMNS": "2000"})
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    tail = lines[lines.index(f"report: {ws.root / 'report' / 'report.html'}"):]
+    story, paired, timing = tail[1:]
+    assert [story, paired] == _story(ws)
+    assert story.startswith("On this run ") and "with 95 % intervals" in story
+    assert paired.startswith("accuracy minus RA-POMDP's over the same pairs [95 % interval]: "
+                             "Static ")
+    assert re.fullmatch(r"wall time \d+\.\d s, peak memory \d+ MB( \(its largest worker "
+                        r"process \d+(\.\d)? [MG]B\))?|wall time .*GB.*", timing), timing
+    assert "Table 1 (closed-loop episodes on the test models)" in result.output
+    demo = runner.invoke(app, ["demo", "-w", str(ws.root), "--threads", "1"],
+                         env={"COLUMNS": "2000"})
+    assert demo.exit_code == 0, demo.output
+    assert f"contact sheet written to {ws.root / 'contact_sheet.png'}" in demo.output
+    assert (ws.root / "contact_sheet.png").read_bytes()[:4] == b"\x89PNG"
+    assert demo.output.splitlines()[-3:-1] == [story, paired]
