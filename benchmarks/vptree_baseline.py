@@ -22,7 +22,7 @@ import numpy as np
 import yaml
 
 from rapomdp.config import Config, config_from_dict
-from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM
+from rapomdp.data.test_views import load_xrho_views
 from rapomdp.data.training_views import load_training_views
 from rapomdp.recognition.vptree_stage import fit_vptree, xrho_predictions
 
@@ -68,20 +68,18 @@ def main() -> None:
     dataset = views.dataset
 
     start = time.perf_counter()
-    vol_labels, vol_pred = xrho_predictions(classifier, dataset, dataset.with_role("volume"),
-                                            config, VOLUME_STREAM, "volume", False)
+    images = load_xrho_views(ws / "xrho", dataset)
+    vol_labels, vol_pred = xrho_predictions(classifier, images, dataset.with_role("volume"),
+                                            "volume", False)
     volume_s = time.perf_counter() - start
     start = time.perf_counter()
-    test_labels, test_pred = xrho_predictions(classifier, dataset, dataset.with_role("test"),
-                                              config, TEST_STREAM, "test", False)
+    test_labels, test_pred = xrho_predictions(classifier, images, dataset.with_role("test"),
+                                              "test", False)
     test_s = time.perf_counter() - start
     correct = test_pred == test_labels[:, None]
 
     # single-image latency, as inside a closed-loop step (one image per call)
-    from rapomdp.data.test_views import xrho_renders
-
-    _, sensed, _ = xrho_renders(dataset, dataset.with_role("test")[0], config,
-                                "classifier_eval")
+    sensed = images.load(dataset.with_role("test")[0]).sensed
     classifier.predict(sensed[0])
     latency = []
     for image in sensed:

@@ -429,6 +429,15 @@ def render(workspace: WorkspaceOption, config: ConfigOption = None,
          overrides, reconfigure)
 
 
+@app.command()
+def xrho(workspace: WorkspaceOption, config: ConfigOption = None,
+         force: ForceOption = False, reconfigure: ReconfigureOption = False,
+         overrides: OverridesArgument = None, workers: WorkersOption = None) -> None:
+    """Render the volume and test models at X_rho once, for every stage that reads them."""
+    _run(config, workspace, "xrho", ["xrho"] if force else [], _context(workers=workers),
+         overrides, reconfigure)
+
+
 ThreadsOption = Annotated[
     int | None,
     typer.Option(help="CPU threads for PyTorch (default: $RAPOMDP_THREADS, else half the cores)."),

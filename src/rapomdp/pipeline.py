@@ -23,6 +23,7 @@ from rapomdp.awareness.artefacts import (
 from rapomdp.config import Config, apply_overrides, config_from_dict, read_config_data
 from rapomdp.context import RunContext
 from rapomdp.data.layouts import dataset_fingerprint
+from rapomdp.data.sections import XRHO_SECTIONS
 from rapomdp.experiment.sections import EVALUATE_SECTIONS, REPORT_INPUTS, REPORT_SECTIONS
 from rapomdp.recognition.artefacts import EVAL_SECTIONS, TRAIN_SECTIONS, VPTREE_SECTIONS
 from rapomdp.workspace import Stage, StageError, StageInputs, StageResult, Workspace, stage_key
@@ -38,6 +39,8 @@ def stage_code(name: str) -> StageRun:
         from rapomdp.data.training_views import run_render_stage as run
     elif name == "train":
         from rapomdp.recognition.stage import run_train_stage as run
+    elif name == "xrho":
+        from rapomdp.data.test_views import run_xrho_stage as run
     elif name == "classifier_eval":
         from rapomdp.recognition.stage import run_classifier_eval_stage as run
     elif name == "saliency":
@@ -96,10 +99,18 @@ STAGES: list[Stage] = [
         description="depth CNN classifier trained on the train models' renders",
     ),
     Stage(
+        name="xrho",
+        run=_deferred("xrho"),
+        sections=XRHO_SECTIONS,
+        inputs=("dataset",),
+        description="the volume and test models' depth images at the test viewpoints X_rho, "
+                    "rendered once for every stage that reads them",
+    ),
+    Stage(
         name="classifier_eval",
         run=_deferred("classifier_eval"),
         sections=EVAL_SECTIONS,
-        inputs=("dataset", "render", "train"),
+        inputs=("dataset", "render", "train", "xrho"),
         description="single-view accuracy on the test models, confusion, per viewpoint",
     ),
     Stage(
@@ -134,7 +145,7 @@ STAGES: list[Stage] = [
         name="observe",
         run=_deferred("observe"),
         sections=OBSERVE_SECTIONS,
-        inputs=("dataset", "render", "train", "volume", "crossfit"),
+        inputs=("dataset", "render", "train", "xrho", "classifier_eval", "volume", "crossfit"),
         version="2",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
@@ -142,7 +153,7 @@ STAGES: list[Stage] = [
         name="vptree",
         run=_deferred("vptree"),
         sections=VPTREE_SECTIONS,
-        inputs=("dataset", "render"),
+        inputs=("dataset", "render", "xrho"),
         description="VP-tree baseline: vocabulary-tree classifier, its confusion P(o | class, x)",
     ),
     Stage(

@@ -114,6 +114,7 @@ class StageInputs:
     dataset_dir: Path | None = None
     render_dir: Path | None = None
     train_dir: Path | None = None
+    xrho_dir: Path | None = None
     classifier_eval_dir: Path | None = None
     saliency_dir: Path | None = None
     volume_dir: Path | None = None
@@ -127,6 +128,7 @@ class StageInputs:
     dataset = _Upstream()
     render = _Upstream()
     train = _Upstream()
+    xrho = _Upstream()
     classifier_eval = _Upstream()
     saliency = _Upstream()
     volume = _Upstream()

@@ -5,17 +5,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rapomdp.config import config_from_dict
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.test_views import (
     TEST_STREAM,
     VOLUME_STREAM,
+    XRHO_FILE,
     TestViews,
+    load_xrho_views,
     xrho_noise_rng,
     xrho_renders,
 )
+from rapomdp.io import read_json
 from rapomdp.pipeline import run_pipeline
-from rapomdp.workspace import Workspace
-from tests.conftest import TEST_CONTEXT, tiny_config
+from rapomdp.workspace import StageError, Workspace
+from tests.conftest import TEST_CONTEXT, TINY_PIPELINE, tiny_config
 
 
 @pytest.fixture(scope="module")
@@ -57,3 +61,46 @@ def test_the_stream_depends_on_the_model(dataset) -> None:
     assert np.array_equal(first, xrho_noise_rng(3, TEST_STREAM, a).random(4))
     assert not np.array_equal(first, xrho_noise_rng(3, TEST_STREAM, b).random(4))
     assert not np.array_equal(first, xrho_noise_rng(4, TEST_STREAM, a).random(4))
+
+
+def test_the_xrho_stage_stores_each_models_images_of_its_own_stream(tmp_path) -> None:
+    config = tiny_config(render={"views": 6, "noise": {"enabled": True}})
+    ws = Workspace(tmp_path / "ws")
+    run_pipeline(config, ws, until="xrho", context=TEST_CONTEXT)
+    dataset = load_dataset(ws.require("dataset"))
+    images = load_xrho_views(ws.require("xrho"), dataset)
+    record = read_json(ws.require("xrho") / XRHO_FILE)
+    rendered = [m for m in dataset.models if m.role in ("volume", "test")]
+    assert [(m["class"], m["id"], m["role"]) for m in record["models"]] == [
+        (m.class_name, m.id, m.role) for m in rendered]
+    for model in rendered:
+        stream = VOLUME_STREAM if model.role == "volume" else TEST_STREAM
+        clean, sensed, poses = xrho_renders(dataset, model, config, stream)
+        stored = images.load(model)
+        assert np.array_equal(stored.sensed, sensed) and np.array_equal(stored.clean, clean)
+        assert np.array_equal(stored.poses, poses)
+    with pytest.raises(StageError, match=r"\(a train model\); the xrho stage renders the volume"):
+        images.load(dataset.with_role("train")[0])
+
+
+def test_every_consumer_reads_the_one_render_of_each_model(tmp_path, monkeypatch) -> None:
+    calls: list[int] = []
+    render_all = TestViews.render_all
+
+    def counted(self: TestViews, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        calls.append(1)
+        return render_all(self, rng)
+
+    monkeypatch.setattr(TestViews, "render_all", counted)
+    config = config_from_dict({**tiny_config().model_dump(), **TINY_PIPELINE})
+    ws = Workspace(tmp_path / "ws")
+    results = run_pipeline(config, ws, until="observe", context=TEST_CONTEXT)
+    results += run_pipeline(config, ws, until="vptree", context=TEST_CONTEXT)
+    dataset = load_dataset(ws.require("dataset"))
+    # one render per volume and test model, by the xrho stage alone, for classifier_eval,
+    # observe and vptree
+    assert len(calls) == len(dataset.with_role("volume")) + len(dataset.with_role("test"))
+    assert [r.name for r in results if not r.cached].count("xrho") == 1
+    stages = ws.manifest()["stages"]
+    for name in ("classifier_eval", "observe", "vptree"):
+        assert stages[name]["input_keys"]["xrho"] == stages["xrho"]["key"]

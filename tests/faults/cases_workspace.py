@@ -22,7 +22,7 @@ from tests.faults.harness import Outcome, cached_workspace, cli, lost_files, sna
 from tests.planning.planning_fixtures import TIGER
 
 #: Every stage's command, as a user runs it on a folder.
-STAGE_COMMANDS = ("dataset", "render", "train", "classifier_eval", "saliency", "volume",
+STAGE_COMMANDS = ("dataset", "render", "xrho", "train", "classifier_eval", "saliency", "volume",
                   "crossfit", "observe", "vptree", "robot", "solve", "evaluate")
 
 

@@ -12,7 +12,7 @@ from rapomdp.cli import app
 from rapomdp.config import VPTreeConfig
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
-from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM
+from rapomdp.data.test_views import TEST_STREAM, load_xrho_views, xrho_renders
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
@@ -38,7 +38,7 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     config = tiny_config(vptree={"branching": 4, "levels": 2})
     workspace = Workspace(tmp_path / "ws")
     results = run_pipeline(config, workspace, until="vptree", context=TEST_CONTEXT)
-    assert [r.name for r in results] == ["dataset", "render", "vptree"]
+    assert [r.name for r in results] == ["dataset", "render", "xrho", "vptree"]
     stage = workspace.root / "vptree"
     model = load_npz(stage / "observation_model.npz")
     classes = ["cup", "mug", "bicycle"]
@@ -56,10 +56,14 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     # the models at X_rho over two worker processes: the labels of one process
     dataset = load_dataset(workspace.root / "dataset")
     models = dataset.with_role("test") + dataset.with_role("volume")
-    alone = xrho_predictions(classifier, dataset, models, config, TEST_STREAM, "", False)
-    shared = xrho_predictions(classifier, dataset, models, config, TEST_STREAM, "", False, 2)
+    images = load_xrho_views(workspace.root / "xrho", dataset)
+    alone = xrho_predictions(classifier, images, models, "", False)
+    shared = xrho_predictions(classifier, images, models, "", False, 2)
     assert alone[1].shape == (len(models), 16)
     assert all(np.array_equal(a, b) for a, b in zip(alone, shared, strict=True))
+    # the stored images are the ones each model's own noise stream renders
+    rendered = classifier.predict(xrho_renders(dataset, models[0], config, TEST_STREAM)[1])
+    assert np.array_equal(alone[1][0], rendered.argmax(axis=1))
     # one volume model per class at 16 viewpoints and pseudo-count a: n(c, x) = 1, so each
     # row is (1 + a) / (1 + 3a) on the label seen and a / (1 + 3a) elsewhere
     a = config.vptree.pseudo_count
@@ -150,8 +154,9 @@ def test_vptree_stage_tempers_its_model_over_two_volume_models_per_class(tmp_pat
     # the stage's labels of the volume models, by hand: the k-th of each class is group k
     dataset = load_dataset(workspace.root / "dataset")
     volume = dataset.with_role("volume")
-    labels, predicted = xrho_predictions(load_workspace_vptree(stage), dataset, volume, config,
-                                         VOLUME_STREAM, "", False)
+    labels, predicted = xrho_predictions(load_workspace_vptree(stage),
+                                         load_xrho_views(workspace.root / "xrho", dataset),
+                                         volume, "", False)
     groups = np.array([[m for m in volume if m.class_name == v.class_name].index(v)
                        for v in volume])
     assert sorted(groups.tolist()) == [0, 0, 0, 1, 1, 1]

@@ -28,6 +28,7 @@ log-likelihood, and under ``grid`` every grid kernel's); ``quality.csv|md`` (tes
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -81,13 +82,21 @@ from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, class_ranks, load_dataset
 from rapomdp.data.splits import class_seed
-from rapomdp.data.test_views import CROSSFIT_STREAM, TEST_STREAM, VOLUME_STREAM, xrho_renders
+from rapomdp.data.test_views import (
+    CROSSFIT_STREAM,
+    ROLE_STREAMS,
+    TEST_STREAM,
+    VOLUME_STREAM,
+    load_xrho_views,
+    xrho_renders,
+)
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.camera import xtion_intrinsics
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, save_npz, write_json_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
+from rapomdp.recognition.artefacts import load_xrho_probabilities
 from rapomdp.recognition.belief import (
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
@@ -257,6 +266,24 @@ def xrho_outcomes(dataset: Dataset, model: ModelEntry, config: Config, classifie
                         probabilities.astype(np.float32))
 
 
+def stored_outcomes(xrho_dir: Path, classifier_eval_dir: Path, dataset: Dataset
+                    ) -> Callable[[ModelEntry, str], XrhoOutcomes]:
+    """A model's outcomes at X_rho as the xrho stage rendered it and the classifier_eval
+    stage classified it (the same images and outputs :func:`xrho_outcomes` would make)."""
+    images = load_xrho_views(xrho_dir, dataset)
+    probabilities = load_xrho_probabilities(classifier_eval_dir)
+
+    def outcomes(model: ModelEntry, purpose: str) -> XrhoOutcomes:
+        if ROLE_STREAMS.get(model.role) != purpose:
+            raise StageError(f"observe: {model.class_name}/{model.id} is a {model.role} model; "
+                             f"the stored X_rho images were not drawn from stream '{purpose}'")
+        seen = images.load(model)
+        p = probabilities.of(model.class_name, model.id)
+        return XrhoOutcomes(seen.clean, seen.poses, p.argmax(axis=1), p)
+
+    return outcomes
+
+
 @dataclass
 class Observation:
     """Everything the observe stage computes."""
@@ -291,13 +318,16 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
             volumes: dict[str, SaliencyVolume],
             cache: dict[str, XrhoOutcomes] | None = None,
             crossfit: CrossfitOutcomes | None = None,
-            views: TrainingViews | None = None, progress: bool = True) -> Observation:
+            views: TrainingViews | None = None, progress: bool = True,
+            source: Callable[[ModelEntry, str], XrhoOutcomes] | None = None) -> Observation:
     """Viewpoint scores, observation models and their quality on the test models.
 
     The models are fitted on the held-out evidence ``observe.evidence`` names: the volume
     models under ``classifier`` and/or the cross-fitted training models (``crossfit``).
     ``cache`` ("class/model id" -> :class:`XrhoOutcomes`) lets callers that try several volumes (the
-    voxel-resolution sweep) render and classify each model at X_rho once.
+    voxel-resolution sweep) render and classify each model at X_rho once; ``source`` (model,
+    noise stream) -> its outcomes, when given, is read instead of rendering and classifying
+    (the stage reads the xrho and classifier_eval stages' artefacts).
     """
     cache = {} if cache is None else cache
     classes = dataset.classes
@@ -308,7 +338,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     def outcomes(model: ModelEntry, purpose: str) -> XrhoOutcomes:
         key = f"{model.class_name}/{model.id}"
         if key not in cache:
-            cache[key] = xrho_outcomes(dataset, model, config, classifier, purpose)
+            cache[key] = (source(model, purpose) if source is not None
+                          else xrho_outcomes(dataset, model, config, classifier, purpose))
         return cache[key]
 
     raw = np.zeros((len(classes), config.viewpoints.count))
@@ -531,7 +562,8 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
     views = (load_training_views(inputs.render, inputs.dataset)
              if inputs.render_dir is not None else None)
     result = observe(config, dataset, classifier, volumes, crossfit=crossfit, views=views,
-                     progress=context.progress)
+                     progress=context.progress,
+                     source=stored_outcomes(inputs.xrho, inputs.classifier_eval, dataset))
     write_quality(result.quality, out / QUALITY_CSV, out / QUALITY_MD)
     if result.validation:
         write_quality(result.validation, out / VALIDATION_CSV, out / VALIDATION_MD)

@@ -1,25 +1,35 @@
 """A dataset model seen from the test viewpoints X_rho: the one place test views are rendered.
 
-The observe, classifier_eval and vptree stages render every model at all of X_rho at once, with
-the sensor noise drawn from a stream keyed by the seed, a purpose and the model
-(:func:`xrho_noise_rng`): the volume models under :data:`VOLUME_STREAM`, the test models under
-:data:`TEST_STREAM`, so that every stage that classifies a test model at X_rho sees the same
-images. The closed loop renders one viewpoint at a time (:meth:`TestViews.look`) with the
-episode's own generator.
+The ``xrho`` stage renders every volume and test model at all of X_rho once, with the sensor
+noise drawn from a stream keyed by the seed, a purpose and the model (:func:`xrho_noise_rng`):
+the volume models under :data:`VOLUME_STREAM`, the test models under :data:`TEST_STREAM`. The
+classifier_eval, observe and vptree stages read those images (:class:`XrhoViews`), so every
+stage that classifies a model at X_rho sees the same images and none renders them again. The
+closed loop renders one viewpoint at a time (:meth:`TestViews.look`) with the episode's own
+generator.
+
+``W/xrho/``: ``xrho.json`` (the models, their roles and noise streams) and
+``views/<class>/<model>.npz`` with ``depth`` (V, H, W) float32 metres as the sensor sees it,
+``poses`` (V, 4, 4) camera-to-world and, only when the sensor noise is on, ``clean`` (V, H, W).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from rapomdp.config import Config, NoiseConfig
-from rapomdp.data.dataset import Dataset, ModelEntry
+from rapomdp.context import RunContext
+from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.renderer import DepthRenderer
 from rapomdp.data.splits import class_seed
 from rapomdp.data.training_views import model_poses, render_depth
 from rapomdp.geometry.camera import xtion_intrinsics
+from rapomdp.io import load_npz, read_json, save_npz, write_json_atomic
+from rapomdp.parallel import run_tasks
+from rapomdp.workspace import StageError, StageInputs
 
 #: The noise stream of the volume models' renders at X_rho (the observation models' evidence).
 VOLUME_STREAM = "observe/volume"
@@ -27,6 +37,9 @@ VOLUME_STREAM = "observe/volume"
 TEST_STREAM = "classifier_eval"
 #: The noise stream of the training models the cross-fitted classifiers label at X_rho.
 CROSSFIT_STREAM = "crossfit"
+#: The noise stream of each role the xrho stage renders.
+ROLE_STREAMS = {"volume": VOLUME_STREAM, "test": TEST_STREAM}
+XRHO_FILE = "xrho.json"
 
 
 def xrho_noise_rng(seed: int, purpose: str, model: ModelEntry) -> np.random.Generator:
@@ -77,3 +90,67 @@ def xrho_renders(dataset: Dataset, model: ModelEntry, config: Config,
     views = TestViews.of_model(config, dataset, model)
     clean, sensed = views.render_all(xrho_noise_rng(config.seed, purpose, model))
     return clean, sensed, views.poses
+
+
+def _view_file(root: Path, model: ModelEntry) -> Path:
+    return root / "views" / model.class_name / f"{model.id}.npz"
+
+
+def _render_xrho_model(dataset: Dataset, model: ModelEntry, config: Config, out: Path) -> None:
+    """One model's renders at X_rho, written to ``out`` (a task of the xrho stage)."""
+    clean, sensed, poses = xrho_renders(dataset, model, config, ROLE_STREAMS[model.role])
+    extra = {"clean": clean} if config.render.noise.enabled else {}
+    save_npz(_view_file(out, model), compressed=True, depth=sensed, poses=poses, **extra)
+
+
+def run_xrho_stage(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
+    """Render every volume and test model at X_rho once, one model per task over the worker
+    processes (each model's noise has its own stream: the images do not depend on them)."""
+    dataset = load_dataset(inputs.dataset)
+    models = [m for m in dataset.models if m.role in ROLE_STREAMS]
+    run_tasks(_render_xrho_model, [(dataset, m, config, out) for m in models],
+              context.worker_count, "xrho: images of the volume and test models",
+              context.progress, context.scheduler)
+    vp = config.viewpoints
+    write_json_atomic(out / XRHO_FILE, {
+        "viewpoints": vp.count, "radius_m": vp.radius_m, "noise": config.render.noise.enabled,
+        "models": [{"class": m.class_name, "id": m.id, "role": m.role,
+                    "stream": ROLE_STREAMS[m.role]} for m in models]})
+
+
+@dataclass(frozen=True)
+class XrhoImages:
+    """One model at X_rho: what the sensor saw (V, H, W), the noiseless depth (the same array
+    when the noise is off) and the camera poses (V, 4, 4)."""
+
+    sensed: np.ndarray
+    clean: np.ndarray
+    poses: np.ndarray
+
+
+@dataclass(frozen=True)
+class XrhoViews:
+    """The xrho stage's images, read back per model."""
+
+    root: Path
+    dataset: Dataset
+
+    def load(self, model: ModelEntry) -> XrhoImages:
+        """``model``'s images at X_rho; a model the stage did not render is a StageError."""
+        if model.role not in ROLE_STREAMS:
+            raise StageError(f"{self.root}: no X_rho images of {model.class_name}/{model.id} "
+                             f"(a {model.role} model); the xrho stage renders the volume and "
+                             "test models only")
+        arrays = load_npz(_view_file(self.root, model))
+        sensed = arrays["depth"]
+        return XrhoImages(sensed, arrays["clean"] if "clean" in arrays else sensed,
+                          arrays["poses"])
+
+
+def load_xrho_views(xrho_dir: str | Path, dataset: Dataset | str | Path) -> XrhoViews:
+    """The xrho stage's output in ``xrho_dir`` (``dataset``: the dataset stage's folder, or
+    the dataset already loaded from it), checked to be a finished stage."""
+    xrho_dir = Path(xrho_dir)
+    read_json(xrho_dir / XRHO_FILE)  # a missing or broken record is named here
+    return XrhoViews(xrho_dir, dataset if isinstance(dataset, Dataset)
+                     else load_dataset(dataset))

@@ -18,7 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rapomdp.io import ArtefactError, read_json
+import numpy as np
+
+from rapomdp.io import ArtefactError, load_npz, read_json
 
 METRICS_FILE = "metrics.json"
 HISTORY_FILE = "history.csv"
@@ -103,3 +105,32 @@ def load_vptree_summary(folder: str | Path) -> VPTreeSummary:
 
     return VPTreeSummary(number("accuracy_test_xrho"), number("accuracy_volume_xrho"),
                          number("chance"), data, number("temperature"))
+
+
+@dataclass(frozen=True)
+class XrhoProbabilities:
+    """``W/classifier_eval/probabilities.npz``: the classifier's class probabilities (V, C) at
+    X_rho of each volume and test model (the xrho stage's images), by ``"class/model id"``."""
+
+    by_model: dict[str, np.ndarray]
+
+    def of(self, class_name: str, model_id: str) -> np.ndarray:
+        """The probabilities (V, C) of one model; a model not classified is an ArtefactError."""
+        try:
+            return self.by_model[f"{class_name}/{model_id}"]
+        except KeyError:
+            raise ArtefactError(f"classifier_eval: no X_rho probabilities of {class_name}/"
+                                f"{model_id} (the volume and test models only)") from None
+
+
+def load_xrho_probabilities(folder: str | Path) -> XrhoProbabilities:
+    """The classifier_eval stage's probabilities at X_rho of the volume and test models."""
+    arrays = load_npz(Path(folder) / PROBABILITIES_FILE)
+    classes = arrays["classes"]
+    by_model: dict[str, np.ndarray] = {}
+    for kind, labels_key, models_key in (("xrho", "labels", "models"),
+                                         ("volume_xrho", "volume_labels", "volume_models")):
+        for probabilities, label, model_id in zip(arrays[kind], arrays[labels_key],
+                                                  arrays[models_key], strict=True):
+            by_model[f"{classes[label]}/{model_id}"] = probabilities
+    return XrhoProbabilities(by_model)

@@ -20,7 +20,7 @@ import torch
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
-from rapomdp.data.test_views import TEST_STREAM, TestViews, xrho_noise_rng
+from rapomdp.data.test_views import load_xrho_views
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, stable_hash, write_json_atomic
@@ -134,54 +134,59 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
     write_json_atomic(out / METRICS_FILE, metrics)
 
 
-def _classify_test_models(config: Config, render_dir: Path, dataset_dir: Path,
-                          train_dir: Path, model_files: list[str], threads: int | None,
-                          progress: bool = False) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The classifier's probabilities of test models at X_rho (V, C) and over their training
-    viewsphere (views, C), model by model (a task of the classifier_eval stage)."""
+def _classify_models(config: Config, render_dir: Path, xrho_dir: Path, dataset_dir: Path,
+                     train_dir: Path, model_files: list[str], threads: int | None,
+                     progress: bool = False) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """The classifier's probabilities of models at X_rho (V, C), from the xrho stage's
+    images, and, for test models, over their training viewsphere (views, C), model by model
+    (a task of the classifier_eval stage)."""
     views = load_training_views(render_dir, dataset_dir)
+    xrho = load_xrho_views(xrho_dir, dataset_dir)
     dataset = views.dataset
     classifier = load_stage_classifier(config, train_dir, dataset.classes, threads)
     by_file = {m.file: m for m in dataset.models}
-    out = []
-    for model in track([by_file[f] for f in model_files], "classifier: test models", progress,
-                       unit="test models"):
-        sensed = TestViews.of_model(config, dataset, model).sensed(
-            xrho_noise_rng(config.seed, TEST_STREAM, model))
-        out.append((classifier.predict(sensed), classifier.predict(views.load(model)[0])))
+    out: list[tuple[np.ndarray, np.ndarray | None]] = []
+    for model in track([by_file[f] for f in model_files], "classifier: models at X_rho",
+                       progress, unit="models"):
+        at_xrho = classifier.predict(xrho.load(model).sensed)
+        sphere = classifier.predict(views.load(model)[0]) if model.role == "test" else None
+        out.append((at_xrho, sphere))
     return out
 
 
 def run_classifier_eval_stage(config: Config, inputs: StageInputs, out: Path,
                               context: RunContext) -> None:
-    """Single-view accuracy of the trained classifier on the test models (rendered and
-    classified in a few shares per worker process; the probabilities do not depend on it)."""
+    """Single-view accuracy of the trained classifier on the test models, and its outputs at
+    X_rho on the volume and test models for later stages (classified in a few shares per
+    worker process; the probabilities do not depend on it)."""
     views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
     # loaded here first: a checkpoint that does not fit is refused before any task starts
     classifier = load_stage_classifier(config, inputs.train, dataset.classes,
                                        context.threads)
     test_models = dataset.with_role("test")
+    volume_models = dataset.with_role("volume")
     labels = np.array([dataset.label(m) for m in test_models], dtype=np.int64)
     vp = config.viewpoints
-    files = [m.file for m in test_models]
+    files = [m.file for m in test_models + volume_models]
     if context.worker_count <= 1 and not context.uses_cluster:
-        per_model = _classify_test_models(config, inputs.render, inputs.dataset,
-                                          inputs.train, files, context.threads,
-                                          context.progress)
+        per_model = _classify_models(config, inputs.render, inputs.xrho, inputs.dataset,
+                                     inputs.train, files, context.threads, context.progress)
     else:
         shares = np.array_split(np.arange(len(files)), min(4 * context.worker_count,
                                                            max(1, len(files))))
         threads = context.in_worker().threads
-        parts = run_tasks(_classify_test_models,
-                          [(config, inputs.render, inputs.dataset, inputs.train,
+        parts = run_tasks(_classify_models,
+                          [(config, inputs.render, inputs.xrho, inputs.dataset, inputs.train,
                             [files[i] for i in share], threads) for share in shares],
-                          context.worker_count, "classifier: test models", context.progress,
-                          context.scheduler, unit="test models",
+                          context.worker_count, "classifier: models at X_rho",
+                          context.progress, context.scheduler, unit="models",
                           sizes=[len(share) for share in shares])
         per_model = [result for part in parts for result in part]
+    volume_xrho = [x for x, _ in per_model[len(test_models):]]
+    per_model = per_model[: len(test_models)]
     xrho = [x for x, _ in per_model]
-    sphere = [s for _, s in per_model]
+    sphere = [s for _, s in per_model if s is not None]
     results = [
         SingleViewResult("xrho", dataset.classes, np.stack(xrho), labels),
         SingleViewResult("sphere", dataset.classes, np.stack(sphere), labels),
@@ -211,6 +216,10 @@ def run_classifier_eval_stage(config: Config, inputs: StageInputs, out: Path,
         labels=labels,
         classes=np.array(dataset.classes),
         models=np.array([m.id for m in test_models]),
+        volume_xrho=(np.stack(volume_xrho).astype(np.float32) if volume_xrho
+                     else np.zeros((0, vp.count, len(dataset.classes)), np.float32)),
+        volume_models=np.array([m.id for m in volume_models]),
+        volume_labels=np.array([dataset.label(m) for m in volume_models], dtype=np.int64),
     )
     write_json_atomic(
         out / METRICS_FILE,

@@ -27,9 +27,9 @@ import numpy as np
 
 from rapomdp.config import Config, VPTreeConfig
 from rapomdp.context import RunContext
-from rapomdp.data.dataset import Dataset, ModelEntry, class_ranks
+from rapomdp.data.dataset import ModelEntry, class_ranks
 from rapomdp.data.splits import class_seed
-from rapomdp.data.test_views import TEST_STREAM, VOLUME_STREAM, xrho_renders
+from rapomdp.data.test_views import XrhoViews, load_xrho_views
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import save_npz, write_json_atomic
@@ -79,19 +79,19 @@ def fit_vptree(config: Config, views: TrainingViews,
         levels=cfg.levels, max_fit_descriptors=cfg.max_fit_descriptors, top_k=cfg.top_k)
 
 
-def _xrho_labels(classifier: VocabularyTreeClassifier, dataset: Dataset,
-                 models: list[ModelEntry], config: Config, purpose: str) -> list[np.ndarray]:
-    """The VP-tree's labels (V,) of each model rendered at X_rho (a task of the stage)."""
-    return [classifier.predict(xrho_renders(dataset, model, config, purpose)[1]).argmax(axis=1)
-            for model in models]
+def _xrho_labels(classifier: VocabularyTreeClassifier, images: XrhoViews,
+                 models: list[ModelEntry]) -> list[np.ndarray]:
+    """The VP-tree's labels (V,) of each model's images at X_rho (a task of the stage)."""
+    return [classifier.predict(images.load(model).sensed).argmax(axis=1) for model in models]
 
 
-def xrho_predictions(classifier: VocabularyTreeClassifier, dataset: Dataset,
-                     models: list[ModelEntry], config: Config, purpose: str,
-                     description: str, progress: bool = True, workers: int = 1,
-                     scheduler: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """True labels (M,) and the VP-tree's labels (M, V) of models rendered at X_rho, over
-    ``workers`` processes (or the Dask ``scheduler``); the labels do not depend on them.
+def xrho_predictions(classifier: VocabularyTreeClassifier, images: XrhoViews,
+                     models: list[ModelEntry], description: str, progress: bool = True,
+                     workers: int = 1, scheduler: str | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """True labels (M,) and the VP-tree's labels (M, V) of models at X_rho (the xrho stage's
+    ``images``), over ``workers`` processes (or the Dask ``scheduler``); the labels do not
+    depend on them.
 
     In one process each model is a task; otherwise the models go in a few contiguous shares
     per worker, so the classifier travels to the workers a few times, not once per model.
@@ -99,11 +99,10 @@ def xrho_predictions(classifier: VocabularyTreeClassifier, dataset: Dataset,
     shares = len(models) if workers <= 1 and scheduler is None else 4 * workers
     groups = [[models[i] for i in share]
               for share in np.array_split(np.arange(len(models)), min(shares, len(models)))]
-    predicted = run_tasks(_xrho_labels, [(classifier, dataset, g, config, purpose)
-                                         for g in groups],
+    predicted = run_tasks(_xrho_labels, [(classifier, images, g) for g in groups],
                           workers, description, progress, scheduler, unit="models",
                           sizes=[len(g) for g in groups])
-    labels = [dataset.label(model) for model in models]
+    labels = [images.dataset.label(model) for model in models]
     return np.array(labels, dtype=np.int64), np.stack([p for part in predicted for p in part])
 
 
@@ -158,10 +157,10 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     seconds["fit"] = time.perf_counter() - start
     step = time.perf_counter()
     volume_models = dataset.with_role("volume")
+    images = load_xrho_views(inputs.xrho, dataset)
     volume_labels, volume_pred = xrho_predictions(
-        classifier, dataset, volume_models, config, VOLUME_STREAM,
-        "vptree: volume models at X_rho", context.progress, context.worker_count,
-        context.scheduler)
+        classifier, images, volume_models, "vptree: volume models at X_rho", context.progress,
+        context.worker_count, context.scheduler)
     volume_groups = class_ranks(volume_models)
     observation = vptree_observation(
         volume_labels, volume_pred, volume_groups, len(dataset.classes),
@@ -173,9 +172,8 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     test_accuracy = None
     if test_models:
         test_labels, test_pred = xrho_predictions(
-            classifier, dataset, test_models, config, TEST_STREAM,
-            "vptree: test models at X_rho", context.progress, context.worker_count,
-            context.scheduler)
+            classifier, images, test_models, "vptree: test models at X_rho", context.progress,
+            context.worker_count, context.scheduler)
         test_accuracy = float((test_pred == test_labels[:, None]).mean())
     seconds["test"] = time.perf_counter() - step
     classifier.save(out / VPTREE_CLASSIFIER_FILE)
