@@ -167,7 +167,7 @@ STAGES: list[Stage] = [
         name="evaluate",
         run=_deferred("evaluate"),
         sections=EVALUATE_SECTIONS,
-        inputs=("dataset", "train", "observe", "vptree", "robot", "solve"),
+        inputs=("dataset", "train", "classifier_eval", "observe", "vptree", "robot", "solve"),
         description="closed-loop episodes of every method on the test models: Table 1, Fig. 3",
     ),
     Stage(

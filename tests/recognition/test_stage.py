@@ -12,8 +12,11 @@ from typer.testing import CliRunner
 
 from rapomdp.cli import app
 from rapomdp.config import config_from_dict
+from rapomdp.data.dataset import load_dataset
+from rapomdp.data.test_views import load_xrho_views
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
+from rapomdp.recognition.artefacts import load_xrho_probabilities
 from rapomdp.recognition.classifier import META_FILE, CheckpointMismatchError
 from rapomdp.recognition.stage import load_stage_classifier, train_config_hash
 from rapomdp.workspace import Workspace
@@ -56,6 +59,21 @@ def test_train_stage_writes_a_checked_checkpoint(workspace):
     changed = config_from_dict({**TINY, "train": {**TINY["train"], "epochs": 3}})
     with pytest.raises(CheckpointMismatchError, match="configuration hash"):
         load_stage_classifier(changed, root / "train", ["cup", "bottle", "chair"])
+
+
+def test_the_stored_batch_outputs_give_the_labels_of_one_image_at_a_time(workspace):
+    root, config = workspace
+    dataset = load_dataset(root / "dataset")
+    classifier = load_stage_classifier(config, root / "train", dataset.classes)
+    stored = load_xrho_probabilities(root / "classifier_eval")
+    images = load_xrho_views(root / "xrho", dataset)
+    models = dataset.with_role("test") + dataset.with_role("volume")
+    batched = np.stack([stored.of(m) for m in models])  # every volume and test model
+    alone = np.stack([np.concatenate([classifier.predict(d) for d in images.load(m).sensed])
+                      for m in models])
+    # the closed loop and observe read these: the same labels, the last bits aside
+    np.testing.assert_array_equal(batched.argmax(axis=2), alone.argmax(axis=2))
+    np.testing.assert_allclose(batched, alone, atol=1e-5)
 
 
 def test_classifier_eval_reports_consistent_figures(workspace):

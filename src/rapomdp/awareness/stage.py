@@ -278,7 +278,7 @@ def stored_outcomes(xrho_dir: Path, classifier_eval_dir: Path, dataset: Dataset
             raise StageError(f"observe: {model.class_name}/{model.id} is a {model.role} model; "
                              f"the stored X_rho images were not drawn from stream '{purpose}'")
         seen = images.load(model)
-        p = probabilities.of(model.class_name, model.id)
+        p = probabilities.of(model)
         return XrhoOutcomes(seen.clean, seen.poses, p.argmax(axis=1), p)
 
     return outcomes

@@ -65,6 +65,11 @@ from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import first_view_models, offered_observation_models
+from rapomdp.recognition.artefacts import (
+    VPTREE_OUTPUTS_FILE,
+    XrhoProbabilities,
+    load_xrho_probabilities,
+)
 from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
@@ -103,6 +108,9 @@ class ClosedLoop:
     recognisers: dict[str, Recogniser]
     methods: dict[str, Policy]
     motion: Motion
+    #: Each recogniser's outputs on the test models at X_rho, stored by the stages that
+    #: classified the xrho stage's images (None: a noisy sensor, rendered at every look).
+    stored: dict[str, XrhoProbabilities] | None = None
 
     @classmethod
     def load(cls, config: Config, inputs: StageInputs, threads: int | None = None,
@@ -157,7 +165,13 @@ class ClosedLoop:
             from rapomdp.recognition.vptree_stage import load_workspace_vptree
 
             recognisers[VPTREE_RECOGNISER] = load_workspace_vptree(inputs.vptree)
-        return cls(config, dataset, recognisers, methods, motion)
+        stored = None
+        if not config.render.noise.enabled:
+            stored = {"cnn": load_xrho_probabilities(inputs.classifier_eval)}
+            if VPTREE_RECOGNISER in recognisers:
+                stored[VPTREE_RECOGNISER] = load_xrho_probabilities(inputs.vptree,
+                                                                    VPTREE_OUTPUTS_FILE)
+        return cls(config, dataset, recognisers, methods, motion, stored)
 
     def scene(self, model: ModelEntry) -> TestViews:
         return TestViews.of_model(self.config, self.dataset, model)
@@ -167,10 +181,12 @@ class ClosedLoop:
         scene = self.scene(model)
         starts = start_viewpoints(self.config.seed, model, self.motion.reachable,
                                   self.config.evaluate.starts_per_model)
-        # a noiseless sensor sees the same image at every look from a viewpoint: each
-        # (viewpoint, recogniser) is rendered and classified once for all the model's episodes
-        memos: dict[str, dict[int, np.ndarray]] | None = (
-            None if scene.noise.enabled else {name: {} for name in self.recognisers})
+        # a noiseless sensor sees the same image at every look from a viewpoint: the one the
+        # xrho stage rendered, which classifier_eval and vptree classified once (the memos)
+        memos: dict[str, dict[int, np.ndarray]] | None = None
+        if self.stored is not None:
+            memos = {name: dict(enumerate(self.stored[name].of(model)))
+                     if name in self.stored else {} for name in self.recognisers}
         records = []
         for start in starts:
             for key, method in self.methods.items():

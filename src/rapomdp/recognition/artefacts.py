@@ -9,18 +9,21 @@ whole sphere), :data:`PROBABILITIES_FILE`, ``confusion_{xrho,sphere}.csv|png``,
 ``W/vptree/``: :data:`VPTREE_CLASSIFIER_FILE`, :data:`VPTREE_OBSERVATION_FILE` (``vptree``
 (V, C, C) the confusion tempered by the held-out ``temperature``, the model the planner and the
 belief use, ``untempered`` the raw confusion, ``classes``), :data:`VPTREE_SUMMARY_FILE`
-(:class:`VPTreeSummary`).
+(:class:`VPTreeSummary`), :data:`VPTREE_OUTPUTS_FILE` (its outputs on the test models at X_rho).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rapomdp.io import ArtefactError, load_npz, read_json
+
+if TYPE_CHECKING:
+    from rapomdp.data.dataset import ModelEntry
 
 METRICS_FILE = "metrics.json"
 HISTORY_FILE = "history.csv"
@@ -30,6 +33,8 @@ HEMISPHERE_FIGURE = "accuracy_hemisphere.png"
 VPTREE_CLASSIFIER_FILE = "vocabulary_tree.npz"
 VPTREE_OBSERVATION_FILE = "observation_model.npz"
 VPTREE_SUMMARY_FILE = "vptree.json"
+#: The VP-tree's outputs (V, C) on each test model at X_rho (the closed loop reads them).
+VPTREE_OUTPUTS_FILE = "xrho_outputs.npz"
 
 #: The configuration sections the keys of the train, classifier_eval and vptree stages hash
 #: (here, with no torch, so that the stage graph is read without loading the stages' code).
@@ -110,27 +115,27 @@ def load_vptree_summary(folder: str | Path) -> VPTreeSummary:
 @dataclass(frozen=True)
 class XrhoProbabilities:
     """``W/classifier_eval/probabilities.npz``: the classifier's class probabilities (V, C) at
-    X_rho of each volume and test model (the xrho stage's images), by ``"class/model id"``."""
+    X_rho of each volume and test model (the xrho stage's images), by model file (a model's
+    identity: nothing here reads its label)."""
 
-    by_model: dict[str, np.ndarray]
+    by_file: dict[str, np.ndarray]
 
-    def of(self, class_name: str, model_id: str) -> np.ndarray:
+    def of(self, model: ModelEntry) -> np.ndarray:
         """The probabilities (V, C) of one model; a model not classified is an ArtefactError."""
         try:
-            return self.by_model[f"{class_name}/{model_id}"]
+            return self.by_file[model.file]
         except KeyError:
-            raise ArtefactError(f"classifier_eval: no X_rho probabilities of {class_name}/"
-                                f"{model_id} (the volume and test models only)") from None
+            raise ArtefactError(f"no X_rho outputs of {model.file} (the volume and test "
+                                "models only)") from None
 
 
-def load_xrho_probabilities(folder: str | Path) -> XrhoProbabilities:
-    """The classifier_eval stage's probabilities at X_rho of the volume and test models."""
-    arrays = load_npz(Path(folder) / PROBABILITIES_FILE)
-    classes = arrays["classes"]
-    by_model: dict[str, np.ndarray] = {}
-    for kind, labels_key, models_key in (("xrho", "labels", "models"),
-                                         ("volume_xrho", "volume_labels", "volume_models")):
-        for probabilities, label, model_id in zip(arrays[kind], arrays[labels_key],
-                                                  arrays[models_key], strict=True):
-            by_model[f"{classes[label]}/{model_id}"] = probabilities
-    return XrhoProbabilities(by_model)
+def load_xrho_probabilities(folder: str | Path, name: str = PROBABILITIES_FILE
+                            ) -> XrhoProbabilities:
+    """The classifier_eval stage's probabilities at X_rho of the volume and test models (or
+    the vptree stage's outputs on the test models: ``name`` :data:`VPTREE_OUTPUTS_FILE`)."""
+    arrays = load_npz(Path(folder) / name)
+    by_file: dict[str, np.ndarray] = {}
+    for kind, files in (("xrho", "files"), ("volume_xrho", "volume_files")):
+        if kind in arrays:
+            by_file.update(zip((str(f) for f in arrays[files]), arrays[kind], strict=True))
+    return XrhoProbabilities(by_file)

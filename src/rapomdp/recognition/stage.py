@@ -216,9 +216,11 @@ def run_classifier_eval_stage(config: Config, inputs: StageInputs, out: Path,
         labels=labels,
         classes=np.array(dataset.classes),
         models=np.array([m.id for m in test_models]),
+        files=np.array([m.file for m in test_models]),
         volume_xrho=(np.stack(volume_xrho).astype(np.float32) if volume_xrho
                      else np.zeros((0, vp.count, len(dataset.classes)), np.float32)),
         volume_models=np.array([m.id for m in volume_models]),
+        volume_files=np.array([m.file for m in volume_models]),
         volume_labels=np.array([dataset.label(m) for m in volume_models], dtype=np.int64),
     )
     write_json_atomic(

@@ -39,6 +39,7 @@ from rapomdp.recognition.artefacts import (
     VPTREE_CLASSIFIER_FILE,
     VPTREE_MODEL_NAME,
     VPTREE_OBSERVATION_FILE,
+    VPTREE_OUTPUTS_FILE,
     VPTREE_SUMMARY_FILE,
 )
 from rapomdp.recognition.belief import (
@@ -79,19 +80,19 @@ def fit_vptree(config: Config, views: TrainingViews,
         levels=cfg.levels, max_fit_descriptors=cfg.max_fit_descriptors, top_k=cfg.top_k)
 
 
-def _xrho_labels(classifier: VocabularyTreeClassifier, images: XrhoViews,
-                 models: list[ModelEntry]) -> list[np.ndarray]:
-    """The VP-tree's labels (V,) of each model's images at X_rho (a task of the stage)."""
-    return [classifier.predict(images.load(model).sensed).argmax(axis=1) for model in models]
+def _xrho_outputs(classifier: VocabularyTreeClassifier, images: XrhoViews,
+                  models: list[ModelEntry]) -> list[np.ndarray]:
+    """The VP-tree's outputs (V, C) on each model's images at X_rho (a task of the stage)."""
+    return [classifier.predict(images.load(model).sensed) for model in models]
 
 
-def xrho_predictions(classifier: VocabularyTreeClassifier, images: XrhoViews,
-                     models: list[ModelEntry], description: str, progress: bool = True,
-                     workers: int = 1, scheduler: str | None = None
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """True labels (M,) and the VP-tree's labels (M, V) of models at X_rho (the xrho stage's
-    ``images``), over ``workers`` processes (or the Dask ``scheduler``); the labels do not
-    depend on them.
+def xrho_outputs(classifier: VocabularyTreeClassifier, images: XrhoViews,
+                 models: list[ModelEntry], description: str, progress: bool = True,
+                 workers: int = 1, scheduler: str | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """True labels (M,) and the VP-tree's outputs (M, V, C) on models at X_rho (the xrho
+    stage's ``images``), over ``workers`` processes (or the Dask ``scheduler``); the outputs do
+    not depend on them, nor on how many images one call classifies.
 
     In one process each model is a task; otherwise the models go in a few contiguous shares
     per worker, so the classifier travels to the workers a few times, not once per model.
@@ -99,11 +100,23 @@ def xrho_predictions(classifier: VocabularyTreeClassifier, images: XrhoViews,
     shares = len(models) if workers <= 1 and scheduler is None else 4 * workers
     groups = [[models[i] for i in share]
               for share in np.array_split(np.arange(len(models)), min(shares, len(models)))]
-    predicted = run_tasks(_xrho_labels, [(classifier, images, g) for g in groups],
-                          workers, description, progress, scheduler, unit="models",
-                          sizes=[len(g) for g in groups])
+    outputs = run_tasks(_xrho_outputs, [(classifier, images, g) for g in groups],
+                        workers, description, progress, scheduler, unit="models",
+                        sizes=[len(g) for g in groups])
     labels = [images.dataset.label(model) for model in models]
-    return np.array(labels, dtype=np.int64), np.stack([p for part in predicted for p in part])
+    return (np.array(labels, dtype=np.int64),
+            np.stack([o for part in outputs for o in part]).astype(np.float32))
+
+
+def xrho_predictions(classifier: VocabularyTreeClassifier, images: XrhoViews,
+                     models: list[ModelEntry], description: str, progress: bool = True,
+                     workers: int = 1, scheduler: str | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """True labels (M,) and the VP-tree's labels (M, V) on models at X_rho
+    (:func:`xrho_outputs`)."""
+    labels, outputs = xrho_outputs(classifier, images, models, description, progress, workers,
+                                   scheduler)
+    return labels, outputs.argmax(axis=2)
 
 
 @dataclass
@@ -170,10 +183,13 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     step = time.perf_counter()
     test_models = dataset.with_role("test")
     test_accuracy = None
+    test_labels = np.zeros(0, np.int64)
+    test_outputs = np.zeros((0, config.viewpoints.count, len(dataset.classes)), np.float32)
     if test_models:
-        test_labels, test_pred = xrho_predictions(
+        test_labels, test_outputs = xrho_outputs(
             classifier, images, test_models, "vptree: test models at X_rho", context.progress,
             context.worker_count, context.scheduler)
+        test_pred = test_outputs.argmax(axis=2)
         test_accuracy = float((test_pred == test_labels[:, None]).mean())
     seconds["test"] = time.perf_counter() - step
     classifier.save(out / VPTREE_CLASSIFIER_FILE)
@@ -183,6 +199,9 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
              classes=np.array(dataset.classes),
              volume_labels=volume_labels, volume_predictions=volume_pred,
              volume_groups=volume_groups)
+    save_npz(out / VPTREE_OUTPUTS_FILE, xrho=test_outputs, labels=test_labels,
+             models=np.array([m.id for m in test_models]),
+             files=np.array([m.file for m in test_models]), classes=np.array(dataset.classes))
     seconds["total"] = time.perf_counter() - start
     write_json_atomic(out / VPTREE_SUMMARY_FILE, {
         "classes": dataset.classes,
