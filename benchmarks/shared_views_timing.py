@@ -1,0 +1,104 @@
+"""Seconds of the stages that read the test viewpoints' images, before and after sharing them:
+two source trees run the same stages on hard-linked copies of one finished workspace, one
+after the other in one session, so the ratios compare like with like.
+
+The copies keep the stages upstream of the X_rho images (dataset, render, train, saliency,
+volume, robot, crossfit) and redo classifier_eval, observe, vptree, solve, evaluate and report
+(and, in a tree that has it, the xrho stage). Solve's code is the same in both trees: its
+ratio is the control for the machine's load.
+
+    python benchmarks/shared_views_timing.py --workspace runs/demo \
+        --before /path/to/old/src --after src [--threads 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REDONE = ("xrho", "classifier_eval", "observe", "vptree", "solve", "evaluate", "report")
+
+
+def run_tree(src: Path, workspace: Path, threads: int) -> tuple[dict[str, float], float]:
+    """Redo the stages of :data:`REDONE` in ``workspace`` with the code of ``src``; each
+    stage's own seconds from its record, and the command's wall time."""
+    env = {**os.environ, "PYTHONPATH": str(src.resolve()), "OMP_NUM_THREADS": "1"}
+    redo = [arg for name in REDONE if name != "xrho" for arg in ("--redo", name)]
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "from rapomdp.cli import main; main()", "run",
+                    "-w", str(workspace), "--threads", str(threads), *redo],
+                   env=env, check=True, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    seconds = {}
+    for name in REDONE:
+        record = workspace / name / "stage.json"
+        if record.is_file():
+            seconds[name] = float(json.loads(record.read_text())["seconds"])
+    return seconds, wall
+
+
+def compare_episodes(before: Path, after: Path) -> str:
+    """Whether the two runs' episodes took the same moves and declarations, and how far their
+    beliefs and Table 1 rows are apart."""
+    from rapomdp.io import load_npz
+
+    a = load_npz(before / "evaluate" / "episodes.npz")
+    b = load_npz(after / "evaluate" / "episodes.npz")
+    lines = []
+    for name in ("step_viewpoints", "declared", "correct", "offsets"):
+        if name in a:
+            lines.append(f"{name}: {'identical' if np.array_equal(a[name], b[name]) else 'DIFFER'}")
+    for name in ("step_beliefs", "step_outputs"):
+        if name in a:
+            lines.append(f"{name}: max |difference| {np.abs(a[name] - b[name]).max():.2e}")
+    same_table = ((before / "evaluate" / "table1.md").read_text()
+                  == (after / "evaluate" / "table1.md").read_text())
+    lines.append(f"table1.md: {'identical' if same_table else 'DIFFERS'}")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workspace", type=Path, required=True)
+    parser.add_argument("--before", type=Path, required=True, help="the old tree's src/")
+    parser.add_argument("--after", type=Path, required=True, help="the new tree's src/")
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(dir=args.workspace.parent) as scratch:
+        results = {}
+        for label, src in (("before", args.before), ("after", args.after)):
+            copy = Path(scratch) / label
+            shutil.copytree(args.workspace, copy, copy_function=os.link)
+            results[label] = run_tree(src, copy, args.threads)
+        identity = compare_episodes(Path(scratch) / "before", Path(scratch) / "after")
+    (before, wall_before), (after, wall_after) = results["before"], results["after"]
+    print(f"{'stage':<16}{'before s':>10}{'after s':>10}{'after/before':>14}")
+    for name in REDONE:
+        b, a = before.get(name), after.get(name)
+        ratio = f"{a / b:.2f}" if a is not None and b else "-"
+        shown_b = f"{b:.1f}" if b is not None else "-"
+        shown_a = f"{a:.1f}" if a is not None else "-"
+        print(f"{name:<16}{shown_b:>10}{shown_a:>10}{ratio:>14}")
+    total_b, total_a = sum(before.values()), sum(after.values())
+    print(f"{'total':<16}{total_b:>10.1f}{total_a:>10.1f}{total_a / total_b:>14.2f}")
+    print(f"{'command wall':<16}{wall_before:>10.1f}{wall_after:>10.1f}"
+          f"{wall_after / wall_before:>14.2f}")
+    print(identity)
+    try:
+        load = os.getloadavg()[0]
+        print(f"load average at the end: {load:.2f} on {os.cpu_count()} CPUs")
+    except OSError:
+        pass
+
+
+if __name__ == "__main__":
+    main()
