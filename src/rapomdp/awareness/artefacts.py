@@ -5,7 +5,8 @@ report, the command line and later stages go through (NumPy and JSON only: no to
 ``W/volume/``: ``<class>.npz`` (:func:`volume_file`), :data:`VOLUME_FILE`.
 ``W/observe/``: :data:`OBSERVATION_FILE` (every observation model (V, C, C) by name, ``models``,
 ``classes``, ``scores``, ``directions``, ..., and per model ``first_view_<name>``: the model of
-the belief's first update, :data:`FIRST_VIEW_PREFIX`), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
+the belief's first update, :data:`FIRST_VIEW_PREFIX`; a typed model (V, T·C, C) also its prior
+over (type, class), :data:`PRIOR_PREFIX`), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
 self-awareness table, :func:`load_quality`), :data:`CALIBRATION_FILE`,
 :data:`CALIBRATION_FIGURE`, :data:`TIMING_FILE`.
 """
@@ -28,6 +29,9 @@ OBSERVATION_FILE = "observation_models.npz"
 #: Prefix of each model's first-update array in :data:`OBSERVATION_FILE` (the planner's model
 #: when every view is discounted alike; the single-view model with ``after_first``).
 FIRST_VIEW_PREFIX = "first_view_"
+#: Prefix of a typed model's prior over its hidden states (instance type, class) in
+#: :data:`OBSERVATION_FILE` (``observe.belief: nuisance``; absent: uniform over the classes).
+PRIOR_PREFIX = "prior_"
 QUALITY_CSV = "quality.csv"
 QUALITY_MD = "quality.md"
 VALIDATION_CSV = "validation.csv"

@@ -11,7 +11,7 @@ the temperature without the test models.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -356,21 +356,28 @@ def choose_transfer_kernel(evidence: Evidence, similarity: np.ndarray, direction
 def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
                            classes: Sequence[str], cfg: ObserveConfig,
                            directions: np.ndarray | None = None,
-                           transfer_kernel: TransferKernel = DEFAULT_TRANSFER_KERNEL
+                           transfer_kernel: TransferKernel = DEFAULT_TRANSFER_KERNEL,
+                           names: Collection[str] | None = None
                            ) -> dict[str, ObservationModel]:
     """Every RA variant (``ra_<variant>``), the Classifier and the black-box model, fitted on
-    ``evidence``; ``scores`` holds the per-class normalised viewpoint scores (C, V) by kind
-    (``mean``, ``area``) and, under ``similarity``, the (C, V, V) saliency similarity of the
-    viewpoints (:func:`salient_view_similarity`). ``ra_viewpoint`` needs the viewpoints'
-    ``directions`` and two groups of evidence, ``ra_transfer`` the directions and the
-    similarity (its kernel: ``transfer_kernel``)."""
+    ``evidence`` (only those in ``names`` when given); ``scores`` holds the per-class
+    normalised viewpoint scores (C, V) by kind (``mean``, ``area``) and, under
+    ``similarity``, the (C, V, V) saliency similarity of the viewpoints
+    (:func:`salient_view_similarity`). ``ra_viewpoint`` needs the viewpoints' ``directions``
+    and two groups of evidence, ``ra_transfer`` the directions and the similarity (its kernel:
+    ``transfer_kernel``)."""
     labels, predicted = evidence.labels, evidence.predicted
     rows = np.broadcast_to(labels[:, None], predicted.shape)
     correct = predicted == rows
     wrong = wrong_label_distribution(rows, predicted, len(classes), cfg.confusion_pseudo_count)
     models: dict[str, ObservationModel] = {}
+
+    def wanted(name: str) -> bool:
+        return names is None or name in names
+
     for variant, (kind, per_class) in RA_VARIANTS.items():
-        if kind not in scores or variant in ("viewpoint", "transfer"):
+        if kind not in scores or variant in ("viewpoint", "transfer") or \
+                not wanted(f"ra_{variant}"):
             continue
         s = scores[kind]
         calibration = (calibrate_per_class(s[labels], correct, rows, len(classes)) if per_class
@@ -378,17 +385,20 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
         models[f"ra_{variant}"] = RAObservationModel(s, calibration, wrong, classes)
     if directions is not None:
         kind = RA_VARIANTS["viewpoint"][0]
-        fused = fit_viewpoint_correctness(evidence, scores[kind], len(classes), directions)
+        fused = (fit_viewpoint_correctness(evidence, scores[kind], len(classes), directions)
+                 if wanted("ra_viewpoint") else None)
         if fused is not None:
             models["ra_viewpoint"] = RAObservationModel(scores[kind], fused, wrong, classes)
-        if "similarity" in scores:  # (C, V, V), not a score: only ra_transfer reads it
+        if "similarity" in scores and wanted("ra_transfer"):  # (C, V, V): ra_transfer's
             models["ra_transfer"] = TransferObservationModel(
                 transfer_confusion(evidence, scores["similarity"], directions,
                                    cfg.confusion_pseudo_count, transfer_kernel), classes)
-    models["classifier"] = ClassifierObservationModel(labels, predicted, classes,
-                                                      cfg.classifier_pseudo_count)
-    models["blackbox"] = BlackBoxObservationModel(labels, predicted, classes,
-                                                  cfg.confusion_pseudo_count)
+    if wanted("classifier"):
+        models["classifier"] = ClassifierObservationModel(labels, predicted, classes,
+                                                          cfg.classifier_pseudo_count)
+    if wanted("blackbox"):
+        models["blackbox"] = BlackBoxObservationModel(labels, predicted, classes,
+                                                      cfg.confusion_pseudo_count)
     return models
 
 
@@ -524,7 +534,8 @@ def held_out_temperatures(evidence: Evidence,
     view counts in full, the fit tempers the later ones); and, per model, the calibration of
     those held-out beliefs (max belief against a right argmax) after the first and the last
     step, naive (t = 1) and tempered, with the held-out log loss of each
-    (:func:`~rapomdp.recognition.belief.walk_calibration`). Empty without folds."""
+    (:func:`~rapomdp.recognition.belief.walk_calibration`). Empty without folds. A typed fold
+    model (``observe.belief: nuisance``) walks from its prior over (type, class)."""
     if not folds:
         return {}, {}
     row_model = fold_of_rows([held for held, _ in folds], len(evidence.labels))
@@ -533,10 +544,13 @@ def held_out_temperatures(evidence: Evidence,
     temperatures, calibration = {}, {}
     for name in (n for n in folds[0][1] if all(n in m for _, m in folds)):
         models = [m[name].probabilities for _, m in folds]
+        priors = ([m[name].prior for _, m in folds]
+                  if all(m[name].prior is not None for _, m in folds) else None)
         first = 1.0 if after_first else None
         t = fit_temperature(models, row_model, evidence.labels, evidence.predicted, walks,
-                            walk_row, first_temperature=first)
+                            walk_row, first_temperature=first, priors=priors)
         temperatures[name] = t
         calibration[name] = walk_calibration(t, models, row_model, evidence.labels,
-                                             evidence.predicted, walks, walk_row, first)
+                                             evidence.predicted, walks, walk_row, first,
+                                             priors)
     return temperatures, calibration

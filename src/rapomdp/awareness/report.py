@@ -11,13 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import OBSERVATION_FILE, volume_file
+from rapomdp.awareness.artefacts import OBSERVATION_FILE, PRIOR_PREFIX, volume_file
 from rapomdp.awareness.figures import (
     fig1,
     hemisphere_pair_figure,
     most_salient_view,
     reliability_figure,
 )
+from rapomdp.awareness.observation import single_view_marginal
 from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
@@ -90,11 +91,13 @@ def write_reliability_csv(curves: Mapping[str, tuple[np.ndarray, np.ndarray, np.
 
 def single_view_models(observe: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The observe stage's models before the belief's temperature (the single-view models the
-    quality table scores): tempering by t is undone by tempering by 1 / t."""
+    quality table scores): tempering by t is undone by tempering by 1 / t; a typed model
+    (``observe.belief: nuisance``) is read as its one-view marginal over instance types."""
     names = [str(n) for n in observe["models"]]
     temperatures = observe["temperatures"] if "temperatures" in observe else np.ones(len(names))
-    return {n: temper(observe[n], 1.0 / float(t)) for n, t in zip(names, temperatures,
-                                                                   strict=True)}
+    return {n: single_view_marginal(temper(observe[n], 1.0 / float(t)),
+                                    observe.get(f"{PRIOR_PREFIX}{n}"))
+            for n, t in zip(names, temperatures, strict=True)}
 
 
 def identical_models(observe: dict[str, np.ndarray], atol: float = 1e-9) -> list[list[str]]:

@@ -28,7 +28,7 @@ log-likelihood, and under ``grid`` every grid kernel's); ``quality.csv|md`` (tes
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +40,7 @@ from rapomdp.awareness.artefacts import (
     CALIBRATION_FILE,
     FIRST_VIEW_PREFIX,
     OBSERVATION_FILE,
+    PRIOR_PREFIX,
     QUALITY_CSV,
     QUALITY_MD,
     SALIENCY_FILE,
@@ -67,6 +68,7 @@ from rapomdp.awareness.evidence import (
     shift_level,
     validation_quality,
 )
+from rapomdp.awareness.nuisance import NuisanceModel, nuisance_belief_models
 from rapomdp.awareness.observation import (
     ClassScoreCalibration,
     ObservationModel,
@@ -312,6 +314,7 @@ class Observation:
     softmax_temperature: float = 1.0
     transfer_kernel: TransferKernel = DEFAULT_TRANSFER_KERNEL
     transfer_kernel_grid: list[dict[str, float]] = field(default_factory=list)
+    nuisance: dict[str, dict[str, float | int]] = field(default_factory=dict)
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -410,10 +413,32 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         fitted = {name: _relevel(m, levels[name]) for name, m in fitted.items()}
     single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
     levels["ra"] = levels[f"ra_{variant}"]
+    # the belief's model of one object's views (observe.belief): independent given the class
+    # (naive), or given (class, instance type) with the per-object nuisance fitted by EM over
+    # the held-out objects — for the folds (the walks that fit the temperature) and for all
+    belief_models: dict[str, ObservationModel] = single_view
+    belief_folds = folds
+    nuisance: dict[str, NuisanceModel] = {}
+    if cfg.belief == "nuisance":
+        def base_fit(part: Evidence, names: Sequence[str] | None) -> dict[str, np.ndarray]:
+            return {n: m.probabilities for n, m in fit_observation_models(
+                part, scores, classes, cfg, directions, kernel, names).items()}
+
+        nuisance, per_fold = nuisance_belief_models(
+            evidence, [held for held, _ in folds], base_fit, list(fitted),
+            cfg.confusion_pseudo_count)
+        for name, nm in nuisance.items():  # cross-fitted evidence: the typical rows' level
+            nm.typical = shift_level(nm.typical, levels[name])
+        belief_models = {name: ObservationModel(nm.probabilities, classes, nm.prior)
+                         for name, nm in nuisance.items()}
+        belief_models = {"ra": belief_models[f"ra_{variant}"], **belief_models}
+        belief_folds = [(held, {name: ObservationModel(nm.probabilities, classes, nm.prior)
+                                for name, nm in fold.items()})
+                        for (held, _), fold in zip(folds, per_fold, strict=True)]
     temperatures = {name: 1.0 for name in single_view}
     corrections = {name: "none" for name in single_view}
     fits = {kind: held_out_temperatures(  # the same walks for both
-        evidence, folds, directions, TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW,
+        evidence, belief_folds, directions, TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW,
         TEMPERATURE_NEIGHBOURS, class_seed(config.seed, "observe/temperature"),
         after_first=kind == "after_first") for kind in ("temperature", "after_first")}
     belief_calibration = {name: {**report, **{f"after_first_{k}": v for k, v in
@@ -427,11 +452,11 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     corrections["ra"] = corrections.get(f"ra_{variant}", "none")
     temperatures["ra"] = temperatures.get(f"ra_{variant}", 1.0)
     models: dict[str, ObservationModel] = {
-        name: ObservationModel(temper(m.probabilities, temperatures[name]), classes)
-        for name, m in single_view.items()}
+        name: ObservationModel(temper(m.probabilities, temperatures[name]), classes, m.prior)
+        for name, m in belief_models.items()}
     # the belief's first update: the single-view model when only later views are discounted
     first_view: dict[str, ObservationModel] = {
-        name: (single_view[name] if corrections[name] == "after_first" else models[name])
+        name: (belief_models[name] if corrections[name] == "after_first" else models[name])
         for name in models}
     models_s = time.perf_counter() - start
     test_models = dataset.with_role("test")
@@ -447,7 +472,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                        belief_calibration, scores,
                        {"scores_s": scores_s, "observation_models_s": models_s,
                         "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
-                       softmax_t, kernel, kernel_grid)
+                       softmax_t, kernel, kernel_grid,
+                       {name: nm.to_dict() for name, nm in nuisance.items()})
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -571,6 +597,8 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
     ev = result.evidence
     save_npz(out / OBSERVATION_FILE,
              **{name: m.probabilities for name, m in result.models.items()},
+             **{f"{PRIOR_PREFIX}{name}": m.prior for name, m in result.models.items()
+                if m.prior is not None},
              models=np.array(list(result.models)), classes=np.array(dataset.classes),
              temperatures=np.array([result.temperatures[n] for n in result.models]),
              **{f"{FIRST_VIEW_PREFIX}{name}": m.probabilities
@@ -596,6 +624,8 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
         "held_out_belief": result.belief_calibration,
         "transfer_kernel": {**result.transfer_kernel.to_dict(),
                             "grid": result.transfer_kernel_grid},
+        "belief": config.observe.belief,
+        **({"nuisance": result.nuisance} if result.nuisance else {}),
         "evidence": config.observe.evidence,
         "evidence_accuracy": float(correct.mean()),
         "volume_accuracy": float((result.volume_predictions

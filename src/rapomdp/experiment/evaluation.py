@@ -64,7 +64,11 @@ from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPoli
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.stage import first_view_models, offered_observation_models
+from rapomdp.planning.stage import (
+    first_view_models,
+    observation_priors,
+    offered_observation_models,
+)
 from rapomdp.recognition.artefacts import (
     VPTREE_OUTPUTS_FILE,
     XrhoProbabilities,
@@ -125,6 +129,7 @@ class ClosedLoop:
         motion = Motion.from_robot(robot)
         observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
         first_view = first_view_models(inputs.observe, observation)
+        priors = observation_priors(inputs.observe, observation)
         cfg = config.evaluate
 
         def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:
@@ -140,7 +145,7 @@ class ClosedLoop:
                 return RandomWalkPolicy(
                     observation[name], motion.distance_m, motion.reachable,
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
-                    METHOD_NAMES[key], first_view_model=first_view[name])
+                    METHOD_NAMES[key], first_view_model=first_view[name], prior=priors[name])
             path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
@@ -148,7 +153,8 @@ class ClosedLoop:
             return POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
                                METHOD_NAMES[key], recogniser, cfg.revisit,
                                first_view_model=first_view[key],
-                               lookahead_over=motion.reachable if cfg.lookahead else None)
+                               lookahead_over=motion.reachable if cfg.lookahead else None,
+                               prior=priors[key])
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}
@@ -313,7 +319,8 @@ def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
         precision=solve.precision, timeout=solve.timeout_s, max_iterations=solve.iterations,
         workers=context.worker_count, allow_stay=False, class_names=classes,
         memory_gb=solve.memory_gb, scheduler=context.scheduler, cost=gap,
-        description=f"evaluate: λ sweep ({sweep_lambdas} m)")
+        description=f"evaluate: λ sweep ({sweep_lambdas} m)",
+        start_beliefs=observation_priors(inputs.observe, models))
 
 
 def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],

@@ -17,18 +17,23 @@ import numpy as np
 from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
+from rapomdp.planning.rules import class_marginal
 from rapomdp.recognition.belief import temper
 
 
 class BayesBelief:
-    """A class distribution updated by Eq. 5 with an observation model P (V, C, C): the
-    recogniser's most likely class is the observation. The first update of an episode uses
-    ``first_view_model`` (default: P itself) — the single-view model when the observe stage
-    discounts only the views after the first (``observe.belief_correction: after_first``);
-    the planner plans every later update, and plans it with P."""
+    """A distribution over the hidden states updated by Eq. 5 with an observation model P
+    (V, S, C): the recogniser's most likely class is the observation. The states are the
+    classes, or (instance type, class) pairs at τ·C + c (``observe.belief: nuisance``), from
+    the ``prior`` (S,) (default uniform); ``state`` is that distribution and ``belief`` its
+    class marginal. The first update of an episode uses ``first_view_model`` (default: P
+    itself) — the single-view model when the observe stage discounts only the views after the
+    first (``observe.belief_correction: after_first``); the planner plans every later update,
+    and plans it with P (and from the same prior)."""
 
     def __init__(self, observation_model: np.ndarray,
-                 first_view_model: np.ndarray | None = None) -> None:
+                 first_view_model: np.ndarray | None = None,
+                 prior: np.ndarray | None = None) -> None:
         self.observation_model = np.asarray(observation_model, dtype=np.float64)
         self.first_view_model = (self.observation_model if first_view_model is None
                                  else np.asarray(first_view_model, dtype=np.float64))
@@ -36,21 +41,33 @@ class BayesBelief:
             raise ValueError(f"the first-view model's shape {self.first_view_model.shape} "
                              f"differs from the observation model's "
                              f"{self.observation_model.shape}")
-        self.belief = self.uniform()
+        n_s = self.observation_model.shape[1]
+        self.prior = (np.full(n_s, 1.0 / n_s) if prior is None
+                      else np.asarray(prior, dtype=np.float64))
+        if self.prior.shape != (n_s,) or np.any(self.prior < 0) or \
+                not np.isclose(self.prior.sum(), 1.0):
+            raise ValueError(f"the prior must be a distribution over the model's {n_s} states, "
+                             f"got shape {self.prior.shape}")
+        self.state = self.prior.copy()
         self.updates = 0
 
-    def uniform(self) -> np.ndarray:
-        c = self.observation_model.shape[1]
-        return np.full(c, 1.0 / c)
+    @property
+    def n_classes(self) -> int:
+        return self.observation_model.shape[2]
+
+    @property
+    def belief(self) -> np.ndarray:
+        """The class distribution (C,): the state distribution summed over instance types."""
+        return class_marginal(self.state, self.n_classes)
 
     def reset(self) -> None:
-        self.belief = self.uniform()
+        self.state = self.prior.copy()
         self.updates = 0
 
     def update(self, viewpoint: int, output: np.ndarray) -> None:
         label = int(np.argmax(output))
         model = self.first_view_model if self.updates == 0 else self.observation_model
-        self.belief = update_beliefs(model, self.belief, viewpoint, label)
+        self.state = update_beliefs(model, self.state, viewpoint, label)
         self.updates += 1
 
 
@@ -94,7 +111,8 @@ class RandomWalkPolicy:
     def __init__(self, observation_model: np.ndarray, distance_m: np.ndarray,
                  reachable: np.ndarray, neighbours: int = 8, belief_threshold: float = 0.9,
                  max_moves: int = 10, name: str = "Random", recogniser: str = "cnn",
-                 first_view_model: np.ndarray | None = None) -> None:
+                 first_view_model: np.ndarray | None = None,
+                 prior: np.ndarray | None = None) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
         if max_moves < 0:
@@ -102,7 +120,7 @@ class RandomWalkPolicy:
         self.name, self.recogniser = name, recogniser
         self.neighbours = k_nearest(distance_m, neighbours, allowed=reachable)
         self.belief_threshold, self.max_moves = float(belief_threshold), int(max_moves)
-        self._bayes = BayesBelief(observation_model, first_view_model)
+        self._bayes = BayesBelief(observation_model, first_view_model, prior)
         self._visited: set[int] = set()
         self._rng = np.random.default_rng()
 
@@ -145,17 +163,20 @@ class POMDPPolicy:
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
                  name: str, recogniser: str = "cnn", revisit: bool = False,
                  first_view_model: np.ndarray | None = None,
-                 lookahead_over: np.ndarray | None = None) -> None:
+                 lookahead_over: np.ndarray | None = None,
+                 prior: np.ndarray | None = None) -> None:
         if observation_model.shape[0] != policy.n_viewpoints or \
-                observation_model.shape[1] != policy.n_classes:
+                observation_model.shape[1] != policy.n_states or \
+                observation_model.shape[2] != policy.n_classes:
             raise ValueError(
-                f"{name}: the policy covers {policy.n_viewpoints} viewpoints and "
-                f"{policy.n_classes} classes, the observation model {observation_model.shape}")
+                f"{name}: the policy covers {policy.n_viewpoints} viewpoints, "
+                f"{policy.n_states} hidden states and {policy.n_classes} classes, the "
+                f"observation model {observation_model.shape}")
         self.name, self.recogniser, self.revisit = name, recogniser, revisit
         self.policy = policy
         self.observation_model = observation_model
         self.lookahead_over = lookahead_over
-        self._bayes = BayesBelief(observation_model, first_view_model)
+        self._bayes = BayesBelief(observation_model, first_view_model, prior)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
     def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
@@ -173,7 +194,7 @@ class POMDPPolicy:
     def act(self, viewpoint: int) -> ARAction:
         forbidden = None if self.revisit else self._visited
         if self.lookahead_over is not None:
-            return self.policy.lookahead_act(viewpoint, self._bayes.belief,
+            return self.policy.lookahead_act(viewpoint, self._bayes.state,
                                              self.observation_model, self.lookahead_over,
                                              forbidden)
-        return self.policy.act(viewpoint, self._bayes.belief, forbidden)
+        return self.policy.act(viewpoint, self._bayes.state, forbidden)

@@ -57,8 +57,9 @@ from rapomdp.planning.rules import (
     BELIEF_DECIMALS,
     EQUAL_TOL,
     IMPROVEMENT_TOL,
+    class_marginal,
+    declare_alphas,
     declare_value,
-    declare_values,
     move_or_declare,
     unnormalised_declare_value,
 )
@@ -142,7 +143,10 @@ class ActiveRecognitionSolver:
     ) -> None:
         self.problem = problem
         self.targets = problem.targets  # (J,) viewpoint index of each move target
-        n_c, n_v, n_j = problem.n_classes, problem.n_viewpoints, problem.targets.size
+        # beliefs live on the simplex of the hidden states (the classes, or (type, class));
+        # declarations read their class marginal (rules.declare_value with n_classes)
+        n_c, n_v, n_j = problem.n_states, problem.n_viewpoints, problem.targets.size
+        self.n_classes = problem.n_classes
         self.memory_gb = memory_gb
         self.chunk = self._fit_chunk(chunk, n_v, n_j, n_c, cap_bytes(memory_gb))
         self.cost = problem.move_cost()  # (V, J)
@@ -206,22 +210,23 @@ class ActiveRecognitionSolver:
         """The finest grid resolution whose structures fit in the memory left and in
         ``grid_entries`` (0: no grid), and a note saying which bound was chosen and why."""
         pb = self.problem
-        n_v, n_c, n_j = pb.n_viewpoints, pb.n_classes, self.targets.size
+        n_v, n_c, n_j = pb.n_viewpoints, pb.n_states, self.targets.size
+        n_o = pb.n_classes
         if self.grid_option is False:
             return 0, "upper bound: sawtooth only (grid turned off)"
         cap = cap_bytes(self.memory_gb)
         left = cap - self.working_bytes(self.chunk, n_v, n_j, n_c)
         # the grid's share: at most half of what is left, the rest is the library's
         budget = left / 2
-        extra = 6 * n_j * n_c * n_c * ENTRY_BYTES  # interpolating one belief's children
+        extra = 6 * n_j * n_c * n_o * ENTRY_BYTES  # interpolating one belief's children
         best, refusal = 0, ""
         for res in self._resolutions():
-            entries = grid_entries(res, n_c, n_j, n_c)
+            entries = grid_entries(res, n_c, n_j, n_o)
             if entries > self.grid_entries:
                 refusal = refusal or (f"resolution {res} has {entries:.3g} entries, over "
                                       f"the {self.grid_entries:.3g} the time budget allows")
                 break
-            need = grid_bytes(res, n_c, n_v, n_j, n_c) + extra
+            need = grid_bytes(res, n_c, n_v, n_j, n_o) + extra
             if need > budget:
                 refusal = (f"resolution {res} needs {format_bytes(need)}, over the "
                            f"{format_bytes(budget)} the {format_bytes(cap)} cap leaves it")
@@ -236,10 +241,10 @@ class ActiveRecognitionSolver:
     def _plan_library(self) -> tuple[int, int]:
         """Most lower-bound vectors and upper-bound points the memory left can hold."""
         pb = self.problem
-        n_v, n_c, n_j = pb.n_viewpoints, pb.n_classes, self.targets.size
+        n_v, n_c, n_j = pb.n_viewpoints, pb.n_states, self.targets.size
         left = cap_bytes(self.memory_gb) - self.working_bytes(self.chunk, n_v, n_j, n_c)
         if self.max_resolution:
-            left -= grid_bytes(self.max_resolution, n_c, n_v, n_j, n_c)
+            left -= grid_bytes(self.max_resolution, n_c, n_v, n_j, pb.n_classes)
         left = max(left, 0.0)
         per_vector = ENTRY_BYTES * (2 * n_c + 2 + n_v)  # β, slot, copies in pruning, scores
         per_point = ENTRY_BYTES * (4 * n_c + n_v + n_j)  # b, 1/b, offset, values, a copy
@@ -253,9 +258,9 @@ class ActiveRecognitionSolver:
 
     # -- bounds --------------------------------------------------------------------------
     def lower_values(self, beliefs: np.ndarray) -> np.ndarray:
-        """Lower bound (K, V) at beliefs (K, C) for every viewpoint."""
+        """Lower bound (K, V) at beliefs (K, S) for every viewpoint."""
         B = np.atleast_2d(beliefs)
-        dec = declare_value(B, self.lam)
+        dec = declare_value(B, self.lam, self.n_classes)
         out = np.repeat(dec[:, None], self.problem.n_viewpoints, axis=1)
         if len(self.slots):
             step = max(1, self.chunk // (len(self.slots) * self.problem.n_viewpoints))
@@ -268,7 +273,7 @@ class ActiveRecognitionSolver:
 
     def _lower_at(self, B: np.ndarray, views: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lower bound at pairs (B[k], views[k]) and the chosen target slot (−1: declare)."""
-        dec = declare_value(B, self.lam)
+        dec = declare_value(B, self.lam, self.n_classes)
         if not len(self.slots):
             return dec, np.full(B.shape[0], -1)
         s = B @ self.betas.T - self.cost[views][:, self.slots]  # (K, M)
@@ -291,10 +296,10 @@ class ActiveRecognitionSolver:
         return out
 
     def upper_values(self, beliefs: np.ndarray) -> np.ndarray:
-        """Upper bound (K, V) at beliefs (K, C) for every viewpoint."""
+        """Upper bound (K, V) at beliefs (K, S) for every viewpoint."""
         B = np.atleast_2d(beliefs)
         out = self._sawtooth(B)
-        dec = declare_value(B, self.lam)
+        dec = declare_value(B, self.lam, self.n_classes)
         out = np.minimum(out, np.maximum(dec[:, None], -self.min_cost[None]))
         if self.grid is not None:
             out = np.minimum(out, self.grid.evaluate(B))
@@ -302,12 +307,13 @@ class ActiveRecognitionSolver:
 
     # -- children ------------------------------------------------------------------------
     def _child_lower(self, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Best plan at every child of B (K, C): probabilities (K, J, O), unnormalised values
-        (K, J, O) and the alpha vectors used (K, J, O, C)."""
+        """Best plan at every child of B (K, S): probabilities (K, J, O), unnormalised values
+        (K, J, O) and the alpha vectors used (K, J, O, S)."""
         u = self.moves.unnormalised(B)
         prob = u.sum(axis=3)
-        kstar = u.argmax(axis=3)
-        umax = np.take_along_axis(u, kstar[..., None], axis=3)[..., 0]
+        marginal = class_marginal(u, self.n_classes)  # (K, J, O, C)
+        kstar = marginal.argmax(axis=3)
+        umax = np.take_along_axis(marginal, kstar[..., None], axis=3)[..., 0]
         value = -self.lam * (prob - umax)  # unnormalised_declare_value, u's sum and max reused
         n_c = B.shape[1]
         n_m = len(self.slots)
@@ -325,7 +331,7 @@ class ActiveRecognitionSolver:
                 better = best > value
                 value = np.where(better, best, value)
                 choice = np.where(better, m + i, choice)
-        alpha = declare_values(np.eye(n_c)[kstar], self.lam)
+        alpha = declare_alphas(kstar, self.lam, n_c, self.n_classes)
         use = choice >= 0
         if use.any():
             jj = np.broadcast_to(np.arange(prob.shape[1])[None, :, None], prob.shape)[use]
@@ -338,7 +344,8 @@ class ActiveRecognitionSolver:
         K, n_j, n_o = prob.shape
         # one step: declaring, or a move (≥ the cheapest) followed by at most 0
         step_cost = self.min_cost[self.targets][None, :, None]
-        out = np.maximum(unnormalised_declare_value(self.moves.unnormalised(B), self.lam),
+        out = np.maximum(unnormalised_declare_value(self.moves.unnormalised(B), self.lam,
+                                                    self.n_classes),
                          -prob * step_cost)
         n = self.up_points.shape[0]
         if n:
@@ -386,7 +393,7 @@ class ActiveRecognitionSolver:
         if upper:
             up_u = self._child_upper(B, prob)
             q_up = self.g * up_u.sum(axis=2)  # (K, J)
-            dec = declare_value(B, self.lam)
+            dec = declare_value(B, self.lam, self.n_classes)
             new_up = np.maximum(dec[:, None], (q_up[:, None, :] - self.cost[None]).max(axis=2))
             old_up = self.upper_values(B)
             up = np.minimum(old_up, new_up)
@@ -418,7 +425,7 @@ class ActiveRecognitionSolver:
             prob, low_u, _ = self._child_lower(B)
             up_u = self._child_upper(B, prob)
             q_up = self.g * up_u[0].sum(axis=1) - self.cost[v]  # (J,)
-            dec = float(declare_value(b, self.lam))
+            dec = float(declare_value(b, self.lam, self.n_classes))
             up_here = min(float(self.upper_values(B)[0, v]), max(dec, float(q_up.max())))
             low_here = float(self.lower_values(B)[0, v])
             target = eps * self.g ** (-depth)
@@ -442,10 +449,10 @@ class ActiveRecognitionSolver:
         """Episodes of the policy in hand (sampled classes and labels); back up the beliefs
         it reaches, deepest step first (lower bound only)."""
         pb = self.problem
-        n_c = pb.n_classes
-        cls = rng.choice(n_c, size=n_runs, p=pb.start_belief)
+        n_o = pb.n_classes
+        cls = rng.choice(pb.n_states, size=n_runs, p=pb.start_belief)  # hidden states
         views = np.full(n_runs, pb.start_viewpoint)
-        B = np.broadcast_to(pb.start_belief, (n_runs, n_c)).copy()
+        B = np.broadcast_to(pb.start_belief, (n_runs, pb.n_states)).copy()
         steps: list[np.ndarray] = []
         step_v: list[np.ndarray] = []
         all_b, all_v = [], []
@@ -460,7 +467,7 @@ class ActiveRecognitionSolver:
             j = self.targets[slot]
             like = pb.observation_model[j, cls]  # (k, O)
             u = rng.random(j.size)
-            labels = np.minimum((u[:, None] > np.cumsum(like, axis=1)).sum(axis=1), n_c - 1)
+            labels = np.minimum((u[:, None] > np.cumsum(like, axis=1)).sum(axis=1), n_o - 1)
             B = B * pb.observation_model[j, :, labels]
             B /= B.sum(axis=1, keepdims=True)
             views = j
@@ -500,7 +507,7 @@ class ActiveRecognitionSolver:
         for i in range(0, B.shape[0], step):
             blk, vb = B[i : i + step], views[i : i + step]
             s = blk @ self.betas.T - self.cost[vb][:, self.slots]
-            _, m = move_or_declare(s, declare_value(blk, self.lam))
+            _, m = move_or_declare(s, declare_value(blk, self.lam, self.n_classes))
             used[m[m >= 0]] = True
         self.betas, self.slots = self.betas[used], self.slots[used]
 
@@ -509,12 +516,12 @@ class ActiveRecognitionSolver:
         """Grid upper bounds of growing resolution, up to the one the memory plan allows,
         while the time extrapolated from the previous one fits before ``until``."""
         pb = self.problem
-        n_c, n_j = pb.n_classes, len(self.targets)
+        n_c, n_j = pb.n_states, len(self.targets)
         last_cost, last_entries = 0.0, 0
         for res in self._resolutions():
             if res > self.max_resolution:
                 break
-            entries = grid_entries(res, n_c, n_j, n_c)
+            entries = grid_entries(res, n_c, n_j, pb.n_classes)
             now = self.clock()
             if last_entries and now + 1.5 * last_cost * entries / last_entries > until:
                 break
@@ -541,6 +548,7 @@ class ActiveRecognitionSolver:
             self.g,
             self.up_points.copy(),
             self.up_values.copy(),
+            self.n_classes,
         )
 
     def solve(

@@ -166,7 +166,8 @@ def grid_upper_bound(
     """Value iteration on the Freudenthal grid of ``resolution``; stops at ``tol``, at
     ``max_sweeps`` or at ``deadline`` (on ``clock``) with a valid bound in every case.
 
-    ``observation_model`` (V, C, O); ``move_cost`` (V, J) to the ``targets`` (inf where a
+    ``observation_model`` (V, S, O) (S hidden states: the O classes, or T types of them; the
+    grid lies on the S-simplex); ``move_cost`` (V, J) to the ``targets`` (inf where a
     move is forbidden). ``initial`` (a coarser bound) seeds the iteration: the minimum of two
     upper bounds is one.
     """
@@ -177,7 +178,7 @@ def grid_upper_bound(
     grid = FreudenthalGrid(resolution, n_c)
     pts = grid.points
     n_g, n_j = len(grid), len(targets)
-    dec = declare_value(pts, lambda_)
+    dec = declare_value(pts, lambda_, n_o)
     rows, cols, vals = [], [], []
     for a, j in enumerate(targets):
         if clock() > deadline:

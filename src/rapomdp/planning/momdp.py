@@ -10,7 +10,11 @@ b'(c) ∝ P[j, c, o] b(c).
 Array shapes (V viewpoints, C classes):
 
 - ``observation_model`` (V, C, C): ``P[v, c, o]`` = P(predicted label o | class c, viewpoint v),
-  rows over o sum to 1 (the observation stage's output).
+  rows over o sum to 1 (the observation stage's output). With T instance types (a per-object
+  nuisance the belief models, ``observe.belief: nuisance``) the hidden state is (type, class)
+  at index τ·C + c and the model is (V, T·C, C): every view of one object shares its type,
+  so the views are independent given (class, type), not given the class. A declaration
+  names a class and is right in each of its types' states (:mod:`rapomdp.planning.rules`).
 - ``move_energy`` (V, V): ``E[v, j]`` ≥ 0, the cost of moving from v to j and taking an image
   (the robot stage's E_M).
 - ``reachable`` (V,) bool: viewpoints the arm can reach; only they are move targets.
@@ -26,7 +30,7 @@ import numpy as np
 from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
 from rapomdp.planning.memory import DEFAULT_MEMORY_GB, ENTRY_BYTES, check_memory
 from rapomdp.planning.pomdp import POMDP, PROB_TOL
-from rapomdp.planning.rules import declare_value, move_or_declare
+from rapomdp.planning.rules import class_marginal, declare_value, move_or_declare
 
 #: λ of Eq. 1 wherever none is given: the configuration's ``solve.wrong_declaration_cost_m``.
 DEFAULT_LAMBDA = 8.0
@@ -53,9 +57,10 @@ class ActiveRecognitionProblem:
         P = np.asarray(self.observation_model, dtype=np.float64)
         E = np.asarray(self.move_energy, dtype=np.float64)
         reach = np.asarray(self.reachable, dtype=bool)
-        if P.ndim != 3 or P.shape[1] != P.shape[2]:
-            raise ValueError(f"observation_model must have shape (V, C, C), got {P.shape}")
-        n_v, n_c, _ = P.shape
+        if P.ndim != 3 or P.shape[2] == 0 or P.shape[1] % P.shape[2]:
+            raise ValueError("observation_model must have shape (V, C, C), or (V, T*C, C) with "
+                             f"T instance types, got {P.shape}")
+        n_v, n_s, n_c = P.shape
         if n_c < 2:
             raise ValueError("the problem needs at least two classes")
         if not np.all(np.isfinite(P)) or np.any(P < 0):
@@ -82,12 +87,12 @@ class ActiveRecognitionProblem:
             raise ValueError(f"start viewpoint {self.start_viewpoint} is not in [0, {n_v})")
         given = self.start_belief
         b0 = (
-            np.full(n_c, 1.0 / n_c)
+            np.full(n_s, 1.0 / n_s)
             if given is None or np.size(given) == 0
             else np.asarray(given, dtype=np.float64)
         )
-        if b0.shape != (n_c,) or np.any(b0 < 0) or abs(b0.sum() - 1.0) > PROB_TOL:
-            raise ValueError(f"start belief must be a distribution over {n_c} classes")
+        if b0.shape != (n_s,) or np.any(b0 < 0) or abs(b0.sum() - 1.0) > PROB_TOL:
+            raise ValueError(f"start belief must be a distribution over {n_s} states")
         self.observation_model, self.move_energy, self.reachable = P, E, reach
         self.start_belief = b0 / b0.sum()
         if not self.class_names:
@@ -99,7 +104,22 @@ class ActiveRecognitionProblem:
 
     @property
     def n_classes(self) -> int:
+        """The classes (labels observed, classes declared)."""
+        return self.observation_model.shape[2]
+
+    @property
+    def n_states(self) -> int:
+        """Hidden states per viewpoint: the classes times the instance types."""
         return self.observation_model.shape[1]
+
+    @property
+    def types(self) -> int:
+        """Instance types T (1: the hidden state is the class)."""
+        return self.n_states // self.n_classes
+
+    def state_class(self) -> np.ndarray:
+        """The class (S,) of every hidden state."""
+        return np.arange(self.n_states) % self.n_classes
 
     @property
     def targets(self) -> np.ndarray:
@@ -119,8 +139,9 @@ class ActiveRecognitionProblem:
         return update_beliefs(self.observation_model, belief, viewpoint, label)
 
     def declare_value(self, belief: np.ndarray) -> np.ndarray:
-        """max_k −λ(1 − b_k) for beliefs (..., C): the value of stopping now."""
-        return declare_value(belief, self.lambda_)
+        """max_k −λ(1 − b_k) for beliefs (..., S), b the class marginal: the value of
+        stopping now."""
+        return declare_value(belief, self.lambda_, self.n_classes)
 
 
 def update_beliefs(
@@ -129,7 +150,9 @@ def update_beliefs(
     viewpoints: np.ndarray | int,
     labels: np.ndarray | int,
 ) -> np.ndarray:
-    """Vectorised Eq. 5 over a batch: beliefs (..., C), viewpoints and labels broadcastable."""
+    """Vectorised Eq. 5 over a batch: beliefs (..., S) over the hidden states (the classes, or
+    (type, class) pairs), viewpoints and labels broadcastable; ``observation_model`` (V, S, O).
+    The one belief update of the package: the closed loop's beliefs and the planners'."""
     like = observation_model[viewpoints, :, labels]  # (..., C)
     post = beliefs * like
     total = post.sum(axis=-1, keepdims=True)
@@ -151,9 +174,11 @@ def build_active_recognition_problem(
 ) -> ActiveRecognitionProblem:
     """The pipeline's entry point: the MOMDP from the observe and robot stages' arrays.
 
-    ``observation_model`` (V, C, C) = P(o | class, viewpoint); ``move_energy`` (V, V) = E_M;
-    ``reachable`` (V,) bool (all True when omitted); ``lambda_`` weighs a wrong declaration
-    (Eq. 1); the episode starts at ``start_viewpoint`` with ``start_belief`` (uniform).
+    ``observation_model`` (V, C, C) = P(o | class, viewpoint), or (V, T·C, C) with T instance
+    types; ``move_energy`` (V, V) = E_M; ``reachable`` (V,) bool (all True when omitted);
+    ``lambda_`` weighs a wrong declaration (Eq. 1); the episode starts at ``start_viewpoint``
+    with ``start_belief`` over the hidden states (uniform when omitted; a typed model's is
+    the observe stage's prior over types).
 
     ``move_energy`` may hold +inf for moves to or from an unreachable viewpoint, as the robot
     stage writes it: those moves are not actions, so the entries are replaced by the largest
@@ -274,26 +299,28 @@ def to_flat_pomdp(problem: ActiveRecognitionProblem,
     :class:`~rapomdp.planning.memory.MemoryCapError` before allocating when its dense arrays
     would exceed ``memory_gb``.
 
-    States (v, c) at index v·C + c, then one terminal state. Actions: move to each target,
-    then declare each class. Observations (v, o) at v·C + o (the arrival viewpoint is
-    observed with the label), then "done" in the terminal state. A forbidden stay costs
-    ``FORBIDDEN_REWARD``.
+    States (v, s) at index v·S + s (s: the class, or (type, class) at τ·C + c), then one
+    terminal state. Actions: move to each target, then declare each class. Observations
+    (v, o) at v·C + o (the arrival viewpoint is observed with the label), then "done" in the
+    terminal state. A forbidden stay costs ``FORBIDDEN_REWARD``.
     """
     P, n_v, n_c = problem.observation_model, problem.n_viewpoints, problem.n_classes
+    n_h = problem.n_states
     targets = problem.targets
-    n_s, n_j = n_v * n_c + 1, targets.size
+    n_s, n_j = n_v * n_h + 1, targets.size
     n_a, n_z = n_j + n_c, n_v * n_c + 1
     term = n_s - 1
     # T, Z and their copies in POMDP.from_arrays's checks
     check_memory(f"the flat POMDP of {n_v} viewpoints x {n_c} classes ({n_s} states, {n_a} "
                  "actions, dense)", ENTRY_BYTES * 2 * n_a * n_s * (n_s + n_z), memory_gb)
-    v_of = np.repeat(np.arange(n_v), n_c)
-    c_of = np.tile(np.arange(n_c), n_v)
+    v_of = np.repeat(np.arange(n_v), n_h)
+    h_of = np.tile(np.arange(n_h), n_v)
+    c_of = h_of % n_c
     T = np.zeros((n_a, n_s, n_s))
     R = np.zeros((n_a, n_s))
     cost = problem.move_cost()
     for a, j in enumerate(targets):
-        T[a, np.arange(n_s - 1), j * n_c + c_of] = 1.0
+        T[a, np.arange(n_s - 1), j * n_h + h_of] = 1.0
         R[a, : n_s - 1] = np.where(np.isfinite(cost[v_of, a]), -cost[v_of, a], FORBIDDEN_REWARD)
     for k in range(n_c):
         T[n_j + k, :, term] = 1.0
@@ -302,20 +329,22 @@ def to_flat_pomdp(problem: ActiveRecognitionProblem,
     T[:, term, term] = 1.0
     Z1 = np.zeros((n_s, n_z))
     rows = np.arange(n_s - 1)
-    Z1[rows[:, None], (v_of * n_c)[:, None] + np.arange(n_c)[None, :]] = P[v_of, c_of]
+    Z1[rows[:, None], (v_of * n_c)[:, None] + np.arange(n_c)[None, :]] = P[v_of, h_of]
     Z1[term, n_z - 1] = 1.0
     b0 = np.zeros(n_s)
-    b0[problem.start_viewpoint * n_c : (problem.start_viewpoint + 1) * n_c] = problem.start_belief
+    b0[problem.start_viewpoint * n_h : (problem.start_viewpoint + 1) * n_h] = problem.start_belief
     names = problem.class_names
+    typed = [f"_t{h // n_c}" if problem.types > 1 else "" for h in h_of]
     return POMDP.from_arrays(
         T,
         np.broadcast_to(Z1, (n_a, n_s, n_z)).copy(),
         R,
         problem.discount,
         b0,
-        state_names=[f"v{v}_{names[c]}" for v, c in zip(v_of, c_of, strict=True)] + ["done"],
+        state_names=[f"v{v}_{names[c]}{t}" for v, c, t in zip(v_of, c_of, typed, strict=True)]
+        + ["done"],
         action_names=[f"move{j}" for j in targets] + [f"declare_{n}" for n in names],
-        observation_names=[f"v{v}_{names[c]}" for v, c in zip(v_of, c_of, strict=True)]
+        observation_names=[f"v{v}_{names[o]}" for v in range(n_v) for o in range(n_c)]
         + ["none"],
     )
 
@@ -349,9 +378,9 @@ def simulate_policy(
 ) -> SimulationResult:
     """Run ``policy`` (an ActiveRecognitionPolicy) on the model itself, all runs at once.
 
-    The true class is drawn from the start belief; each step the policy moves (the label is
-    drawn from P[j, c, :]) or declares. An episode still running after ``max_steps`` counts
-    as a wrong declaration then.
+    The true hidden state (class, or type and class) is drawn from the start belief; each
+    step the policy moves (the label is drawn from P[j, s, :]) or declares. An episode still
+    running after ``max_steps`` counts as a wrong declaration then.
     """
     from rapomdp.planning.policy import ActiveRecognitionPolicy
 
@@ -360,9 +389,10 @@ def simulate_policy(
     rng = np.random.default_rng(seed)
     n_c, lam, g = problem.n_classes, problem.lambda_, problem.discount
     P = problem.observation_model
-    cls = rng.choice(n_c, size=n_runs, p=problem.start_belief)
+    state = rng.choice(problem.n_states, size=n_runs, p=problem.start_belief)
+    cls = state % n_c
     view = np.full(n_runs, problem.start_viewpoint)
-    belief = np.broadcast_to(problem.start_belief, (n_runs, n_c)).copy()
+    belief = np.broadcast_to(problem.start_belief, (n_runs, problem.n_states)).copy()
     disc_ret, total = np.zeros(n_runs), np.zeros(n_runs)
     correct, steps = np.zeros(n_runs, dtype=bool), np.zeros(n_runs, dtype=np.int64)
     active = np.ones(n_runs, dtype=bool)
@@ -373,12 +403,12 @@ def simulate_policy(
             break
         b = belief[idx]
         s = b @ policy.betas.T - policy.move_energy[view[idx]][:, policy.targets]
-        _, m = move_or_declare(s, declare_value(b, lam))
+        _, m = move_or_declare(s, declare_value(b, lam, n_c))
         move_target = np.where(m >= 0, policy.targets[m] if len(policy.targets) else -1, -1)
         stop = move_target < 0
         # declarations
         d = idx[stop]
-        k = belief[d].argmax(axis=1)
+        k = class_marginal(belief[d], n_c).argmax(axis=1)
         r = np.where(k == cls[d], 0.0, -lam)
         disc_ret[d] += discount[d] * r
         total[d] += r
@@ -392,7 +422,7 @@ def simulate_policy(
         discount[mv] *= g
         steps[mv] += 1
         u = rng.random(mv.size)
-        cdf = np.cumsum(P[j, cls[mv]], axis=1)
+        cdf = np.cumsum(P[j, state[mv]], axis=1)
         labels = np.minimum((u[:, None] > cdf).sum(axis=1), n_c - 1)
         belief[mv] = update_beliefs(P, belief[mv], j, labels)
         view[mv] = j

@@ -93,10 +93,12 @@ class ARAction:
 class ActiveRecognitionPolicy:
     """Lower-bound policy of the active-recognition MOMDP.
 
-    The vectors ``betas`` (M, C) are continuation values of "move to ``targets[m]`` then act":
-    from viewpoint v the plan m is worth β_m·b − E[v, targets[m]]. Declaring k is worth
-    −λ(1 − b_k). The policy takes the best of all of them. ``upper_points`` (N, C) with
-    ``upper_values`` (N, V) give the sawtooth upper bound (corners: 0, the class known).
+    The vectors ``betas`` (M, S) are continuation values of "move to ``targets[m]`` then act"
+    over the S hidden states (the classes, or (type, class) pairs, type-major): from
+    viewpoint v the plan m is worth β_m·b − E[v, targets[m]]. Declaring k is worth
+    −λ(1 − b_k), b_k the belief's class marginal. The policy takes the best of all of them.
+    ``upper_points`` (N, S) with ``upper_values`` (N, V) give the sawtooth upper bound
+    (corners: 0, the state known). ``classes``: the declarable classes (0: as many as states).
     """
 
     betas: np.ndarray
@@ -106,6 +108,7 @@ class ActiveRecognitionPolicy:
     discount: float
     upper_points: np.ndarray
     upper_values: np.ndarray
+    classes: int = 0
 
     @property
     def n_viewpoints(self) -> int:
@@ -113,6 +116,12 @@ class ActiveRecognitionPolicy:
 
     @property
     def n_classes(self) -> int:
+        """The classes a declaration names."""
+        return self.classes or self.betas.shape[1]
+
+    @property
+    def n_states(self) -> int:
+        """The hidden states a belief is over (the classes times the instance types)."""
         return self.betas.shape[1]
 
     def _moves(self, viewpoint: int, belief: np.ndarray) -> np.ndarray:
@@ -121,7 +130,7 @@ class ActiveRecognitionPolicy:
     def value(self, viewpoint: int, belief: np.ndarray) -> float:
         """The lower bound at (viewpoint, belief): the policy's guaranteed expected return."""
         b = np.asarray(belief, dtype=np.float64)
-        best = float(declare_value(b, self.lambda_))
+        best = float(declare_value(b, self.lambda_, self.n_classes))
         if len(self.targets):
             best = max(best, float(self._moves(viewpoint, b).max()))
         return best
@@ -133,11 +142,11 @@ class ActiveRecognitionPolicy:
         ``forbidden`` (V,) bool removes plans that start by moving to those viewpoints (e.g.
         ones already visited, when the sensor would only see the same image again)."""
         b = np.asarray(belief, dtype=np.float64)
-        k = int(np.argmax(declare_values(b, self.lambda_)))
+        k = int(np.argmax(declare_values(b, self.lambda_, self.n_classes)))
         moves = self._moves(viewpoint, b)
         if forbidden is not None:
             moves = np.where(np.asarray(forbidden, dtype=bool)[self.targets], -np.inf, moves)
-        _, m = move_or_declare(moves[None], declare_value(b, self.lambda_)[None])
+        _, m = move_or_declare(moves[None], declare_value(b, self.lambda_, self.n_classes)[None])
         if m[0] >= 0:
             return ARAction("move", int(self.targets[m[0]]))
         return ARAction("declare", k)
@@ -148,7 +157,7 @@ class ActiveRecognitionPolicy:
         maximising −E[v, j] + γ Σ_o P(o | b, j) V(j, b_jo), V this policy's value and b_jo the
         Eq. 5 update, or declaring when no move beats it; ties go to declaring.
 
-        ``observation_model`` (V, C, O) must be the model the policy was solved on. A
+        ``observation_model`` (V, S, O) must be the model the policy was solved on. A
         point-based lower bound's own plans can be poor away from the beliefs the solver
         visited; one backup at the belief actually reached is less sensitive to them."""
         b = np.asarray(belief, dtype=np.float64)
@@ -157,13 +166,13 @@ class ActiveRecognitionPolicy:
         if forbidden is not None:
             ok &= ~np.asarray(forbidden, dtype=bool)
         targets = np.flatnonzero(ok)
-        dec = declare_value(b, self.lambda_)
-        k = int(np.argmax(declare_values(b, self.lambda_)))
+        dec = declare_value(b, self.lambda_, self.n_classes)
+        k = int(np.argmax(declare_values(b, self.lambda_, self.n_classes)))
         if targets.size == 0:
             return ARAction("declare", k)
-        u = b[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)  # (J, O, C)
+        u = b[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)  # (J, O, S)
         prob = u.sum(axis=2)
-        child = unnormalised_declare_value(u, self.lambda_)  # (J, O)
+        child = unnormalised_declare_value(u, self.lambda_, self.n_classes)  # (J, O)
         if len(self.targets):
             # a plan's move energy depends only on its first target, so the best plan of each
             # target group is found first (a max over plans sorted by target) and the energy
@@ -200,6 +209,9 @@ class ActiveRecognitionPolicy:
             discount=np.array(self.discount),
             upper_points=self.upper_points,
             upper_values=self.upper_values,
+            # a typed policy's declarable classes (an untyped one's file is as before)
+            **({"classes": np.array(self.n_classes)} if self.n_states != self.n_classes
+               else {}),
         )
 
     @classmethod
@@ -213,4 +225,5 @@ class ActiveRecognitionPolicy:
             float(a["discount"]),
             a["upper_points"],
             a["upper_values"],
+            int(a["classes"]) if "classes" in a else 0,
         )

@@ -3,6 +3,11 @@
 Every solver, bound, policy and simulator of the package calls these: the value of declaring
 (Eq. 2: −λ(1 − max b) for the best class), and the move-or-declare rule with its tie-break
 (declare unless a move is worth more by more than :data:`TIE_TOL`).
+
+The hidden state is the class, or, with T *instance types* (a per-object nuisance: the belief
+``observe.belief: nuisance``), the pair (type τ, class c) at index τ·C + c (type-major). A
+declaration names a class, so its value reads the belief's class marginal
+(:func:`class_marginal`); ``n_classes`` None means the states are the classes.
 """
 
 from __future__ import annotations
@@ -25,20 +30,44 @@ POINT_IMPROVEMENT_TOL = 1e-12
 EQUAL_TOL = 1e-12
 
 
-def declare_values(belief: np.ndarray, lambda_: float) -> np.ndarray:
-    """Value of declaring each class: −λ(1 − b_k), shape (..., C)."""
-    return -lambda_ * (1.0 - belief)
+def class_marginal(belief: np.ndarray, n_classes: int | None = None) -> np.ndarray:
+    """The class distribution (..., C) of a belief over states (..., T·C), state τ·C + c:
+    the sum over instance types. ``n_classes`` None, or as many states as classes: the belief
+    itself."""
+    b = np.asarray(belief)
+    if n_classes is None or b.shape[-1] == n_classes:
+        return b
+    if b.shape[-1] % n_classes:
+        raise ValueError(f"a belief over {b.shape[-1]} states is no whole number of types of "
+                         f"{n_classes} classes")
+    return b.reshape(*b.shape[:-1], -1, n_classes).sum(axis=-2)
 
 
-def declare_value(belief: np.ndarray, lambda_: float) -> np.ndarray:
+def declare_values(belief: np.ndarray, lambda_: float,
+                   n_classes: int | None = None) -> np.ndarray:
+    """Value of declaring each class: −λ(1 − b_k), shape (..., C) (b: the class marginal)."""
+    return -lambda_ * (1.0 - class_marginal(belief, n_classes))
+
+
+def declare_value(belief: np.ndarray, lambda_: float,
+                  n_classes: int | None = None) -> np.ndarray:
     """Value of declaring the best class now: −λ(1 − max_k b_k), shape (...,)."""
-    return -lambda_ * (1.0 - np.max(belief, axis=-1))
+    return -lambda_ * (1.0 - np.max(class_marginal(belief, n_classes), axis=-1))
 
 
-def unnormalised_declare_value(u: np.ndarray, lambda_: float) -> np.ndarray:
-    """p · declare_value(u / p) for unnormalised children u (..., C), p = Σ u: −λ(p − max u)
-    (no division, so children of probability 0 are worth 0)."""
-    return -lambda_ * (u.sum(axis=-1) - u.max(axis=-1))
+def unnormalised_declare_value(u: np.ndarray, lambda_: float,
+                               n_classes: int | None = None) -> np.ndarray:
+    """p · declare_value(u / p) for unnormalised children u (..., S), p = Σ u: −λ(p − max u)
+    over the class marginal (no division, so children of probability 0 are worth 0)."""
+    return -lambda_ * (u.sum(axis=-1) - np.max(class_marginal(u, n_classes), axis=-1))
+
+
+def declare_alphas(declared: np.ndarray, lambda_: float, n_states: int,
+                   n_classes: int) -> np.ndarray:
+    """The alpha vectors (..., S) of declaring the classes ``declared`` (...,): −λ in every
+    state of another class, 0 in the declared class's states (of every type)."""
+    hit = np.eye(n_classes)[np.asarray(declared)]  # (..., C)
+    return -lambda_ * (1.0 - np.tile(hit, n_states // n_classes))
 
 
 def move_or_declare(move_values: np.ndarray, declare: np.ndarray

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
-from rapomdp.awareness.artefacts import FIRST_VIEW_PREFIX, OBSERVATION_FILE
+from rapomdp.awareness.artefacts import FIRST_VIEW_PREFIX, OBSERVATION_FILE, PRIOR_PREFIX
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.io import load_npz
@@ -40,6 +40,15 @@ def first_view_models(observe_dir: Path, offered: dict[str, np.ndarray]
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     return {name: observe.get(f"{FIRST_VIEW_PREFIX}{name}", model)
             for name, model in offered.items()}
+
+
+def observation_priors(observe_dir: Path, offered: dict[str, np.ndarray]
+                       ) -> dict[str, np.ndarray | None]:
+    """Each ``offered`` model's start belief over its hidden states: a typed model's prior
+    over (instance type, class) (the observe stage's ``prior_<name>``,
+    ``observe.belief: nuisance``), None (uniform over the classes) for the others."""
+    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+    return {name: observe.get(f"{PRIOR_PREFIX}{name}") for name in offered}
 
 
 def offered_observation_models(observe_dir: Path, vptree_dir: Path | None = None
@@ -114,7 +123,8 @@ def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path, model:
         raise StageError(f"no observation model '{model}'; available: {', '.join(models)}")
     return build_active_recognition_problem(
         models[model], energy, reachable, config.solve.wrong_declaration_cost_m,
-        config.solve.discount, start_viewpoint(reachable), class_names=classes,
+        config.solve.discount, start_viewpoint(reachable),
+        observation_priors(observe_dir, models)[model], class_names=classes,
     )
 
 
@@ -137,6 +147,7 @@ def run_solve_stage(config: Config, inputs: StageInputs, out: Path,
             class_names=classes,
             memory_gb=config.solve.memory_gb,
             scheduler=context.scheduler,
+            start_beliefs=observation_priors(inputs.observe, models),
         )
     except MemoryCapError as exc:
         raise StageError(f"solve: {exc}") from None

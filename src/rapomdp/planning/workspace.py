@@ -32,10 +32,12 @@ def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | N
                out: Path, name: str, lambda_: float, discount: float, start_viewpoint: int,
                precision: float, timeout: float, max_iterations: int | None, allow_stay: bool,
                class_names: list[str] | None, memory_gb: float = DEFAULT_MEMORY_GB,
+               start_belief: np.ndarray | None = None,
                callback: ProgressCallback | None = None) -> dict[str, float | int | bool | str]:
-    """Solve one observation model's MOMDP and write its policy; returns its summary row."""
+    """Solve one observation model's MOMDP (from ``start_belief`` over its hidden states,
+    uniform when None) and write its policy; returns its summary row."""
     problem: ActiveRecognitionProblem = build_active_recognition_problem(
-        P, move_energy, reachable, lambda_, discount, start_viewpoint,
+        P, move_energy, reachable, lambda_, discount, start_viewpoint, start_belief,
         allow_stay=allow_stay, class_names=class_names,
     )
     result = solve_active_recognition(problem, precision, timeout, callback,
@@ -72,8 +74,11 @@ def solve_workspace_problems(
     workers: int = 1,
     memory_gb: float = DEFAULT_MEMORY_GB,
     scheduler: str | None = None,
+    start_beliefs: Mapping[str, np.ndarray | None] | None = None,
 ) -> dict[str, Path]:
     """Solve one active-recognition MOMDP per observation model; returns name → policy path.
+    ``start_beliefs``: a model's start belief over its hidden states (a typed model's prior
+    over (instance type, class); absent or None: uniform).
 
     Each solve stops at ``precision``, after ``max_iterations`` iterations (reproducible) or
     after ``timeout`` seconds of process CPU time (not), whichever comes first, within
@@ -87,13 +92,14 @@ def solve_workspace_problems(
     names = list(observation_models)
     common = (lambda_, discount, start_viewpoint, precision, timeout, max_iterations, allow_stay,
               class_names, memory_gb)
+    start = start_beliefs or {}
     if (workers > 1 or scheduler is not None) and callback is None:
         rows = run_tasks(_solve_one, [(observation_models[n], move_energy, reachable, out, n,
-                                       *common) for n in names], workers, "solve: POMDPs",
-                         scheduler=scheduler, unit="solves")
+                                       *common, start.get(n)) for n in names], workers,
+                         "solve: POMDPs", scheduler=scheduler, unit="solves")
     else:
         rows = [_solve_one(observation_models[n], move_energy, reachable, out, n, *common,
-                           callback) for n in names]
+                           start.get(n), callback) for n in names]
     summary = dict(zip(names, rows, strict=True))
     write_text_atomic(out / SOLVE_SUMMARY, json.dumps(summary, indent=2) + "\n")
     return {name: out / policy_file(name) for name in names}
@@ -116,10 +122,12 @@ def solve_problem_sets(
     scheduler: str | None = None,
     cost: Mapping[str, float] | None = None,
     description: str = "solve: POMDPs",
+    start_beliefs: Mapping[str, np.ndarray | None] | None = None,
 ) -> dict[Path, dict[str, Path]]:
     """Several :func:`solve_workspace_problems` calls, (folder, λ, models) each, in one pool.
 
-    Every folder gets the files and the summary one call would write it, but all the problems
+    ``start_beliefs`` as for :func:`solve_workspace_problems` (by model name). Every folder
+    gets the files and the summary one call would write it, but all the problems
     share the ``workers`` processes, started in decreasing order of λ and then of ``cost[name]``
     (a relative estimate of a model's solve time; larger λ, deeper plans, longer solves), so the
     longest start first instead of one folder's tail holding up the next folder. The order
@@ -133,8 +141,9 @@ def solve_problem_sets(
     weights = cost or {}
     order = sorted(range(len(jobs)),
                    key=lambda i: (-jobs[i][1], -weights.get(jobs[i][2], 0.0)))
-    tasks = [(jobs[i][3], move_energy, reachable, jobs[i][0], jobs[i][2], jobs[i][1], *common)
-             for i in order]
+    start = start_beliefs or {}
+    tasks = [(jobs[i][3], move_energy, reachable, jobs[i][0], jobs[i][2], jobs[i][1], *common,
+              start.get(jobs[i][2])) for i in order]
     solved = run_tasks(_solve_one, tasks, workers, description, scheduler=scheduler,
                        unit="solves")
     rows = dict(zip(order, solved, strict=True))

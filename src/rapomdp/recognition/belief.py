@@ -7,7 +7,10 @@ held-out random walks over viewpoints keeps it calibrated. Held out: the outcome
 groups; each group's walks are scored by the model fitted without it (leave-one-group-out).
 Nothing here depends on how a model was fitted: the observe stage tempers every awareness model
 with it (:func:`rapomdp.awareness.evidence.held_out_temperatures`), the vptree stage the
-VP-tree's confusion. Also here: the reliability and ECE of a confidence.
+VP-tree's confusion. A model may also be *typed* (V, T·C, C) with a prior (T·C,) over its
+hidden states (instance type, class) at τ·C + c (``observe.belief: nuisance``): the walks'
+beliefs are then over the states and read as their class marginal, as the closed loop's
+(``experiment.methods.BayesBelief``). Also here: the reliability and ECE of a confidence.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from scipy.optimize import minimize_scalar
+from scipy.special import logsumexp
 
 TEMPERATURE_BOUNDS = (0.05, 2.0)
 """The interval the temperature is searched in."""
@@ -92,26 +96,29 @@ def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighb
 
 def _log_likelihoods(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                      predicted: np.ndarray) -> np.ndarray:
-    """log P(observed label | c, x) (N, V, C) of every outcome row under its tempered model."""
-    loglik = np.empty(predicted.shape + (models[0].shape[1],))  # (N, V, C)
+    """log P(observed label | s, x) (N, V, S) of every outcome row under its tempered model
+    (S hidden states: the classes, or (type, class) pairs)."""
+    loglik = np.empty(predicted.shape + (models[0].shape[1],))  # (N, V, S)
     for m, p in enumerate(models):
         rows = np.flatnonzero(row_model == m)
         if rows.size == 0:
             continue
         log_p = np.log(np.maximum(temper(p, temperature), 1e-300))  # (V, C, O)
         x = np.arange(p.shape[0])[None, :]
-        loglik[rows] = log_p[x, :, predicted[rows]]  # (R, V, C)
+        loglik[rows] = log_p[x, :, predicted[rows]]  # (R, V, S)
     return loglik
 
 
 def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                      predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
-                     first_temperature: float | None = None) -> np.ndarray:
-    """Log beliefs (E, L, C) after every step of every walk, from a uniform prior, updated by
-    Eq. 5 with the tempered models (row r of the outcomes uses ``models[row_model[r]]``); with
-    ``first_temperature`` the first view is tempered by it instead (1: the single-view model,
-    later views discounted alone). A viewpoint a walk stays on adds no evidence (the sensor
-    would see the same image)."""
+                     first_temperature: float | None = None,
+                     priors: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """Log class beliefs (E, L, C) after every step of every walk, updated by Eq. 5 with the
+    tempered models (row r of the outcomes uses ``models[row_model[r]]``) from a uniform prior
+    or ``priors[row_model[r]]`` over the model's hidden states (a typed model's beliefs are
+    over (type, class) and read as their class marginal); with ``first_temperature`` the first
+    view is tempered by it instead (1: the single-view model, later views discounted alone). A
+    viewpoint a walk stays on adds no evidence (the sensor would see the same image)."""
     loglik = _log_likelihoods(temperature, models, row_model, predicted)
     steps = loglik[walk_row[:, None], walks]  # (E, L, C)
     if first_temperature is not None:
@@ -120,32 +127,41 @@ def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model
     repeat = np.zeros(walks.shape, dtype=bool)
     repeat[:, 1:] = walks[:, 1:] == walks[:, :-1]
     steps = np.where(repeat[..., None], 0.0, steps)
-    cumulative = np.cumsum(steps, axis=1)
+    cumulative = np.cumsum(steps, axis=1)  # (E, L, S)
+    if priors is not None:
+        log_prior = np.log(np.maximum(np.stack([np.asarray(p, dtype=np.float64)
+                                                for p in priors]), 1e-300))  # (models, S)
+        cumulative = cumulative + log_prior[row_model[walk_row]][:, None, :]
+    n_classes = models[0].shape[2]
+    if cumulative.shape[2] != n_classes:  # typed: the class marginal over instance types
+        cumulative = logsumexp(cumulative.reshape(*cumulative.shape[:2], -1, n_classes), axis=2)
     cumulative -= cumulative.max(axis=2, keepdims=True)
     return cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
 
 
 def belief_log_loss(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                     labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
-                    walk_row: np.ndarray, first_temperature: float | None = None) -> float:
+                    walk_row: np.ndarray, first_temperature: float | None = None,
+                    priors: Sequence[np.ndarray] | None = None) -> float:
     """Mean −log belief in the true class after every step of every walk
     (:func:`walk_log_beliefs`)."""
     log_belief = walk_log_beliefs(temperature, models, row_model, predicted, walks, walk_row,
-                                  first_temperature)
+                                  first_temperature, priors)
     return float(-np.mean(log_belief[np.arange(len(walks)), :, labels[walk_row]]))
 
 
 def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels: np.ndarray,
                     predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
                     bounds: tuple[float, float] = TEMPERATURE_BOUNDS,
-                    first_temperature: float | None = None) -> float:
+                    first_temperature: float | None = None,
+                    priors: Sequence[np.ndarray] | None = None) -> float:
     """The temperature that minimises :func:`belief_log_loss` on held-out walks (bounded 1-D
     search). Evidence that is independent and drawn from the model gives ~1; evidence that
     repeats itself gives less. With ``first_temperature`` only the views after the first are
     tempered by the fit."""
     result = minimize_scalar(belief_log_loss, bounds=bounds, method="bounded",
                              args=(models, row_model, labels, predicted, walks, walk_row,
-                                   first_temperature),
+                                   first_temperature, priors),
                              options={"xatol": 1e-3})
     return float(result.x)
 
@@ -190,8 +206,8 @@ def held_out_walks(row_model: np.ndarray, directions: np.ndarray, rng: np.random
 
 def walk_calibration(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                      labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
-                     walk_row: np.ndarray, first_temperature: float | None = None
-                     ) -> dict[str, float]:
+                     walk_row: np.ndarray, first_temperature: float | None = None,
+                     priors: Sequence[np.ndarray] | None = None) -> dict[str, float]:
     """The calibration of the held-out beliefs on ``walks`` naive (t = 1) and at
     ``temperature``: each one's log loss (``log_loss_{naive,tempered}``) and, after the first
     and the last step, the ECE and mean of the max belief against a right argmax
@@ -201,9 +217,10 @@ def walk_calibration(temperature: float, models: Sequence[np.ndarray], row_model
     report: dict[str, float] = {"temperature": temperature}
     for label, value in (("naive", 1.0), ("tempered", temperature)):
         report[f"log_loss_{label}"] = belief_log_loss(
-            value, models, row_model, labels, predicted, walks, walk_row, first_temperature)
+            value, models, row_model, labels, predicted, walks, walk_row, first_temperature,
+            priors)
         belief = np.exp(walk_log_beliefs(value, models, row_model, predicted, walks, walk_row,
-                                         first_temperature))
+                                         first_temperature, priors))
         for step, at in (("first", 0), ("last", walks.shape[1] - 1)):
             confidence = belief[:, at].max(axis=1)
             right = belief[:, at].argmax(axis=1) == true
