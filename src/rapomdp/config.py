@@ -244,8 +244,10 @@ class ObserveConfig(Section):
         "under the trained classifier (the dataset split's volume role), cross-fitted training "
         "models (weaker fold classifiers), or both")
     crossfit_folds: int = Field(3, ge=2, description="cross-fitting folds over training models")
-    crossfit_epochs: int = Field(
-        6, ge=1, description="epochs of each fold's classifier (the demo's time budget)")
+    crossfit_epochs: int | None = Field(
+        6, ge=1, description="epochs of each fold's classifier (6: the demo's time budget, "
+        "weaker folds than the trained classifier); null: train.epochs, the train stage's own "
+        "recipe (held-out evidence at full strength)")
     contrastive: bool = Field(
         False, description="also fit ra_contrastive: each class's saliency volume against its "
         "most confused class (one more mask per volume-model view)")

@@ -6,7 +6,10 @@ import numpy as np
 import pytest
 
 from rapomdp.awareness.evidence import (
+    CLASS_PRIOR_GRID,
     DEFAULT_TRANSFER_KERNEL,
+    MIN_HELD_OUT_OBJECTS,
+    ROBUST_RA_VARIANT,
     TRANSFER_KERNEL_GRID,
     TRANSFER_PRIOR,
     Evidence,
@@ -80,12 +83,80 @@ def test_held_out_validation_prefers_the_score_that_predicts_correctness():
     rows = {r["model"]: r for r in validation_quality(evidence, folds)}
     assert rows["ra_paper"]["log_likelihood"] > rows["ra_area"]["log_likelihood"]
     assert rows["ra_paper"]["auc"] > 0.75 > rows["ra_area"]["auc"]
-    assert choose_ra_variant(list(rows.values()), "auto") in {"paper", "class"}
-    assert choose_ra_variant(list(rows.values()), "area") == "area"
-    assert choose_ra_variant([], "auto") == "paper"
+    choice = choose_ra_variant(evidence, folds, "area", ["a", "b"])
+    assert (choice.variant, choice.rule) == ("area", "configured")
     models = fit_observation_models(evidence, {"mean": mean, "area": area}, ["a", "b"], cfg)
     assert set(models) == {"ra_paper", "ra_class", "ra_area", "ra_class_area", "classifier",
                            "blackbox"}
+
+
+def _planted_area_evidence(groups: int, seed: int) -> tuple[Evidence, dict[str, np.ndarray]]:
+    """Three classes whose correctness follows the 'area' score strongly; 'mean' is noise."""
+    rng = np.random.default_rng(seed)
+    views, classes = 96, 3
+    scores = {"mean": rng.random((classes, views)), "area": rng.random((classes, views))}
+    labels = np.repeat(np.arange(classes), groups)
+    p_right = _sigmoid(-3.0 + 7.0 * scores["area"][labels])
+    right = rng.random(p_right.shape) < p_right
+    predicted = np.where(right, labels[:, None], (labels[:, None] + 1) % classes)
+    return Evidence(labels, predicted, np.tile(np.arange(groups), classes)), scores
+
+
+def test_the_held_out_chooser_picks_the_planted_informative_model() -> None:
+    evidence, scores = _planted_area_evidence(4, 8)
+    classes = ["a", "b", "c"]
+    folds = leave_one_group_out(evidence, scores, classes, ObserveConfig())
+    choice = choose_ra_variant(evidence, folds, "auto", classes)
+    assert choice.rule == "best" and not choice.too_little_evidence
+    assert choice.variant in {"area", "class_area"}  # the score that carries correctness
+    assert choice.objects_per_class == {"a": 4, "b": 4, "c": 4}
+    robust = choice.held_out[ROBUST_RA_VARIANT]
+    assert robust["difference_to_best"] < -robust["standard_error"] < 0  # beyond one SE
+    best = choice.held_out[choice.variant]
+    assert best["mean_log_likelihood"] == max(r["mean_log_likelihood"]
+                                              for r in choice.held_out.values())
+    # the per-object figures average to the pooled held-out table's
+    pooled = {r["model"]: r for r in validation_quality(evidence, folds)}
+    assert best["mean_log_likelihood"] == pytest.approx(
+        float(pooled[f"ra_{choice.variant}"]["log_likelihood"]), abs=1e-9)
+    assert "more than one standard error" in choice.reason
+
+
+def test_the_held_out_chooser_says_when_there_is_too_little_evidence() -> None:
+    evidence, scores = _planted_area_evidence(4, 9)
+    classes = ["a", "b", "c"]
+    one = Evidence(evidence.labels, evidence.predicted, np.zeros_like(evidence.groups))
+    choice = choose_ra_variant(one, leave_one_group_out(one, scores, classes, ObserveConfig()),
+                               "auto", classes)
+    assert (choice.variant, choice.rule) == (ROBUST_RA_VARIANT, "too little evidence")
+    assert choice.too_little_evidence and choice.objects_per_class == {"a": 0, "b": 0, "c": 0}
+    assert choice.reason.startswith("too little held-out evidence to choose: class 'a' (0)")
+    # class c with one volume model only: its one object is never held out, so too little
+    keep = (evidence.labels != 2) | (evidence.groups == 0)
+    short = evidence.subset(keep)
+    folds = leave_one_group_out(short, scores, classes, ObserveConfig())
+    choice = choose_ra_variant(short, folds, "auto", classes)
+    assert choice.too_little_evidence and choice.variant == ROBUST_RA_VARIANT
+    assert choice.objects_per_class["c"] < MIN_HELD_OUT_OBJECTS <= choice.objects_per_class["a"]
+    assert "'c'" in choice.reason and "'a'" not in choice.reason
+    recorded = choice.to_dict()
+    assert recorded["too_little_evidence"] is True and recorded["robust_default"] == "class"
+
+
+def test_the_one_standard_error_rule_keeps_the_robust_default_on_a_near_tie() -> None:
+    """Correctness follows each class's rate alone: every per-class variant is as good."""
+    rng = np.random.default_rng(10)
+    views, classes = 64, 3
+    scores = {"mean": rng.random((classes, views)), "area": rng.random((classes, views))}
+    labels = np.repeat(np.arange(classes), 4)
+    right = rng.random((labels.size, views)) < np.array([0.9, 0.6, 0.3])[labels][:, None]
+    predicted = np.where(right, labels[:, None], (labels[:, None] + 1) % classes)
+    evidence = Evidence(labels, predicted, np.tile(np.arange(4), classes))
+    folds = leave_one_group_out(evidence, scores, ["a", "b", "c"], ObserveConfig())
+    choice = choose_ra_variant(evidence, folds, "auto", ["a", "b", "c"])
+    assert choice.variant == ROBUST_RA_VARIANT and choice.rule in {"best", "one standard error"}
+    robust = choice.held_out[ROBUST_RA_VARIANT]
+    assert robust["difference_to_best"] >= -robust["standard_error"]
 
 
 def test_viewpoint_evidence_is_stacked_on_other_groups_and_finds_a_bad_patch():
@@ -162,11 +233,14 @@ def test_transfer_confusion_with_an_explicit_kernel_matches_a_hand_computed_row(
     assert np.allclose(p[:, 1], 0.5)  # class 1: no evidence, the uniform row
 
 
-def _planted_kernel_evidence(structured: bool, seed: int) -> tuple[Evidence, np.ndarray,
-                                                                    np.ndarray]:
+def _planted_kernel_evidence(structured: bool, seed: int,
+                             object_rates: bool = False) -> tuple[Evidence, np.ndarray,
+                                                                  np.ndarray]:
     """Three classes, 64 viewpoints, three groups of two objects a class; every view sees the
     same saliency. ``structured``: each (class, viewpoint) has one label for every object,
-    drawn independently per viewpoint; else every outcome is i.i.d. around the class's rate."""
+    drawn independently per viewpoint; else every outcome is i.i.d. around the class's rate
+    (``object_rates``: around the object's own rate, drawn for every object alike, so that no
+    class's rate says anything about its next object)."""
     rng = np.random.default_rng(seed)
     classes, views = 3, 64
     directions = fibonacci_directions(views, hemisphere=True)
@@ -175,7 +249,9 @@ def _planted_kernel_evidence(structured: bool, seed: int) -> tuple[Evidence, np.
     if structured:
         predicted = rng.integers(0, classes, (classes, views))[labels]
     else:
-        right = rng.random((labels.size, views)) < np.array([0.5, 0.7, 0.9])[labels, None]
+        rate = (rng.choice([0.2, 0.95], labels.size) if object_rates
+                else np.array([0.5, 0.7, 0.9])[labels])
+        right = rng.random((labels.size, views)) < rate[:, None]
         wrong = (labels[:, None] + rng.integers(1, classes, right.shape)) % classes
         predicted = np.where(right, labels[:, None], wrong)
     return (Evidence(labels, predicted, groups), np.ones((classes, views, views)),
@@ -186,10 +262,38 @@ def test_transfer_kernel_choice_pools_widely_on_viewpoint_free_noise() -> None:
     evidence, similarity, directions = _planted_kernel_evidence(False, 31)
     kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
     assert (kernel.bandwidth_deg, kernel.prior) == (40.0, 8.0)
-    assert len(table) == len(TRANSFER_KERNEL_GRID) == 64
+    assert len(table) == len(TRANSFER_KERNEL_GRID) == 4 * 4 * 4 * len(CLASS_PRIOR_GRID)
     best = max(r["held_out_log_likelihood"] for r in table)
     narrowest = max(r["held_out_log_likelihood"] for r in table if r["bandwidth_deg"] == 5.0)
     assert narrowest < best
+    # the classes' own rates (0.5, 0.7, 0.9) transfer to their next objects: no shrinkage
+    assert kernel.class_prior == 0.0
+    shrunk = max(r["held_out_log_likelihood"] for r in table if r["class_prior"] == 64.0)
+    assert shrunk < best
+
+
+def test_the_class_rows_shrink_to_the_pooled_accuracy_when_class_rates_do_not_transfer(
+) -> None:
+    """Every object's accuracy is its own (0.2 or 0.95, whatever its class): a class's rate
+    counted on other objects misleads, the pooled accuracy does not."""
+    evidence, similarity, directions = _planted_kernel_evidence(False, 35, object_rates=True)
+    kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
+    assert kernel.class_prior > 0.0
+    best = max(r["held_out_log_likelihood"] for r in table)
+    unshrunk = max(r["held_out_log_likelihood"] for r in table if r["class_prior"] == 0.0)
+    assert unshrunk < best
+    # the fitted rows' accuracy moves toward the pooled one by class_prior objects' worth
+    p = transfer_confusion(evidence, similarity, directions, 1.0,
+                           TransferKernel(0.0, 1e6, 1e9, 4.0))  # every row = the class row
+    own = transfer_confusion(evidence, similarity, directions, 1.0,
+                             TransferKernel(0.0, 1e6, 1e9, 0.0))
+    pooled = float(evidence.correct.mean())
+    idx = np.arange(3)
+    rate, unshrunk_rate = p[0, idx, idx], own[0, idx, idx]
+    objects = np.bincount(evidence.labels, minlength=3)  # 6 a class
+    weight = 4.0 / (objects + 4.0)
+    np.testing.assert_allclose(rate, (1 - weight) * unshrunk_rate + weight * pooled, atol=1e-6)
+    np.testing.assert_allclose(p.sum(axis=2), 1.0)
 
 
 def test_transfer_kernel_choice_stays_local_on_per_viewpoint_structure() -> None:
@@ -223,7 +327,7 @@ def test_transfer_kernel_choice_falls_back_to_the_default_without_two_folds() ->
     assert choose_transfer_kernel(Evidence(evidence.labels, evidence.predicted, two),
                                   similarity, directions, 1.0) == (DEFAULT_TRANSFER_KERNEL, [])
     assert DEFAULT_TRANSFER_KERNEL.to_dict() == {"power": 4.0, "bandwidth_deg": 20.0,
-                                                 "prior": TRANSFER_PRIOR}
+                                                 "prior": TRANSFER_PRIOR, "class_prior": 0.0}
 
 
 def test_the_recorded_kernel_is_read_back_and_older_workspaces_get_the_default() -> None:

@@ -82,9 +82,9 @@ def test_observation_models_follow_the_planner_contract(workspace):
     # ra_transfer's kernel: the grid kernel of best held-out log-likelihood, recorded
     chosen = read_json(workspace.root / "observe" / "calibration.json")["transfer_kernel"]
     grid = chosen.pop("grid")
-    assert len(grid) == 64
+    assert len(grid) == 320
     best = max(grid, key=lambda r: r["held_out_log_likelihood"])
-    assert chosen == {k: best[k] for k in ("power", "bandwidth_deg", "prior")}
+    assert chosen == {k: best[k] for k in ("power", "bandwidth_deg", "prior", "class_prior")}
     assert read_json(workspace.root / "observe" / "timing.json")["transfer_kernel_s"] >= 0
     # read back for a refit: the same evidence, scores, kernel and RA variant
     recorded = RecordedObservation.load(workspace.root / "observe")
@@ -176,6 +176,78 @@ def test_crossfit_never_lets_a_classifier_see_a_model_it_is_evaluated_on(workspa
     assert all(0.05 <= t <= 2.0 for t in temperatures.values())
 
 
+def test_full_recipe_folds_never_see_the_models_they_label(workspace, tmp_path):
+    """observe.crossfit_epochs: null trains every fold with the train stage's own recipe."""
+    from rapomdp.awareness.artefacts import crossfit_fingerprint
+    from rapomdp.awareness.crossfit import CrossfitOutcomes, model_key
+    from rapomdp.awareness.stage import run_crossfit_stage
+    from rapomdp.data.dataset import load_dataset
+
+    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "crossfit_epochs": None}})
+    assert config.observe.crossfit_epochs is None and config.train.epochs == 2
+    run_crossfit_stage(config, StageInputs("crossfit", dataset_dir=workspace.root / "dataset",
+                                           render_dir=workspace.root / "render"),
+                       tmp_path, TEST_CONTEXT)
+    record = read_json(tmp_path / "crossfit.json")
+    assert (record["epochs"], record["recipe"]) == (config.train.epochs, "full")
+    out = CrossfitOutcomes.load(tmp_path / "outcomes.npz")
+    dataset = load_dataset(workspace.root / "dataset")
+    train = {model_key(m) for m in dataset.with_role("train")}
+    volume_and_test = {model_key(m) for m in dataset.models if m.role != "train"}
+    assert set(out.keys.tolist()) == train
+    for fold, seen in enumerate(out.trained_on):
+        labelled = set(out.keys[out.folds == fold].tolist())
+        trained = set(seen.tolist())
+        assert labelled and not labelled & trained  # never a model it labels
+        assert trained == train - labelled and not trained & volume_and_test
+    # the full recipe shares its cache key with the same epochs written out
+    explicit = config_from_dict({**TINY, "observe": {**TINY["observe"], "crossfit_epochs": 2}})
+    assert crossfit_fingerprint(config) == crossfit_fingerprint(explicit)
+    assert crossfit_fingerprint(config) != crossfit_fingerprint(config_from_dict(TINY))
+
+
+def test_the_nuisance_belief_is_the_model_the_solve_stage_plans(workspace, tmp_path):
+    """observe.belief: nuisance saves typed models with their priors; the solve stage plans
+    over (type, class) from that prior; the report's single-view models are their marginals."""
+    from rapomdp.awareness.observation import ObservationModel
+    from rapomdp.awareness.report import single_view_models
+    from rapomdp.planning.policy import ActiveRecognitionPolicy
+    from rapomdp.planning.stage import run_solve_stage
+
+    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "belief": "nuisance"},
+                               "solve": {"timeout_s": 2.0, "iterations": 3,
+                                         "models": ["ra", "classifier"]}})
+    run_pipeline(config, workspace, until="observe", context=TEST_CONTEXT)
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
+    calibration = read_json(workspace.root / "observe" / "calibration.json")
+    assert calibration["belief"] == "nuisance"
+    assert set(calibration["nuisance"]) == set(data["models"].tolist()) - {"ra"}
+    for name in data["models"].tolist():
+        assert data[name].shape == (10, 4, 2)  # (viewpoints, 2 types x 2 classes, labels)
+        prior = data[f"prior_{name}"]
+        assert prior.shape == (4,) and prior.sum() == pytest.approx(1.0)
+        np.testing.assert_allclose(prior[:2], prior[0]) and np.testing.assert_allclose(
+            prior[2:], prior[2])
+        weight = calibration["nuisance"].get(name, calibration["nuisance"][
+            f"ra_{calibration['ra_model']}"])["weight"]
+        assert prior[2:].sum() == pytest.approx(weight)
+    models = load_observation_models(workspace.root / "observe" / "observation_models.npz")
+    assert models["ra"].types == 2 and models["ra"].prior is not None
+    single = single_view_models(data)
+    assert all(p.shape == (10, 2, 2) for p in single.values())
+    ObservationModel(single["ra"], ["bicycle", "teapot"])  # rows sum to 1
+    inputs = workspace.inputs(get_stage("solve"))
+    run_solve_stage(config, inputs, tmp_path, TEST_CONTEXT)
+    for name in ("ra", "classifier"):
+        policy = ActiveRecognitionPolicy.load(tmp_path / f"policy_{name}.npz")
+        assert (policy.n_states, policy.n_classes) == (4, 2)
+        start = int(np.flatnonzero(load_npz(workspace.root / "robot" / "robot.npz")[
+            "reachable"])[0])
+        action = policy.act(start, data[f"prior_{name}"])
+        assert action.kind in ("move", "declare")
+    run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
+
+
 def test_contrastive_variant_joins_the_table_and_the_held_out_belief_is_reported(workspace):
     config = config_from_dict({**TINY, "observe": {**TINY["observe"], "contrastive": True,
                                                    "ra_model": "contrastive"}})
@@ -246,8 +318,12 @@ def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(wor
     assert np.all(data["temperatures"] == 1.0) and np.all(data["evidence_groups"] == 0)
     assert np.allclose(data["ra"], data["ra_paper"])
     assert not (workspace.root / "observe" / "validation.md").exists()
-    assert read_json(workspace.root / "observe" / "calibration.json")["transfer_kernel"] == {
-        "power": 4.0, "bandwidth_deg": 20.0, "prior": 4.0, "grid": []}  # one group: default
+    calibration = read_json(workspace.root / "observe" / "calibration.json")
+    assert calibration["transfer_kernel"] == {
+        "power": 4.0, "bandwidth_deg": 20.0, "prior": 4.0, "class_prior": 0.0,
+        "grid": []}  # one group: default
+    # one group: too little evidence to choose, said so (here ra_model is configured)
+    assert calibration["ra_model_choice"]["rule"] == "configured"
     run_pipeline(config_from_dict(TINY), workspace, until="observe")  # back to the default
 
 

@@ -118,3 +118,74 @@ def test_one_default_lambda_everywhere() -> None:
     assert ActiveRecognitionProblem(model, np.ones((2, 2)), np.ones(2, bool)).lambda_ == 8.0
     default = inspect.signature(solve_workspace_problems).parameters["lambda_"].default
     assert default == DEFAULT_LAMBDA
+
+
+def _typed(problem, atypical: np.ndarray, weight: float):
+    """The problem with a second instance type whose rows are ``atypical`` (V, C, C), prior
+    (1 - weight, weight) over the types."""
+    P = problem.observation_model
+    c = problem.n_classes
+    prior = np.concatenate([np.full(c, (1 - weight) / c), np.full(c, weight / c)])
+    return build_active_recognition_problem(np.concatenate([P, atypical], axis=1),
+                                            problem.move_energy, problem.reachable,
+                                            problem.lambda_, problem.discount,
+                                            problem.start_viewpoint, prior, allow_stay=True)
+
+
+def test_a_type_that_changes_nothing_leaves_the_value_and_the_policy_unchanged():
+    """Two instance types with the same rows are one model: the typed MOMDP's bounds, its
+    policy's actions and its simulated accuracy are the untyped one's."""
+    problem = benchmark_problem(5, 3, seed=5)
+    typed = _typed(problem, problem.observation_model, 0.3)
+    assert (typed.n_states, typed.n_classes, typed.types) == (6, 3, 2)
+    assert typed.state_class().tolist() == [0, 1, 2, 0, 1, 2]
+    plain = solve_active_recognition(problem, precision=1e-4, timeout=1e6, max_iterations=60,
+                                     grid=4)
+    both = solve_active_recognition(typed, precision=1e-4, timeout=1e6, max_iterations=60,
+                                    grid=4)
+    assert both.lower == pytest.approx(plain.lower, abs=2e-3)
+    # an upper bound on the same value (the grid over six states is coarser than over three)
+    assert plain.lower - 1e-3 <= both.upper <= plain.upper + 0.15
+    rng = np.random.default_rng(0)
+    for b in rng.dirichlet(np.ones(3), size=20):  # each bounds the other's value everywhere
+        state = np.concatenate([0.7 * b, 0.3 * b])
+        assert both.policy.value(0, state) <= plain.policy.upper(0, b) + 1e-9
+        assert plain.policy.value(0, b) <= both.policy.upper(0, state) + 1e-9
+    assert both.policy.n_states == 6 and both.policy.n_classes == 3
+    sim = simulate_policy(typed, both.policy, n_runs=2000, seed=1).summary()
+    assert abs(sim["mean_discounted_return"] - both.lower) < 4 * sim["stderr"] + 1e-3
+
+
+def test_the_typed_momdp_is_the_flat_pomdp_with_type_and_class_hidden():
+    problem = benchmark_problem(3, 2, seed=6)
+    atypical = np.broadcast_to(np.array([[0.5, 0.5], [0.9, 0.1]]), (3, 2, 2)).copy()
+    typed = _typed(problem, atypical, 0.25)
+    flat = to_flat_pomdp(typed)
+    assert flat.n_states == 3 * 4 + 1 and flat.n_observations == 3 * 2 + 1
+    flat_result = solve_pomdp(flat, precision=1e-4, timeout=1e6, max_iterations=40)
+    ar = solve_active_recognition(typed, precision=1e-4, timeout=1e6, max_iterations=40, grid=8)
+    assert ar.lower == pytest.approx(flat_result.lower, abs=5e-4)
+    assert ar.lower <= flat_result.upper + 1e-9 and flat_result.lower <= ar.upper + 1e-9
+    # declaring class 1 is right in (typical, 1) and (atypical, 1) alike
+    declare = [a for a, name in enumerate(flat.action_names) if name == "declare_class1"][0]
+    states = np.flatnonzero(flat.R[declare] == 0.0)
+    assert [flat.state_names[s] for s in states[:-1]] == [
+        "v0_class1_t0", "v0_class1_t1", "v1_class1_t0", "v1_class1_t1", "v2_class1_t0",
+        "v2_class1_t1"]
+    # Eq. 5 over (type, class): the flat update and the MOMDP's agree
+    b = typed.start_belief
+    post = typed.update(b, viewpoint=1, label=0)
+    b_flat = np.zeros(flat.n_states)
+    b_flat[0:4] = b
+    a = int(np.flatnonzero(typed.targets == 1)[0])
+    np.testing.assert_allclose(belief_update(flat.T, flat.Z, b_flat, a, 1 * 2 + 0)[4:8], post)
+
+
+def test_a_typed_model_must_hold_whole_types_and_a_prior_over_its_states():
+    P = benchmark_problem(3, 2, seed=7).observation_model
+    with pytest.raises(ValueError, match=r"\(V, T\*C, C\) with T instance types, got "
+                                         r"\(3, 3, 2\)"):
+        build_active_recognition_problem(np.concatenate([P, P[:, :1]], axis=1), np.ones((3, 3)))
+    with pytest.raises(ValueError, match="start belief must be a distribution over 4 states"):
+        build_active_recognition_problem(np.concatenate([P, P], axis=1), np.ones((3, 3)),
+                                         start_belief=np.array([0.5, 0.5]))

@@ -87,12 +87,16 @@ def load_softmax_temperature(observe_dir: str | Path) -> float:
 class RAChoice:
     """Which RA variant is RA-POMDP's model ``ra`` (calibration.json): ``variant`` (``ra`` is
     the array of ``ra_<variant>``), the ``configured`` ``observe.ra_model`` (``auto``: chosen
-    on held-out log-likelihood) and ``method``, what the variant's fit is (``logistic``,
-    ``salient_view_transfer``, ...)."""
+    on held-out objects) and ``method``, what the variant's fit is (``logistic``,
+    ``salient_view_transfer``, ...); with ``auto``, the choice's ``rule`` (``best``, ``one
+    standard error``, ``too little evidence``) and ``reason`` (calibration.json's
+    ``ra_model_choice``; empty in a workspace from before it)."""
 
     variant: str
     configured: str
     method: str
+    rule: str = ""
+    reason: str = ""
 
     @property
     def model(self) -> str:
@@ -107,15 +111,24 @@ def load_ra_choice(observe_dir: str | Path) -> RAChoice:
         variant = str(data["ra_model"])
         variants = data.get("variants", {})
         method = variants.get(f"ra_{variant}", {}).get("method", data.get("method", ""))
-        return RAChoice(variant, str(data.get("ra_model_configured", variant)), str(method))
+        made = data.get("ra_model_choice", {})
+        return RAChoice(variant, str(data.get("ra_model_configured", variant)), str(method),
+                        str(made.get("rule", "")), str(made.get("reason", "")))
     except (KeyError, TypeError, AttributeError):
         raise ArtefactError(f"{path}: expected the key ra_model (the RA variant chosen) and "
                             f"variants by name") from None
 
 
+def crossfit_epochs(config: Config) -> int:
+    """The epochs of each fold's classifier: ``observe.crossfit_epochs``, or with null the
+    train stage's ``train.epochs`` (its full recipe)."""
+    epochs = config.observe.crossfit_epochs
+    return config.train.epochs if epochs is None else int(epochs)
+
+
 def crossfit_fingerprint(config: Config) -> str:
     """The crossfit stage reads these ``observe`` keys only (the rest would retrain for
-    nothing)."""
+    nothing); the full recipe (null epochs) keys as its epochs written out."""
     cfg = config.observe
     return stable_hash({"crossfit": cfg.evidence != "volume", "folds": cfg.crossfit_folds,
-                        "epochs": cfg.crossfit_epochs})
+                        "epochs": crossfit_epochs(config)})

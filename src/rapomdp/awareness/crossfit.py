@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rapomdp.awareness.artefacts import crossfit_epochs
 from rapomdp.config import Config
 from rapomdp.data.dataset import ModelEntry
 from rapomdp.data.splits import class_seed
@@ -97,7 +98,7 @@ def crossfit_outcomes(config: Config, views: TrainingViews, device: object,
                       progress: Callable[[Classifier, int], None] | None = None,
                       bar: bool = True) -> CrossfitOutcomes:
     """Train one classifier per fold on the other folds' training renders (the train stage's
-    recipe with ``observe.crossfit_epochs`` epochs, no validation split) and label the fold's
+    recipe with :func:`crossfit_epochs` epochs, no validation split) and label the fold's
     models at X_rho (``sensed_at_xrho(model)`` -> depth (V, H, W)); ``progress`` is called
     after each fold, a bar shows the folds when ``bar``."""
     dataset = views.dataset
@@ -106,7 +107,7 @@ def crossfit_outcomes(config: Config, views: TrainingViews, device: object,
     fold = crossfit_folds(models, k, config.seed)
     data = collect_views(views, "train")  # data.models indexes `models`
     keys = np.array([model_key(m) for m in models])
-    train_cfg = config.train.model_copy(update={"epochs": config.observe.crossfit_epochs})
+    train_cfg = config.train.model_copy(update={"epochs": crossfit_epochs(config)})
     predicted = np.zeros((len(models), config.viewpoints.count), dtype=np.int64)
     trained_on = []
     for f in track(range(k), "crossfit: fold classifiers", bar, unit="folds"):

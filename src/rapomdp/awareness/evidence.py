@@ -12,7 +12,7 @@ the temperature without the test models.
 from __future__ import annotations
 
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -203,31 +203,42 @@ confusion)."""
 @dataclass(frozen=True)
 class TransferKernel:
     """``ra_transfer``'s kernel: the exponent on the seen-saliency similarity, the Gaussian
-    width over the viewpoint angle (degrees) and the pseudo-observations of the class's
-    confusion row."""
+    width over the viewpoint angle (degrees), the pseudo-observations of the class's confusion
+    row, and ``class_prior``: the objects' worth of views of the accuracy pooled over every
+    class that the class row's accuracy is shrunk toward (0: the class's own accuracy; a class
+    counted on two or three objects does not transfer to the next one as well as the pooled
+    accuracy does, docs/awareness.md §4.2)."""
 
     power: float
     bandwidth_deg: float
     prior: float
+    class_prior: float = 0.0
 
     def to_dict(self) -> dict[str, float]:
-        return {"power": self.power, "bandwidth_deg": self.bandwidth_deg, "prior": self.prior}
+        return {"power": self.power, "bandwidth_deg": self.bandwidth_deg, "prior": self.prior,
+                "class_prior": self.class_prior}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> TransferKernel:
-        """The kernel of :meth:`to_dict`'s keys (other keys ignored)."""
-        return cls(float(data["power"]), float(data["bandwidth_deg"]), float(data["prior"]))
+        """The kernel of :meth:`to_dict`'s keys (other keys ignored; a record from before
+        ``class_prior``: 0)."""
+        return cls(float(data["power"]), float(data["bandwidth_deg"]), float(data["prior"]),
+                   float(data.get("class_prior", 0.0)))
 
 
 DEFAULT_TRANSFER_KERNEL = TransferKernel(SALIENT_VIEW_POWER, VIEWPOINT_BANDWIDTH_DEG,
                                          TRANSFER_PRIOR)
 """The kernel without a choice (one group of evidence): the first generation's constants."""
+CLASS_PRIOR_GRID = (0.0, 1.0, 4.0, 16.0, 64.0)
+"""The shrinkages of the class rows' accuracy toward the pooled one the kernel choice scores
+(objects' worth of views; 0: none)."""
 TRANSFER_KERNEL_GRID: tuple[TransferKernel, ...] = tuple(
-    TransferKernel(power, bandwidth, prior)
+    TransferKernel(power, bandwidth, prior, class_prior)
     for power in (0.0, 2.0, 4.0, 8.0)
     for bandwidth in (5.0, 10.0, 20.0, 40.0)
-    for prior in (1.0, 2.0, 4.0, 8.0))
-"""The 64 kernels :func:`choose_transfer_kernel` scores (the default among them)."""
+    for prior in (1.0, 2.0, 4.0, 8.0)
+    for class_prior in CLASS_PRIOR_GRID)
+"""The 320 kernels :func:`choose_transfer_kernel` scores (the default among them)."""
 
 
 def recorded_transfer_kernel(calibration: Mapping[str, Any]) -> TransferKernel:
@@ -285,10 +296,27 @@ def _transfer_weights(similarity: np.ndarray, angle_deg: np.ndarray, power: floa
         -0.5 * (angle_deg / bandwidth_deg) ** 2)[None]
 
 
-def _confusion_rows(counts: np.ndarray, pseudo_count: float) -> np.ndarray:
-    """Each class's viewpoint-free confusion row (C, C) from the counts (C, V, C)."""
+def _confusion_rows(counts: np.ndarray, pseudo_count: float,
+                    class_prior: float = 0.0) -> np.ndarray:
+    """Each class's viewpoint-free confusion row (C, C) from the counts (C, V, C), its accuracy
+    shrunk toward the accuracy pooled over every class by ``class_prior`` objects' worth of
+    views (the wrong labels keep their proportions)."""
     row = counts.sum(axis=1) + pseudo_count
-    return row / row.sum(axis=1, keepdims=True)
+    row = row / row.sum(axis=1, keepdims=True)
+    if class_prior == 0.0:
+        return row
+    c, views = counts.shape[0], counts.shape[1]
+    idx = np.arange(c)
+    seen = counts.sum(axis=(1, 2))  # labels counted per class (objects x views)
+    pooled = counts[idx, :, idx].sum() / max(seen.sum(), 1.0)
+    weight = class_prior * views / (seen + class_prior * views)  # (C,)
+    accuracy = (1.0 - weight) * row[idx, idx] + weight * pooled
+    wrong = row.copy()
+    wrong[idx, idx] = 0.0
+    wrong /= wrong.sum(axis=1, keepdims=True)
+    out = wrong * (1.0 - accuracy)[:, None]
+    out[idx, idx] = accuracy
+    return out
 
 
 def transfer_confusion(evidence: Evidence, similarity: np.ndarray, directions: np.ndarray,
@@ -305,7 +333,7 @@ def transfer_confusion(evidence: Evidence, similarity: np.ndarray, directions: n
     weights = _transfer_weights(similarity, _angle_deg(directions), kernel.power,
                                 kernel.bandwidth_deg)
     smoothed = weights @ counts  # (C, V, O)
-    row = _confusion_rows(counts, pseudo_count)
+    row = _confusion_rows(counts, pseudo_count, kernel.class_prior)
     p = (smoothed + kernel.prior * row[:, None]) / (
         smoothed.sum(axis=2, keepdims=True) + kernel.prior)
     return np.ascontiguousarray(p.transpose(1, 0, 2))
@@ -326,13 +354,15 @@ def choose_transfer_kernel(evidence: Evidence, similarity: np.ndarray, direction
         return DEFAULT_TRANSFER_KERNEL, []
     c = similarity.shape[0]
     angle = _angle_deg(directions)
-    folds = []  # (rest's counts, rest's rows, held-out (class, view, label) indices)
+    class_priors = sorted({k.class_prior for k in grid})
+    folds = []  # (rest's counts, its rows per class prior, held-out (class, view, label))
     for held in masks:
         counts = _class_view_counts(evidence.labels[~held], evidence.predicted[~held], c)
         predicted = evidence.predicted[held]
         t = np.broadcast_to(evidence.labels[held][:, None], predicted.shape).ravel()
         x = np.broadcast_to(np.arange(predicted.shape[1])[None], predicted.shape).ravel()
-        folds.append((counts, _confusion_rows(counts, pseudo_count), (t, x, predicted.ravel())))
+        rows = {b: _confusion_rows(counts, pseudo_count, b) for b in class_priors}
+        folds.append((counts, rows, (t, x, predicted.ravel())))
     outcomes = sum(idx[0].size for _, _, idx in folds)
     by_shape: dict[tuple[float, float], list[int]] = {}
     for i, k in enumerate(grid):
@@ -341,11 +371,13 @@ def choose_transfer_kernel(evidence: Evidence, similarity: np.ndarray, direction
     for (power, bandwidth), which in by_shape.items():
         weights = _transfer_weights(similarity, angle, power, bandwidth)
         priors = np.array([grid[i].prior for i in which])[:, None]  # (K, 1)
+        shrink = [grid[i].class_prior for i in which]
         total = np.zeros(len(which))
-        for counts, row, (t, x, o) in folds:
+        for counts, rows, (t, x, o) in folds:
             smoothed = weights @ counts  # (C, V, O)
             seen = smoothed.sum(axis=2)[t, x]
-            p = (smoothed[t, x, o] + priors * row[t, o]) / (seen + priors)  # (K, M)
+            row = np.stack([rows[b][t, o] for b in shrink])  # (K, M)
+            p = (smoothed[t, x, o] + priors * row) / (seen + priors)  # (K, M)
             total += np.log(np.maximum(p, 1e-300)).sum(axis=1)
         log_likelihood[which] = total / outcomes
     table = [{**k.to_dict(), "held_out_log_likelihood": float(ll)}
@@ -444,16 +476,110 @@ def validation_quality(evidence: Evidence,
     return rows
 
 
-def choose_ra_variant(validation: list[dict[str, float | str]], configured: str) -> str:
-    """The configured variant, or with ``auto`` the RA variant of best held-out log-likelihood
-    (the paper's when there is nothing to validate on)."""
+ROBUST_RA_VARIANT = "class"
+"""The RA variant ``auto`` falls back to when the held-out evidence is too small to choose, and
+keeps while the best variant is not better by more than one standard error: per-class
+intercepts (each class's held-out accuracy, the effect that dominates and is always estimable)
+and one shared saliency slope b ≥ 0 (b = 0 is the black box's diagonal). Chosen a priori, on
+its number of free parameters, not on any measurement."""
+MIN_HELD_OUT_OBJECTS = 2
+"""Held-out objects every class needs for ``auto`` to choose: with fewer, some class's variants
+would be compared on one object or none (docs/awareness.md §4.4)."""
+
+
+def held_out_object_log_likelihoods(
+        evidence: Evidence, folds: list[tuple[np.ndarray, dict[str, ObservationModel]]]
+) -> dict[str, np.ndarray]:
+    """Every model's mean log-likelihood of each held-out object's labels (N,), the object
+    scored by the models fitted without its group; NaN for rows no fold holds out."""
+    names = [n for n in (folds[0][1] if folds else {}) if all(n in m for _, m in folds)]
+    out = {name: np.full(len(evidence.labels), np.nan) for name in names}
+    for held, models in folds:
+        part = evidence.subset(held)
+        for name in names:
+            observed, _ = observed_probabilities(models[name].probabilities, part.labels,
+                                                 part.predicted)
+            out[name][held] = np.log(np.maximum(observed, 1e-300)).mean(axis=1)
+    return out
+
+
+@dataclass
+class VariantChoice:
+    """RA-POMDP's model and why: ``rule`` is ``configured``, ``best`` (the best held-out
+    log-likelihood, better than the robust default by more than one standard error),
+    ``one standard error`` (the robust default, within one standard error of the best) or
+    ``too little evidence`` (the robust default: fewer than :data:`MIN_HELD_OUT_OBJECTS`
+    held-out objects in some class); ``held_out``: per RA variant its mean held-out
+    log-likelihood per object and the standard error of its paired difference to the best;
+    ``objects_per_class``: the held-out objects each class had."""
+
+    variant: str
+    rule: str
+    reason: str
+    best: str | None = None
+    held_out: dict[str, dict[str, float]] = field(default_factory=dict)
+    objects_per_class: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def too_little_evidence(self) -> bool:
+        return self.rule == "too little evidence"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"variant": self.variant, "rule": self.rule, "reason": self.reason,
+                "best": self.best, "too_little_evidence": self.too_little_evidence,
+                "robust_default": ROBUST_RA_VARIANT,
+                "min_held_out_objects": MIN_HELD_OUT_OBJECTS, "held_out": self.held_out,
+                "objects_per_class": self.objects_per_class}
+
+
+def choose_ra_variant(evidence: Evidence,
+                      folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
+                      configured: str, classes: Sequence[str]) -> VariantChoice:
+    """RA-POMDP's model: the configured variant, or with ``auto`` the one the held-out objects
+    support, knowing how little they may tell. Too little evidence — some class with fewer
+    than :data:`MIN_HELD_OUT_OBJECTS` held-out objects (no folds: none) — gives the robust
+    default :data:`ROBUST_RA_VARIANT`, and says so. Otherwise the one-standard-error rule over
+    held-out objects: the variant of best mean held-out log-likelihood per object, unless the
+    robust default's paired difference to it (per object, each scored by the models fitted
+    without its group) is within one standard error, in which case the robust default."""
     if configured != "auto":
-        return configured
-    ra = [r for r in validation if str(r["model"]).startswith("ra_")]
-    if not ra:
-        return "paper"
-    best = max(ra, key=lambda r: float(r["log_likelihood"]))
-    return str(best["model"]).removeprefix("ra_")
+        return VariantChoice(configured, "configured", f"observe.ra_model is '{configured}'")
+    per_object = held_out_object_log_likelihoods(evidence, folds)
+    covered = np.zeros(len(evidence.labels), dtype=bool)
+    for held, _ in folds:
+        covered |= held
+    counts = np.bincount(evidence.labels[covered], minlength=len(classes))
+    objects = {name: int(n) for name, n in zip(classes, counts, strict=True)}
+    ra = {name.removeprefix("ra_"): ll for name, ll in per_object.items()
+          if name.startswith("ra_")}
+    if counts.min() < MIN_HELD_OUT_OBJECTS or ROBUST_RA_VARIANT not in ra:
+        short = [f"'{name}' ({n})" for name, n in objects.items() if n < MIN_HELD_OUT_OBJECTS]
+        reason = (f"too little held-out evidence to choose: class {', '.join(short[:5])}"
+                  f"{' and more' if len(short) > 5 else ''} has fewer than "
+                  f"{MIN_HELD_OUT_OBJECTS} held-out objects; the robust default "
+                  f"'{ROBUST_RA_VARIANT}'")
+        return VariantChoice(ROBUST_RA_VARIANT, "too little evidence", reason, None, {}, objects)
+    means = {name: float(np.nanmean(ll)) for name, ll in ra.items()}
+    best = max(means, key=means.__getitem__)
+    table = {}
+    for name, ll in ra.items():
+        d = (ll - ra[best])[covered]
+        se = float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
+        table[name] = {"mean_log_likelihood": means[name], "difference_to_best": float(d.mean()),
+                       "standard_error": se}
+    robust = table[ROBUST_RA_VARIANT]
+    if best == ROBUST_RA_VARIANT or robust["difference_to_best"] >= -robust["standard_error"]:
+        rule = "best" if best == ROBUST_RA_VARIANT else "one standard error"
+        reason = (f"'{ROBUST_RA_VARIANT}' is the best held out" if best == ROBUST_RA_VARIANT
+                  else f"'{best}' is the best held out, but the robust default "
+                       f"'{ROBUST_RA_VARIANT}' is within one standard error of it "
+                       f"({robust['difference_to_best']:+.4f} ± {robust['standard_error']:.4f}"
+                       f" per object over {int(covered.sum())} held-out objects)")
+        return VariantChoice(ROBUST_RA_VARIANT, rule, reason, best, table, objects)
+    reason = (f"'{best}' is better held out than the robust default '{ROBUST_RA_VARIANT}' by "
+              f"{-robust['difference_to_best']:.4f} per object, more than one standard error "
+              f"({robust['standard_error']:.4f}) over {int(covered.sum())} held-out objects")
+    return VariantChoice(best, "best", reason, best, table, objects)
 
 
 def choose_belief_correction(report: dict[str, float], configured: str) -> str:

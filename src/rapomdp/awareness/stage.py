@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from rich.console import Console
 
 from rapomdp.awareness.artefacts import (
     CALIBRATION_FIGURE,
@@ -48,6 +49,7 @@ from rapomdp.awareness.artefacts import (
     VALIDATION_CSV,
     VALIDATION_MD,
     VOLUME_FILE,
+    crossfit_epochs,
     saliency_map_file,
     volume_file,
 )
@@ -56,6 +58,7 @@ from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
     Evidence,
     TransferKernel,
+    VariantChoice,
     choose_belief_correction,
     choose_ra_variant,
     choose_transfer_kernel,
@@ -315,6 +318,7 @@ class Observation:
     transfer_kernel: TransferKernel = DEFAULT_TRANSFER_KERNEL
     transfer_kernel_grid: list[dict[str, float]] = field(default_factory=list)
     nuisance: dict[str, dict[str, float | int]] = field(default_factory=dict)
+    ra_choice: VariantChoice | None = None
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -395,7 +399,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     kernel_s = time.perf_counter() - kernel_start
     folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
     validation = validation_quality(evidence, folds)
-    variant = choose_ra_variant(validation, cfg.ra_model)
+    choice = choose_ra_variant(evidence, folds, cfg.ra_model, classes)
+    variant = choice.variant
     if variant == "contrastive" and not cfg.contrastive:
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
     if variant == "viewpoint" and len(np.unique(evidence.groups)) < 2:
@@ -473,7 +478,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                        {"scores_s": scores_s, "observation_models_s": models_s,
                         "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
                        softmax_t, kernel, kernel_grid,
-                       {name: nm.to_dict() for name, nm in nuisance.items()})
+                       {name: nm.to_dict() for name, nm in nuisance.items()}, choice)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -566,7 +571,9 @@ def run_crossfit_stage(config: Config, inputs: StageInputs, out: Path,
     correct = result.predicted == result.labels[:, None]
     write_json_atomic(out / "crossfit.json", {
         "folds": config.observe.crossfit_folds if len(result.labels) else 0,
-        "epochs": config.observe.crossfit_epochs, "models": len(result.labels),
+        "epochs": crossfit_epochs(config),
+        "recipe": "full" if crossfit_epochs(config) == config.train.epochs else "short",
+        "models": len(result.labels),
         "held_out_accuracy": float(correct.mean()) if correct.size else None,
         "seconds": time.perf_counter() - start,
     })
@@ -614,6 +621,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
     correct = ev.correct
     write_json_atomic(out / CALIBRATION_FILE, {
         "ra_model": result.ra_variant, "ra_model_configured": config.observe.ra_model,
+        **({"ra_model_choice": result.ra_choice.to_dict()} if result.ra_choice else {}),
         **result.calibration.to_dict(),
         "variants": {name: m.calibration.to_dict()  # type: ignore[attr-defined]
                      for name, m in result.single_view.items() if name.startswith("ra_")},
@@ -638,3 +646,6 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                        out / CALIBRATION_FIGURE, predicted=p_correct.T[ev.labels],
                        variant=result.ra_variant)
     write_json_atomic(out / TIMING_FILE, result.seconds)
+    if result.ra_choice is not None and result.ra_choice.too_little_evidence:
+        Console(stderr=True).print(f"observe: {result.ra_choice.reason}", highlight=False,
+                                   soft_wrap=True)

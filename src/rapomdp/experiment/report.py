@@ -483,6 +483,11 @@ def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
         why = (f"as configured (`observe.ra_model: {choice.configured}`)"
                + ("; the held-out validation below shows how the variants compare"
                   if validation else ""))
+    elif choice.reason:
+        why = (f"chosen by `observe.ra_model: auto` ({choice.rule}): {choice.reason} (each "
+               "held-out object scored by the variants fitted without its group: the k-th "
+               "volume model of every class is group k, each cross-fitting fold one more; the "
+               "test models play no part)")
     elif validation:
         why = ("chosen by `observe.ra_model: auto` as the RA variant of best held-out "
                "log-likelihood in the validation below: each group of the held-out evidence "

@@ -40,7 +40,7 @@ def class_marginal(belief: np.ndarray, n_classes: int | None = None) -> np.ndarr
     if b.shape[-1] % n_classes:
         raise ValueError(f"a belief over {b.shape[-1]} states is no whole number of types of "
                          f"{n_classes} classes")
-    return b.reshape(*b.shape[:-1], -1, n_classes).sum(axis=-2)
+    return b.reshape(*b.shape[:-1], b.shape[-1] // n_classes, n_classes).sum(axis=-2)
 
 
 def declare_values(belief: np.ndarray, lambda_: float,

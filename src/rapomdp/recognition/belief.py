@@ -134,7 +134,9 @@ def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model
         cumulative = cumulative + log_prior[row_model[walk_row]][:, None, :]
     n_classes = models[0].shape[2]
     if cumulative.shape[2] != n_classes:  # typed: the class marginal over instance types
-        cumulative = logsumexp(cumulative.reshape(*cumulative.shape[:2], -1, n_classes), axis=2)
+        types = cumulative.shape[2] // n_classes
+        cumulative = logsumexp(cumulative.reshape(*cumulative.shape[:2], types, n_classes),
+                               axis=2)
     cumulative -= cumulative.max(axis=2, keepdims=True)
     return cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
 
