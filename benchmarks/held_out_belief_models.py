@@ -3,8 +3,8 @@
 
 For every belief variant (``observe.belief`` x ``observe.belief_correction``) the models are
 fitted per volume group on the other groups, as the observe stage fits them (the nuisance's EM
-included), the correction's temperature is fitted on the observe stage's held-out walks, and
-three things are measured:
+included), the correction's temperature (or the similarity belief's view discount) is fitted on
+the observe stage's held-out walks, and two things are measured:
 
 * **walks**: the observe stage's held-out random walks (16 a model, 6 neighbouring views):
   the mean log loss of the belief in the true class over every step, and after steps 1, 3 and
@@ -13,12 +13,10 @@ three things are measured:
   and Random (the ``evaluate.random`` walk with the Classifier model) from ``--starts`` seeded
   starts per held-out model on its recorded labels: accuracy, energy, confidence − accuracy,
   ECE, and each variant's paired accuracy difference against the first with a cluster-bootstrap
-  interval over held-out models;
-* **choice** (``--choice``): the held-out table of the RA variants per held-out object and
-  the choice rule's verdict (:func:`rapomdp.awareness.evidence.choose_ra_variant_robust`).
+  interval over held-out models.
 
     python benchmarks/held_out_belief_models.py -w W [--variants naive:temperature
-        nuisance:none ...] [--lambda 8] [--starts 4] [--no-loop] [--choice] [--save F]
+        nuisance:none similarity:fit ...] [--lambda 8] [--starts 4] [--no-loop] [--save F]
 """
 
 from __future__ import annotations
@@ -34,6 +32,8 @@ from rapomdp.awareness.evidence import (
     RecordedObservation,
     fit_observation_models,
     held_out_temperatures,
+    held_out_view_discounts,
+    view_similarity_kernel,
 )
 from rapomdp.awareness.nuisance import nuisance_belief_models
 from rapomdp.awareness.observation import ObservationModel
@@ -49,6 +49,7 @@ from rapomdp.recognition.belief import (
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
     TEMPERATURE_WALKS_PER_ROW,
+    discounted_walk_log_beliefs,
     expected_calibration_error,
     fold_of_rows,
     held_out_groups,
@@ -88,17 +89,21 @@ def belief_folds(recorded: RecordedObservation, config, belief: str, names: list
             for f in per_fold]
 
 
-def walk_table(recorded, folds, temperatures, row_model, walks, walk_row):
+def walk_table(recorded, folds, temperatures, row_model, walks, walk_row, discounts, kernel):
     """Per model: the walk log loss and, after each of :data:`STEPS`, accuracy, confidence −
-    accuracy and ECE (the beliefs with each model's temperature)."""
+    accuracy and ECE (the beliefs with each model's temperature, or its view discount)."""
     evidence = recorded.evidence
     true = evidence.labels[walk_row]
     out = {}
     for name in folds[0]:
         models = [f[name].probabilities for f in folds]
         priors = ([f[name].prior for f in folds] if folds[0][name].prior is not None else None)
-        log_b = walk_log_beliefs(temperatures[name], models, row_model, evidence.predicted,
-                                 walks, walk_row, priors=priors)
+        if name in discounts:
+            log_b = discounted_walk_log_beliefs(discounts[name], kernel, models, row_model,
+                                                evidence.predicted, walks, walk_row, priors)
+        else:
+            log_b = walk_log_beliefs(temperatures[name], models, row_model,
+                                     evidence.predicted, walks, walk_row, priors=priors)
         row = {"log_loss": float(-np.mean(log_b[np.arange(len(walks)), :, true]))}
         for step in STEPS:
             b = np.exp(log_b[:, step - 1])
@@ -111,7 +116,7 @@ def walk_table(recorded, folds, temperatures, row_model, walks, walk_row):
 
 
 def closed_loop(recorded, config, folds, masks, temperatures, motion, lam, starts, seconds,
-                lookahead):
+                lookahead, discounts, kernel):
     """RA-POMDP and Random on every held-out model (its group's fold models): per method the
     episodes' (correct, energy, confidence, held-out model id)."""
     evidence = recorded.evidence
@@ -125,10 +130,14 @@ def closed_loop(recorded, config, folds, masks, temperatures, motion, lam, start
             key = cfg.random.observation_model if method == "random" else "ra"
             model = temper(models[key].probabilities, temperatures[key])
             prior = models[key].prior
+            # with a view discount: the updates from the single-view model, tempered per view
+            extra = ({"discount": discounts[key], "similarity": kernel,
+                      "first_view_model": models[key].probabilities}
+                     if key in discounts else {})
             if method == "random":
                 policy = RandomWalkPolicy(model, motion.distance_m, motion.reachable,
                                           cfg.random.neighbours, cfg.random.belief_threshold,
-                                          cfg.random.max_moves, prior=prior)
+                                          cfg.random.max_moves, prior=prior, **extra)
             else:
                 problem = build_active_recognition_problem(
                     model, motion.energy, motion.reachable, lam, config.solve.discount, start,
@@ -136,7 +145,8 @@ def closed_loop(recorded, config, folds, masks, temperatures, motion, lam, start
                 solved = solve_active_recognition(problem, config.solve.precision, seconds,
                                                   max_iterations=config.solve.iterations)
                 policy = POMDPPolicy(solved.policy, model, "ra", prior=prior,
-                                     lookahead_over=motion.reachable if lookahead else None)
+                                     lookahead_over=motion.reachable if lookahead else None,
+                                     **extra)
             for r in range(len(part.labels)):
                 rng = class_seed(config.seed, f"held-out/{fold}/{r}")
                 for s in rng.choice(np.flatnonzero(motion.reachable), starts, replace=False):
@@ -157,8 +167,9 @@ def main() -> None:
     parser.add_argument("--variants", nargs="+",
                         default=["naive:temperature", "naive:none", "nuisance:none",
                                  "nuisance:temperature"],
-                        help="BELIEF:CORRECTION pairs (belief naive|nuisance, correction "
-                             "none|temperature); the first is the paired reference")
+                        help="BELIEF:CORRECTION pairs (belief naive|nuisance|similarity, "
+                             "correction none|temperature; similarity:fit fits its view "
+                             "discount instead); the first is the paired reference")
     parser.add_argument("--lambda", dest="lam", type=float, default=8.0)
     parser.add_argument("--starts", type=int, default=4)
     parser.add_argument("--seconds", type=float, default=120.0, help="solver CPU budget each")
@@ -183,6 +194,8 @@ def main() -> None:
         row_model, directions, class_seed(config.seed, "observe/temperature"),
         TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS)
     motion = Motion.from_robot(load_robot(ws.require("robot")))
+    kernel = view_similarity_kernel(recorded.scores["similarity"], directions,
+                                    recorded.transfer_kernel)
     variant = recorded.variant
     names = list(dict.fromkeys([variant, config.evaluate.random.observation_model]))
     lookahead = config.evaluate.lookahead
@@ -195,9 +208,16 @@ def main() -> None:
     for spec in args.variants:
         belief, correction = spec.split(":")
         began = time.perf_counter()
-        folds = belief_folds(recorded, config, belief, names, masks)
+        folds = belief_folds(recorded, config, "naive" if belief == "similarity" else belief,
+                             names, masks)
         paired = [(mask, f) for mask, f in zip(masks, folds, strict=True)]
-        if correction == "none":
+        discounts: dict = {}
+        if belief == "similarity":  # the observe stage's fit: discount and stand-in
+            discounts, temperatures = held_out_view_discounts(
+                evidence, paired, directions, kernel, TEMPERATURE_WALK_LENGTH,
+                TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+                class_seed(config.seed, "observe/temperature"))
+        elif correction == "none":
             temperatures = dict.fromkeys(names, 1.0)
         else:
             temperatures, _ = held_out_temperatures(
@@ -205,14 +225,20 @@ def main() -> None:
                 TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
                 class_seed(config.seed, "observe/temperature"))
         folds = [{("ra" if n == variant else n): m for n, m in f.items()} for f in folds]
-        if variant in temperatures:
-            temperatures["ra"] = temperatures[variant]
+        for table in (temperatures, discounts):
+            if variant in table:
+                table["ra"] = table[variant]
         walk_rows[spec] = walk_table(recorded, folds, temperatures, row_model, walks,
-                                     walk_row)
+                                     walk_row, discounts, kernel)
         walk_rows[spec]["_t"] = {n: temperatures[n] for n in folds[0]}
+        for name, d in discounts.items():
+            if name in folds[0]:
+                print(f"{spec}: {name} view discount scale {d.scale:.3f}, redundancy "
+                      f"{d.redundancy:.3f}; the planner's stand-in t = {temperatures[name]:.3f}")
         if args.loop:
             loops[spec] = closed_loop(recorded, config, folds, masks, temperatures, motion,
-                                      args.lam, args.starts, args.seconds, lookahead)
+                                      args.lam, args.starts, args.seconds, lookahead,
+                                      discounts, kernel)
         seconds[spec] = time.perf_counter() - began
     print("\nwalks (belief in the true class, log loss over every step; acc / confidence − "
           "accuracy / ECE after steps " + ", ".join(map(str, STEPS)) + ")")

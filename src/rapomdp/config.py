@@ -255,12 +255,14 @@ class ObserveConfig(Section):
                       "viewpoint", "transfer"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")
-    belief: Literal["naive", "nuisance"] = Field(
+    belief: Literal["naive", "nuisance", "similarity"] = Field(
         "naive", description="the belief's model of one object's views: naive (independent "
-        "given the class, Eq. 5) or nuisance (independent given the class and a hidden "
+        "given the class, Eq. 5); nuisance (independent given the class and a hidden "
         "per-object instance type, typical or atypical, fitted by EM over the held-out "
-        "objects: an unusual object's errors repeat over its views); the planner solves the "
-        "same model and a declaration names a class (docs/awareness.md §4.6)")
+        "objects: an unusual object's errors repeat over its views; the planner solves the "
+        "same model and a declaration names a class); similarity (a later view's evidence "
+        "discounted by how alike it is to the views taken, fitted on held-out walks; "
+        "replaces belief_correction) (docs/awareness.md §4.6)")
     belief_correction: Literal["auto", "none", "temperature", "after_first"] = Field(
         "temperature", description="temperature: every model's likelihoods raised to a power "
         "fitted on held-out multi-view walks, so correlated views count less than independent "

@@ -168,6 +168,32 @@ def test_a_pomdp_method_on_a_typed_model_acts_on_its_state_belief() -> None:
         POMDPPolicy(policy, base.observation_model, "untyped")
 
 
+def test_a_discounted_belief_tempers_each_view_by_its_likeness_to_the_views_taken() -> None:
+    from rapomdp.experiment.methods import BayesBelief
+    from rapomdp.recognition.belief import ViewDiscount, temper
+
+    single = np.broadcast_to(np.array([[0.8, 0.2], [0.3, 0.7]]), (3, 2, 2)).copy()
+    similarity = np.array([[1.0, 0.9, 0.0], [0.9, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    discount = ViewDiscount(0.8, 1.0)
+    planner = temper(single, 0.5)
+    belief = BayesBelief(planner, single, discount=discount, similarity=similarity)
+    np.testing.assert_allclose(belief.next_model(), single)  # the first view in full
+    label_0 = np.array([1.0, 0.0])
+    belief.update(0, label_0)
+    np.testing.assert_allclose(belief.belief, [0.8, 0.3] / np.float64(1.1))
+    weights = belief.discount.weights(similarity, belief.visited)
+    np.testing.assert_allclose(weights, [0.02, 0.8 * 0.1, 0.8])  # a taken view: the floor
+    np.testing.assert_allclose(belief.next_model(), temper(single, weights))
+    before = belief.state.copy()
+    belief.update(1, label_0)  # the near twin: barely counts
+    step = temper(single, 0.08)[1, :, 0]
+    np.testing.assert_allclose(belief.state, before * step / (before * step).sum())
+    belief.reset()
+    assert not belief.visited.any()
+    with pytest.raises(ValueError, match=r"similarity \(3, 3\)"):
+        BayesBelief(planner, single, discount=discount)
+
+
 def test_static_belief_is_the_output_temperature_scaled_and_declares_its_argmax() -> None:
     output = np.array([0.5, 0.3, 0.2])
     static = StaticPolicy(softmax_temperature=0.5)

@@ -32,6 +32,10 @@ FIRST_VIEW_PREFIX = "first_view_"
 #: Prefix of a typed model's prior over its hidden states (instance type, class) in
 #: :data:`OBSERVATION_FILE` (``observe.belief: nuisance``; absent: uniform over the classes).
 PRIOR_PREFIX = "prior_"
+#: With ``observe.belief: similarity``: a model's view discount (scale, redundancy) is
+#: ``view_discount_<name>`` and the viewpoints' similarity it reads (V, V) :data:`DISCOUNT_KERNEL`.
+DISCOUNT_PREFIX = "view_discount_"
+DISCOUNT_KERNEL = "view_discount_kernel"
 QUALITY_CSV = "quality.csv"
 QUALITY_MD = "quality.md"
 VALIDATION_CSV = "validation.csv"
@@ -47,6 +51,15 @@ OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
 CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
 #: The self-awareness table's columns: the model's name, then its scores on the test models.
 QUALITY_COLUMNS = ("model", "log_likelihood", "brier", "auc", "mean_p_correct", "accuracy")
+
+
+def load_view_discounts(observe_dir: str | Path) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The observe stage's view discounts: each model's (scale, redundancy) (2,) by name, and
+    the viewpoints' similarity (V, V) they read; empty without ``observe.belief: similarity``."""
+    data = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+    discounts = {name.removeprefix(DISCOUNT_PREFIX): value for name, value in data.items()
+                 if name.startswith(DISCOUNT_PREFIX) and name != DISCOUNT_KERNEL}
+    return discounts, data.get(DISCOUNT_KERNEL, np.zeros((0, 0)))
 
 
 def saliency_map_file(class_name: str, model_id: str) -> Path:

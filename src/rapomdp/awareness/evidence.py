@@ -37,10 +37,13 @@ from rapomdp.config import ObserveConfig
 from rapomdp.geometry.viewsphere import geodesic_distance_matrix
 from rapomdp.io import load_npz, read_json
 from rapomdp.recognition.belief import (
+    ViewDiscount,
     fit_temperature,
+    fit_view_discount,
     fold_of_rows,
     held_out_groups,
     held_out_walks,
+    mean_later_weight,
     walk_calibration,
 )
 from rapomdp.recognition.evaluation import viewpoint_label_counts
@@ -648,6 +651,41 @@ def fit_level(probabilities: np.ndarray, labels: np.ndarray, predicted: np.ndarr
 
 
 # -- the belief's temperature ----------------------------------------------------------------
+
+def view_similarity_kernel(similarity: np.ndarray, directions: np.ndarray,
+                           kernel: TransferKernel) -> np.ndarray:
+    """How alike two viewpoints' evidence is (V, V), 1 on the diagonal: ``ra_transfer``'s
+    kernel K_c(x, x') (seen-saliency similarity ** power x Gaussian in the angle) averaged over
+    the classes — what the view discount (``observe.belief: similarity``) reads."""
+    weights = _transfer_weights(similarity, _angle_deg(directions), kernel.power,
+                                kernel.bandwidth_deg).mean(axis=0)
+    out = np.clip(weights, 0.0, 1.0)
+    np.fill_diagonal(out, 1.0)
+    return out
+
+
+def held_out_view_discounts(evidence: Evidence,
+                            folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
+                            directions: np.ndarray, similarity: np.ndarray, length: int,
+                            starts_per_row: int, neighbours: int, rng: np.random.Generator
+                            ) -> tuple[dict[str, ViewDiscount], dict[str, float]]:
+    """Per model, the view discount fitted on random walks over the held-out groups' outcomes
+    (the walks :func:`held_out_temperatures` draws with the same ``rng``), each group's beliefs
+    updated by the models fitted without it, and the planner's stand-in temperature: the mean
+    weight of the views after the first on those walks."""
+    row_model = fold_of_rows([held for held, _ in folds], len(evidence.labels))
+    walks, walk_row = held_out_walks(row_model, directions, rng, length, starts_per_row,
+                                     neighbours)
+    discounts, stand_ins = {}, {}
+    for name in (n for n in folds[0][1] if all(n in m for _, m in folds)):
+        models = [m[name].probabilities for _, m in folds]
+        priors = ([m[name].prior for _, m in folds]
+                  if all(m[name].prior is not None for _, m in folds) else None)
+        discounts[name] = fit_view_discount(similarity, models, row_model, evidence.labels,
+                                            evidence.predicted, walks, walk_row, priors)
+        stand_ins[name] = mean_later_weight(discounts[name], similarity, walks)
+    return discounts, stand_ins
+
 
 def held_out_temperatures(evidence: Evidence,
                           folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],

@@ -39,6 +39,8 @@ from rich.console import Console
 from rapomdp.awareness.artefacts import (
     CALIBRATION_FIGURE,
     CALIBRATION_FILE,
+    DISCOUNT_KERNEL,
+    DISCOUNT_PREFIX,
     FIRST_VIEW_PREFIX,
     OBSERVATION_FILE,
     PRIOR_PREFIX,
@@ -66,10 +68,12 @@ from rapomdp.awareness.evidence import (
     fit_observation_models,
     fit_softmax_temperature,
     held_out_temperatures,
+    held_out_view_discounts,
     leave_one_group_out,
     salient_view_similarity,
     shift_level,
     validation_quality,
+    view_similarity_kernel,
 )
 from rapomdp.awareness.nuisance import NuisanceModel, nuisance_belief_models
 from rapomdp.awareness.observation import (
@@ -106,6 +110,7 @@ from rapomdp.recognition.belief import (
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
     TEMPERATURE_WALKS_PER_ROW,
+    ViewDiscount,
     temper,
 )
 from rapomdp.recognition.classifier import Classifier, configure_torch
@@ -319,6 +324,8 @@ class Observation:
     transfer_kernel_grid: list[dict[str, float]] = field(default_factory=list)
     nuisance: dict[str, dict[str, float | int]] = field(default_factory=dict)
     ra_choice: VariantChoice | None = None
+    discounts: dict[str, ViewDiscount] = field(default_factory=dict)
+    discount_kernel: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -454,14 +461,31 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                                                      cfg.belief_correction)
         kind = corrections[name]
         temperatures[name] = fits[kind][0][name] if kind != "none" else 1.0
+    discounts: dict[str, ViewDiscount] = {}
+    discount_kernel = np.zeros((0, 0))
+    if cfg.belief == "similarity" and folds:
+        # evidence discounted by how alike a view is to those taken (ra_transfer's kernel),
+        # fitted on the same held-out walks; the planner's model is the memoryless stand-in
+        # tempered by the mean later weight there, the first view counts in full
+        discount_kernel = view_similarity_kernel(scores["similarity"], directions, kernel)
+        discounts, stand_ins = held_out_view_discounts(
+            evidence, folds, directions, discount_kernel, TEMPERATURE_WALK_LENGTH,
+            TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+            class_seed(config.seed, "observe/temperature"))
+        for name, t in stand_ins.items():
+            corrections[name], temperatures[name] = "similarity", t
     corrections["ra"] = corrections.get(f"ra_{variant}", "none")
     temperatures["ra"] = temperatures.get(f"ra_{variant}", 1.0)
+    if f"ra_{variant}" in discounts:
+        discounts["ra"] = discounts[f"ra_{variant}"]
     models: dict[str, ObservationModel] = {
         name: ObservationModel(temper(m.probabilities, temperatures[name]), classes, m.prior)
         for name, m in belief_models.items()}
     # the belief's first update: the single-view model when only later views are discounted
+    # (after_first; with the view discount every update starts from the single-view model)
     first_view: dict[str, ObservationModel] = {
-        name: (belief_models[name] if corrections[name] == "after_first" else models[name])
+        name: (belief_models[name] if corrections[name] in ("after_first", "similarity")
+               else models[name])
         for name in models}
     models_s = time.perf_counter() - start
     test_models = dataset.with_role("test")
@@ -478,7 +502,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                        {"scores_s": scores_s, "observation_models_s": models_s,
                         "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
                        softmax_t, kernel, kernel_grid,
-                       {name: nm.to_dict() for name, nm in nuisance.items()}, choice)
+                       {name: nm.to_dict() for name, nm in nuisance.items()}, choice,
+                       discounts, discount_kernel)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -606,6 +631,9 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
              **{name: m.probabilities for name, m in result.models.items()},
              **{f"{PRIOR_PREFIX}{name}": m.prior for name, m in result.models.items()
                 if m.prior is not None},
+             **({DISCOUNT_KERNEL: result.discount_kernel} if result.discounts else {}),
+             **{f"{DISCOUNT_PREFIX}{name}": d.to_array()
+                for name, d in result.discounts.items()},
              models=np.array(list(result.models)), classes=np.array(dataset.classes),
              temperatures=np.array([result.temperatures[n] for n in result.models]),
              **{f"{FIRST_VIEW_PREFIX}{name}": m.probabilities
@@ -633,6 +661,10 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
         "transfer_kernel": {**result.transfer_kernel.to_dict(),
                             "grid": result.transfer_kernel_grid},
         "belief": config.observe.belief,
+        **({"view_discounts": {name: {"scale": d.scale, "redundancy": d.redundancy,
+                                      "planner_temperature": result.temperatures[name]}
+                               for name, d in result.discounts.items()}}
+           if result.discounts else {}),
         **({"nuisance": result.nuisance} if result.nuisance else {}),
         "evidence": config.observe.evidence,
         "evidence_accuracy": float(correct.mean()),

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import load_softmax_temperature
+from rapomdp.awareness.artefacts import load_softmax_temperature, load_view_discounts
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
@@ -74,6 +74,7 @@ from rapomdp.recognition.artefacts import (
     XrhoProbabilities,
     load_xrho_probabilities,
 )
+from rapomdp.recognition.belief import ViewDiscount
 from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
@@ -130,6 +131,9 @@ class ClosedLoop:
         observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
         first_view = first_view_models(inputs.observe, observation)
         priors = observation_priors(inputs.observe, observation)
+        discount_arrays, discount_kernel = load_view_discounts(inputs.observe)
+        discounts = {name: ViewDiscount(float(d[0]), float(d[1]))
+                     for name, d in discount_arrays.items()}
         cfg = config.evaluate
 
         def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:
@@ -145,7 +149,8 @@ class ClosedLoop:
                 return RandomWalkPolicy(
                     observation[name], motion.distance_m, motion.reachable,
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
-                    METHOD_NAMES[key], first_view_model=first_view[name], prior=priors[name])
+                    METHOD_NAMES[key], first_view_model=first_view[name], prior=priors[name],
+                    discount=discounts.get(name), similarity=discount_kernel)
             path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
@@ -154,7 +159,8 @@ class ClosedLoop:
                                METHOD_NAMES[key], recogniser, cfg.revisit,
                                first_view_model=first_view[key],
                                lookahead_over=motion.reachable if cfg.lookahead else None,
-                               prior=priors[key])
+                               prior=priors[key], discount=discounts.get(key),
+                               similarity=discount_kernel)
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}

@@ -18,7 +18,7 @@ from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
 from rapomdp.planning.rules import class_marginal
-from rapomdp.recognition.belief import temper
+from rapomdp.recognition.belief import ViewDiscount, temper
 
 
 class BayesBelief:
@@ -29,11 +29,17 @@ class BayesBelief:
     class marginal. The first update of an episode uses ``first_view_model`` (default: P
     itself) — the single-view model when the observe stage discounts only the views after the
     first (``observe.belief_correction: after_first``); the planner plans every later update,
-    and plans it with P (and from the same prior)."""
+    and plans it with P (and from the same prior).
+
+    With a ``discount`` (:class:`~rapomdp.recognition.belief.ViewDiscount`, ``observe.belief:
+    similarity``) and the viewpoints' ``similarity`` (V, V), an update uses the first-view
+    model tempered by the weight the discount gives that view after the views already taken
+    (:meth:`next_model`); P is then the solved policy's memoryless stand-in."""
 
     def __init__(self, observation_model: np.ndarray,
                  first_view_model: np.ndarray | None = None,
-                 prior: np.ndarray | None = None) -> None:
+                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
+                 similarity: np.ndarray | None = None) -> None:
         self.observation_model = np.asarray(observation_model, dtype=np.float64)
         self.first_view_model = (self.observation_model if first_view_model is None
                                  else np.asarray(first_view_model, dtype=np.float64))
@@ -48,8 +54,28 @@ class BayesBelief:
                 not np.isclose(self.prior.sum(), 1.0):
             raise ValueError(f"the prior must be a distribution over the model's {n_s} states, "
                              f"got shape {self.prior.shape}")
+        views = self.observation_model.shape[0]
+        if discount is not None and np.shape(similarity) != (views, views):
+            raise ValueError(f"a view discount needs the viewpoints' similarity ({views}, "
+                             f"{views}), got shape {np.shape(similarity)}")
+        self.discount = discount
+        self.similarity = None if similarity is None else np.asarray(similarity, np.float64)
         self.state = self.prior.copy()
         self.updates = 0
+        self.visited = np.zeros(views, dtype=bool)
+
+    def _weights(self) -> np.ndarray:
+        assert self.discount is not None and self.similarity is not None
+        return self.discount.weights(self.similarity, self.visited)
+
+    def next_model(self) -> np.ndarray:
+        """The model (V, S, C) the next update uses at each viewpoint: the first-view model
+        before the first view, then P — or, with a view discount, the first-view model
+        tempered by each viewpoint's weight after the views taken. The lookahead predicts its
+        children with it, so the belief and the next step's choice share one model."""
+        if self.discount is None:
+            return self.first_view_model if self.updates == 0 else self.observation_model
+        return temper(self.first_view_model, self._weights())
 
     @property
     def n_classes(self) -> int:
@@ -63,11 +89,18 @@ class BayesBelief:
     def reset(self) -> None:
         self.state = self.prior.copy()
         self.updates = 0
+        self.visited[:] = False
 
     def update(self, viewpoint: int, output: np.ndarray) -> None:
         label = int(np.argmax(output))
-        model = self.first_view_model if self.updates == 0 else self.observation_model
-        self.state = update_beliefs(model, self.state, viewpoint, label)
+        if self.discount is None:
+            model = self.first_view_model if self.updates == 0 else self.observation_model
+            self.state = update_beliefs(model, self.state, viewpoint, label)
+        else:  # the view's own rows, tempered by its weight (next_model at one viewpoint)
+            row = temper(self.first_view_model[viewpoint:viewpoint + 1],
+                         self._weights()[viewpoint])
+            self.state = update_beliefs(row, self.state, 0, label)
+        self.visited[viewpoint] = True
         self.updates += 1
 
 
@@ -112,7 +145,8 @@ class RandomWalkPolicy:
                  reachable: np.ndarray, neighbours: int = 8, belief_threshold: float = 0.9,
                  max_moves: int = 10, name: str = "Random", recogniser: str = "cnn",
                  first_view_model: np.ndarray | None = None,
-                 prior: np.ndarray | None = None) -> None:
+                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
+                 similarity: np.ndarray | None = None) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
         if max_moves < 0:
@@ -120,7 +154,8 @@ class RandomWalkPolicy:
         self.name, self.recogniser = name, recogniser
         self.neighbours = k_nearest(distance_m, neighbours, allowed=reachable)
         self.belief_threshold, self.max_moves = float(belief_threshold), int(max_moves)
-        self._bayes = BayesBelief(observation_model, first_view_model, prior)
+        self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
+                                  similarity)
         self._visited: set[int] = set()
         self._rng = np.random.default_rng()
 
@@ -164,7 +199,8 @@ class POMDPPolicy:
                  name: str, recogniser: str = "cnn", revisit: bool = False,
                  first_view_model: np.ndarray | None = None,
                  lookahead_over: np.ndarray | None = None,
-                 prior: np.ndarray | None = None) -> None:
+                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
+                 similarity: np.ndarray | None = None) -> None:
         if observation_model.shape[0] != policy.n_viewpoints or \
                 observation_model.shape[1] != policy.n_states or \
                 observation_model.shape[2] != policy.n_classes:
@@ -176,7 +212,8 @@ class POMDPPolicy:
         self.policy = policy
         self.observation_model = observation_model
         self.lookahead_over = lookahead_over
-        self._bayes = BayesBelief(observation_model, first_view_model, prior)
+        self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
+                                  similarity)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
     def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
@@ -194,7 +231,10 @@ class POMDPPolicy:
     def act(self, viewpoint: int) -> ARAction:
         forbidden = None if self.revisit else self._visited
         if self.lookahead_over is not None:
-            return self.policy.lookahead_act(viewpoint, self._bayes.state,
-                                             self.observation_model, self.lookahead_over,
-                                             forbidden)
+            # the children of the next view as the belief will update (a view discount's
+            # weights after the views taken), valued by the solved policy
+            model = (self.observation_model if self._bayes.discount is None
+                     else self._bayes.next_model())
+            return self.policy.lookahead_act(viewpoint, self._bayes.state, model,
+                                             self.lookahead_over, forbidden)
         return self.policy.act(viewpoint, self._bayes.state, forbidden)

@@ -16,6 +16,7 @@ beliefs are then over the states and read as their class marginal, as the closed
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -57,16 +58,61 @@ def expected_calibration_error(confidence: np.ndarray, correct: np.ndarray,
 
 # -- the belief's temperature ----------------------------------------------------------------
 
-def temper(probabilities: np.ndarray, temperature: float) -> np.ndarray:
+def temper(probabilities: np.ndarray, temperature: float | np.ndarray) -> np.ndarray:
     """P(o | c, x) ** t, renormalised over o: a model whose evidence counts ``t`` times a
-    naive-Bayes update's (t < 1: correlated views count less). t = 1 returns the model."""
+    naive-Bayes update's (t < 1: correlated views count less). t = 1 returns the model; an
+    array t (V,) tempers each viewpoint's rows by its own."""
     p = np.asarray(probabilities, dtype=np.float64)
-    if temperature == 1.0:
+    t = np.asarray(temperature, dtype=np.float64)
+    if t.ndim == 0 and float(t) == 1.0:
         return p.copy()
-    log_p = temperature * np.log(np.maximum(p, 1e-300))
+    if t.ndim:
+        t = t.reshape(-1, *([1] * (p.ndim - 1)))
+    log_p = t * np.log(np.maximum(p, 1e-300))
     log_p -= log_p.max(axis=2, keepdims=True)
     out = np.exp(log_p)
     return out / out.sum(axis=2, keepdims=True)
+
+
+DISCOUNT_BOUNDS = ((0.05, 2.0), (0.0, 1.0))
+"""The intervals the view discount's scale and redundancy are searched in."""
+MIN_VIEW_WEIGHT = 0.02
+"""A later view's evidence weight never falls below this (no view is worth nothing)."""
+
+
+@dataclass(frozen=True)
+class ViewDiscount:
+    """Evidence discounted by how alike a view is to those already taken
+    (``observe.belief: similarity``): the first view of an episode counts in full, a later view
+    x with weight ``scale`` · (1 − ``redundancy`` · max over the views x' already taken of
+    K(x, x')), K a similarity of viewpoints (1 on the diagonal; the observe stage's is
+    ``ra_transfer``'s kernel: seen saliency and angle). Its update is Eq. 5 with P(o | c, x)
+    tempered by that weight (:func:`temper`), so the belief depends on which views were taken,
+    not only on their labels."""
+
+    scale: float
+    redundancy: float
+
+    def weights(self, similarity: np.ndarray, visited: np.ndarray) -> np.ndarray:
+        """The weight (V,) the next view would have at every viewpoint after ``visited``
+        (V,) bool: 1 everywhere before the first view."""
+        visited = np.asarray(visited, dtype=bool)
+        if not visited.any():
+            return np.ones(similarity.shape[0])
+        near = np.asarray(similarity)[:, visited].max(axis=1)
+        return np.maximum(self.scale * (1.0 - self.redundancy * near), MIN_VIEW_WEIGHT)
+
+    def walk_weights(self, similarity: np.ndarray, walks: np.ndarray) -> np.ndarray:
+        """Every step's weight (E, L) along ``walks`` (E, L) of viewpoints."""
+        out = np.ones(walks.shape)
+        for t in range(1, walks.shape[1]):
+            near = np.asarray(similarity)[walks[:, t][:, None], walks[:, :t]].max(axis=1)
+            out[:, t] = np.maximum(self.scale * (1.0 - self.redundancy * near),
+                                   MIN_VIEW_WEIGHT)
+        return out
+
+    def to_array(self) -> np.ndarray:
+        return np.array([self.scale, self.redundancy])
 
 
 def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighbours: int,
@@ -166,6 +212,85 @@ def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels:
                                    first_temperature, priors),
                              options={"xatol": 1e-3})
     return float(result.x)
+
+
+def discounted_walk_log_beliefs(discount: ViewDiscount, similarity: np.ndarray,
+                                models: Sequence[np.ndarray], row_model: np.ndarray,
+                                predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
+                                priors: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """Log class beliefs (E, L, C) after every step of every walk under the view discount:
+    step t's likelihood is P(o | s, x_t) tempered by its weight (:meth:`ViewDiscount.
+    walk_weights`); otherwise as :func:`walk_log_beliefs` (the models, priors and the rule that
+    a viewpoint a walk stays on adds nothing)."""
+    weights = discount.walk_weights(similarity, walks)  # (E, L)
+    return _weighted_walk_log_beliefs(weights, models, row_model, predicted, walks, walk_row,
+                                      priors)
+
+
+def _weighted_walk_log_beliefs(weights: np.ndarray, models: Sequence[np.ndarray],
+                               row_model: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
+                               walk_row: np.ndarray,
+                               priors: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """:func:`discounted_walk_log_beliefs` for given step weights (E, L)."""
+    n_s, n_c = models[0].shape[1], models[0].shape[2]
+    steps = np.zeros(walks.shape + (n_s,))
+    walk_model = row_model[walk_row]
+    for m, p in enumerate(models):
+        rows = np.flatnonzero(walk_model == m)
+        if rows.size == 0:
+            continue
+        log_p = np.log(np.maximum(p, 1e-300))[walks[rows]]  # (R, L, S, O)
+        w = weights[rows][..., None, None]
+        z = w * log_p
+        log_norm = np.log(np.exp(z - z.max(axis=3, keepdims=True)).sum(axis=3)) + z.max(axis=3)
+        label = predicted[walk_row[rows][:, None], walks[rows]]  # (R, L)
+        observed = np.take_along_axis(z, label[:, :, None, None], axis=3)[..., 0]
+        steps[rows] = observed - log_norm  # (R, L, S)
+    repeat = np.zeros(walks.shape, dtype=bool)
+    repeat[:, 1:] = walks[:, 1:] == walks[:, :-1]
+    steps = np.where(repeat[..., None], 0.0, steps)
+    cumulative = np.cumsum(steps, axis=1)
+    if priors is not None:
+        log_prior = np.log(np.maximum(np.stack([np.asarray(q, dtype=np.float64)
+                                                for q in priors]), 1e-300))
+        cumulative = cumulative + log_prior[walk_model][:, None, :]
+    if n_s != n_c:
+        cumulative = logsumexp(cumulative.reshape(*cumulative.shape[:2], n_s // n_c, n_c),
+                               axis=2)
+    cumulative -= cumulative.max(axis=2, keepdims=True)
+    return cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
+
+
+def fit_view_discount(similarity: np.ndarray, models: Sequence[np.ndarray],
+                      row_model: np.ndarray, labels: np.ndarray, predicted: np.ndarray,
+                      walks: np.ndarray, walk_row: np.ndarray,
+                      priors: Sequence[np.ndarray] | None = None) -> ViewDiscount:
+    """The :class:`ViewDiscount` of least mean −log belief in the true class after every step
+    of the held-out walks (bounded search over scale and redundancy, from naive Bayes: 1, 0).
+    Independent evidence drawn from the model gives ~(1, 0)."""
+    from scipy.optimize import minimize
+
+    true = labels[walk_row]
+    rows = np.arange(len(walks))
+
+    def loss(x: np.ndarray) -> float:
+        log_b = discounted_walk_log_beliefs(ViewDiscount(float(x[0]), float(x[1])), similarity,
+                                            models, row_model, predicted, walks, walk_row,
+                                            priors)
+        return float(-np.mean(log_b[rows, :, true]))
+
+    result = minimize(loss, np.array([1.0, 0.0]), method="L-BFGS-B", bounds=DISCOUNT_BOUNDS,
+                      options={"eps": 1e-4})
+    return ViewDiscount(float(result.x[0]), float(result.x[1]))
+
+
+def mean_later_weight(discount: ViewDiscount, similarity: np.ndarray,
+                      walks: np.ndarray) -> float:
+    """The mean weight of the views after the first along ``walks``: the one temperature the
+    planner's memoryless model stands in for the discount with."""
+    weights = discount.walk_weights(similarity, walks)[:, 1:]
+    moved = walks[:, 1:] != walks[:, :-1]
+    return float(weights[moved].mean()) if moved.any() else 1.0
 
 
 # -- held out: the folds, their walks and the calibration of the beliefs on them -------------
