@@ -17,6 +17,7 @@ the observe stage's held-out walks, and two things are measured:
 
     python benchmarks/held_out_belief_models.py -w W [--variants naive:temperature
         nuisance:none similarity:fit ...] [--lambda 8] [--starts 4] [--no-loop] [--save F]
+    python benchmarks/held_out_belief_models.py --load A.npz B.npz   # the saved loops, paired
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
 from rapomdp.experiment.metrics import cluster_bootstrap_difference
-from rapomdp.io import save_npz
+from rapomdp.io import load_npz, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
@@ -163,7 +164,7 @@ def closed_loop(recorded, config, folds, masks, temperatures, motion, lam, start
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--workspace", "-w", type=Path, required=True)
+    parser.add_argument("--workspace", "-w", type=Path, default=None)
     parser.add_argument("--variants", nargs="+",
                         default=["naive:temperature", "naive:none", "nuisance:none",
                                  "nuisance:temperature"],
@@ -177,7 +178,24 @@ def main() -> None:
                         help="run the held-out closed loop (--no-loop: the walks only)")
     parser.add_argument("--save", type=Path, default=None,
                         help="write the closed-loop episodes per variant and method (.npz)")
+    parser.add_argument("--reference", default=None, metavar="FILE.npz:VARIANT",
+                        help="pair against VARIANT's episodes saved by an earlier run (--save; "
+                             "the same workspace's held-out models and starts) instead of the "
+                             "first variant of this run")
+    parser.add_argument("--load", type=Path, nargs="+", default=None,
+                        help="print the closed-loop table of runs saved with --save (nothing "
+                             "is fitted or run); the first variant loaded is the reference")
     args = parser.parse_args()
+    if args.load is not None:
+        loaded: dict[str, dict[str, np.ndarray]] = {}
+        for path in args.load:
+            for key, value in load_npz(path).items():
+                spec, method = key.rsplit("@", 1)
+                loaded.setdefault(spec, {})[method] = value
+        print_loops(loaded, next(iter(loaded)), dict.fromkeys(loaded, float("nan")))
+        return
+    if args.workspace is None:
+        parser.error("--workspace is required (unless --load)")
     ws = Workspace(args.workspace)
     config = ws.config()
     recorded = RecordedObservation.load(ws.require("observe"))
@@ -254,6 +272,22 @@ def main() -> None:
     if not loops:
         return
     reference = args.variants[0]
+    if args.reference is not None:
+        path, reference = args.reference.rsplit(":", 1)
+        saved = load_npz(Path(path))
+        loops[f"{reference} (saved)"] = {m: saved[f"{reference}@{m}"] for m in ("ra", "random")}
+        reference = f"{reference} (saved)"
+        seconds[reference] = float("nan")
+    print_loops(loops, reference, seconds)
+    if args.save is not None:
+        save_npz(args.save, **{f"{spec}@{method}": a for spec, rows in loops.items()
+                               for method, a in rows.items() if not spec.endswith("(saved)")})
+
+
+def print_loops(loops: dict[str, dict[str, np.ndarray]], reference: str,
+                seconds: dict[str, float]) -> None:
+    """The closed-loop table: per variant and method accuracy, energy, confidence − accuracy,
+    ECE and the paired accuracy difference against ``reference``."""
     print(f"\nclosed loop on held-out models (paired: a variant's accuracy − {reference}'s "
           "over the same (held-out model, start) pairs, 95 % interval resampling held-out "
           "models)")
@@ -264,6 +298,8 @@ def main() -> None:
             paired = ""
             if spec != reference:
                 b = loops[reference][method]
+                if b.shape != a.shape or np.any(b[:, 3] != a[:, 3]):
+                    raise SystemExit(f"{spec} and {reference}: not the same held-out episodes")
                 models, cluster = np.unique(a[:, 3], return_inverse=True)
                 est, low, high = cluster_bootstrap_difference(
                     np.bincount(cluster, weights=a[:, 0] - b[:, 0], minlength=models.size),
@@ -273,9 +309,6 @@ def main() -> None:
                   f"{a[:, 2].mean() - a[:, 0].mean():+7.3f} "
                   f"{expected_calibration_error(a[:, 2], a[:, 0]):6.3f} {paired:>28s} "
                   f"{seconds[spec]:8.1f}")
-    if args.save is not None:
-        save_npz(args.save, **{f"{spec}@{method}": a for spec, rows in loops.items()
-                               for method, a in rows.items()})
 
 
 if __name__ == "__main__":

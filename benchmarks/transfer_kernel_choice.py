@@ -34,7 +34,8 @@ from rapomdp.workspace import Workspace
 
 def _name(kernel: TransferKernel | dict[str, float]) -> str:
     k = kernel.to_dict() if isinstance(kernel, TransferKernel) else kernel
-    return f"(power {k['power']:g}, {k['bandwidth_deg']:g}°, prior {k['prior']:g})"
+    return (f"(power {k['power']:g}, {k['bandwidth_deg']:g}°, prior {k['prior']:g}, class prior "
+            f"{k.get('class_prior', 0.0):g})")
 
 
 def _axis(values: list[float]) -> str:
@@ -67,7 +68,7 @@ def main() -> None:
     grid = TRANSFER_KERNEL_GRID
     print(f"grid: power {_axis([k.power for k in grid])} x bandwidth "
           f"{_axis([k.bandwidth_deg for k in grid])}° x prior {_axis([k.prior for k in grid])}"
-          f" ({len(grid)} kernels)")
+          f" x class prior {_axis([k.class_prior for k in grid])} ({len(grid)} kernels)")
 
     seconds = []
     for _ in range(args.repeats):
