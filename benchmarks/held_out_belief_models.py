@@ -191,6 +191,8 @@ def main() -> None:
         for path in args.load:
             for key, value in load_npz(path).items():
                 spec, method = key.rsplit("@", 1)
+                if spec in loaded and method in loaded[spec]:  # the same variant, another run
+                    spec = f"{spec} ({path.stem})"
                 loaded.setdefault(spec, {})[method] = value
         print_loops(loaded, next(iter(loaded)), dict.fromkeys(loaded, float("nan")))
         return
