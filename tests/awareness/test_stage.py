@@ -324,6 +324,7 @@ def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(wor
         "grid": []}  # one group: default
     # one group: too little evidence to choose, said so (here ra_model is configured)
     assert calibration["ra_model_choice"]["rule"] == "configured"
+    assert calibration["ra_model_choice"]["dataset_held_out_groups"] == 1  # one volume model
     run_pipeline(config_from_dict(TINY), workspace, until="observe")  # back to the default
 
 

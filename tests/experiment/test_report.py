@@ -269,17 +269,21 @@ def test_optional_inputs_are_shown_when_present(synthetic, tmp_path: Path) -> No
     choice = {"variant": "class", "rule": "too little evidence",
               "reason": "too little held-out evidence to choose: class 'cup' (1) has fewer "
                         "than 2 held-out objects; the robust default 'class'"}
-    write_json_atomic(ws.root / "observe" / "calibration.json", {"ra_model_choice": choice})
+    write_json_atomic(ws.root / "observe" / "calibration.json",
+                      {**CALIBRATION, "ra_model": "class", "ra_model_choice": choice})
     try:
         _, md = write_report(config, _inputs(ws), tmp_path / "r", fig1=_fake_fig1([]))
     finally:
         (ws.root / "figures" / "fig2.png").unlink()
         (ws.root / "figures" / "fig2.html").unlink()
         (ws.root / "vptree" / "vptree.json").unlink()
-        (ws.root / "observe" / "calibration.json").unlink()
+        write_json_atomic(ws.root / "observe" / "calibration.json", CALIBRATION)
     text = md.read_text()
-    assert ("RA-POMDP's model: ra_class (too little evidence): too little held-out evidence to "
-            "choose: class 'cup' (1) has fewer than 2 held-out objects") in text
+    # the choice says when the held-out evidence was too little, and why
+    assert ("RA-POMDP's observation model (`ra`) is `ra_class`, chosen by `observe.ra_model: "
+            "auto` (too little evidence): too little held-out evidence to choose: class 'cup' "
+            "(1) has fewer than 2 held-out objects; the robust default 'class' (each held-out "
+            "object scored") in text
     assert "![Fig. 2: one class" in text and (tmp_path / "r" / "fig2.png").exists()
     assert "[fig2.html](fig2.html)" in text and (tmp_path / "r" / "fig2.html").exists()
     assert "over X_rho: 0.417." in text and "vptree.json not found" not in text

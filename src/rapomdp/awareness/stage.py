@@ -649,7 +649,11 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
     correct = ev.correct
     write_json_atomic(out / CALIBRATION_FILE, {
         "ra_model": result.ra_variant, "ra_model_configured": config.observe.ra_model,
-        **({"ra_model_choice": result.ra_choice.to_dict()} if result.ra_choice else {}),
+        # the dataset's held_out_groups (the fewest volume models of any class) beside the
+        # choice's own count of held-out objects per class
+        **({"ra_model_choice": {**result.ra_choice.to_dict(),
+                                "dataset_held_out_groups": dataset.held_out_groups}}
+           if result.ra_choice else {}),
         **result.calibration.to_dict(),
         "variants": {name: m.calibration.to_dict()  # type: ignore[attr-defined]
                      for name, m in result.single_view.items() if name.startswith("ra_")},
