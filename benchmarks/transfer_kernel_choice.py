@@ -20,6 +20,7 @@ import numpy as np
 from rapomdp.awareness.artefacts import OBSERVATION_FILE, TIMING_FILE
 from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
+    SHRUNK_TRANSFER_KERNEL_GRID,
     TRANSFER_KERNEL_GRID,
     TransferKernel,
     choose_transfer_kernel,
@@ -46,6 +47,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workspace", "-w", type=Path, required=True)
     parser.add_argument("--repeats", type=int, default=5, help="timed runs of the choice")
+    parser.add_argument("--shrinkage", action="store_true",
+                        help="the grid with the class rows' shrinkage (observe.transfer_shrinkage)")
     parser.add_argument("--pseudo-counts", type=float, nargs="*", default=[],
                         help="also the best held-out log-likelihood over the grid with each of "
                              "these confusion pseudo-counts (observe.confusion_pseudo_count, "
@@ -65,7 +68,7 @@ def main() -> None:
           f"in {np.unique(evidence.groups).size} groups, {views} viewpoints; "
           f"pseudo-count {pseudo_count:g}; OMP_NUM_THREADS="
           f"{os.environ.get('OMP_NUM_THREADS', 'unset')}")
-    grid = TRANSFER_KERNEL_GRID
+    grid = SHRUNK_TRANSFER_KERNEL_GRID if args.shrinkage else TRANSFER_KERNEL_GRID
     print(f"grid: power {_axis([k.power for k in grid])} x bandwidth "
           f"{_axis([k.bandwidth_deg for k in grid])}° x prior {_axis([k.prior for k in grid])}"
           f" x class prior {_axis([k.class_prior for k in grid])} ({len(grid)} kernels)")
@@ -73,7 +76,8 @@ def main() -> None:
     seconds = []
     for _ in range(args.repeats):
         start = time.perf_counter()
-        chosen, table = choose_transfer_kernel(evidence, similarity, directions, pseudo_count)
+        chosen, table = choose_transfer_kernel(evidence, similarity, directions, pseudo_count,
+                                               grid)
         seconds.append(time.perf_counter() - start)
     timing = read_json(observe / TIMING_FILE) if (observe / TIMING_FILE).exists() else {}
     line = (f"choose_transfer_kernel: {statistics.median(seconds):.3f} s (median of "
@@ -94,7 +98,7 @@ def main() -> None:
     print("best five held-out: " + "; ".join(
         f"{_name(r)} {r['held_out_log_likelihood']:.4f}" for r in ranked[:5]))
     for other in args.pseudo_counts:
-        best, rows = choose_transfer_kernel(evidence, similarity, directions, other)
+        best, rows = choose_transfer_kernel(evidence, similarity, directions, other, grid)
         print(f"pseudo-count {other:g}: best {_name(best)}, held-out log-likelihood "
               f"{max(r['held_out_log_likelihood'] for r in rows):.4f}")
     print("test models, reported, not used:")

@@ -255,6 +255,11 @@ class ObserveConfig(Section):
                       "viewpoint", "transfer"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")
+    transfer_shrinkage: bool = Field(
+        False, description="ra_transfer's kernel choice also scores shrinking each class row's "
+        "accuracy toward the accuracy pooled over every class (by 0-64 objects' worth, chosen "
+        "on the same held-out likelihood): better held out per label, not in the held-out "
+        "closed loop (docs/awareness.md §4.2)")
     belief: Literal["naive", "nuisance", "similarity"] = Field(
         "naive", description="the belief's model of one object's views: naive (independent "
         "given the class, Eq. 5); nuisance (independent given the class and a hidden "

@@ -10,6 +10,7 @@ from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
     MIN_HELD_OUT_OBJECTS,
     ROBUST_RA_VARIANT,
+    SHRUNK_TRANSFER_KERNEL_GRID,
     TRANSFER_KERNEL_GRID,
     TRANSFER_PRIOR,
     Evidence,
@@ -261,13 +262,15 @@ def _planted_kernel_evidence(structured: bool, seed: int,
 def test_transfer_kernel_choice_pools_widely_on_viewpoint_free_noise() -> None:
     evidence, similarity, directions = _planted_kernel_evidence(False, 31)
     kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
-    assert (kernel.bandwidth_deg, kernel.prior) == (40.0, 8.0)
-    assert len(table) == len(TRANSFER_KERNEL_GRID) == 4 * 4 * 4 * len(CLASS_PRIOR_GRID)
+    assert (kernel.bandwidth_deg, kernel.prior, kernel.class_prior) == (40.0, 8.0, 0.0)
+    assert len(table) == len(TRANSFER_KERNEL_GRID) == 64
     best = max(r["held_out_log_likelihood"] for r in table)
     narrowest = max(r["held_out_log_likelihood"] for r in table if r["bandwidth_deg"] == 5.0)
     assert narrowest < best
     # the classes' own rates (0.5, 0.7, 0.9) transfer to their next objects: no shrinkage
-    assert kernel.class_prior == 0.0
+    kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0,
+                                           SHRUNK_TRANSFER_KERNEL_GRID)
+    assert len(table) == 64 * len(CLASS_PRIOR_GRID) and kernel.class_prior == 0.0
     shrunk = max(r["held_out_log_likelihood"] for r in table if r["class_prior"] == 64.0)
     assert shrunk < best
 
@@ -277,7 +280,8 @@ def test_the_class_rows_shrink_to_the_pooled_accuracy_when_class_rates_do_not_tr
     """Every object's accuracy is its own (0.2 or 0.95, whatever its class): a class's rate
     counted on other objects misleads, the pooled accuracy does not."""
     evidence, similarity, directions = _planted_kernel_evidence(False, 35, object_rates=True)
-    kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
+    kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0,
+                                           SHRUNK_TRANSFER_KERNEL_GRID)
     assert kernel.class_prior > 0.0
     best = max(r["held_out_log_likelihood"] for r in table)
     unshrunk = max(r["held_out_log_likelihood"] for r in table if r["class_prior"] == 0.0)

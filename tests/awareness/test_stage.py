@@ -82,7 +82,7 @@ def test_observation_models_follow_the_planner_contract(workspace):
     # ra_transfer's kernel: the grid kernel of best held-out log-likelihood, recorded
     chosen = read_json(workspace.root / "observe" / "calibration.json")["transfer_kernel"]
     grid = chosen.pop("grid")
-    assert len(grid) == 320
+    assert len(grid) == 64  # observe.transfer_shrinkage off: the class rows as counted
     best = max(grid, key=lambda r: r["held_out_log_likelihood"])
     assert chosen == {k: best[k] for k in ("power", "bandwidth_deg", "prior", "class_prior")}
     assert read_json(workspace.root / "observe" / "timing.json")["transfer_kernel_s"] >= 0
@@ -214,13 +214,15 @@ def test_the_nuisance_belief_is_the_model_the_solve_stage_plans(workspace, tmp_p
     from rapomdp.planning.policy import ActiveRecognitionPolicy
     from rapomdp.planning.stage import run_solve_stage
 
-    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "belief": "nuisance"},
+    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "belief": "nuisance",
+                                                   "transfer_shrinkage": True},
                                "solve": {"timeout_s": 2.0, "iterations": 3,
                                          "models": ["ra", "classifier"]}})
     run_pipeline(config, workspace, until="observe", context=TEST_CONTEXT)
     data = load_npz(workspace.root / "observe" / "observation_models.npz")
     calibration = read_json(workspace.root / "observe" / "calibration.json")
     assert calibration["belief"] == "nuisance"
+    assert len(calibration["transfer_kernel"]["grid"]) == 320  # with the class rows' shrinkage
     assert set(calibration["nuisance"]) == set(data["models"].tolist()) - {"ra"}
     for name in data["models"].tolist():
         assert data[name].shape == (10, 4, 2)  # (viewpoints, 2 types x 2 classes, labels)

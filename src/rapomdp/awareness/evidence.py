@@ -233,15 +233,24 @@ DEFAULT_TRANSFER_KERNEL = TransferKernel(SALIENT_VIEW_POWER, VIEWPOINT_BANDWIDTH
                                          TRANSFER_PRIOR)
 """The kernel without a choice (one group of evidence): the first generation's constants."""
 CLASS_PRIOR_GRID = (0.0, 1.0, 4.0, 16.0, 64.0)
-"""The shrinkages of the class rows' accuracy toward the pooled one the kernel choice scores
-(objects' worth of views; 0: none)."""
+"""The shrinkages of the class rows' accuracy toward the pooled one the kernel choice scores with
+``observe.transfer_shrinkage`` (objects' worth of views; 0: none)."""
 TRANSFER_KERNEL_GRID: tuple[TransferKernel, ...] = tuple(
-    TransferKernel(power, bandwidth, prior, class_prior)
+    TransferKernel(power, bandwidth, prior)
     for power in (0.0, 2.0, 4.0, 8.0)
     for bandwidth in (5.0, 10.0, 20.0, 40.0)
-    for prior in (1.0, 2.0, 4.0, 8.0)
-    for class_prior in CLASS_PRIOR_GRID)
-"""The 320 kernels :func:`choose_transfer_kernel` scores (the default among them)."""
+    for prior in (1.0, 2.0, 4.0, 8.0))
+"""The 64 kernels :func:`choose_transfer_kernel` scores by default (the default among them)."""
+SHRUNK_TRANSFER_KERNEL_GRID: tuple[TransferKernel, ...] = tuple(
+    TransferKernel(k.power, k.bandwidth_deg, k.prior, class_prior)
+    for k in TRANSFER_KERNEL_GRID for class_prior in CLASS_PRIOR_GRID)
+"""The 320 kernels with ``observe.transfer_shrinkage``: every kernel of
+:data:`TRANSFER_KERNEL_GRID` at every class prior of :data:`CLASS_PRIOR_GRID`."""
+
+
+def transfer_kernel_grid(shrinkage: bool) -> tuple[TransferKernel, ...]:
+    """The grid the kernel choice scores: with the class rows' shrinkage, or without."""
+    return SHRUNK_TRANSFER_KERNEL_GRID if shrinkage else TRANSFER_KERNEL_GRID
 
 
 def recorded_transfer_kernel(calibration: Mapping[str, Any]) -> TransferKernel:

@@ -72,6 +72,7 @@ from rapomdp.awareness.evidence import (
     leave_one_group_out,
     salient_view_similarity,
     shift_level,
+    transfer_kernel_grid,
     validation_quality,
     view_similarity_kernel,
 )
@@ -401,8 +402,9 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     kernel = DEFAULT_TRANSFER_KERNEL
     kernel_grid: list[dict[str, float]] = []
     if "similarity" in scores:  # ra_transfer's kernel, on the same folds (one group: default)
-        kernel, kernel_grid = choose_transfer_kernel(evidence, scores["similarity"], directions,
-                                                     cfg.confusion_pseudo_count)
+        kernel, kernel_grid = choose_transfer_kernel(
+            evidence, scores["similarity"], directions, cfg.confusion_pseudo_count,
+            transfer_kernel_grid(cfg.transfer_shrinkage))
     kernel_s = time.perf_counter() - kernel_start
     folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
     validation = validation_quality(evidence, folds)
