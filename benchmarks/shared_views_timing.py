@@ -5,7 +5,8 @@ after the other in one session, so the ratios compare like with like.
 The copies keep the stages upstream of the X_rho images (dataset, render, train, saliency,
 volume, robot, crossfit) and redo classifier_eval, observe, vptree, solve, evaluate and report
 (and, in a tree that has it, the xrho stage). Solve's code is the same in both trees: its
-ratio is the control for the machine's load.
+ratio is the control for the machine's load; the commands' CPU seconds (user + system of all
+their processes) change least with it.
 
     python benchmarks/shared_views_timing.py --workspace runs/demo \
         --before /path/to/old/src --after src [--threads 2]
@@ -16,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -28,22 +30,27 @@ import numpy as np
 REDONE = ("xrho", "classifier_eval", "observe", "vptree", "solve", "evaluate", "report")
 
 
-def run_tree(src: Path, workspace: Path, threads: int) -> tuple[dict[str, float], float]:
+def run_tree(src: Path, workspace: Path, threads: int
+             ) -> tuple[dict[str, float], float, float]:
     """Redo the stages of :data:`REDONE` in ``workspace`` with the code of ``src``; each
-    stage's own seconds from its record, and the command's wall time."""
+    stage's own seconds from its record, the command's wall time and its CPU seconds (its
+    processes' user + system time: what the load of other programs changes least)."""
     env = {**os.environ, "PYTHONPATH": str(src.resolve()), "OMP_NUM_THREADS": "1"}
     redo = [arg for name in REDONE if name != "xrho" for arg in ("--redo", name)]
     start = time.perf_counter()
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run([sys.executable, "-c", "from rapomdp.cli import main; main()", "run",
                     "-w", str(workspace), "--threads", str(threads), *redo],
                    env=env, check=True, stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - used.ru_utime) + (after.ru_stime - used.ru_stime)
     seconds = {}
     for name in REDONE:
         record = workspace / name / "stage.json"
         if record.is_file():
             seconds[name] = float(json.loads(record.read_text())["seconds"])
-    return seconds, wall
+    return seconds, wall, cpu
 
 
 def compare_episodes(before: Path, after: Path) -> str:
@@ -77,10 +84,12 @@ def main() -> None:
         results = {}
         for label, src in (("before", args.before), ("after", args.after)):
             copy = Path(scratch) / label
-            shutil.copytree(args.workspace, copy, copy_function=os.link)
+            shutil.copytree(args.workspace, copy, copy_function=os.link,
+                            ignore=shutil.ignore_patterns(".lock"))  # its own lock
             results[label] = run_tree(src, copy, args.threads)
         identity = compare_episodes(Path(scratch) / "before", Path(scratch) / "after")
-    (before, wall_before), (after, wall_after) = results["before"], results["after"]
+    (before, wall_before, cpu_before), (after, wall_after, cpu_after) = (results["before"],
+                                                                         results["after"])
     print(f"{'stage':<16}{'before s':>10}{'after s':>10}{'after/before':>14}")
     for name in REDONE:
         b, a = before.get(name), after.get(name)
@@ -92,6 +101,8 @@ def main() -> None:
     print(f"{'total':<16}{total_b:>10.1f}{total_a:>10.1f}{total_a / total_b:>14.2f}")
     print(f"{'command wall':<16}{wall_before:>10.1f}{wall_after:>10.1f}"
           f"{wall_after / wall_before:>14.2f}")
+    print(f"{'command CPU':<16}{cpu_before:>10.1f}{cpu_after:>10.1f}"
+          f"{cpu_after / cpu_before:>14.2f}")
     print(identity)
     try:
         load = os.getloadavg()[0]

@@ -242,6 +242,19 @@ TYPED_FIGURE = re.compile(
     r"|\br\s?=\s?0?\.\d|\b\d+(\.\d+)?\s?(s|min|minutes|seconds|hours?)\b")
 
 
+def test_no_help_text_holds_what_markdown_would_take_for_a_tag() -> None:
+    # typer's markdown mode drops <word>: "S/<configuration>/seed-<seed>" printed as "S//seed-"
+    tag = re.compile(r"<[A-Za-z_][^<>]*>")
+    found = [f"rapomdp {' '.join(path)}: {m.group(0)}"
+             for path, command in _commands()
+             for text in [command.help or ""] + [getattr(p, "help", None) or ""
+                                                 for p in command.params]
+             for m in tag.finditer(text)]
+    assert found == []
+    shown = runner.invoke(app, ["study", "--help"], env={"COLUMNS": "200"}).output
+    assert "S/CONFIGURATION/seed-N" in shown
+
+
 def _config_texts() -> list[tuple[str, str]]:
     """What `rapomdp config` comments with: each section's first paragraph, each key's
     description."""

@@ -594,7 +594,7 @@ def figure_fig2(
 ) -> None:
     """Fig. 2: the target's volume in two-class problems and in the all-class problem.
 
-    Each two-class problem trains its own classifier in W/fig2/<target>-vs-<other>.
+    Each two-class problem trains its own classifier in `W/fig2/TARGET-vs-OTHER`.
     """
     def action() -> tuple[Path, Path]:
         from rapomdp.pipeline import write_fig2
@@ -753,7 +753,7 @@ def report(workspace: WorkspaceOption, config: ConfigOption = None,
 def study(
     folder: Annotated[Path, typer.Option(
         "--study", "-s", help="Study folder: one workspace per configuration and seed "
-                              "(S/<configuration>/seed-<seed>), the report in S/report.")],
+                              "(`S/CONFIGURATION/seed-N`), the report in `S/report`.")],
     config: Annotated[list[Path] | None, typer.Option(
         "--config", "-c", help="A configuration (dataset) of a new study; repeatable, each "
                                "named by its file's stem. Default: the study's study.yaml, "
