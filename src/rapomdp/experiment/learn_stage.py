@@ -1,0 +1,427 @@
+"""The ``learn`` pipeline stage: the learned baseline, trained on held-out evidence only.
+
+When ``evaluate.methods`` lists ``learned``, the stage
+
+1. records the evidence (:class:`~rapomdp.experiment.recorded_env.RecordedEvidence`): the
+   trained classifier's output at every test viewpoint of every *volume* model (rendered as the
+   observe stage renders them, same noise stream), and the cross-fitted training models' labels
+   when the crossfit stage made them. No test model is read (checked by key);
+2. trains one policy per wrong-declaration cost λ (Table 1's ``solve.wrong_declaration_cost_m``
+   and every ``evaluate.lambdas``) with sb3-contrib's MaskablePPO on
+   :class:`~rapomdp.experiment.recorded_env.RecordedRecognitionEnv`, the belief that of
+   ``learn.observation_model``; one task per λ over the worker processes, each seeded on its
+   own;
+3. scores each policy, and Random at each of its stop beliefs, on every (held-out model,
+   reachable start) pair of the recorded evidence through the closed loop's own
+   :func:`~rapomdp.experiment.episode.run_episode` (the recorded outputs as its memo, so
+   nothing is rendered): in-sample figures for the learned policy, which trained on these
+   models, labelled so.
+
+Writes ``W/learn/``: the recorded evidence, ``learned_lambda_<λ>.pt|json`` (state dict and
+architecture; no pickle), ``training_curves.csv|png`` (per update: mean return, accuracy,
+energy) and ``learn.json``. Without ``learned`` in ``evaluate.methods`` it writes only
+``learn.json`` (``"trained": false``) and takes no time.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes
+from rapomdp.config import Config
+from rapomdp.context import RunContext
+from rapomdp.data.dataset import Dataset, load_dataset
+from rapomdp.data.splits import class_seed
+from rapomdp.data.test_views import VOLUME_STREAM, xrho_renders
+from rapomdp.experiment.episode import Motion, Policy, run_episode
+from rapomdp.experiment.learned import (
+    CURVES_CSV,
+    CURVES_FIGURE,
+    LEARN_SUMMARY,
+    LEARNED,
+    LearnedPolicy,
+    PolicyNetwork,
+    PolicySpec,
+    load_learned_policy,
+    save_learned_policy,
+)
+from rapomdp.experiment.methods import RandomWalkPolicy
+from rapomdp.experiment.recorded_env import (
+    RECORDED_FILE,
+    RecordedEvidence,
+    RecordedRecognitionEnv,
+)
+from rapomdp.io import read_json, stable_hash, write_json_atomic, write_text_atomic
+from rapomdp.parallel import run_tasks
+from rapomdp.planning.stage import first_view_models, offered_observation_models
+from rapomdp.progress import progress_bar, track
+from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
+from rapomdp.robot.artefacts import load_robot
+from rapomdp.workspace import StageError, StageInputs
+
+LEARN_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "learn")
+#: The columns of :data:`~rapomdp.experiment.learned.CURVES_CSV`.
+CURVE_COLUMNS = ("lambda", "update", "timesteps", "episodes", "mean_return", "accuracy",
+                 "mean_energy", "mean_moves")
+
+
+def learned_lambdas(config: Config) -> list[float]:
+    """The λ a policy is trained at: Table 1's first, then the sweep's others (in order)."""
+    out = [float(config.solve.wrong_declaration_cost_m)]
+    for lam in config.evaluate.lambdas:
+        if not any(np.isclose(lam, seen) for seen in out):
+            out.append(float(lam))
+    return out
+
+
+def learn_fingerprint(config: Config) -> str:
+    """What the learn stage reads beyond its sections: nothing unless ``learned`` is a method;
+    then its λs, the closed loop's step budget and revisit rule, and Random's settings (its
+    held-out comparison)."""
+    ev = config.evaluate
+    if LEARNED not in ev.methods:
+        return stable_hash({"learned": False})
+    return stable_hash({"learned": True, "lambdas": learned_lambdas(config),
+                        "max_moves": ev.max_moves, "revisit": ev.revisit,
+                        "random": ev.random.model_dump(mode="json"),
+                        "random_thresholds": list(ev.random_thresholds)})
+
+
+# -- 1. the recorded evidence ------------------------------------------------------------------
+
+def record_evidence(config: Config, dataset: Dataset, recogniser: Any,
+                    crossfit: CrossfitOutcomes | None = None,
+                    progress: bool = True) -> RecordedEvidence:
+    """The recogniser's outputs at X_rho of every volume model (the observe stage's renders:
+    :data:`~rapomdp.data.test_views.VOLUME_STREAM`), then the cross-fitted training models'
+    labels as one-hot outputs (when ``crossfit`` holds any)."""
+    models = dataset.with_role("volume")
+    outputs = [np.asarray(recogniser.predict(xrho_renders(dataset, m, config, VOLUME_STREAM)[1]),
+                          dtype=np.float32)
+               for m in track(models, "learn: volume models at X_rho", progress)]
+    classes = len(dataset.classes)
+    parts = [RecordedEvidence(np.array([f"{m.class_name}/{m.id}" for m in models], dtype=str),
+                              np.array([dataset.label(m) for m in models], dtype=np.int64),
+                              np.stack(outputs) if outputs else
+                              np.zeros((0, config.viewpoints.count, classes), np.float32),
+                              np.full(len(models), "volume"))]
+    if crossfit is not None and len(crossfit.labels):
+        one_hot = np.eye(classes, dtype=np.float32)[crossfit.predicted]
+        parts.append(RecordedEvidence(crossfit.keys.astype(str),
+                                      crossfit.labels.astype(np.int64), one_hot,
+                                      np.full(len(crossfit.labels), "crossfit")))
+    evidence = RecordedEvidence.concatenate(parts)
+    test = {f"{m.class_name}/{m.id}" for m in dataset.with_role("test")}
+    leaked = sorted(set(evidence.keys.tolist()) & test)
+    if leaked:
+        raise StageError(f"learn: the recorded evidence holds test models {leaked[:5]}; the "
+                         "learned policy trains on held-out models only")
+    return evidence
+
+
+# -- 2. training -------------------------------------------------------------------------------
+
+def belief_models(config: Config, observe_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The observation model of the learned policy's belief (``learn.observation_model``) and
+    its first-update model, as the evaluation's methods read them."""
+    name = config.learn.observation_model
+    models, _ = offered_observation_models(observe_dir)
+    if name not in models:
+        raise StageError(f"learn.observation_model is '{name}'; the observe stage made "
+                         f"{', '.join(models)}")
+    return models[name], first_view_models(observe_dir, {name: models[name]})[name]
+
+
+def recorded_environment(config: Config, evidence: RecordedEvidence,
+                         models: tuple[np.ndarray, np.ndarray], motion: Motion,
+                         lambda_: float, seed: int | None = None) -> RecordedRecognitionEnv:
+    """The training environment at ``lambda_``: the closed loop's step budget and revisit
+    rule (``evaluate.max_moves``, ``evaluate.revisit``), the belief of ``models``
+    (:func:`belief_models`)."""
+    return RecordedRecognitionEnv(evidence, models[0], motion, lambda_,
+                                  config.evaluate.max_moves, config.evaluate.revisit,
+                                  first_view_model=models[1], seed=seed)
+
+
+def network_of(policy: Any, spec: PolicySpec) -> PolicyNetwork:
+    """The actor of an sb3 ``MaskableActorCriticPolicy`` (``MlpPolicy``) as a
+    :class:`PolicyNetwork`: its ``mlp_extractor.policy_net`` and ``action_net`` weights."""
+    network = PolicyNetwork.of(spec)
+    state = {f"body.{k}": v for k, v in policy.mlp_extractor.policy_net.state_dict().items()}
+    state.update({f"head.{k}": v for k, v in policy.action_net.state_dict().items()})
+    network.load_state_dict(state)
+    return network.eval()
+
+
+def train_policy(config: Config, evidence: RecordedEvidence, observe_dir: Path,
+                 motion: Motion, lambda_: float, seed: int, progress: bool = False
+                 ) -> tuple[PolicyNetwork, PolicySpec, list[dict[str, float]]]:
+    """MaskablePPO on ``learn.envs`` recorded-evidence environments at ``lambda_``; the policy
+    network, its spec and one training-curve row per update (the episodes that ended in it)."""
+    import torch
+    from sb3_contrib import MaskablePPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    cfg = config.learn
+    rows: list[dict[str, float]] = []
+
+    class Curves(BaseCallback):  # type: ignore[misc]
+        """Per update: the episodes that ended during its rollout (return, right, energy)."""
+
+        def __init__(self, bar: Any, task: Any) -> None:
+            super().__init__()
+            self.ended: list[tuple[float, bool, float, int]] = []
+            self.bar, self.task = bar, task
+
+        def _on_step(self) -> bool:
+            for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
+                if done and "correct" in info:
+                    right = bool(info["correct"])
+                    self.ended.append((-info["energy"] - (0.0 if right else lambda_), right,
+                                       info["energy"], info["moves"]))
+            return True
+
+        def _on_rollout_end(self) -> None:
+            ended = np.array(self.ended, dtype=np.float64).reshape(-1, 4)
+            rows.append({"lambda": lambda_, "update": len(rows) + 1,
+                         "timesteps": float(self.num_timesteps), "episodes": len(ended),
+                         **dict(zip(CURVE_COLUMNS[4:], (ended.mean(axis=0) if len(ended)
+                                                        else np.full(4, np.nan)).tolist(),
+                                    strict=True))})
+            self.ended = []
+            self.bar.update(self.task, completed=self.num_timesteps)
+
+    spec = PolicySpec(evidence.classes, evidence.viewpoints, tuple(cfg.hidden),
+                      cfg.observation_model, lambda_, config.evaluate.max_moves,
+                      config.evaluate.revisit)
+    models = belief_models(config, observe_dir)
+    envs = DummyVecEnv([lambda: recorded_environment(config, evidence, models, motion, lambda_)
+                        for _ in range(cfg.envs)])
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # a small MLP: one thread is fastest, and workers have one core
+    try:
+        model = MaskablePPO(
+            "MlpPolicy", envs, learning_rate=cfg.learning_rate, n_steps=cfg.rollout_steps,
+            batch_size=cfg.batch_size, n_epochs=cfg.epochs, gamma=cfg.gamma,
+            gae_lambda=cfg.gae_lambda, ent_coef=cfg.entropy_coefficient, seed=seed,
+            device="cpu", verbose=0,
+            policy_kwargs={"net_arch": {"pi": list(cfg.hidden), "vf": list(cfg.hidden)},
+                           "activation_fn": torch.nn.Tanh})
+        with progress_bar(progress) as bars:
+            task = bars.add_task(f"learn: PPO at λ = {lambda_:g} (timesteps)",
+                                 total=cfg.timesteps)
+            model.learn(cfg.timesteps, callback=Curves(bars, task))
+        network = network_of(model.policy, spec)
+    finally:
+        torch.set_num_threads(threads)
+    return network, spec, rows
+
+
+def _train_task(config_json: str, out: str, observe_dir: str, robot_dir: str, lambda_: float,
+                progress: bool) -> tuple[list[dict[str, float]], float]:
+    """A worker's task: train the policy of one λ, save it into ``out``; its curves and CPU
+    seconds."""
+    config = Config.model_validate_json(config_json)
+    evidence = RecordedEvidence.load(Path(out) / RECORDED_FILE)
+    motion = Motion.from_robot(load_robot(Path(robot_dir)))
+    seed = int(class_seed(config.seed, f"learn/lambda_{lambda_:g}").integers(2**31))
+    began = time.process_time()
+    network, spec, rows = train_policy(config, evidence, Path(observe_dir), motion, lambda_,
+                                       seed, progress)
+    seconds = time.process_time() - began
+    save_learned_policy(out, network, spec, {"timesteps": config.learn.timesteps,
+                                             "seed": seed, "cpu_seconds": seconds})
+    return rows, seconds
+
+
+# -- 3. held-out scores ----------------------------------------------------------------------
+
+class _NoScene:
+    """The scene of an episode over recorded evidence: every output is in the memo, so a look
+    would be a bug."""
+
+    def look(self, viewpoint: int, rng: np.random.Generator) -> np.ndarray:
+        raise RuntimeError(f"recorded evidence: viewpoint {viewpoint} was not recorded")
+
+
+class _NoRecogniser:
+    def predict(self, depth_images: np.ndarray) -> np.ndarray:
+        raise RuntimeError("recorded evidence: nothing is classified")
+
+
+def recorded_scores(evidence: RecordedEvidence, method: Policy, motion: Motion,
+                    max_moves: int, seed: int, key: str) -> dict[str, float]:
+    """Accuracy, mean energy and moves of ``method`` over every (recorded model, reachable
+    start) pair, through :func:`run_episode` with the recorded outputs as its memo."""
+    right, energy, moves = [], [], []
+    starts = np.flatnonzero(motion.reachable)
+    for m in range(evidence.models):
+        memo = {v: evidence.outputs[m, v] for v in range(evidence.viewpoints)}
+        for start in starts:
+            rng = class_seed(seed, f"learn/held_out/{evidence.keys[m]}/{start}/{key}")
+            episode = run_episode(_NoScene(), _NoRecogniser(), method, motion, int(start),
+                                  max_moves, rng, memo)
+            right.append(episode.declared == evidence.labels[m])
+            energy.append(float(episode.move_energy.sum()))
+            moves.append(episode.moves)
+    return {"episodes": len(right), "accuracy": float(np.mean(right)),
+            "mean_energy": float(np.mean(energy)), "mean_moves": float(np.mean(moves))}
+
+
+def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
+                        observe_dir: Path, motion: Motion, progress: bool = True
+                        ) -> list[dict[str, Any]]:
+    """Every trained policy and Random (at each stop belief) scored on the held-out recorded
+    evidence (:func:`recorded_scores`), one row each."""
+    models, _ = offered_observation_models(observe_dir)
+    first = first_view_models(observe_dir, models)
+    ev = config.evaluate
+    settings: list[tuple[str, float, Policy]] = []
+    for lam in learned_lambdas(config):
+        network, spec = load_learned_policy(out, lam)
+        name = spec.observation_model
+        settings.append((LEARNED, lam, LearnedPolicy(network, spec, models[name],
+                                                     motion.reachable,
+                                                     first_view_model=first[name])))
+    walk = ev.random.observation_model
+    if walk not in models:
+        raise StageError(f"evaluate.random.observation_model is '{walk}'; the workspace has "
+                         f"{', '.join(models)}")
+    for threshold in dict.fromkeys([ev.random.belief_threshold, *ev.random_thresholds]):
+        settings.append(("random", float(threshold), RandomWalkPolicy(
+            models[walk], motion.distance_m, motion.reachable, ev.random.neighbours,
+            threshold, ev.random.max_moves, first_view_model=first[walk])))
+    rows = []
+    for method, value, policy in track(settings, "learn: held-out episodes", progress):
+        scores = recorded_scores(evidence, policy, motion, ev.max_moves, config.seed, method)
+        rows.append({"method": method, "parameter": "lambda" if method == LEARNED
+                     else "threshold", "value": value, **scores})
+    return rows
+
+
+# -- the figure and the stage ------------------------------------------------------------------
+
+def plateau_timesteps(rows: Sequence[dict[str, float]], window: int = 5,
+                      tolerance: float = 0.05) -> float | None:
+    """The first timestep from which the mean return, smoothed over ``window`` updates,
+    stays within ``tolerance`` of its range of the final smoothed value (None: no rows)."""
+    values = np.array([r["mean_return"] for r in rows], dtype=np.float64)
+    good = np.isfinite(values)
+    if not good.any():
+        return None
+    values = np.where(good, values, np.nanmean(values))
+    kernel = np.ones(min(window, values.size)) / min(window, values.size)
+    smooth = np.convolve(values, kernel, mode="valid")
+    band = tolerance * max(float(smooth.max() - smooth.min()), 1e-12)
+    outside = np.flatnonzero(np.abs(smooth - smooth[-1]) > band)
+    first = 0 if outside.size == 0 else int(outside[-1]) + 1
+    return float(rows[first + kernel.size - 1]["timesteps"])
+
+
+def curves_csv(rows: Sequence[dict[str, float]]) -> str:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, CURVE_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return buffer.getvalue()
+
+
+def curves_figure(rows: Sequence[dict[str, float]], path: Path) -> Path:
+    """Mean return, accuracy and mean energy of the training episodes per update, one line
+    per λ (line style and marker per λ, so they differ without colour)."""
+    from rapomdp.plots import OKABE_ITO, new_figure, save_png, style
+
+    lambdas = list(dict.fromkeys(r["lambda"] for r in rows))
+    styles = (("-", "o"), ("--", "s"), ("-.", "^"), (":", "D"), ("-", "v"))
+    with style():
+        fig = new_figure(10.0, 3.4)
+        axes = fig.subplots(1, 3, sharex=True)
+        for k, lam in enumerate(lambdas):
+            mine = [r for r in rows if r["lambda"] == lam]
+            x = np.array([r["timesteps"] for r in mine])
+            line, marker = styles[k % len(styles)]
+            every = max(1, len(mine) // 8)
+            for ax, column in zip(axes, ("mean_return", "accuracy", "mean_energy"),
+                                  strict=True):
+                ax.plot(x, [r[column] for r in mine], linestyle=line, marker=marker,
+                        markevery=every, markersize=4, color=OKABE_ITO[(k + 4) % 8],
+                        label=f"λ = {lam:g} m" if ax is axes[0] else None)
+        for ax, label in zip(axes, ("mean return (−m of energy, −λ if wrong)",
+                                    "accuracy of the training episodes",
+                                    "mean energy of an episode (m)"), strict=True):
+            ax.set(xlabel="environment steps", ylabel=label)
+            ax.grid(alpha=0.3)
+        axes[1].set_ylim(0, 1.02)
+        axes[0].legend(loc="lower right")
+        fig.suptitle("Learned baseline (MaskablePPO): training on held-out recorded evidence")
+        return save_png(fig, path)
+
+
+def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
+                    context: RunContext) -> None:
+    """Record the held-out evidence, train a policy per λ, score it on held-out episodes."""
+    began = time.perf_counter()
+    if LEARNED not in config.evaluate.methods:
+        write_json_atomic(out / LEARN_SUMMARY, {
+            "trained": False, "reason": "evaluate.methods does not list 'learned' "
+            "(configs/learned.yaml does)"})
+        return
+    dataset = load_dataset(inputs.dataset)
+    classifier = load_stage_classifier(config, inputs.train, dataset.classes, context.threads)
+    crossfit = (CrossfitOutcomes.load(inputs.crossfit / CROSSFIT_FILE)
+                if inputs.crossfit_dir is not None else None)
+    evidence = record_evidence(config, dataset, classifier, crossfit, context.progress)
+    evidence.save(out / RECORDED_FILE)
+    recorded_s = time.perf_counter() - began
+    motion = Motion.from_robot(load_robot(inputs.robot))
+    belief_models(config, inputs.observe)  # a wrong observation model is named before work
+    lambdas = learned_lambdas(config)
+    workers = min(context.worker_count, len(lambdas))
+    in_process = workers == 1 and not context.uses_cluster
+    tasks = [(config.model_dump_json(), str(out), str(inputs.observe), str(inputs.robot), lam,
+              context.progress and in_process) for lam in lambdas]
+    trained = run_tasks(_train_task, tasks, workers, "learn: PPO policies (one per λ)",
+                        context.progress and not in_process, context.scheduler)
+    trained_s = time.perf_counter() - began - recorded_s
+    rows = [row for curve, _ in trained for row in curve]
+    write_text_atomic(out / CURVES_CSV, curves_csv(rows))
+    curves_figure(rows, out / CURVES_FIGURE)
+    held_out = held_out_comparison(config, evidence, out, inputs.observe, motion,
+                                   context.progress)
+    write_json_atomic(out / LEARN_SUMMARY, {
+        "trained": True,
+        "observation_model": config.learn.observation_model,
+        "lambdas": lambdas,
+        "timesteps": config.learn.timesteps,
+        "evidence": {"models": evidence.models,
+                     "volume": int((evidence.sources == "volume").sum()),
+                     "crossfit": int((evidence.sources == "crossfit").sum()),
+                     "keys": evidence.keys.tolist()},
+        "policies": {f"{lam:g}": {
+            "cpu_seconds": seconds,
+            "plateau_timesteps": plateau_timesteps([r for r in curve]),
+            "final": curve[-1] if curve else None}
+            for lam, (curve, seconds) in zip(lambdas, trained, strict=True)},
+        "held_out": held_out,
+        "held_out_note": "in-sample for the learned policies: they trained on these models",
+        "workers": workers,
+        "seconds": {"record": recorded_s, "train_wall": trained_s,
+                    "train_cpu": float(sum(s for _, s in trained)),
+                    "total": time.perf_counter() - began},
+    })
+
+
+def load_learn_summary(folder: str | Path) -> dict[str, Any]:
+    """The learn stage's ``learn.json``."""
+    data = read_json(Path(folder) / LEARN_SUMMARY)
+    if not isinstance(data, dict):
+        raise StageError(f"{Path(folder) / LEARN_SUMMARY}: not a JSON object")
+    return data
