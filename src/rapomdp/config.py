@@ -486,6 +486,11 @@ class LearnConfig(Section):
     observation_model: str = Field(
         "ra", description="the observation model of the belief the policy sees (an observe "
         "model; ra: RA-POMDP's)")
+    declare: Literal["map", "any"] = Field(
+        "map", description="map: the policy chooses a move or to stop, and stopping declares "
+        "the belief's most likely class (as Random and the POMDPs declare); any: it chooses "
+        "the declared class itself among V + C actions. Chosen on held-out models "
+        "(docs/experiment.md)")
     timesteps: int = Field(
         300_000, ge=1, description="environment steps of training per wrong-declaration cost "
         "λ (the training curves show the plateau: docs/experiment.md)")

@@ -345,9 +345,9 @@ def test_the_docs_loops_run_as_written(pipeline_workspace, capsys) -> None:
     (its Panda reaches only some viewpoints)."""
     ws, _ = pipeline_workspace
     blocks = _docs_env_blocks()
-    assert len(blocks) == 2 and "action_space.sample()" in blocks[0]
+    assert len(blocks) == 3 and "action_space.sample()" in blocks[0]
     assert "forbidden=visited" in blocks[1] and "policy.lookahead_act(" in blocks[1]
-    for block in blocks:
+    for block in blocks[:2]:
         assert block.count('"runs/exp1"') == 1
         namespace: dict = {}
         exec(compile(block.replace('"runs/exp1"', repr(str(ws.root))), "docs", "exec"),
@@ -361,6 +361,19 @@ def test_the_docs_loops_run_as_written(pipeline_workspace, capsys) -> None:
     path = env._path
     assert len(set(path)) == len(path) and env.motion.reachable[path].all()
     assert printed[0] in env.class_names
+
+
+def test_the_docs_maskable_ppo_example_trains_and_acts_within_the_mask(pipeline_workspace,
+                                                                       capsys) -> None:
+    """docs/experiment.md's MaskablePPO example: a few hundred steps on the tiny workspace."""
+    ws, _ = pipeline_workspace
+    block = _docs_env_blocks()[2]
+    assert "MaskablePPO(" in block and "model.learn(total_timesteps=256)" in block
+    namespace: dict = {}
+    exec(compile(block.replace('"runs/exp1"', repr(str(ws.root))), "docs", "exec"), namespace)
+    action, valid = capsys.readouterr().out.split()
+    assert valid == "True" and 0 <= int(action) < namespace["env"].action_space.n
+    assert namespace["model"].num_timesteps == 256
 
 
 def test_actions_are_taken_as_action_space_contains_takes_them(env) -> None:

@@ -17,7 +17,12 @@ from rapomdp.experiment.learned import (
     policy_stem,
     save_learned_policy,
 )
-from rapomdp.experiment.recorded_env import RecordedEvidence, RecordedRecognitionEnv
+from rapomdp.experiment.recorded_env import (
+    MapDeclaration,
+    RecordedEvidence,
+    RecordedRecognitionEnv,
+    closed_loop_action,
+)
 from rapomdp.io import ArtefactError
 
 V, C = 6, 3
@@ -37,8 +42,8 @@ def _problem(seed: int = 0) -> tuple[RecordedEvidence, np.ndarray, Motion]:
     return evidence, model, Motion(energy, energy, reachable)
 
 
-def _spec(max_moves: int = 3) -> PolicySpec:
-    return PolicySpec(C, V, (8,), "ra", 2.0, max_moves, False)
+def _spec(max_moves: int = 3, declare: str = "any") -> PolicySpec:
+    return PolicySpec(C, V, (8,), "ra", 2.0, max_moves, False, declare)
 
 
 def test_the_network_is_sb3s_actor_layer_for_layer() -> None:
@@ -82,29 +87,33 @@ def test_save_and_load_round_trip_and_refuse_altered_weights(tmp_path) -> None:
         load_learned_policy(tmp_path, 8.0)
 
 
-def test_the_closed_loop_method_acts_as_in_the_training_environment() -> None:
-    """run_episode with the recorded outputs as its memo and the environment, driven by the
-    same network, take the same actions and hold the same beliefs (one input rule, one mask
-    rule)."""
+@pytest.mark.parametrize("declare", ["any", "map"])
+def test_the_closed_loop_method_acts_as_in_the_training_environment(declare: str) -> None:
+    """run_episode with the recorded outputs as its memo and the environment (wrapped by
+    MapDeclaration with ``map``), driven by the same network, take the same actions and hold
+    the same beliefs (one input rule, one mask rule)."""
     evidence, model, motion = _problem(1)
     torch.manual_seed(3)
-    spec = _spec(max_moves=3)
+    spec = _spec(max_moves=3, declare=declare)
     network = PolicyNetwork.of(spec)
     with torch.no_grad():
         network.head.bias[:V] += 2.0  # prefer moving, so the episodes reach the budget
     env = RecordedRecognitionEnv(evidence, model, motion, spec.lambda_, spec.max_moves)
+    driven = MapDeclaration(env) if declare == "map" else env
+    assert driven.action_space.n == spec.actions == V + (1 if declare == "map" else C)
     policy = LearnedPolicy(network, spec, model, motion.reachable)
     budget_reached = 0
     for m in range(evidence.models):
         for start in np.flatnonzero(motion.reachable):
-            obs, _ = env.reset(options={"model": m, "start": int(start)})
+            obs, _ = driven.reset(options={"model": m, "start": int(start)})
             actions, beliefs = [], [env.belief.copy()]
             while True:
-                mask = env.action_masks()
+                mask = driven.action_masks()
                 action = network.best_action(obs, mask)
                 assert mask[action]
-                actions.append(action)
-                obs, _, done, cut, info = env.step(action)
+                actions.append(closed_loop_action(action, env.belief, V) if declare == "map"
+                               else action)
+                obs, _, done, cut, info = driven.step(action)
                 if done or cut:
                     break
                 beliefs.append(env.belief.copy())
@@ -117,7 +126,22 @@ def test_the_closed_loop_method_acts_as_in_the_training_environment() -> None:
             assert not episode.exhausted and episode.moves <= spec.max_moves
             budget_reached += episode.moves == spec.max_moves
             assert len(set(episode.viewpoints.tolist())) == episode.viewpoints.size
+            if declare == "map":  # stopping declares the belief's most likely class
+                assert episode.declared == int(np.argmax(episode.beliefs[-1]))
     assert budget_reached > 0
+
+
+def test_map_declaration_stops_with_the_most_likely_class() -> None:
+    evidence, model, motion = _problem(2)
+    env = RecordedRecognitionEnv(evidence, model, motion, 2.0, 3)
+    wrapped = MapDeclaration(env)
+    wrapped.reset(options={"model": 1, "start": 0})
+    full = env.action_masks()
+    np.testing.assert_array_equal(wrapped.action_masks(), np.append(full[:V], True))
+    best = int(np.argmax(env.belief))
+    _, reward, done, _, info = wrapped.step(V)
+    assert done and info["declared"] == best
+    assert reward == (0.0 if best == evidence.labels[1] else -2.0)
 
 
 def test_the_method_refuses_a_model_of_another_shape() -> None:

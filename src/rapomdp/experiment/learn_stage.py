@@ -55,6 +55,7 @@ from rapomdp.experiment.learned import (
 from rapomdp.experiment.methods import RandomWalkPolicy
 from rapomdp.experiment.recorded_env import (
     RECORDED_FILE,
+    MapDeclaration,
     RecordedEvidence,
     RecordedRecognitionEnv,
 )
@@ -201,10 +202,14 @@ def train_policy(config: Config, evidence: RecordedEvidence, observe_dir: Path,
 
     spec = PolicySpec(evidence.classes, evidence.viewpoints, tuple(cfg.hidden),
                       cfg.observation_model, lambda_, config.evaluate.max_moves,
-                      config.evaluate.revisit)
+                      config.evaluate.revisit, cfg.declare)
     models = belief_models(config, observe_dir)
-    envs = DummyVecEnv([lambda: recorded_environment(config, evidence, models, motion, lambda_)
-                        for _ in range(cfg.envs)])
+
+    def environment() -> Any:
+        env = recorded_environment(config, evidence, models, motion, lambda_)
+        return MapDeclaration(env) if cfg.declare == "map" else env
+
+    envs = DummyVecEnv([environment for _ in range(cfg.envs)])
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # a small MLP: one thread is fastest, and workers have one core
     try:
@@ -257,15 +262,31 @@ class _NoRecogniser:
         raise RuntimeError("recorded evidence: nothing is classified")
 
 
+def recorded_starts(evidence: RecordedEvidence, reachable: np.ndarray, seed: int,
+                    per_model: int | None = None) -> list[np.ndarray]:
+    """Each recorded model's start viewpoints: every reachable one, or ``per_model`` distinct
+    reachable ones drawn from a generator seeded by the seed and the model's key."""
+    candidates = np.flatnonzero(reachable)
+    if per_model is None:
+        return [candidates for _ in range(evidence.models)]
+    count = min(int(per_model), candidates.size)
+    return [np.sort(class_seed(seed, f"learn/start/{key}").choice(candidates, count,
+                                                                  replace=False))
+            for key in evidence.keys]
+
+
 def recorded_scores(evidence: RecordedEvidence, method: Policy, motion: Motion,
-                    max_moves: int, seed: int, key: str) -> dict[str, float]:
-    """Accuracy, mean energy and moves of ``method`` over every (recorded model, reachable
-    start) pair, through :func:`run_episode` with the recorded outputs as its memo."""
+                    max_moves: int, seed: int, key: str,
+                    starts: Sequence[np.ndarray] | None = None) -> dict[str, float]:
+    """Accuracy, mean energy and moves of ``method`` over every (recorded model, start) pair
+    (``starts``: :func:`recorded_starts`, default every reachable start), through
+    :func:`run_episode` with the recorded outputs as its memo: nothing is rendered."""
     right, energy, moves = [], [], []
-    starts = np.flatnonzero(motion.reachable)
+    if starts is None:
+        starts = recorded_starts(evidence, motion.reachable, seed)
     for m in range(evidence.models):
         memo = {v: evidence.outputs[m, v] for v in range(evidence.viewpoints)}
-        for start in starts:
+        for start in starts[m]:
             rng = class_seed(seed, f"learn/held_out/{evidence.keys[m]}/{start}/{key}")
             episode = run_episode(_NoScene(), _NoRecogniser(), method, motion, int(start),
                                   max_moves, rng, memo)

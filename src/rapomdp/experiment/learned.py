@@ -30,7 +30,13 @@ import torch
 from torch import nn
 
 from rapomdp.experiment.methods import BayesBelief
-from rapomdp.experiment.recorded_env import RECORDED_FILE, policy_input, valid_actions
+from rapomdp.experiment.recorded_env import (
+    RECORDED_FILE,
+    closed_loop_action,
+    map_mask,
+    policy_input,
+    valid_actions,
+)
 from rapomdp.io import ArtefactError, read_json, write_bytes_atomic, write_json_atomic
 from rapomdp.planning.policy import ARAction
 
@@ -56,8 +62,10 @@ def policy_stem(lambda_: float) -> str:
 @dataclass(frozen=True)
 class PolicySpec:
     """What a learned policy is: its input (``classes`` + 2 x ``viewpoints``), hidden widths,
-    actions (``viewpoints`` + ``classes``), and the setting it was trained for: the belief's
-    ``observation_model``, ``lambda_``, ``max_moves`` and ``revisit`` (evaluate's)."""
+    actions (``viewpoints`` moves, then ``classes`` declarations, or with ``declare`` "map"
+    one stop that declares the belief's most likely class), and the setting it was trained
+    for: the belief's ``observation_model``, ``lambda_``, ``max_moves`` and ``revisit``
+    (evaluate's)."""
 
     classes: int
     viewpoints: int
@@ -66,6 +74,11 @@ class PolicySpec:
     lambda_: float
     max_moves: int
     revisit: bool
+    declare: str = "map"
+
+    def __post_init__(self) -> None:
+        if self.declare not in ("map", "any"):
+            raise ValueError(f"declare must be 'map' or 'any', got {self.declare!r}")
 
     @property
     def inputs(self) -> int:
@@ -73,7 +86,7 @@ class PolicySpec:
 
     @property
     def actions(self) -> int:
-        return self.viewpoints + self.classes
+        return self.viewpoints + (1 if self.declare == "map" else self.classes)
 
     def to_dict(self) -> dict[str, Any]:
         return {**asdict(self), "hidden": list(self.hidden)}
@@ -82,7 +95,8 @@ class PolicySpec:
     def from_dict(cls, data: dict[str, Any]) -> PolicySpec:
         return cls(int(data["classes"]), int(data["viewpoints"]),
                    tuple(int(h) for h in data["hidden"]), str(data["observation_model"]),
-                   float(data["lambda_"]), int(data["max_moves"]), bool(data["revisit"]))
+                   float(data["lambda_"]), int(data["max_moves"]), bool(data["revisit"]),
+                   str(data["declare"]))
 
 
 class PolicyNetwork(nn.Module):
@@ -164,7 +178,8 @@ def load_learned_policy(folder: str | Path, lambda_: float) -> tuple[PolicyNetwo
 
 class LearnedPolicy:
     """A learned policy in the closed loop: Eq. 5 with its observation model, then the
-    network's most likely valid action on (belief, viewpoint, visited)."""
+    network's most likely valid action on (belief, viewpoint, visited); with ``declare`` "map"
+    its stop declares the belief's most likely class."""
 
     def __init__(self, network: PolicyNetwork, spec: PolicySpec, observation_model: np.ndarray,
                  reachable: np.ndarray, name: str = "Learned (PPO)", recogniser: str = "cnn",
@@ -200,10 +215,14 @@ class LearnedPolicy:
 
     def act(self, viewpoint: int) -> ARAction:
         spec = self.spec
+        belief = self._bayes.belief
         mask = valid_actions(self.reachable, viewpoint, self._visited, self._looks - 1,
                              spec.max_moves, spec.revisit, spec.classes)
-        action = self.network.best_action(
-            policy_input(self._bayes.belief, viewpoint, self._visited), mask)
+        if spec.declare == "map":
+            mask = map_mask(mask, spec.viewpoints)
+        action = self.network.best_action(policy_input(belief, viewpoint, self._visited), mask)
+        if spec.declare == "map":
+            action = closed_loop_action(action, belief, spec.viewpoints)
         if action >= spec.viewpoints:
             return ARAction("declare", action - spec.viewpoints)
         return ARAction("move", action)

@@ -269,5 +269,36 @@ class RecordedRecognitionEnv(gymnasium.Env):
                 "energy": self._energy, **extra}
 
 
-__all__ = ["RECORDED_FILE", "RecordedEvidence", "RecordedRecognitionEnv", "policy_input",
-           "valid_actions"]
+class MapDeclaration(gymnasium.Wrapper):  # type: ignore[type-arg]
+    """A policy's action space where declaring is one action, "stop": the environment then
+    declares the belief's most likely class, as Random and the POMDP methods declare
+    (``learn.declare: map``). Actions ``j < V`` move as before, ``V`` stops; the rewards and
+    the episode are the wrapped environment's (a declaration of that class)."""
+
+    def __init__(self, env: RecordedRecognitionEnv) -> None:
+        super().__init__(env)
+        self.viewpoints = env.viewpoints
+        self.action_space = spaces.Discrete(env.viewpoints + 1)
+
+    def action_masks(self) -> np.ndarray:
+        """(V + 1,) bool: the wrapped environment's moves, then stop (any declaration)."""
+        return map_mask(self.env.unwrapped.action_masks(), self.viewpoints)
+
+    def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        belief = self.env.unwrapped.belief
+        return self.env.step(closed_loop_action(int(action), belief, self.viewpoints))
+
+
+def map_mask(mask: np.ndarray, viewpoints: int) -> np.ndarray:
+    """A closed-loop mask (V + C,) as :class:`MapDeclaration`'s (V + 1,): moves, then stop."""
+    return np.append(mask[:viewpoints], mask[viewpoints:].any())
+
+
+def closed_loop_action(action: int, belief: np.ndarray, viewpoints: int) -> int:
+    """The closed-loop action (``Discrete(V + C)``) of a :class:`MapDeclaration` action: a move
+    is itself, stop declares the belief's most likely class."""
+    return action if action < viewpoints else viewpoints + int(np.argmax(belief))
+
+
+__all__ = ["RECORDED_FILE", "MapDeclaration", "RecordedEvidence", "RecordedRecognitionEnv",
+           "closed_loop_action", "map_mask", "policy_input", "valid_actions"]
