@@ -5,7 +5,8 @@ Reads a workspace whose stages ran with ``learned`` among ``evaluate.methods``
 
 1. the speed of the environment over recorded evidence (steps per second on one core, valid
    random actions, the belief update included) and of the rendering environment;
-2. the learn stage's training: timesteps, CPU seconds and the plateau per λ, wall time;
+2. the learn stage's training: timesteps, CPU seconds and the plateau per λ
+   (``plateau_timesteps`` of its training curves), wall time;
 3. held out: every method of the evaluation (and its sweep settings) on the recorded evidence
    of the volume models, ``--starts`` seeded starts a model, through the closed loop's own
    methods (``ClosedLoop.load``) and ``run_episode`` — in-sample for the learned policy (it
@@ -33,11 +34,12 @@ from rapomdp.experiment.env import ActiveRecognitionEnv
 from rapomdp.experiment.evaluation import ClosedLoop, sweep_settings
 from rapomdp.experiment.learn_stage import (
     load_learn_summary,
+    plateau_timesteps,
     recorded_environment,
     recorded_scores,
     recorded_starts,
 )
-from rapomdp.experiment.learned import RECORDED_FILE
+from rapomdp.experiment.learned import CURVES_CSV, RECORDED_FILE
 from rapomdp.experiment.recorded_env import RecordedEvidence
 from rapomdp.pipeline import get_stage
 from rapomdp.workspace import Workspace
@@ -123,11 +125,15 @@ def main() -> None:
         f"({summary['evidence']['volume']} volume, {summary['evidence']['crossfit']} "
         f"cross-fitted); belief: {summary['observation_model']}; {summary['timesteps']:,} "
         f"timesteps per λ; {summary['workers']} worker process(es)")
+    curves = read_csv(ws.require("learn") / CURVES_CSV)
     say("| λ (m) | CPU s | plateau (timesteps) | final update: return | accuracy | energy (m) |")
     say("|---|---|---|---|---|---|")
     for lam, row in summary["policies"].items():
         final = row["final"] or {}
-        say(f"| {lam} | {row['cpu_seconds']:.0f} | {row['plateau_timesteps']:,.0f} | "
+        mine = [{k: float(v) for k, v in r.items()} for r in curves
+                if float(r["lambda"]) == float(lam)]
+        plateau = plateau_timesteps(mine) or float("nan")
+        say(f"| {lam} | {row['cpu_seconds']:.0f} | {plateau:,.0f} | "
             f"{final.get('mean_return', float('nan')):.3f} | "
             f"{final.get('accuracy', float('nan')):.3f} | "
             f"{final.get('mean_energy', float('nan')):.3f} |")

@@ -181,8 +181,10 @@ def test_an_unknown_observation_model_is_named(pipeline_workspace, tmp_path) -> 
 
 def test_plateau_is_where_the_smoothed_return_settles() -> None:
     rising = [{"timesteps": 100.0 * (i + 1), "mean_return": r}
-              for i, r in enumerate([-9, -7, -5, -3, -2, -2, -2, -2, -2, -2, -2, -2])]
-    assert plateau_timesteps(rising, window=2) == 600.0  # the window (500, 600) settled
+              for i, r in enumerate([-9, -7, -5, -3, -2.3, -2.05, -2, -2, -2, -2, -2, -2])]
+    # smoothed over 2: ..., -2.65, -2.175 (rows 5-6), -2.025 (rows 6-7): within 0.1 of -2
+    assert plateau_timesteps(rising, window=2) == 700.0
+    assert plateau_timesteps(rising, window=2, tolerance_m=0.5) == 600.0
     flat = [{"timesteps": 10.0 * (i + 1), "mean_return": -1.0} for i in range(6)]
     assert plateau_timesteps(flat, window=3) == 30.0
     assert plateau_timesteps([]) is None

@@ -331,20 +331,20 @@ def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
 # -- the figure and the stage ------------------------------------------------------------------
 
 def plateau_timesteps(rows: Sequence[dict[str, float]], window: int = 5,
-                      tolerance: float = 0.05) -> float | None:
-    """The first timestep from which the mean return, smoothed over ``window`` updates,
-    stays within ``tolerance`` of its range of the final smoothed value (None: no rows)."""
+                      tolerance_m: float = 0.1) -> float | None:
+    """The first timestep from which the mean return, smoothed over ``window`` updates, stays
+    within ``tolerance_m`` (metres of energy-equivalent cost: about half a move) of its final
+    smoothed value (None: no rows)."""
     values = np.array([r["mean_return"] for r in rows], dtype=np.float64)
     good = np.isfinite(values)
     if not good.any():
         return None
     values = np.where(good, values, np.nanmean(values))
-    kernel = np.ones(min(window, values.size)) / min(window, values.size)
-    smooth = np.convolve(values, kernel, mode="valid")
-    band = tolerance * max(float(smooth.max() - smooth.min()), 1e-12)
-    outside = np.flatnonzero(np.abs(smooth - smooth[-1]) > band)
+    width = min(window, values.size)
+    smooth = np.convolve(values, np.ones(width) / width, mode="valid")
+    outside = np.flatnonzero(np.abs(smooth - smooth[-1]) > tolerance_m)
     first = 0 if outside.size == 0 else int(outside[-1]) + 1
-    return float(rows[first + kernel.size - 1]["timesteps"])
+    return float(rows[first + width - 1]["timesteps"])
 
 
 def curves_csv(rows: Sequence[dict[str, float]]) -> str:
