@@ -101,8 +101,9 @@ def main() -> None:
         print(text, flush=True)
         lines.append(text)
 
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
     say(f"# The learned baseline on {ws.root} ({platform.node()}, {os.cpu_count()} cores, "
-        f"{time.strftime('%Y-%m-%d %H:%M')})")
+        f"load average {load} at the start, {time.strftime('%Y-%m-%d %H:%M')})")
     summary = load_learn_summary(ws.require("learn"))
     if not summary.get("trained"):
         raise SystemExit(f"{ws.require('learn')}: the learn stage trained nothing "
@@ -144,19 +145,27 @@ def main() -> None:
     say(f"\n## Held out: the volume models' recorded evidence, {args.starts} starts a model "
         "(in-sample for Learned, which trained on them)\n")
     starts = recorded_starts(evidence, loop.motion.reachable, config.seed, args.starts)
-    say("| method | setting | accuracy | energy (m) | moves | episodes |")
-    say("|---|---|---|---|---|---|")
-    for key, method in loop.methods.items():
+    say("| method | setting | accuracy | energy (m) | moves | episodes | seconds |")
+    say("|---|---|---|---|---|---|---|")
+    held: list[tuple[str, str, float, str]] = []
+    for key in loop.methods:
         base, _, setting = key.partition("@")
         if base not in SHOWN:
             continue
+        if setting:
+            parameter, _, value = setting.partition("=")
+            shown = f"{parameter} {value}"
+        else:
+            shown = (f"threshold {config.evaluate.random.belief_threshold:g} *" if base ==
+                     "random" else f"lambda {config.solve.wrong_declaration_cost_m:g} *")
+        held.append((base, shown, float(shown.split()[1]), key))
+    for base, shown, _, key in sorted(held, key=lambda h: (SHOWN.index(h[0]), h[2])):
         began = time.perf_counter()
-        scores = recorded_scores(evidence, method, loop.motion, config.evaluate.max_moves,
-                                 config.seed, base, starts)
-        shown = setting or ("λ = table 1" if base != "random" else "threshold = table 1")
+        scores = recorded_scores(evidence, loop.methods[key], loop.motion,
+                                 config.evaluate.max_moves, config.seed, base, starts)
         say(f"| {METHOD_NAMES[base]} | {shown} | {scores['accuracy']:.3f} | "
             f"{scores['mean_energy']:.3f} | {scores['mean_moves']:.2f} | {scores['episodes']} "
-            f"| ({time.perf_counter() - began:.0f} s)")
+            f"| {time.perf_counter() - began:.0f} |")
 
     out = ws.require("evaluate")
     say("\n## Test models (evaluate: Table 1, paired, accuracy-energy)\n")

@@ -179,6 +179,18 @@ def test_an_unknown_observation_model_is_named(pipeline_workspace, tmp_path) -> 
     assert TINY["evaluate"]["methods"][-1] == "ra"
 
 
+def test_without_sb3_contrib_the_stage_says_what_to_install(pipeline_workspace, monkeypatch,
+                                                            tmp_path) -> None:
+    import sys
+
+    ws, _ = pipeline_workspace
+    monkeypatch.setitem(sys.modules, "sb3_contrib", None)  # an import of it fails
+    with pytest.raises(StageError, match=r"pip install 'rapomdp\[learned\]'"):
+        run_learn_stage(config_from_dict(LEARNED_TINY), ws.inputs(get_stage("learn")),
+                        tmp_path, TEST_CONTEXT)
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
 def test_plateau_is_where_the_smoothed_return_settles() -> None:
     rising = [{"timesteps": 100.0 * (i + 1), "mean_return": r}
               for i, r in enumerate([-9, -7, -5, -3, -2.3, -2.05, -2, -2, -2, -2, -2, -2])]

@@ -386,6 +386,16 @@ def curves_figure(rows: Sequence[dict[str, float]], path: Path) -> Path:
         return save_png(fig, path)
 
 
+def require_sb3() -> None:
+    """A named error, before any work, when sb3-contrib (MaskablePPO) is not installed."""
+    try:
+        import sb3_contrib  # noqa: F401
+    except ImportError:
+        raise StageError("the learned baseline ('learned' in evaluate.methods) trains with "
+                         "sb3-contrib's MaskablePPO, which is not installed: pip install "
+                         "'rapomdp[learned]'") from None
+
+
 def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
     """Record the held-out evidence, train a policy per λ, score it on held-out episodes."""
@@ -395,6 +405,7 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
             "trained": False, "reason": "evaluate.methods does not list 'learned' "
             "(configs/learned.yaml does)"})
         return
+    require_sb3()
     dataset = load_dataset(inputs.dataset)
     classifier = load_stage_classifier(config, inputs.train, dataset.classes, context.threads)
     crossfit = (CrossfitOutcomes.load(inputs.crossfit / CROSSFIT_FILE)
