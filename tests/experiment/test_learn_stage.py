@@ -200,3 +200,18 @@ def test_plateau_is_where_the_smoothed_return_settles() -> None:
     flat = [{"timesteps": 10.0 * (i + 1), "mean_return": -1.0} for i in range(6)]
     assert plateau_timesteps(flat, window=3) == 30.0
     assert plateau_timesteps([]) is None
+
+
+def test_the_learned_configurations_are_the_defaults_plus_the_method() -> None:
+    from pathlib import Path
+
+    from rapomdp.config import Config, load_config, read_config_data
+
+    configs = Path(__file__).parents[2] / "configs"
+    learned = load_config(configs / "learned.yaml")
+    default = Config()
+    assert learned.evaluate.methods == [*default.evaluate.methods, "learned"]
+    assert learned.model_copy(update={"evaluate": default.evaluate}) == default
+    both = read_config_data(configs / "real-cad-dev-learned.yaml")
+    assert both["dataset"] == read_config_data(configs / "real-cad-dev.yaml")["dataset"]
+    assert both["evaluate"] == read_config_data(configs / "learned.yaml")["evaluate"]
