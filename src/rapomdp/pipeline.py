@@ -24,8 +24,13 @@ from rapomdp.config import Config, apply_overrides, config_from_dict, read_confi
 from rapomdp.context import RunContext
 from rapomdp.data.layouts import dataset_fingerprint
 from rapomdp.data.sections import XRHO_SECTIONS
-from rapomdp.experiment.learn_stage import LEARN_SECTIONS, learn_fingerprint
-from rapomdp.experiment.sections import EVALUATE_SECTIONS, REPORT_INPUTS, REPORT_SECTIONS
+from rapomdp.experiment.sections import (
+    EVALUATE_SECTIONS,
+    LEARN_SECTIONS,
+    REPORT_INPUTS,
+    REPORT_SECTIONS,
+    learn_fingerprint,
+)
 from rapomdp.recognition.artefacts import EVAL_SECTIONS, TRAIN_SECTIONS, VPTREE_SECTIONS
 from rapomdp.workspace import Stage, StageError, StageInputs, StageResult, Workspace, stage_key
 
@@ -170,7 +175,7 @@ STAGES: list[Stage] = [
         name="learn",
         run=_deferred("learn"),
         sections=LEARN_SECTIONS,
-        inputs=("dataset", "train", "crossfit", "observe", "robot"),
+        inputs=("dataset", "classifier_eval", "crossfit", "observe", "robot"),
         fingerprint=learn_fingerprint,
         description="learned baseline: MaskablePPO on held-out recorded evidence (when "
         "evaluate.methods lists 'learned')",
@@ -187,7 +192,7 @@ STAGES: list[Stage] = [
         name="report",
         run=_deferred("report"),
         sections=REPORT_SECTIONS,
-        inputs=(*REPORT_INPUTS, "learn"),
+        inputs=REPORT_INPUTS,
         description="markdown + HTML report: Table 1, Figs. 1-3, classifier, robot, solver",
     ),
 ]

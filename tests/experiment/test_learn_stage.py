@@ -13,14 +13,13 @@ from rapomdp.data.dataset import Dataset, load_dataset
 from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.episode_table import EpisodeTable
 from rapomdp.experiment.learn_stage import (
-    learn_fingerprint,
-    learned_lambdas,
     plateau_timesteps,
     recorded_scores,
     run_learn_stage,
 )
 from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
 from rapomdp.experiment.recorded_env import RecordedEvidence, valid_actions
+from rapomdp.experiment.sections import learn_fingerprint, learned_lambdas
 from rapomdp.io import read_json
 from rapomdp.pipeline import get_stage
 from rapomdp.planning.stage import offered_observation_models
@@ -37,23 +36,33 @@ def _keys(dataset: Dataset, role: str) -> set[str]:
 
 
 def test_the_stage_reads_no_test_model(learned_workspace, monkeypatch, tmp_path) -> None:
-    """Every mesh the learn stage loads is a volume model's, and its evidence names exactly
-    the volume models (the tiny workspace cross-fits nothing)."""
+    """The learn stage loads no mesh and, of classifier_eval's outputs, only the volume models'
+    arrays; its evidence names exactly the volume models (the tiny workspace cross-fits
+    nothing)."""
+    from rapomdp.recognition import artefacts
+
     ws, config = learned_workspace
     dataset = load_dataset(ws.require("dataset"))
-    read: list[str] = []
-    mesh = Dataset.mesh
+    meshes: list[str] = []
+    arrays: list[tuple[str, tuple[str, ...] | None]] = []
+    mesh, load_npz = Dataset.mesh, artefacts.load_npz
 
-    def recording(self: Dataset, model):  # noqa: ANN001, ANN202
-        read.append(f"{model.class_name}/{model.id}")
+    def recording_mesh(self: Dataset, model):  # noqa: ANN001, ANN202
+        meshes.append(model.file)
         return mesh(self, model)
 
-    monkeypatch.setattr(Dataset, "mesh", recording)
+    def recording_npz(path, keys=None):  # noqa: ANN001, ANN202
+        arrays.append((path.name, None if keys is None else tuple(keys)))
+        return load_npz(path, keys)
+
+    monkeypatch.setattr(Dataset, "mesh", recording_mesh)
+    monkeypatch.setattr(artefacts, "load_npz", recording_npz)
     run_learn_stage(config, ws.inputs(get_stage("learn")), tmp_path, TEST_CONTEXT)
-    assert read and set(read) == _keys(dataset, "volume")
-    assert not set(read) & _keys(dataset, "test")
+    assert meshes == []
+    assert arrays == [("probabilities.npz", ("volume_files", "volume_xrho"))]
     summary = read_json(tmp_path / "learn.json")
     assert set(summary["evidence"]["keys"]) == _keys(dataset, "volume")
+    assert not set(summary["evidence"]["keys"]) & _keys(dataset, "test")
     assert summary["evidence"] == {**summary["evidence"], "models": 3, "volume": 3,
                                    "crossfit": 0}
     evidence = RecordedEvidence.load(tmp_path / "recorded_evidence.npz")
@@ -215,3 +224,19 @@ def test_the_learned_configurations_are_the_defaults_plus_the_method() -> None:
     both = read_config_data(configs / "real-cad-dev-learned.yaml")
     assert both["dataset"] == read_config_data(configs / "real-cad-dev.yaml")["dataset"]
     assert both["evaluate"] == read_config_data(configs / "learned.yaml")["evaluate"]
+
+
+def test_the_report_shows_the_training_when_the_method_ran(learned_workspace,
+                                                           pipeline_workspace) -> None:
+    ws, _ = learned_workspace
+    text = (ws.require("report") / "report.md").read_text()
+    summary = read_json(ws.require("learn") / "learn.json")
+    assert "## Learned baseline (MaskablePPO)" in text
+    assert (f"Training took {summary['seconds']['train_wall']:.0f} s of wall time "
+            f"({summary['seconds']['train_cpu']:.0f} s of CPU over 1 process(es))") in text
+    assert "| Learned (PPO) | lambda = 8 |" in text and "| Random | threshold = 0.9 |" in text
+    assert "![Training curves of the learned baseline" in text
+    assert (ws.require("report") / "training_curves.png").is_file()
+    assert "| Learned (PPO) |" in text.split("## Learned baseline")[0]  # Table 1's row
+    plain = (pipeline_workspace[0].require("report") / "report.md").read_text()
+    assert "Learned baseline" not in plain

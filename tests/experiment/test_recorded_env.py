@@ -23,6 +23,7 @@ from rapomdp.experiment.recorded_env import (
     valid_actions,
 )
 from rapomdp.io import ArtefactError, load_npz
+from rapomdp.recognition.artefacts import load_volume_probabilities
 from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 
@@ -36,7 +37,7 @@ def recorded(pipeline_workspace):
     ws, config = pipeline_workspace
     dataset = load_dataset(ws.require("dataset"))
     classifier = load_stage_classifier(config, ws.require("train"), dataset.classes, 1)
-    evidence = record_evidence(config, dataset, classifier, progress=False)
+    evidence = record_evidence(dataset, load_volume_probabilities(ws.require("classifier_eval")))
     models = belief_models(config, ws.require("observe"))
     motion = Motion.from_robot(load_robot(ws.require("robot")))
     return ws, config, dataset, classifier, evidence, models, motion
@@ -56,7 +57,7 @@ def test_the_evidence_is_every_volume_model_and_the_observe_stages_labels(record
     assert evidence.labels.tolist() == [dataset.label(m) for m in volume]
     assert evidence.outputs.shape == (3, 16, 3) and (evidence.sources == "volume").all()
     np.testing.assert_allclose(evidence.outputs.sum(axis=2), 1.0, atol=1e-5)
-    # the labels the observation models were fitted on (same renders, same classifier)
+    # the labels the observation models were fitted on (the xrho images, the classifier)
     observe = load_npz(ws.require("observe") / OBSERVATION_FILE)
     np.testing.assert_array_equal(evidence.outputs.argmax(axis=2),
                                   observe["volume_predictions"])

@@ -61,8 +61,9 @@ from rapomdp.experiment.episode_table import (
     EpisodeTable,
     episodes_csv,
 )
-from rapomdp.experiment.learned import LEARNED, LearnedPolicy, load_learned_policy
+from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
+from rapomdp.experiment.sections import LEARNED
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy

@@ -3,9 +3,10 @@
 When ``evaluate.methods`` lists ``learned``, the stage
 
 1. records the evidence (:class:`~rapomdp.experiment.recorded_env.RecordedEvidence`): the
-   trained classifier's output at every test viewpoint of every *volume* model (rendered as the
-   observe stage renders them, same noise stream), and the cross-fitted training models' labels
-   when the crossfit stage made them. No test model is read (checked by key);
+   trained classifier's output at every test viewpoint of every *volume* model (the
+   classifier_eval stage's, on the xrho stage's images: the outputs the observation models
+   were fitted on; its test models' arrays are not read), and the cross-fitted training models'
+   labels when the crossfit stage made them. No test model is read (checked by key);
 2. trains one policy per wrong-declaration cost λ (Table 1's ``solve.wrong_declaration_cost_m``
    and every ``evaluate.lambdas``) with sb3-contrib's MaskablePPO on
    :class:`~rapomdp.experiment.recorded_env.RecordedRecognitionEnv`, the belief that of
@@ -39,13 +40,11 @@ from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, load_dataset
 from rapomdp.data.splits import class_seed
-from rapomdp.data.test_views import VOLUME_STREAM, xrho_renders
 from rapomdp.experiment.episode import Motion, Policy, run_episode
 from rapomdp.experiment.learned import (
     CURVES_CSV,
     CURVES_FIGURE,
     LEARN_SUMMARY,
-    LEARNED,
     LearnedPolicy,
     PolicyNetwork,
     PolicySpec,
@@ -59,59 +58,36 @@ from rapomdp.experiment.recorded_env import (
     RecordedEvidence,
     RecordedRecognitionEnv,
 )
-from rapomdp.io import read_json, stable_hash, write_json_atomic, write_text_atomic
+from rapomdp.experiment.sections import LEARNED, learned_lambdas
+from rapomdp.io import read_json, write_json_atomic, write_text_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.stage import first_view_models, offered_observation_models
 from rapomdp.progress import progress_bar, track
-from rapomdp.recognition.stage import TRAIN_SECTIONS, load_stage_classifier
+from rapomdp.recognition.artefacts import XrhoProbabilities, load_volume_probabilities
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
 
-LEARN_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "learn")
 #: The columns of :data:`~rapomdp.experiment.learned.CURVES_CSV`.
 CURVE_COLUMNS = ("lambda", "update", "timesteps", "episodes", "mean_return", "accuracy",
                  "mean_energy", "mean_moves")
 
 
-def learned_lambdas(config: Config) -> list[float]:
-    """The λ a policy is trained at: Table 1's first, then the sweep's others (in order)."""
-    out = [float(config.solve.wrong_declaration_cost_m)]
-    for lam in config.evaluate.lambdas:
-        if not any(np.isclose(lam, seen) for seen in out):
-            out.append(float(lam))
-    return out
-
-
-def learn_fingerprint(config: Config) -> str:
-    """What the learn stage reads beyond its sections: nothing unless ``learned`` is a method;
-    then its λs, the closed loop's step budget and revisit rule, and Random's settings (its
-    held-out comparison)."""
-    ev = config.evaluate
-    if LEARNED not in ev.methods:
-        return stable_hash({"learned": False})
-    return stable_hash({"learned": True, "lambdas": learned_lambdas(config),
-                        "max_moves": ev.max_moves, "revisit": ev.revisit,
-                        "random": ev.random.model_dump(mode="json"),
-                        "random_thresholds": list(ev.random_thresholds)})
-
-
 # -- 1. the recorded evidence ------------------------------------------------------------------
 
-def record_evidence(config: Config, dataset: Dataset, recogniser: Any,
-                    crossfit: CrossfitOutcomes | None = None,
-                    progress: bool = True) -> RecordedEvidence:
-    """The recogniser's outputs at X_rho of every volume model (the observe stage's renders:
-    :data:`~rapomdp.data.test_views.VOLUME_STREAM`), then the cross-fitted training models'
-    labels as one-hot outputs (when ``crossfit`` holds any)."""
+def record_evidence(dataset: Dataset, volume: XrhoProbabilities,
+                    crossfit: CrossfitOutcomes | None = None) -> RecordedEvidence:
+    """The classifier's outputs at X_rho of every volume model (``volume``: the classifier_eval
+    stage's, on the xrho stage's images, the ones the observation models were fitted on), then
+    the cross-fitted training models' labels as one-hot outputs (when ``crossfit`` holds
+    any). No test model is read; evidence naming one is refused."""
     models = dataset.with_role("volume")
-    outputs = [np.asarray(recogniser.predict(xrho_renders(dataset, m, config, VOLUME_STREAM)[1]),
-                          dtype=np.float32)
-               for m in track(models, "learn: volume models at X_rho", progress)]
     classes = len(dataset.classes)
+    outputs = [np.asarray(volume.of(m), dtype=np.float32) for m in models]
+    views = outputs[0].shape[0] if outputs else 0
     parts = [RecordedEvidence(np.array([f"{m.class_name}/{m.id}" for m in models], dtype=str),
                               np.array([dataset.label(m) for m in models], dtype=np.int64),
                               np.stack(outputs) if outputs else
-                              np.zeros((0, config.viewpoints.count, classes), np.float32),
+                              np.zeros((0, views, classes), np.float32),
                               np.full(len(models), "volume"))]
     if crossfit is not None and len(crossfit.labels):
         one_hot = np.eye(classes, dtype=np.float32)[crossfit.predicted]
@@ -407,10 +383,10 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
         return
     require_sb3()
     dataset = load_dataset(inputs.dataset)
-    classifier = load_stage_classifier(config, inputs.train, dataset.classes, context.threads)
     crossfit = (CrossfitOutcomes.load(inputs.crossfit / CROSSFIT_FILE)
                 if inputs.crossfit_dir is not None else None)
-    evidence = record_evidence(config, dataset, classifier, crossfit, context.progress)
+    evidence = record_evidence(dataset, load_volume_probabilities(inputs.classifier_eval),
+                               crossfit)
     evidence.save(out / RECORDED_FILE)
     recorded_s = time.perf_counter() - began
     motion = Motion.from_robot(load_robot(inputs.robot))

@@ -37,12 +37,11 @@ from rapomdp.experiment.recorded_env import (
     policy_input,
     valid_actions,
 )
+from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import ArtefactError, read_json, write_bytes_atomic, write_json_atomic
 from rapomdp.planning.policy import ARAction
 
 FORMAT = "rapomdp.learned-policy.v1"
-#: The method key of the learned baseline in ``evaluate.methods``.
-LEARNED = "learned"
 #: The learn stage's summary: what was trained, for how long, its held-out scores.
 LEARN_SUMMARY = "learn.json"
 #: Per λ and update: timesteps, episodes, mean return, accuracy, energy, moves.

@@ -611,7 +611,8 @@ def belief_reliability(table: EpisodeTable, bins: int = 10
 
 def _learned(b: _Builder, folder: Path | None, cmd: str) -> None:
     """The learned baseline's training (time, curves) and its held-out scores beside Random's,
-    when the learn stage trained it (``evaluate.methods`` lists ``learned``)."""
+    when the learn stage trained it (``evaluate.methods`` lists ``learned``; it changes only
+    with the evaluate stage, an input, so the folder is read beside it like the VP-tree's)."""
     if folder is None or not (folder / LEARN_SUMMARY).is_file():
         return
     how = f"made by `{cmd} learn -w {b.root}` (with learned in evaluate.methods)"
@@ -788,7 +789,7 @@ def write_report(config: Config, inputs: StageInputs, out: Path,
     _provenance(b, config, {name: given[name] for name in REPORT_INPUTS})
     b.add(Paragraph(f"Classes ({len(classes)}): {', '.join(classes)}."))
     evaluation = _evaluation(b, inputs.evaluate, command, config.seed)
-    _learned(b, inputs.learn_dir, command)
+    _learned(b, inputs.learn_dir or root / "learn", command)
     _awareness(b, config, inputs, figure_class(evaluation, config, classes),
                fig1 or write_fig1, command)
     _classifier(b, inputs, command)
