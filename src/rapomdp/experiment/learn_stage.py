@@ -174,7 +174,10 @@ def train_policy(config: Config, evidence: RecordedEvidence, observe_dir: Path,
                                                         else np.full(4, np.nan)).tolist(),
                                     strict=True))})
             self.ended = []
-            self.bar.update(self.task, completed=self.num_timesteps)
+            last = rows[-1]
+            self.bar.update(self.task, completed=self.num_timesteps,
+                            status=f"return {last['mean_return']:.2f}, accuracy "
+                                   f"{last['accuracy']:.2f}")
 
     spec = PolicySpec(evidence.classes, evidence.viewpoints, tuple(cfg.hidden),
                       cfg.observation_model, lambda_, config.evaluate.max_moves,
@@ -196,9 +199,9 @@ def train_policy(config: Config, evidence: RecordedEvidence, observe_dir: Path,
             device="cpu", verbose=0,
             policy_kwargs={"net_arch": {"pi": list(cfg.hidden), "vf": list(cfg.hidden)},
                            "activation_fn": torch.nn.Tanh})
-        with progress_bar(progress) as bars:
-            task = bars.add_task(f"learn: PPO at λ = {lambda_:g} (timesteps)",
-                                 total=cfg.timesteps)
+        with progress_bar(progress, status=True) as bars:
+            task = bars.add_task(f"learn: PPO at λ = {lambda_:g}", total=cfg.timesteps,
+                                 unit="steps", status="")
             model.learn(cfg.timesteps, callback=Curves(bars, task))
         network = network_of(model.policy, spec)
     finally:
@@ -297,7 +300,8 @@ def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
             models[walk], motion.distance_m, motion.reachable, ev.random.neighbours,
             threshold, ev.random.max_moves, first_view_model=first[walk])))
     rows = []
-    for method, value, policy in track(settings, "learn: held-out episodes", progress):
+    for method, value, policy in track(settings, "learn: held-out episodes", progress,
+                                       unit="settings"):
         scores = recorded_scores(evidence, policy, motion, ev.max_moves, config.seed, method)
         rows.append({"method": method, "parameter": "lambda" if method == LEARNED
                      else "threshold", "value": value, **scores})
@@ -397,7 +401,8 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
     tasks = [(config.model_dump_json(), str(out), str(inputs.observe), str(inputs.robot), lam,
               context.progress and in_process) for lam in lambdas]
     trained = run_tasks(_train_task, tasks, workers, "learn: PPO policies (one per λ)",
-                        context.progress and not in_process, context.scheduler)
+                        context.progress and not in_process, context.scheduler,
+                        unit="policies")
     trained_s = time.perf_counter() - began - recorded_s
     rows = [row for curve, _ in trained for row in curve]
     write_text_atomic(out / CURVES_CSV, curves_csv(rows))
