@@ -356,14 +356,14 @@ def max_depth_m(scenes: Sequence[TestViews]) -> float:
     :data:`DEPTH_NOISE_MARGIN` of it for the sensor noise."""
     farthest = 0.0
     for scene in scenes:
-        corners = trimesh_corners(np.asarray(scene.renderer.mesh.bounds, dtype=np.float64))
+        corners = box_corners(np.asarray(scene.renderer.mesh.bounds, dtype=np.float64))
         eyes = np.asarray(scene.poses, dtype=np.float64)[:, :3, 3]
         farthest = max(farthest, float(np.linalg.norm(
             eyes[:, None, :] - corners[None], axis=2).max()))
     return farthest * (1.0 + DEPTH_NOISE_MARGIN)
 
 
-def trimesh_corners(bounds: np.ndarray) -> np.ndarray:
+def box_corners(bounds: np.ndarray) -> np.ndarray:
     """The 8 corners (8, 3) of an axis-aligned box given as ``[[min], [max]]``."""
     pick = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
     return bounds[pick, np.arange(3)]
