@@ -138,6 +138,11 @@ def main() -> None:
             f"{final.get('mean_return', float('nan')):.3f} | "
             f"{final.get('accuracy', float('nan')):.3f} | "
             f"{final.get('mean_energy', float('nan')):.3f} |")
+    for lam in summary["policies"]:
+        mine = [r for r in curves if float(r["lambda"]) == float(lam)]
+        shown = mine[:: max(1, len(mine) // 10)] + mine[-1:]
+        say(f"λ = {lam}: mean return (timesteps) " + ", ".join(
+            f"{float(r['mean_return']):.2f} ({float(r['timesteps']):,.0f})" for r in shown))
     seconds = summary["seconds"]
     say(f"wall: record {seconds['record']:.0f} s, train {seconds['train_wall']:.0f} s "
         f"(CPU {seconds['train_cpu']:.0f} s), stage total {seconds['total']:.0f} s")
