@@ -41,9 +41,9 @@ def main() -> None:
     network, spec, rows = train_policy(config, evidence, ws.require("observe"), motion,
                                        args.lambda_, args.seed)
     cpu = time.process_time() - began
-    model, first = belief_models(config, ws.require("observe"))
-    scores = recorded_scores(evidence, LearnedPolicy(network, spec, model, motion.reachable,
-                                                     first_view_model=first),
+    belief = belief_models(config, ws.require("observe"))
+    scores = recorded_scores(evidence, LearnedPolicy(network, spec, reachable=motion.reachable,
+                                                     **belief),
                              motion, config.evaluate.max_moves, config.seed, "learned")
     held_out_return = -(scores["mean_energy"] + args.lambda_ * (1 - scores["accuracy"]))
     curve = [round(r["mean_return"], 2) for r in rows[:: max(1, len(rows) // 10)]]

@@ -45,9 +45,9 @@ def recorded(pipeline_workspace):
 
 def _recorded_env(recorded, max_moves: int = 6, seed: int | None = None
                   ) -> RecordedRecognitionEnv:
-    _, _, _, _, evidence, (model, first), motion = recorded
-    return RecordedRecognitionEnv(evidence, model, motion, LAMBDA, max_moves, revisit=False,
-                                  first_view_model=first, seed=seed)
+    _, _, _, _, evidence, belief, motion = recorded
+    return RecordedRecognitionEnv(evidence, motion=motion, lambda_=LAMBDA, max_moves=max_moves,
+                                  revisit=False, seed=seed, **belief)
 
 
 def test_the_evidence_is_every_volume_model_and_the_observe_stages_labels(recorded) -> None:
@@ -69,7 +69,7 @@ def test_same_observations_beliefs_rewards_and_masks_as_the_rendering_env(record
     """On the same (model, start, actions), the rendering environment's depth images,
     classified and fed to the closed loop's belief, give the recorded environment's
     observations; rewards and masks agree step by step."""
-    _, config, dataset, classifier, evidence, (model, first), motion = recorded
+    _, config, dataset, classifier, evidence, arguments, motion = recorded
     volume = dataset.with_role("volume")
     rendering = ActiveRecognitionEnv([TestViews.of_model(config, dataset, m) for m in volume],
                                      [dataset.label(m) for m in volume], dataset.classes,
@@ -83,7 +83,7 @@ def test_same_observations_beliefs_rewards_and_masks_as_the_rendering_env(record
             options = {"model": m, "start": int(start)}
             obs, _ = rendering.reset(options=options)
             mine, _ = fast.reset(options=options)
-            belief = BayesBelief(model, first)
+            belief = BayesBelief(**arguments)  # the closed loop's belief, as evaluate builds it
             visited = np.zeros(rendering.viewpoints, dtype=bool)
             for step in range(4):
                 visited[obs["viewpoint"]] = True
@@ -176,7 +176,8 @@ def test_recorded_evidence_round_trips_and_refuses_another_file(recorded, tmp_pa
 
 
 def test_the_constructor_names_a_mismatched_model(recorded) -> None:
-    _, _, _, _, evidence, (model, _), motion = recorded
+    _, _, _, _, evidence, belief, motion = recorded
+    model = belief["observation_model"]
     with pytest.raises(ValueError, match=r"observation model is \(16, 2, 2\)"):
         RecordedRecognitionEnv(evidence, model[:, :2, :2], motion, 1.0, 3)
     with pytest.raises(ValueError, match="must be positive"):

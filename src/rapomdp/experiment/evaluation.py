@@ -149,7 +149,9 @@ class ClosedLoop:
                     raise StageError(f"the learned policy's belief uses observation model "
                                      f"'{name}', which the workspace lacks")
                 return LearnedPolicy(network, spec, observation[name], motion.reachable,
-                                     METHOD_NAMES[key], first_view_model=first_view[name])
+                                     METHOD_NAMES[key], first_view_model=first_view[name],
+                                     prior=priors[name], discount=discounts.get(name),
+                                     similarity=discount_kernel)
             if key == "static":
                 return StaticPolicy(METHOD_NAMES[key],
                                     softmax_temperature=load_softmax_temperature(inputs.observe))

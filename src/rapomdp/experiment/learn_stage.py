@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from rapomdp.awareness.artefacts import load_view_discounts
 from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes
 from rapomdp.config import Config
 from rapomdp.context import RunContext
@@ -61,9 +62,14 @@ from rapomdp.experiment.recorded_env import (
 from rapomdp.experiment.sections import LEARNED, learned_lambdas
 from rapomdp.io import read_json, write_json_atomic, write_text_atomic
 from rapomdp.parallel import run_tasks
-from rapomdp.planning.stage import first_view_models, offered_observation_models
+from rapomdp.planning.stage import (
+    first_view_models,
+    observation_priors,
+    offered_observation_models,
+)
 from rapomdp.progress import progress_bar, track
 from rapomdp.recognition.artefacts import XrhoProbabilities, load_volume_probabilities
+from rapomdp.recognition.belief import ViewDiscount
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
 
@@ -105,26 +111,45 @@ def record_evidence(dataset: Dataset, volume: XrhoProbabilities,
 
 # -- 2. training -------------------------------------------------------------------------------
 
-def belief_models(config: Config, observe_dir: Path) -> tuple[np.ndarray, np.ndarray]:
-    """The observation model of the learned policy's belief (``learn.observation_model``) and
-    its first-update model, as the evaluation's methods read them."""
-    name = config.learn.observation_model
+def belief_arguments(observe_dir: Path, names: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """For each named observation model, the arguments of its closed-loop belief
+    (:class:`~rapomdp.experiment.methods.BayesBelief`) as the evaluation builds them: the
+    model, its first-view model, its prior over states and its view discount (with the
+    viewpoints' similarity) where the observe stage made one."""
     models, _ = offered_observation_models(observe_dir)
-    if name not in models:
+    first = first_view_models(observe_dir, models)
+    priors = observation_priors(observe_dir, models)
+    discounts, kernel = load_view_discounts(observe_dir)
+    return {name: {"observation_model": models[name], "first_view_model": first[name],
+                   "prior": priors[name],
+                   "discount": (ViewDiscount(float(discounts[name][0]),
+                                             float(discounts[name][1]))
+                                if name in discounts else None),
+                   "similarity": kernel if name in discounts else None}
+            for name in names if name in models}
+
+
+def belief_models(config: Config, observe_dir: Path) -> dict[str, Any]:
+    """The belief arguments (:func:`belief_arguments`) of ``learn.observation_model``, the
+    belief the learned policy sees; a model the observe stage did not make is named."""
+    name = config.learn.observation_model
+    found = belief_arguments(observe_dir, [name])
+    if name not in found:
+        models, _ = offered_observation_models(observe_dir)
         raise StageError(f"learn.observation_model is '{name}'; the observe stage made "
                          f"{', '.join(models)}")
-    return models[name], first_view_models(observe_dir, {name: models[name]})[name]
+    return found[name]
 
 
 def recorded_environment(config: Config, evidence: RecordedEvidence,
-                         models: tuple[np.ndarray, np.ndarray], motion: Motion,
+                         belief: dict[str, Any], motion: Motion,
                          lambda_: float, seed: int | None = None) -> RecordedRecognitionEnv:
     """The training environment at ``lambda_``: the closed loop's step budget and revisit
-    rule (``evaluate.max_moves``, ``evaluate.revisit``), the belief of ``models``
+    rule (``evaluate.max_moves``, ``evaluate.revisit``), the belief of ``belief``
     (:func:`belief_models`)."""
-    return RecordedRecognitionEnv(evidence, models[0], motion, lambda_,
-                                  config.evaluate.max_moves, config.evaluate.revisit,
-                                  first_view_model=models[1], seed=seed)
+    return RecordedRecognitionEnv(evidence, motion=motion, lambda_=lambda_,
+                                  max_moves=config.evaluate.max_moves,
+                                  revisit=config.evaluate.revisit, seed=seed, **belief)
 
 
 def network_of(policy: Any, spec: PolicySpec) -> PolicyNetwork:
@@ -280,25 +305,24 @@ def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
                         observe_dir: Path, motion: Motion, progress: bool = True
                         ) -> list[dict[str, Any]]:
     """Every trained policy and Random (at each stop belief) scored on the held-out recorded
-    evidence (:func:`recorded_scores`), one row each."""
-    models, _ = offered_observation_models(observe_dir)
-    first = first_view_models(observe_dir, models)
+    evidence (:func:`recorded_scores`), one row each; their beliefs as the evaluation builds
+    them."""
     ev = config.evaluate
+    walk = ev.random.observation_model
+    beliefs = belief_arguments(observe_dir, [config.learn.observation_model, walk])
+    if walk not in beliefs:
+        raise StageError(f"evaluate.random.observation_model is '{walk}'; the workspace "
+                         "lacks it")
     settings: list[tuple[str, float, Policy]] = []
     for lam in learned_lambdas(config):
         network, spec = load_learned_policy(out, lam)
-        name = spec.observation_model
-        settings.append((LEARNED, lam, LearnedPolicy(network, spec, models[name],
-                                                     motion.reachable,
-                                                     first_view_model=first[name])))
-    walk = ev.random.observation_model
-    if walk not in models:
-        raise StageError(f"evaluate.random.observation_model is '{walk}'; the workspace has "
-                         f"{', '.join(models)}")
+        settings.append((LEARNED, lam, LearnedPolicy(network, spec, reachable=motion.reachable,
+                                                     **beliefs[spec.observation_model])))
     for threshold in dict.fromkeys([ev.random.belief_threshold, *ev.random_thresholds]):
+        random_belief = dict(beliefs[walk])
         settings.append(("random", float(threshold), RandomWalkPolicy(
-            models[walk], motion.distance_m, motion.reachable, ev.random.neighbours,
-            threshold, ev.random.max_moves, first_view_model=first[walk])))
+            random_belief.pop("observation_model"), motion.distance_m, motion.reachable,
+            ev.random.neighbours, threshold, ev.random.max_moves, **random_belief)))
     rows = []
     for method, value, policy in track(settings, "learn: held-out episodes", progress,
                                        unit="settings"):

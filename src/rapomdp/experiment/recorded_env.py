@@ -33,6 +33,7 @@ from gymnasium import spaces
 from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.methods import BayesBelief
 from rapomdp.io import ArtefactError, load_npz, save_npz
+from rapomdp.recognition.belief import ViewDiscount
 
 #: The file of the recorded evidence in the learn stage's folder.
 RECORDED_FILE = "recorded_evidence.npz"
@@ -129,7 +130,10 @@ class RecordedRecognitionEnv(gymnasium.Env):
 
     Observations: :func:`policy_input` (Box in [0, 1], C + 2V). Actions: ``Discrete(V + C)``
     as in :class:`~rapomdp.experiment.env.ActiveRecognitionEnv`. ``reset`` takes
-    ``options={"model": i, "start": v}`` (each drawn from the env's RNG otherwise).
+    ``options={"model": i, "start": v}`` (each drawn from the env's RNG otherwise). The belief
+    is :class:`~rapomdp.experiment.methods.BayesBelief` of ``observation_model`` (V, S, C) with
+    ``first_view_model``, ``prior``, ``discount`` and ``similarity``, as the evaluation builds
+    it for a method of that model (:func:`~rapomdp.experiment.learn_stage.belief_models`).
     :meth:`action_masks` is what sb3-contrib's ``MaskablePPO`` reads. The final ``info`` holds
     ``correct``, ``true_class``, ``model``, ``moves`` and ``energy`` (the scorer's view).
     """
@@ -139,14 +143,17 @@ class RecordedRecognitionEnv(gymnasium.Env):
     def __init__(self, evidence: RecordedEvidence, observation_model: np.ndarray,
                  motion: Motion, lambda_: float, max_moves: int, revisit: bool = False,
                  first_view_model: np.ndarray | None = None,
-                 invalid_penalty: float | None = None, seed: int | None = None) -> None:
+                 invalid_penalty: float | None = None, seed: int | None = None,
+                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
+                 similarity: np.ndarray | None = None) -> None:
         if evidence.models == 0:
             raise ValueError("RecordedRecognitionEnv needs at least one recorded model")
         model = np.asarray(observation_model, dtype=np.float64)
-        shape = (evidence.viewpoints, evidence.classes, evidence.classes)
-        if model.shape != shape:
+        if model.ndim != 3 or (model.shape[0], model.shape[2]) != (evidence.viewpoints,
+                                                                   evidence.classes):
             raise ValueError(f"the observation model is {model.shape}, the recorded evidence "
-                             f"needs {shape} (V, C, C)")
+                             f"needs ({evidence.viewpoints}, states, {evidence.classes}) "
+                             "(V, S, C)")
         if motion.viewpoints != evidence.viewpoints:
             raise ValueError(f"the motion covers {motion.viewpoints} viewpoints, the recorded "
                              f"evidence {evidence.viewpoints}")
@@ -162,7 +169,7 @@ class RecordedRecognitionEnv(gymnasium.Env):
         self.lambda_ = float(lambda_)
         self.max_moves = int(max_moves)
         self.revisit = bool(revisit)
-        self._bayes = BayesBelief(model, first_view_model)
+        self._bayes = BayesBelief(model, first_view_model, prior, discount, similarity)
         reach = motion.reachable
         valid = motion.energy[np.ix_(reach, reach)]
         valid = valid[np.isfinite(valid)]
