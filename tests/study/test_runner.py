@@ -9,7 +9,7 @@ from rapomdp.workspace import Workspace
 from tests.study.conftest import TINY_STUDY, TinyStudy
 
 #: What a classifier's seed does not reach: the meshes, renders, the robot, the VP-tree.
-UNTRAINED = {"dataset", "render", "robot", "vptree"}
+UNTRAINED = {"dataset", "render", "xrho", "robot", "vptree"}
 
 
 def test_vary_train_shares_the_stages_the_classifier_does_not_reach() -> None:
