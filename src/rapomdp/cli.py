@@ -649,10 +649,34 @@ def solve(workspace: WorkspaceOption, config: ConfigOption = None,
             + (f"; {bounds['note']}" if bounds.get("note") else ""), highlight=False)
 
 
+@app.command()
+def learn(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
+          reconfigure: ReconfigureOption = False, overrides: OverridesArgument = None,
+          workers: WorkersOption = None) -> None:
+    """The learned baseline: MaskablePPO policies trained on the held-out models' recorded
+    evidence, one per λ (only when evaluate.methods lists 'learned': configs/learned.yaml)."""
+    _run(config, workspace, "learn", ["learn"] if force else [], _context(workers=workers),
+         overrides, reconfigure)
+
+    def summary() -> dict:
+        from rapomdp.experiment.learn_stage import load_learn_summary
+        from rapomdp.workspace import Workspace
+
+        return load_learn_summary(Workspace(workspace).require("learn"))
+
+    data = _guard(summary)
+    if not data.get("trained"):
+        console.print(f"  nothing trained: {data.get('reason', '')}", highlight=False)
+    for row in data.get("held_out", []):
+        console.print(f"  held out, {row['method']} at {row['parameter']} {row['value']:g}: "
+                      f"accuracy {row['accuracy']:.3f}, energy {row['mean_energy']:.3f} m",
+                      highlight=False)
+
+
 WorkersOption = Annotated[
     int | None,
     typer.Option(help="Processes for the stages that spread tasks (render, classifier_eval, "
-                      "vptree, saliency, solve, evaluate; default: 2, or 1 on a single "
+                      "vptree, saliency, solve, learn, evaluate; default: 2, or 1 on a single "
                       "core); the results do not depend on it."),
 ]
 

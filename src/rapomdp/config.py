@@ -404,6 +404,7 @@ METHOD_NAMES = {
     "ra": "RA-POMDP",
     "ra_class": "RA-POMDP (per-class)",
     "blackbox": "Black-box POMDP",
+    "learned": "Learned (PPO)",
 }
 
 
@@ -423,8 +424,9 @@ class EvaluateConfig(Section):
 
     methods: list[str] = Field(
         ["static", "random", "vptree", "classifier", "ra"],
-        description="static, random, or an observation model solved by the solve stage "
-        "(vptree, classifier, ra, ra_class, blackbox)")
+        description="static, random, an observation model solved by the solve stage "
+        "(vptree, classifier, ra, ra_class, blackbox), or learned (the learn stage's policy; "
+        "configs/learned.yaml)")
     starts_per_model: int = Field(
         4, ge=1, description="start viewpoints per test model, drawn (seeded) among reachable "
         "(the episodes per method: test models x starts)")
@@ -477,6 +479,45 @@ class EvaluateConfig(Section):
         return values
 
 
+class LearnConfig(Section):
+    """The learned baseline ``learned`` (sb3-contrib's MaskablePPO on the recorded evidence of
+    the held-out models; see docs/experiment.md); trained only when evaluate.methods lists it."""
+
+    observation_model: str = Field(
+        "ra", description="the observation model of the belief the policy sees (an observe "
+        "model; ra: RA-POMDP's)")
+    declare: Literal["map", "any"] = Field(
+        "map", description="map: the policy chooses a move or to stop, and stopping declares "
+        "the belief's most likely class (as Random and the POMDPs declare); any: it chooses "
+        "the declared class itself among V + C actions. Chosen on held-out models "
+        "(docs/experiment.md)")
+    timesteps: int = Field(
+        300_000, ge=1, description="environment steps of training per wrong-declaration cost "
+        "λ (the training curves show the plateau: docs/experiment.md)")
+    envs: int = Field(8, ge=1, description="environments stepped together per rollout")
+    rollout_steps: int = Field(256, ge=1, description="steps per environment per update")
+    batch_size: int = Field(256, ge=1, description="minibatch of the PPO update")
+    epochs: int = Field(4, ge=1, description="passes over each rollout")
+    learning_rate: float = Field(
+        1e-3, gt=0, description="Adam's; chosen on held-out return (docs/experiment.md, "
+        "benchmarks/results/learned_tuning_default.txt)")
+    gamma: float = Field(
+        1.0, gt=0, le=1, description="discount: 1, the episode's cost as Table 1 scores it "
+        "(energy, plus λ for a wrong declaration)")
+    gae_lambda: float = Field(0.95, ge=0, le=1)
+    entropy_coefficient: float = Field(
+        0.0, ge=0, description="the entropy bonus: sb3's default, chosen on held-out return")
+    hidden: list[int] = Field([128, 128], min_length=1, description="hidden layer widths of "
+                              "the policy and value networks (tanh)")
+
+    @field_validator("hidden")
+    @classmethod
+    def _widths(cls, widths: list[int]) -> list[int]:
+        if any(not 1 <= w <= 4096 for w in widths):
+            raise ValueError("every hidden width must be in [1, 4096]")
+        return widths
+
+
 #: A ``dask.distributed`` scheduler's address (``inproc://``: a LocalCluster of this process).
 SCHEDULER_PATTERN = r"^(tcp|tls|ws|wss|inproc|ucx)://\S+$"
 
@@ -515,6 +556,7 @@ class Config(Section):
     vptree: VPTreeConfig = VPTreeConfig()
     solve: SolveConfig = SolveConfig()
     evaluate: EvaluateConfig = EvaluateConfig()
+    learn: LearnConfig = LearnConfig()
     parallel: ParallelConfig = ParallelConfig()
     limits: LimitsConfig = LimitsConfig()
 

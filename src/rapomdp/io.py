@@ -244,12 +244,18 @@ def save_npz(path: str | Path, compressed: bool = False, **arrays: np.ndarray) -
         raise
 
 
-def load_npz(path: str | Path) -> dict[str, np.ndarray]:
-    """Read every array of an .npz file, never unpickling."""
+def load_npz(path: str | Path, keys: Sequence[str] | None = None) -> dict[str, np.ndarray]:
+    """Read every array of an .npz file (or only those named by ``keys``: the others are not
+    read), never unpickling."""
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as data:
-            return {key: data[key] for key in data.files}
+            missing = [k for k in keys or () if k not in data.files]
+            if missing:
+                raise ArtefactError(f"{path}: lacks the array(s) {', '.join(missing)}")
+            return {key: data[key] for key in (data.files if keys is None else keys)}
+    except ArtefactError:
+        raise
     except FileNotFoundError as exc:
         raise ArtefactError(f"{path}: not found") from exc
     except ValueError as exc:

@@ -24,7 +24,13 @@ from rapomdp.config import Config, apply_overrides, config_from_dict, read_confi
 from rapomdp.context import RunContext
 from rapomdp.data.layouts import dataset_fingerprint
 from rapomdp.data.sections import XRHO_SECTIONS
-from rapomdp.experiment.sections import EVALUATE_SECTIONS, REPORT_INPUTS, REPORT_SECTIONS
+from rapomdp.experiment.sections import (
+    EVALUATE_SECTIONS,
+    LEARN_SECTIONS,
+    REPORT_INPUTS,
+    REPORT_SECTIONS,
+    learn_fingerprint,
+)
 from rapomdp.recognition.artefacts import EVAL_SECTIONS, TRAIN_SECTIONS, VPTREE_SECTIONS
 from rapomdp.workspace import Stage, StageError, StageInputs, StageResult, Workspace, stage_key
 
@@ -57,6 +63,8 @@ def stage_code(name: str) -> StageRun:
         from rapomdp.recognition.vptree_stage import run_vptree_stage as run
     elif name == "solve":
         from rapomdp.planning.stage import run_solve_stage as run
+    elif name == "learn":
+        from rapomdp.experiment.learn_stage import run_learn_stage as run
     elif name == "evaluate":
         from rapomdp.experiment.evaluation import run_evaluate_stage as run
     elif name == "report":
@@ -164,10 +172,20 @@ STAGES: list[Stage] = [
         description="one active-recognition POMDP policy per observation model",
     ),
     Stage(
+        name="learn",
+        run=_deferred("learn"),
+        sections=LEARN_SECTIONS,
+        inputs=("dataset", "classifier_eval", "crossfit", "observe", "robot"),
+        fingerprint=learn_fingerprint,
+        description="learned baseline: MaskablePPO on held-out recorded evidence (when "
+        "evaluate.methods lists 'learned')",
+    ),
+    Stage(
         name="evaluate",
         run=_deferred("evaluate"),
         sections=EVALUATE_SECTIONS,
-        inputs=("dataset", "train", "classifier_eval", "observe", "vptree", "robot", "solve"),
+        inputs=("dataset", "train", "classifier_eval", "observe", "vptree", "robot", "solve",
+                "learn"),
         description="closed-loop episodes of every method on the test models: Table 1, Fig. 3",
     ),
     Stage(

@@ -123,6 +123,7 @@ class StageInputs:
     observe_dir: Path | None = None
     vptree_dir: Path | None = None
     solve_dir: Path | None = None
+    learn_dir: Path | None = None
     evaluate_dir: Path | None = None
 
     dataset = _Upstream()
@@ -137,6 +138,7 @@ class StageInputs:
     observe = _Upstream()
     vptree = _Upstream()
     solve = _Upstream()
+    learn = _Upstream()
     evaluate = _Upstream()
 
     def __post_init__(self) -> None:

@@ -38,3 +38,24 @@ def pipeline_workspace(tmp_path_factory: pytest.TempPathFactory) -> tuple[Worksp
     ws = Workspace(tmp_path_factory.mktemp("pipeline"))
     run_pipeline(config, ws, context=TEST_CONTEXT)
     return ws, config
+
+
+#: :data:`TINY` with the learned baseline: a few hundred PPO steps per λ (four λ: Table 1's 8
+#: and the sweep's 1, 2, 6).
+LEARNED_TIMESTEPS = 256
+LEARNED_TINY = {**TINY,
+                "evaluate": {**TINY["evaluate"], "methods": [*METHODS, "learned"]},
+                "learn": {"timesteps": LEARNED_TIMESTEPS, "envs": 2, "rollout_steps": 32,
+                          "batch_size": 32, "hidden": [16]}}
+
+
+@pytest.fixture(scope="session")
+def learned_workspace(pipeline_workspace, tmp_path_factory: pytest.TempPathFactory
+                      ) -> tuple[Workspace, Config]:
+    """:data:`LEARNED_TINY` run to the end, every stage before ``learn`` taken from
+    :func:`pipeline_workspace` (same keys): only learn, evaluate and report run."""
+    source, _ = pipeline_workspace
+    config = config_from_dict(LEARNED_TINY)
+    ws = Workspace(tmp_path_factory.mktemp("learned"))
+    run_pipeline(config, ws, context=TEST_CONTEXT, share_from=[source])
+    return ws, config

@@ -77,9 +77,9 @@ def test_check_env_passes_for_20_seeds_with_unreachable_viewpoints(tiny) -> None
         assert not env.motion.reachable.all()
         env.action_space.seed(seed)
         with warnings.catch_warnings():
-            warnings.filterwarnings("error")  # any checker warning fails the test, but
-            warnings.filterwarnings("ignore", ".*Box observation space maximum value is inf")
+            warnings.filterwarnings("error")  # any checker warning fails the test
             check_env(env)
+        assert np.isfinite(env.observation_space["depth"].high).all()
 
 
 def test_gym_make_builds_the_registered_environment(tiny) -> None:
@@ -228,6 +228,45 @@ def test_action_mask_excludes_unreachable_and_current_viewpoints(env) -> None:
     assert info["moves"] == 0 and info["steps"] == 2 and info["energy"] == 0.0
 
 
+def test_depth_is_bounded_by_the_farthest_corner_seen_and_lies_within_it(tiny, env) -> None:
+    from rapomdp.experiment.env import DEPTH_NOISE_MARGIN
+
+    high = env.observation_space["depth"].high
+    assert np.all(high == np.float32(env.max_depth_m))
+    # the bound: the farthest bounding-box corner from any camera, plus the noise margin
+    corners = []
+    for scene in env.scenes:
+        (x0, y0, z0), (x1, y1, z1) = scene.renderer.mesh.bounds
+        box = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)])
+        corners.append(np.linalg.norm(scene.poses[:, None, :3, 3] - box[None], axis=2).max())
+    assert env.max_depth_m == pytest.approx(max(corners) * (1 + DEPTH_NOISE_MARGIN))
+    # about rho + the object's size: far below a sensor's range, above every hit
+    assert 0.6 < env.max_depth_m < 1.2
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        assert env.observation_space.contains(obs) and obs["depth"].max() < env.max_depth_m
+
+
+def test_action_masks_is_the_mask_and_revisit_off_masks_visited_viewpoints(tiny) -> None:
+    env = ActiveRecognitionEnv.from_workspace(tiny[0].root, max_moves=5, seed=2, revisit=False)
+    obs, info = env.reset(seed=2)
+    start = obs["viewpoint"]
+    np.testing.assert_array_equal(env.action_masks(), info["action_mask"])
+    target = _first_valid_move(env, info["action_mask"])
+    _, _, _, _, info = env.step(target)
+    assert not info["action_mask"][start] and not info["action_mask"][target]
+    np.testing.assert_array_equal(env.action_masks(), info["action_mask"])
+    _, reward, _, _, info = env.step(start)
+    assert info["invalid"] and reward == -env.invalid_penalty
+    assert info["invalid_reason"] == (f"move to viewpoint {start}: already visited (revisit "
+                                      "is off)")
+    # the default keeps revisits valid
+    again = ActiveRecognitionEnv.from_workspace(tiny[0].root, max_moves=5, seed=2)
+    again.reset(seed=2)
+    again.step(target)
+    assert again.action_masks()[start]
+
+
 def test_planner_actions_convert_both_ways(env) -> None:
     from rapomdp.planning.policy import ARAction
 
@@ -306,9 +345,9 @@ def test_the_docs_loops_run_as_written(pipeline_workspace, capsys) -> None:
     (its Panda reaches only some viewpoints)."""
     ws, _ = pipeline_workspace
     blocks = _docs_env_blocks()
-    assert len(blocks) == 2 and "action_space.sample()" in blocks[0]
+    assert len(blocks) == 3 and "action_space.sample()" in blocks[0]
     assert "forbidden=visited" in blocks[1] and "policy.lookahead_act(" in blocks[1]
-    for block in blocks:
+    for block in blocks[:2]:
         assert block.count('"runs/exp1"') == 1
         namespace: dict = {}
         exec(compile(block.replace('"runs/exp1"', repr(str(ws.root))), "docs", "exec"),
@@ -322,6 +361,19 @@ def test_the_docs_loops_run_as_written(pipeline_workspace, capsys) -> None:
     path = env._path
     assert len(set(path)) == len(path) and env.motion.reachable[path].all()
     assert printed[0] in env.class_names
+
+
+def test_the_docs_maskable_ppo_example_trains_and_acts_within_the_mask(pipeline_workspace,
+                                                                       capsys) -> None:
+    """docs/experiment.md's MaskablePPO example: a few hundred steps on the tiny workspace."""
+    ws, _ = pipeline_workspace
+    block = _docs_env_blocks()[2]
+    assert "MaskablePPO(" in block and "model.learn(total_timesteps=256)" in block
+    namespace: dict = {}
+    exec(compile(block.replace('"runs/exp1"', repr(str(ws.root))), "docs", "exec"), namespace)
+    action, valid = capsys.readouterr().out.split()
+    assert valid == "True" and 0 <= int(action) < namespace["env"].action_space.n
+    assert namespace["model"].num_timesteps == 256
 
 
 def test_actions_are_taken_as_action_space_contains_takes_them(env) -> None:

@@ -78,7 +78,7 @@ def test_every_method_has_its_own_colour_and_marker() -> None:
     colours = [c for c, _, _ in METHOD_STYLES.values()]
     markers = [m for _, _, m in METHOD_STYLES.values()]
     assert len(set(colours)) == len(colours) and len(set(markers)) == len(markers)
-    unknown = method_style("learned", 0)
+    unknown = method_style("a_method_of_ones_own", 0)
     assert unknown[0] not in colours and unknown[2] not in markers
 
 

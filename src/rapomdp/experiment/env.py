@@ -75,7 +75,8 @@ class ActiveRecognitionEnv(gymnasium.Env):
     def __init__(self, scenes: Sequence[TestViews], true_classes: Sequence[int],
                  class_names: Sequence[str], motion: Motion, lambda_: float,
                  max_moves: int = 30, seed: int | None = None,
-                 render_mode: str | None = None, invalid_penalty: float | None = None) -> None:
+                 render_mode: str | None = None, invalid_penalty: float | None = None,
+                 revisit: bool = True) -> None:
         if not scenes:
             raise ValueError("ActiveRecognitionEnv needs at least one scene (test model)")
         if len(true_classes) != len(scenes):
@@ -124,8 +125,10 @@ class ActiveRecognitionEnv(gymnasium.Env):
         if not (np.isfinite(self.invalid_penalty) and self.invalid_penalty >= 0):
             raise ValueError(f"invalid_penalty must be finite and non-negative, got "
                              f"{invalid_penalty}")
+        self.revisit = bool(revisit)
+        self.max_depth_m = max_depth_m(self.scenes)
         self.observation_space = spaces.Dict({
-            "depth": spaces.Box(0.0, np.inf, (height, width), np.float32),
+            "depth": spaces.Box(0.0, self.max_depth_m, (height, width), np.float32),
             "viewpoint": spaces.Discrete(views),
         })
         self.action_space = spaces.Discrete(views + classes)
@@ -152,8 +155,8 @@ class ActiveRecognitionEnv(gymnasium.Env):
 
     @classmethod
     def from_workspace(cls, path: str | Path, max_moves: int = 30, seed: int | None = None,
-                       render_mode: str | None = None,
-                       invalid_penalty: float | None = None) -> ActiveRecognitionEnv:
+                       render_mode: str | None = None, invalid_penalty: float | None = None,
+                       revisit: bool = True) -> ActiveRecognitionEnv:
         """The environment of a workspace whose dataset and robot stages have run.
 
         The scenes are its test models seen from X_rho (``viewpoints`` section) at the camera's
@@ -175,7 +178,7 @@ class ActiveRecognitionEnv(gymnasium.Env):
         motion = Motion.from_robot(robot)
         return cls(scenes, [dataset.label(m) for m in models], dataset.classes, motion,
                    config.solve.wrong_declaration_cost_m, max_moves=max_moves, seed=seed,
-                   render_mode=render_mode, invalid_penalty=invalid_penalty)
+                   render_mode=render_mode, invalid_penalty=invalid_penalty, revisit=revisit)
 
     def action_index(self, action: ARAction) -> int:
         """The action of this space for a planner's :class:`ARAction` (a policy's ``act``):
@@ -191,12 +194,19 @@ class ActiveRecognitionEnv(gymnasium.Env):
         return ARAction("move", action)
 
     def action_mask(self) -> np.ndarray:
-        """(V + C,) bool: the moves to reachable viewpoints other than the current one, and
-        every declaration (all False once the episode is over)."""
+        """(V + C,) bool: the moves to reachable viewpoints other than the current one (and,
+        with ``revisit`` False, not visited), and every declaration (all False once the
+        episode is over)."""
         mask = np.ones(self.viewpoints + self.classes, dtype=bool)
         mask[: self.viewpoints] = self.motion.reachable
+        if not self.revisit:
+            mask[self._path] = False
         mask[self._viewpoint] = False
         return mask if not self._done else np.zeros_like(mask)
+
+    def action_masks(self) -> np.ndarray:
+        """:meth:`action_mask`, by the name sb3-contrib's ``MaskablePPO`` calls."""
+        return self.action_mask()
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Observation, dict[str, Any]]:
@@ -296,6 +306,8 @@ class ActiveRecognitionEnv(gymnasium.Env):
             self.motion.check_move(self._viewpoint, target)
         except ValueError as exc:
             return str(exc)
+        if not self.revisit and target in self._path:
+            return f"move to viewpoint {target}: already visited (revisit is off)"
         return f"move to viewpoint {target}: not allowed"
 
     def render(self) -> np.ndarray | None:
@@ -321,7 +333,7 @@ class ActiveRecognitionEnv(gymnasium.Env):
 
     def _look(self) -> np.ndarray:
         depth = self.scenes[self._model].look(self._viewpoint, self.np_random)
-        return np.asarray(depth, dtype=np.float32)
+        return np.minimum(np.asarray(depth, dtype=np.float32), np.float32(self.max_depth_m))
 
     def _observation(self) -> Observation:
         return {"depth": self._depth.copy(), "viewpoint": self._viewpoint}
@@ -330,6 +342,31 @@ class ActiveRecognitionEnv(gymnasium.Env):
         return {"viewpoint": self._viewpoint, "action_mask": self.action_mask(),
                 "moves": self._moves, "steps": self._steps, "energy": self._energy,
                 "distance_m": self._distance}
+
+
+#: Room above the farthest surface point for the sensor noise (a reading moves by about 1 %
+#: at the default camera: quantisation and axial noise at 0.8 m).
+DEPTH_NOISE_MARGIN = 0.1
+
+
+def max_depth_m(scenes: Sequence[TestViews]) -> float:
+    """The observation's finite upper bound: the largest distance from any camera of any
+    scene to a corner of its mesh's bounding box (no surface point is farther: z-depth is at
+    most that distance, and a box's farthest point is a corner), plus
+    :data:`DEPTH_NOISE_MARGIN` of it for the sensor noise."""
+    farthest = 0.0
+    for scene in scenes:
+        corners = box_corners(np.asarray(scene.renderer.mesh.bounds, dtype=np.float64))
+        eyes = np.asarray(scene.poses, dtype=np.float64)[:, :3, 3]
+        farthest = max(farthest, float(np.linalg.norm(
+            eyes[:, None, :] - corners[None], axis=2).max()))
+    return farthest * (1.0 + DEPTH_NOISE_MARGIN)
+
+
+def box_corners(bounds: np.ndarray) -> np.ndarray:
+    """The 8 corners (8, 3) of an axis-aligned box given as ``[[min], [max]]``."""
+    pick = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
+    return bounds[pick, np.arange(3)]
 
 
 #: Colours of :meth:`ActiveRecognitionEnv.render`'s hemisphere: background, disc, reachable,

@@ -15,7 +15,8 @@ number of workers). Writes into the stage folder:
 - ``fig3.png`` (belief in the true class against step), ``trajectories.png``;
 - ``tradeoff.csv|md|png``: accuracy against mean energy, one curve per method: every POMDP
   method solved (``sweep/lambda_<λ>/``) and run at each ``evaluate.lambdas``, Random at each
-  ``evaluate.random_thresholds``, Static one point; Table 1's settings are points of it;
+  ``evaluate.random_thresholds``, the learned baseline (``learned``) at each λ the learn stage
+  trained it at, Static one point; Table 1's settings are points of it;
 - ``evaluate.json``: counts, timing, images per second of the episode loop.
 """
 
@@ -60,7 +61,9 @@ from rapomdp.experiment.episode_table import (
     EpisodeTable,
     episodes_csv,
 )
+from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
+from rapomdp.experiment.sections import LEARNED
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
@@ -136,8 +139,19 @@ class ClosedLoop:
                      for name, d in discount_arrays.items()}
         cfg = config.evaluate
 
-        def method(key: str, random_threshold: float, solve_dir: Path) -> Policy:
+        def method(key: str, random_threshold: float, solve_dir: Path,
+                   lambda_: float = config.solve.wrong_declaration_cost_m) -> Policy:
             recogniser = VPTREE_RECOGNISER if key == "vptree" else "cnn"
+            if key == LEARNED:  # the learn stage's policy trained at this λ
+                network, spec = load_learned_policy(inputs.learn, lambda_)
+                name = spec.observation_model
+                if name not in observation:
+                    raise StageError(f"the learned policy's belief uses observation model "
+                                     f"'{name}', which the workspace lacks")
+                return LearnedPolicy(network, spec, observation[name], motion.reachable,
+                                     METHOD_NAMES[key], first_view_model=first_view[name],
+                                     prior=priors[name], discount=discounts.get(name),
+                                     similarity=discount_kernel)
             if key == "static":
                 return StaticPolicy(METHOD_NAMES[key],
                                     softmax_temperature=load_softmax_temperature(inputs.observe))
@@ -167,8 +181,10 @@ class ClosedLoop:
         if sweep_dir is not None:  # the accuracy-energy sweep's settings, run alongside
             for key, parameter, value, folder in sweep_settings(config):
                 threshold = value if parameter == "threshold" else cfg.random.belief_threshold
+                lam = value if parameter == "lambda" else config.solve.wrong_declaration_cost_m
                 solve_dir = sweep_dir / folder if folder else inputs.solve
-                methods[sweep_key(key, parameter, value)] = method(key, threshold, solve_dir)
+                methods[sweep_key(key, parameter, value)] = method(key, threshold, solve_dir,
+                                                                   lam)
         recognisers: dict[str, Recogniser] = {}
         if any(m.recogniser == "cnn" for m in methods.values()):
             recognisers["cnn"] = load_stage_classifier(config, inputs.train, dataset.classes,
@@ -260,13 +276,15 @@ def run_episodes(config: Config, inputs: StageInputs,
     return [r for records in per_model_records for r in records], dataset
 
 
-#: The methods that are POMDP policies (solved per λ); the others are Static and Random.
-NOT_POMDP = ("static", "random")
+#: The methods that are no POMDP policies (solved per λ): Static, Random, and the learned
+#: baseline (trained per λ by the learn stage).
+NOT_POMDP = ("static", "random", LEARNED)
 
 
 def sweep_settings(config: Config) -> list[tuple[str, str, float, str | None]]:
     """The accuracy-energy sweep's extra settings: (method, parameter, value, λ folder) for
-    every POMDP method at every extra λ and Random at every extra stop belief.
+    every POMDP method at every extra λ (the learned baseline too, with no solve folder: the
+    learn stage trained it there) and Random at every extra stop belief.
 
     Table 1's own settings (``solve.wrong_declaration_cost_m``, ``random.belief_threshold``)
     are not repeated: the main episodes are their points.
@@ -277,6 +295,8 @@ def sweep_settings(config: Config) -> list[tuple[str, str, float, str | None]]:
     for lam in dict.fromkeys(cfg.lambdas):
         if not np.isclose(lam, config.solve.wrong_declaration_cost_m):
             out += [(m, "lambda", float(lam), f"lambda_{lam:g}") for m in pomdp]
+            if LEARNED in cfg.methods:  # trained at every λ by the learn stage, not solved
+                out.append((LEARNED, "lambda", float(lam), None))
     if "random" in cfg.methods:
         out += [("random", "threshold", float(t), None)
                 for t in dict.fromkeys(cfg.random_thresholds)

@@ -38,6 +38,7 @@ METHOD_STYLES: dict[str, tuple[str, str, str]] = {
     "ra": (OKABE_ITO[4], "-", "v"),
     "ra_class": (OKABE_ITO[1], "--", "P"),
     "blackbox": (OKABE_ITO[5], "-.", "X"),
+    "learned": (OKABE_ITO[3], ":", "<"),
 }
 #: A method without a style of its own (greys, and markers no styled method uses).
 _FALLBACK_STYLES = (("0.45", "-", "h"), ("0.6", "--", "*"), ("0.3", ":", "p"))

@@ -55,6 +55,7 @@ from rapomdp.experiment.episode_table import (
 )
 from rapomdp.experiment.evaluation import PAIRED_REFERENCE
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
+from rapomdp.experiment.learned import CURVES_FIGURE, LEARN_SUMMARY
 from rapomdp.experiment.metrics import (
     PER_CLASS_NOTE,
     MethodSummary,
@@ -608,6 +609,43 @@ def belief_reliability(table: EpisodeTable, bins: int = 10
             for m in table.methods}
 
 
+def _learned(b: _Builder, folder: Path | None, cmd: str) -> None:
+    """The learned baseline's training (time, curves) and its held-out scores beside Random's,
+    when the learn stage trained it (``evaluate.methods`` lists ``learned``; it changes only
+    with the evaluate stage, an input, so the folder is read beside it like the VP-tree's)."""
+    if folder is None or not (folder / LEARN_SUMMARY).is_file():
+        return
+    how = f"made by `{cmd} learn -w {b.root}` (with learned in evaluate.methods)"
+    data = b.json(folder / LEARN_SUMMARY, how)
+    if not data or not data.get("trained"):
+        return
+    b.add(Heading("Learned baseline (MaskablePPO)"))
+    try:
+        seconds, evidence = data["seconds"], data["evidence"]
+        b.add(Paragraph(
+            f"One policy per λ ({', '.join(f'{v:g}' for v in data['lambdas'])} m), each "
+            f"trained for {data['timesteps']:,} environment steps on the recorded evidence of "
+            f"{evidence['models']} held-out models ({evidence['volume']} volume, "
+            f"{evidence['crossfit']} cross-fitted; no test model), its belief Eq. 5 with the "
+            f"'{data['observation_model']}' observation model. Training took "
+            f"{seconds['train_wall']:.0f} s of wall time ({seconds['train_cpu']:.0f} s of CPU "
+            f"over {data['workers']} process(es)); recording the evidence "
+            f"{seconds['record']:.0f} s."))
+        rows = [[METHOD_NAMES.get(r["method"], r["method"]),
+                 f"{r['parameter']} = {r['value']:g}", _fmt(r["accuracy"]),
+                 _fmt(r["mean_energy"]), _fmt(r["mean_moves"], 2), _fmt(r["episodes"])]
+                for r in data["held_out"]]
+    except (KeyError, TypeError, ValueError) as exc:
+        b.missing(f"learn/{LEARN_SUMMARY} lacks {exc}", how)
+        return
+    b.add(Paragraph("On the held-out models themselves (every reachable start; in-sample for "
+                    "the learned policy, which trained on them):"),
+          Table(["method", "setting", "accuracy", "energy (m)", "moves", "episodes"], rows))
+    b.figure(folder / CURVES_FIGURE,
+             "Training curves of the learned baseline: mean return, accuracy and energy of "
+             "the training episodes that ended in each PPO update, one line per λ.", how)
+
+
 def _classifier(b: _Builder, inputs: StageInputs, cmd: str) -> None:
     b.add(Heading("Single-view classifier"))
     how = f"made by `{cmd} classifier_eval -w {b.root}`"
@@ -751,6 +789,7 @@ def write_report(config: Config, inputs: StageInputs, out: Path,
     _provenance(b, config, {name: given[name] for name in REPORT_INPUTS})
     b.add(Paragraph(f"Classes ({len(classes)}): {', '.join(classes)}."))
     evaluation = _evaluation(b, inputs.evaluate, command, config.seed)
+    _learned(b, inputs.learn_dir or root / "learn", command)
     _awareness(b, config, inputs, figure_class(evaluation, config, classes),
                fig1 or write_fig1, command)
     _classifier(b, inputs, command)

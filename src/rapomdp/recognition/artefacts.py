@@ -129,6 +129,15 @@ class XrhoProbabilities:
                                 "models only)") from None
 
 
+def load_volume_probabilities(folder: str | Path) -> XrhoProbabilities:
+    """The classifier_eval stage's probabilities at X_rho of the *volume* models only: the test
+    models' arrays of the same file are not read (the learned baseline trains on held-out
+    models only)."""
+    arrays = load_npz(Path(folder) / PROBABILITIES_FILE, keys=("volume_files", "volume_xrho"))
+    return XrhoProbabilities(dict(zip((str(f) for f in arrays["volume_files"]),
+                                      arrays["volume_xrho"], strict=True)))
+
+
 def load_xrho_probabilities(folder: str | Path, name: str = PROBABILITIES_FILE
                             ) -> XrhoProbabilities:
     """The classifier_eval stage's probabilities at X_rho of the volume and test models (or
