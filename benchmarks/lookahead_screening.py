@@ -15,11 +15,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from lookahead_speed import recorded_cases  # benchmarks/, the script's own folder
 
-from rapomdp.awareness.artefacts import OBSERVATION_FILE
-from rapomdp.experiment.episode import Motion
-from rapomdp.io import load_npz
-from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
 from rapomdp.planning.rules import (
     TIE_TOL,
@@ -27,8 +24,6 @@ from rapomdp.planning.rules import (
     move_or_declare,
     unnormalised_declare_value,
 )
-from rapomdp.robot.artefacts import load_robot
-from rapomdp.workspace import Workspace
 
 
 def screened_lookahead(policy: ActiveRecognitionPolicy, plans32: np.ndarray,
@@ -70,21 +65,8 @@ def main() -> None:
     parser.add_argument("--workspace", "-w", type=Path, required=True)
     parser.add_argument("--repeats", type=int, default=200)
     args = parser.parse_args()
-    ws = Workspace(args.workspace)
-    model = load_npz(ws.require("observe") / OBSERVATION_FILE)["ra"]
-    policy = ActiveRecognitionPolicy.load(ws.require("solve") / "policy_ra.npz")
-    reachable = Motion.from_robot(load_robot(ws.require("robot"))).reachable
-    rng = np.random.default_rng(0)
-    n_v, n_c = model.shape[:2]
-    cases = []
-    for _ in range(args.repeats):
-        views = rng.choice(np.flatnonzero(reachable), 4, replace=False)
-        b = np.full(n_c, 1.0 / n_c)
-        for v in views[: rng.integers(1, 5)]:
-            b = update_beliefs(model, b, int(v), int(rng.integers(n_c)))
-        visited = np.zeros(n_v, dtype=bool)
-        visited[views] = True
-        cases.append((int(views[0]), b, visited))
+    model, policy, reachable, cases = recorded_cases(args.workspace, args.repeats)
+    n_c = model.shape[1]
     order = np.argsort(policy.targets, kind="stable")
     first, starts = np.unique(policy.targets[order], return_index=True)
     betas = np.ascontiguousarray(policy.betas[order])

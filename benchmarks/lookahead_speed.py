@@ -22,19 +22,18 @@ from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--workspace", "-w", type=Path, required=True)
-    parser.add_argument("--repeats", type=int, default=200)
-    args = parser.parse_args()
-    ws = Workspace(args.workspace)
+def recorded_cases(workspace: Path, repeats: int) -> tuple[
+        np.ndarray, ActiveRecognitionPolicy, np.ndarray, list[tuple[int, np.ndarray, np.ndarray]]]:
+    """A workspace's RA observation model, its solved policy, the reachable viewpoints and
+    ``repeats`` cases (viewpoint, belief after one to four random labels, visited)."""
+    ws = Workspace(workspace)
     model = load_npz(ws.require("observe") / OBSERVATION_FILE)["ra"]
     policy = ActiveRecognitionPolicy.load(ws.require("solve") / "policy_ra.npz")
     reachable = Motion.from_robot(load_robot(ws.require("robot"))).reachable
     rng = np.random.default_rng(0)
     n_v, n_c = model.shape[:2]
     cases = []
-    for _ in range(args.repeats):
+    for _ in range(repeats):
         views = rng.choice(np.flatnonzero(reachable), 4, replace=False)
         b = np.full(n_c, 1.0 / n_c)
         for v in views[: rng.integers(1, 5)]:
@@ -42,6 +41,16 @@ def main() -> None:
         visited = np.zeros(n_v, dtype=bool)
         visited[views] = True
         cases.append((int(views[0]), b, visited))
+    return model, policy, reachable, cases
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workspace", "-w", type=Path, required=True)
+    parser.add_argument("--repeats", type=int, default=200)
+    args = parser.parse_args()
+    model, policy, reachable, cases = recorded_cases(Path(args.workspace), args.repeats)
+    n_c = model.shape[1]
     seconds = {}
     for kind in ("act", "lookahead_act"):
         start = time.perf_counter()

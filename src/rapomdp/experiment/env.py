@@ -35,6 +35,7 @@ from gymnasium import spaces
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.test_views import TestViews
 from rapomdp.experiment.episode import Motion
+from rapomdp.experiment.recorded_env import episode_options
 from rapomdp.geometry.viewsphere import azimuth_zenith, fibonacci_directions
 from rapomdp.planning.policy import ARAction
 from rapomdp.robot.artefacts import load_robot
@@ -213,11 +214,7 @@ class ActiveRecognitionEnv(gymnasium.Env):
         """Start an episode: options ``model`` (index into the scenes) and ``start`` (a
         reachable viewpoint) fix the test model and start viewpoint; unset, they are drawn."""
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - {"model", "start"}
-        if unknown:
-            raise ValueError(f"reset: unknown option(s) {sorted(unknown)}; options are "
-                             f"'model' and 'start'")
+        options = episode_options(options)
         given, start_given = options.get("model"), options.get("start")
         model, start = whole_number(given), whole_number(start_given)
         if given is None:

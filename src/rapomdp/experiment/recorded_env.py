@@ -40,6 +40,16 @@ RECORDED_FILE = "recorded_evidence.npz"
 FORMAT = "rapomdp.recorded-evidence.v1"
 
 
+def episode_options(options: dict[str, Any] | None) -> dict[str, Any]:
+    """``reset``'s options of both environments, checked: ``model`` and ``start`` only."""
+    options = dict(options or {})
+    unknown = set(options) - {"model", "start"}
+    if unknown:
+        raise ValueError(f"reset: unknown option(s) {sorted(unknown)}; options are "
+                         f"'model' and 'start'")
+    return options
+
+
 @dataclass(frozen=True)
 class RecordedEvidence:
     """The recogniser's output (M, V, C) at every test viewpoint of M held-out models, their
@@ -212,11 +222,7 @@ class RecordedRecognitionEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - {"model", "start"}
-        if unknown:
-            raise ValueError(f"reset: unknown option(s) {sorted(unknown)}; options are "
-                             f"'model' and 'start'")
+        options = episode_options(options)
         model = options.get("model")
         if model is None:
             model = int(self.np_random.integers(self.evidence.models))
