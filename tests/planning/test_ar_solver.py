@@ -8,7 +8,12 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from rapomdp.planning.ar_solver import ActiveRecognitionSolver, _Moves, solve_active_recognition
+from rapomdp.planning.ar_solver import (
+    ActiveRecognitionSolver,
+    _Moves,
+    min_ratio,
+    solve_active_recognition,
+)
 from rapomdp.planning.memory import MemoryCapError
 from rapomdp.planning.momdp import benchmark_problem, update_beliefs
 from tests.planning.planning_fixtures import grid_value
@@ -144,6 +149,26 @@ def test_structured_children_match_the_plain_ones():
     assert np.allclose(fast.dots(B, betas), plain.dots(B, betas))
     assert np.allclose(fast.phi(B, inv, off), plain.phi(B, inv, off))
     assert np.allclose(fast.backup(alpha), plain.backup(alpha))
+
+
+def test_min_ratio_gives_the_bits_of_the_direct_minimum():
+    # the sawtooth ratio by a running minimum over classes equals the (..., N, C) temporary's
+    # minimum bit for bit: zero children, points off their support, an all-zero child
+    rng = np.random.default_rng(4)
+    u = rng.dirichlet(np.ones(6) * 0.4, size=(3, 5, 6)) * rng.uniform(0, 1, size=(3, 5, 6, 1))
+    u[0, 0, 0] = 0.0
+    u[1, 2, :, 3] = 0.0
+    pts = rng.dirichlet(np.ones(6) * 0.5, size=9)
+    pts[[0, 4], [2, 5]] = 0.0
+    pts /= pts.sum(axis=1, keepdims=True)
+    inv = np.where(pts > 0, 1.0 / np.where(pts > 0, pts, 1.0), 0.0)
+    off = np.where(pts > 0, 0.0, np.inf)
+    direct = (u[..., None, :] * inv + off).min(axis=-1)
+    fast = min_ratio(u, inv, off)
+    assert fast.shape == (3, 5, 6, 9)
+    assert np.array_equal(fast, direct)
+    assert np.all(fast[0, 0, 0] == 0.0)  # an all-zero child is 0 times every point
+    assert np.array_equal(min_ratio(u[0, 0], inv, off), direct[0, 0])
 
 
 @pytest.mark.parametrize("grid", [False, True])

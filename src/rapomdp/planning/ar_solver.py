@@ -77,6 +77,27 @@ FIRST_PRUNE, PRUNE_GROWTH, PRUNE_STEP = 8, 1.3, 4
 LIBRARY_GROWTH, LIBRARY_SLACK = 2, 256
 
 
+def min_ratio(u: np.ndarray, inv: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """min_c (u[..., c] inv[i, c] + off[i, c]) for every point i: (..., N) from u (..., C) and
+    inv, off (N, C) (off: 0 on a point's support, +inf elsewhere).
+
+    The sawtooth ratio φ_i. A running minimum over the classes, each step one product over
+    (..., N), instead of a (..., N, C) temporary reduced over its short last axis: the same
+    products and an order-free minimum, so the same bits, several times faster."""
+    u = np.asarray(u)
+    by_class = np.moveaxis(u, -1, 0)  # (C, ...)
+    inv_t, off_t = np.ascontiguousarray(inv.T), np.ascontiguousarray(off.T)  # (C, N)
+    has_off = np.isinf(off_t).any(axis=1)
+    out = np.full(u.shape[:-1] + (inv.shape[0],), np.inf)
+    term = np.empty_like(out)
+    for c in range(u.shape[-1]):
+        np.multiply(by_class[c][..., None], inv_t[c], out=term)
+        if has_off[c]:
+            term += off_t[c]
+        np.minimum(out, term, out=out)
+    return out
+
+
 class _Moves:
     """Children of class beliefs under every move target a and label o.
 
@@ -120,8 +141,7 @@ class _Moves:
             y = (B[:, None, :] * self.A[None])[:, :, None, :] * inv[None, None] + off
             excl = np.where(arg[..., None] == self.idx, m2[..., None], m1[..., None])
             return np.minimum(y, excl).transpose(0, 1, 3, 2)
-        u = self.unnormalised(B)
-        return (u[:, :, :, None, :] * inv + off).min(axis=-1)
+        return min_ratio(self.unnormalised(B), inv, off)
 
     def backup(self, alpha: np.ndarray) -> np.ndarray:
         """Σ_o P(o | c, a) α[k, a, o, c]: (K, J, C)."""
@@ -289,9 +309,7 @@ class ActiveRecognitionSolver:
             return out
         step = max(1, self.chunk // max(1, n * max(n_c, self.problem.n_viewpoints)))
         for i in range(0, K, step):
-            r = beliefs[i : i + step, None, :] * self.up_inv[None]
-            r += self.up_off[None]
-            phi = r.min(axis=2)  # (k, N)
+            phi = min_ratio(beliefs[i : i + step], self.up_inv, self.up_off)  # (k, N)
             out[i : i + step] = np.minimum(0.0, (phi[:, :, None] * self.up_values[None]).min(1))
         return out
 
