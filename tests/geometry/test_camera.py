@@ -73,6 +73,25 @@ def test_project_back_project_round_trip() -> None:
         np.testing.assert_allclose(uv, np.stack([u.ravel(), v.ravel()], 1), atol=1e-9)
 
 
+def test_back_project_broadcasts_images_and_poses_like_one_image_at_a_time() -> None:
+    rng = np.random.default_rng(1)
+    k = xtion_intrinsics(16, 12)
+    poses = look_at_many(viewpoints(3, 0.6), np.zeros(3))
+    depth = rng.uniform(0.3, 0.9, size=(3, 12, 16))
+    each = np.stack([back_project(depth[i], poses[i], k) for i in range(3)])
+    np.testing.assert_allclose(back_project(depth, poses, k), each, rtol=0, atol=1e-15)
+    # one pose for a batch of images, and one image seen from a batch of poses
+    shared = back_project(depth, poses[0], k)
+    assert shared.shape == (3, 12, 16, 3)
+    np.testing.assert_allclose(shared[2], back_project(depth[2], poses[0], k), atol=1e-15)
+    fanned = back_project(depth[0], poses, k)
+    assert fanned.shape == (3, 12, 16, 3)
+    np.testing.assert_allclose(fanned[1], back_project(depth[0], poses[1], k), atol=1e-15)
+    # the camera centre is where a zero depth lands
+    np.testing.assert_allclose(back_project(np.zeros((12, 16)), poses[1], k),
+                               np.broadcast_to(poses[1, :3, 3], (12, 16, 3)))
+
+
 def test_pixel_directions_have_unit_z_and_hit_pixel_centres() -> None:
     k = Intrinsics(4, 3, fx=2.0, fy=2.0, cx=1.5, cy=1.0)
     d = pixel_directions(k)

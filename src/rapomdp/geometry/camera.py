@@ -190,5 +190,9 @@ def back_project(depth: np.ndarray, poses: np.ndarray, intrinsics: Intrinsics) -
     cam = rays * depth[..., None]
     rotation = poses[..., :3, :3]
     centre = poses[..., :3, 3]
-    world = np.einsum("...ij,...hwj->...hwi", rotation, cam)
+    # R p for every pixel as one matrix product per image (pixels x 3 times R^T): several
+    # times faster than the equivalent einsum, which NumPy runs without BLAS
+    pixels = cam.reshape(cam.shape[:-3] + (-1, 3))
+    world = np.matmul(pixels, np.swapaxes(rotation, -1, -2))
+    world = world.reshape(world.shape[:-2] + cam.shape[-3:])
     return world + centre[..., None, None, :]

@@ -1,0 +1,107 @@
+"""Seconds of chosen stages with two source trees on one finished workspace, and which of their
+artefacts differ: both trees redo the same stages on hard-linked copies of the workspace, one
+after the other in one session, so the ratios compare like with like on a shared machine.
+
+    git archive <commit> src | tar -x -C /tmp/before            # the tree to compare against
+    python benchmarks/stage_speed.py -w W --before /tmp/before/src \
+        [--after src] [--stages volume observe solve evaluate] [--threads 2]
+
+Each stage's seconds come from its record; the command's CPU seconds (user + system of its
+processes) are what the load of other programs changes least. Artefacts are compared by
+``benchmarks/artefact_hashes.py``'s digest (``.npz`` array by array, JSON without its timing
+fields, text without its times).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from artefact_hashes import digest  # noqa: E402
+
+DEFAULT_STAGES = ("volume", "observe", "solve", "evaluate")
+
+
+def run_tree(src: Path, workspace: Path, stages: list[str], threads: int
+             ) -> tuple[dict[str, float], float, float]:
+    """Redo ``stages`` in ``workspace`` with the code of ``src`` (the stages after them that
+    are current stay; those that read them are redone too, as a run does); each stage's
+    seconds, the command's wall and CPU seconds."""
+    env = {**os.environ, "PYTHONPATH": str(src.resolve()), "OMP_NUM_THREADS": "1"}
+    redo = [arg for name in stages for arg in ("--redo", name)]
+    start = time.perf_counter()
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([sys.executable, "-c", "from rapomdp.cli import main; main()", "run",
+                    "-w", str(workspace), "--threads", str(threads), *redo],
+                   env=env, check=True, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - used.ru_utime) + (after.ru_stime - used.ru_stime)
+    seconds = {}
+    for record in sorted(workspace.glob("*/stage.json")):
+        data = json.loads(record.read_text())
+        if not data.get("shared_from"):
+            seconds[record.parent.name] = float(data["seconds"])
+    return seconds, wall, cpu
+
+
+def differing(before: Path, after: Path, stages: list[str]) -> tuple[int, list[str]]:
+    """How many artefacts of ``stages`` were compared, and the ones whose digests differ."""
+    names = sorted({p.relative_to(root) for root in (before, after) for stage in stages
+                    for p in (root / stage).rglob("*") if p.is_file()
+                    and p.name != "stage.json"})
+    differ = [str(n) for n in names
+              if not (before / n).is_file() or not (after / n).is_file()
+              or digest(before / n, before) != digest(after / n, after)]
+    return len(names), differ
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workspace", "-w", type=Path, required=True)
+    parser.add_argument("--before", type=Path, required=True, help="the old tree's src/")
+    parser.add_argument("--after", type=Path, default=Path("src"), help="the new tree's src/")
+    parser.add_argument("--stages", nargs="+", default=list(DEFAULT_STAGES))
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(dir=args.workspace.parent) as scratch:
+        results = {}
+        for label, src in (("before", args.before), ("after", args.after)):
+            copy = Path(scratch) / label
+            shutil.copytree(args.workspace, copy, copy_function=os.link,
+                            ignore=shutil.ignore_patterns(".lock"))
+            results[label] = run_tree(src, copy, args.stages, args.threads)
+        redone = sorted(set(results["before"][0]) & set(results["after"][0]))
+        redone = [s for s in redone
+                  if results["before"][0][s] != json.loads(
+                      (args.workspace / s / "stage.json").read_text()).get("seconds")]
+        compared, differ = differing(Path(scratch) / "before", Path(scratch) / "after",
+                                     redone)
+    (before, wall_b, cpu_b), (after, wall_a, cpu_a) = results["before"], results["after"]
+    print(f"{'stage':<16}{'before s':>10}{'after s':>10}{'after/before':>14}")
+    for name in redone:
+        print(f"{name:<16}{before[name]:>10.1f}{after[name]:>10.1f}"
+              f"{after[name] / before[name]:>14.2f}")
+    total_b, total_a = sum(before[n] for n in redone), sum(after[n] for n in redone)
+    print(f"{'total':<16}{total_b:>10.1f}{total_a:>10.1f}{total_a / total_b:>14.2f}")
+    print(f"{'command wall':<16}{wall_b:>10.1f}{wall_a:>10.1f}{wall_a / wall_b:>14.2f}")
+    print(f"{'command CPU':<16}{cpu_b:>10.1f}{cpu_a:>10.1f}{cpu_a / cpu_b:>14.2f}")
+    print(f"artefacts of the redone stages ({', '.join(redone)}): {compared} compared, "
+          f"{len(differ)} differ" + "".join(f"\n  DIFFERS {name}" for name in differ))
+    try:
+        print(f"load average at the end: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+    except OSError:
+        pass
+
+
+if __name__ == "__main__":
+    main()
