@@ -103,6 +103,19 @@ def test_run_status_and_preview(tmp_path: Path) -> None:
                                   "--width", "64"])
     assert preview.exit_code == 0, preview.output
     assert sheet.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # one tile per model in a fixed grid: a class a row, 1.9 x 1.55 in a tile at 110 dpi (the
+    # tight bounding box trims the margins only)
+    import matplotlib.image
+
+    from rapomdp.data.dataset import load_dataset
+    from rapomdp.data.preview import TILE_IN
+
+    dataset = load_dataset(ws / "dataset")
+    rows = len(dataset.classes)
+    cols = max(sum(m.class_name == c for m in dataset.models) for c in dataset.classes)
+    height, width = matplotlib.image.imread(sheet).shape[:2]
+    assert 0.8 < height / (TILE_IN[1] * rows * 110) < 1.3
+    assert 0.8 < width / (TILE_IN[0] * cols * 110) < 1.5
     status = runner.invoke(app, ["status", "-w", str(ws)])
     assert "dataset" in status.output and "render" in status.output
 

@@ -14,6 +14,10 @@ from rapomdp.geometry.camera import Intrinsics, look_at
 from rapomdp.plots import save_png, style
 
 
+#: A tile's width and height in inches (its title included).
+TILE_IN = (1.9, 1.55)
+
+
 def preview_pose(centre: np.ndarray, radius_m: float, elevation_deg: float,
                  azimuth_deg: float) -> np.ndarray:
     """The look-at pose from a direction given in degrees (elevation above the floor)."""
@@ -46,10 +50,17 @@ def contact_sheet(
     rows = len(by_class)
     cols = max(len(models) for models in by_class.values())
     with style():
-        # one tile per model: the sheet grows with the dataset (it is not shown in the report)
-        fig = Figure(figsize=(1.9 * cols + 1.2, 1.55 * rows + 0.5), layout="constrained")
+        # one tile per model: the sheet grows with the dataset (it is not shown in the report);
+        # fixed margins in inches, since a constrained layout of hundreds of tiles took most of
+        # the sheet's time (the tiles, titles and labels do not change size)
+        width_in, height_in = TILE_IN[0] * cols + 1.2, TILE_IN[1] * rows + 0.5
+        fig = Figure(figsize=(width_in, height_in))
         FigureCanvasAgg(fig)
-        axes = fig.subplots(rows, cols, squeeze=False)
+        left, right = 0.35 / width_in, 1.0 - 0.85 / width_in
+        bottom, top = 0.05 / height_in, 1.0 - 0.6 / height_in
+        axes = fig.subplots(rows, cols, squeeze=False, gridspec_kw={
+            "left": left, "right": right, "bottom": bottom, "top": top,
+            "wspace": 0.06, "hspace": 0.32})
         for ax in axes.ravel():
             ax.set_axis_off()
             # hidden axes too: the layout then skips their (undrawn) ticks; the same sheet
@@ -76,7 +87,11 @@ def contact_sheet(
                     ax.text(-0.08, 0.5, class_name, transform=ax.transAxes, rotation=90,
                             ha="right", va="center", fontsize=9, fontweight="bold")
         if shown is not None:
-            fig.colorbar(shown, ax=axes, shrink=min(0.9, 3.0 / rows), label="depth (m)")
+            bar_h = min(0.9, 3.0 / rows) * (top - bottom)
+            bar = fig.add_axes((right + 0.2 / width_in, (top + bottom - bar_h) / 2,
+                                0.15 / width_in, bar_h))
+            fig.colorbar(shown, cax=bar, label="depth (m)")
         fig.suptitle(f"{len(dataset.models)} models, {rows} classes: depth from elevation "
-                     f"{elevation_deg:.0f}°, radius {radius_m} m")
+                     f"{elevation_deg:.0f}°, radius {radius_m} m", y=1.0 - 0.12 / height_in,
+                     va="top")
         return save_png(fig, Path(out_png), dpi=110)
