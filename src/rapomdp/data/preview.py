@@ -13,7 +13,6 @@ from rapomdp.data.renderer import DepthRenderer
 from rapomdp.geometry.camera import Intrinsics, look_at
 from rapomdp.plots import save_png, style
 
-
 #: A tile's width and height in inches (its title included).
 TILE_IN = (1.9, 1.55)
 
