@@ -11,12 +11,15 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.io import ArtefactError, load_npz, save_npz
 from rapomdp.planning.rules import (
+    TIE_TOL,
+    class_marginal,
     declare_value,
     declare_values,
     move_or_declare,
@@ -25,6 +28,11 @@ from rapomdp.planning.rules import (
 
 FORMAT_FLAT = "rapomdp.alpha-vector-policy.v1"
 FORMAT_AR = "rapomdp.active-recognition-policy.v1"
+
+#: Plans per chunk of the lookahead's float32 screen (a chunk holds plans of one first target).
+SCREEN_CHUNK = 4
+#: Absolute slack added to the screen's error bound (the float64 roundings of both paths).
+SCREEN_SLACK = 1e-9
 
 
 def save_npz_atomic(path: str | os.PathLike[str], **arrays: np.ndarray) -> Path:
@@ -159,7 +167,11 @@ class ActiveRecognitionPolicy:
 
         ``observation_model`` (V, S, O) must be the model the policy was solved on. A
         point-based lower bound's own plans can be poor away from the beliefs the solver
-        visited; one backup at the belief actually reached is less sensitive to them."""
+        visited; one backup at the belief actually reached is less sensitive to them.
+
+        Every move is first valued in float32 within a proven error (:meth:`_screen_values`);
+        only the moves that can be the best are then valued exactly (:meth:`_lookahead_values`),
+        so the action is the one the exact values of every move give."""
         b = np.asarray(belief, dtype=np.float64)
         ok = np.asarray(allowed, dtype=bool).copy()
         ok[viewpoint] = False
@@ -167,26 +179,68 @@ class ActiveRecognitionPolicy:
             ok &= ~np.asarray(forbidden, dtype=bool)
         targets = np.flatnonzero(ok)
         dec = declare_value(b, self.lambda_, self.n_classes)
-        k = int(np.argmax(declare_values(b, self.lambda_, self.n_classes)))
+        declare = ARAction("declare", int(np.argmax(declare_values(b, self.lambda_,
+                                                                    self.n_classes))))
         if targets.size == 0:
-            return ARAction("declare", k)
-        u = b[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)  # (J, O, S)
+            return declare
+        tables = self._lookahead
+        steps = self.move_energy[viewpoint, targets]
+        if tables.values_nonpositive and -steps.min() + SCREEN_SLACK <= dec + TIE_TOL:
+            return declare  # every child is worth at most 0, so no move beats declaring
+        if len(self.targets) and targets.size > 2:
+            rough, error = self._screen_values(viewpoint, b, observation_model, targets)
+            if np.all(np.isfinite(rough)):  # else (an infinite energy) every move exactly
+                if (rough + error).max() <= dec + TIE_TOL:
+                    return declare
+                targets = targets[rough + error >= (rough - error).max()]
+        q = self._lookahead_values(viewpoint, b, observation_model, targets)
+        _, m = move_or_declare(q[None], np.asarray(dec)[None])
+        return ARAction("move", int(targets[m[0]])) if m[0] >= 0 else declare
+
+    @cached_property
+    def _lookahead(self) -> _LookaheadTables:
+        """The plans' arrangement for the lookahead, computed once per policy."""
+        return _LookaheadTables.of(self)
+
+    def _lookahead_values(self, viewpoint: int, belief: np.ndarray,
+                          observation_model: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """The exact lookahead values q (J,) of moving from ``viewpoint`` to each of
+        ``targets``. Each move is valued on its own (one product per move), so its value does
+        not depend on which other moves are valued with it."""
+        u = belief[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)  # (J, O, S)
         prob = u.sum(axis=2)
         child = unnormalised_declare_value(u, self.lambda_, self.n_classes)  # (J, O)
         if len(self.targets):
             # a plan's move energy depends only on its first target, so the best plan of each
             # target group is found first (a max over plans sorted by target) and the energy
             # subtracted per group: the same maximum over far fewer elements
-            order = np.argsort(self.targets, kind="stable")
-            first_targets, starts = np.unique(self.targets[order], return_index=True)
-            best = np.maximum.reduceat(u @ self.betas[order].T, starts, axis=2)  # (J, O, T)
-            best -= prob[..., None] * self.move_energy[np.ix_(targets, first_targets)][:, None]
+            t = self._lookahead
+            best = np.maximum.reduceat(u @ t.betas.T, t.starts, axis=2)  # (J, O, T)
+            best -= prob[..., None] * self.move_energy[np.ix_(targets, t.first)][:, None]
             child = np.maximum(child, best.max(axis=2))
-        q = self.discount * child.sum(axis=1) - self.move_energy[viewpoint, targets]
-        _, m = move_or_declare(q[None], np.asarray(dec)[None])
-        if m[0] >= 0:
-            return ARAction("move", int(targets[m[0]]))
-        return ARAction("declare", k)
+        return self.discount * child.sum(axis=1) - self.move_energy[viewpoint, targets]
+
+    def _screen_values(self, viewpoint: int, belief: np.ndarray, observation_model: np.ndarray,
+                       targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_lookahead_values` with a float32 product, and a bound (J,) on the difference
+        between the two: |rough − exact| ≤ error wherever rough is finite."""
+        t = self._lookahead
+        u = belief[None, :, None] * observation_model[targets]  # (J, S, O)
+        n, s, o = u.shape
+        prob = u.sum(axis=1)
+        marginal = class_marginal(np.swapaxes(u, 1, 2), self.n_classes)  # (J, O, C)
+        child = -self.lambda_ * (prob - marginal.max(axis=2))
+        # plans by rows, children (j, o) by columns: the maxima over chunks and over the
+        # plans of a chunk are then elementwise maxima of contiguous rows
+        x = t.screen @ np.swapaxes(u, 0, 1).astype(np.float32, order="C").reshape(s, n * o)
+        x = x.reshape(t.width, -1, n, o)  # (W, K, J, O)
+        best = x[0]
+        for i in range(1, t.width):
+            np.maximum(best, x[i], out=best)
+        best -= t.chunk_energy[targets].T[:, :, None] * prob.astype(np.float32)
+        rough = (self.discount * np.maximum(child, best.max(axis=0)).sum(axis=1)
+                 - self.move_energy[viewpoint, targets])
+        return rough, t.error * prob.sum(axis=1) + SCREEN_SLACK
 
     def upper(self, viewpoint: int, belief: np.ndarray) -> float:
         """The solver's upper bound on the optimal value at (viewpoint, belief)."""
@@ -226,4 +280,56 @@ class ActiveRecognitionPolicy:
             a["upper_points"],
             a["upper_values"],
             int(a["classes"]) if "classes" in a else 0,
+        )
+
+
+@dataclass(frozen=True)
+class _LookaheadTables:
+    """A policy's plans arranged for :meth:`ActiveRecognitionPolicy.lookahead_act`.
+
+    ``betas`` (M, S): the plans sorted by first target (stable), ``first`` (T,) the targets,
+    ``starts`` (T,) where each one's plans begin. The float32 screen splits each target's plans
+    into chunks of ``width`` (the last one padded with copies of its first plan) and lays them
+    out position-major: ``screen`` (width · K, S), row i · K + k the i-th plan of chunk k,
+    whose target's energies from each viewpoint are ``chunk_energy`` (V, K). ``error`` times a
+    move's total child probability (1 up to rounding) bounds the screen's error on its value
+    (float32 rounding of the inputs, the S-term sums and the energy subtraction, doubled).
+    ``values_nonpositive``: every plan and energy gives a child value of at most 0."""
+
+    betas: np.ndarray
+    first: np.ndarray
+    starts: np.ndarray
+    width: int
+    screen: np.ndarray
+    chunk_energy: np.ndarray
+    error: float
+    values_nonpositive: bool
+
+    @classmethod
+    def of(cls, policy: ActiveRecognitionPolicy, width: int = SCREEN_CHUNK
+           ) -> _LookaheadTables:
+        order = np.argsort(policy.targets, kind="stable")
+        betas = policy.betas[order]
+        first, starts = np.unique(policy.targets[order], return_index=True)
+        ends = np.append(starts[1:], len(order))
+        chunks = [np.where(np.arange(c, c + width) < e, np.arange(c, c + width), c)
+                  for a, e in zip(starts, ends, strict=True) for c in range(a, e, width)]
+        columns = np.array(chunks, dtype=np.int64).reshape(-1, width)  # (K, width)
+        chunk_targets = policy.targets[order][columns[:, 0]]
+        energy = policy.move_energy
+        finite = energy[:, first][np.isfinite(energy[:, first])]
+        beta_max = float(np.abs(betas).max()) if betas.size else 0.0
+        energy_max = float(np.abs(finite).max()) if finite.size else 0.0
+        n_states = policy.n_states
+        return cls(
+            betas=betas,
+            first=first,
+            starts=starts,
+            width=width,
+            screen=np.ascontiguousarray(betas[columns.T.reshape(-1)], dtype=np.float32),
+            chunk_energy=np.ascontiguousarray(energy[:, chunk_targets], dtype=np.float32),
+            error=2.0 * policy.discount * 2.0**-24 * ((n_states + 8) * beta_max
+                                                      + 4 * energy_max),
+            values_nonpositive=bool((betas.size == 0 or betas.max() <= 0)
+                                    and np.all(energy >= 0)),
         )
