@@ -272,3 +272,28 @@ def test_the_lookahead_screen_bounds_its_error_and_keeps_few_moves(confusion_pro
             assert exact[twins][0] == pytest.approx(exact[twins][1], abs=1e-12)
         kept.append(int((rough + error >= (rough - error).max()).sum()) / targets.size)
     assert np.mean(kept) < 0.2
+
+
+def test_the_lookahead_returns_the_reference_actions_with_instance_types(confusion_problem):
+    """States (type, class), type-major: the screen reads the class marginal of a child."""
+    from rapomdp.planning.momdp import build_active_recognition_problem
+
+    problem, _ = confusion_problem
+    model = problem.observation_model
+    n_c = model.shape[2]
+    atypical = np.roll(model, 1, axis=2) * 0.5 + model * 0.5  # errors that repeat
+    prior = np.concatenate([np.full(n_c, 0.8 / n_c), np.full(n_c, 0.2 / n_c)])
+    typed = build_active_recognition_problem(
+        np.concatenate([model, atypical], axis=1), problem.move_energy, problem.reachable,
+        problem.lambda_, problem.discount, 0, prior)
+    policy = solve_active_recognition(typed, precision=1e-3, timeout=1e6, max_iterations=20,
+                                      grid=False).policy
+    assert policy.n_states == 2 * n_c and policy.n_classes == n_c
+    kinds = set()
+    for viewpoint, b, allowed, forbidden in _recorded_beliefs(typed, policy, 150, seed=3):
+        expected = _reference_lookahead_act(policy, viewpoint, b, typed.observation_model,
+                                            allowed, forbidden)
+        assert policy.lookahead_act(viewpoint, b, typed.observation_model, allowed,
+                                    forbidden) == expected
+        kinds.add(expected.kind)
+    assert kinds == {"move", "declare"}

@@ -19,7 +19,6 @@ import numpy as np
 from rapomdp.io import ArtefactError, load_npz, save_npz
 from rapomdp.planning.rules import (
     TIE_TOL,
-    class_marginal,
     declare_value,
     declare_values,
     move_or_declare,
@@ -228,8 +227,9 @@ class ActiveRecognitionPolicy:
         u = belief[None, :, None] * observation_model[targets]  # (J, S, O)
         n, s, o = u.shape
         prob = u.sum(axis=1)
-        marginal = class_marginal(np.swapaxes(u, 1, 2), self.n_classes)  # (J, O, C)
-        child = -self.lambda_ * (prob - marginal.max(axis=2))
+        c = self.n_classes
+        marginal = u if s == c else u.reshape(n, s // c, c, o).sum(axis=1)  # (J, C, O)
+        child = -self.lambda_ * (prob - marginal.max(axis=1))
         # plans by rows, children (j, o) by columns: the maxima over chunks and over the
         # plans of a chunk are then elementwise maxima of contiguous rows
         x = t.screen @ np.swapaxes(u, 0, 1).astype(np.float32, order="C").reshape(s, n * o)
