@@ -246,6 +246,16 @@ def test_the_lookahead_returns_the_reference_actions_on_recorded_beliefs(confusi
                                               a[2]).kind != _reference_lookahead_act(
             policy, 0, b[1], problem.observation_model, b[2]).kind
     assert kinds == {"move", "declare"} and ties > 0 and straddles > 0
+    # a policy without plans (children valued by declaring alone) and one with a single plan
+    import dataclasses
+
+    for keep in (slice(0, 0), slice(0, 1)):
+        few = dataclasses.replace(policy, betas=policy.betas[keep],
+                                  targets=policy.targets[keep])
+        for viewpoint, b, allowed, forbidden in cases[:60]:
+            assert few.lookahead_act(viewpoint, b, problem.observation_model, allowed,
+                                     forbidden) == _reference_lookahead_act(
+                few, viewpoint, b, problem.observation_model, allowed, forbidden)
 
 
 def test_the_lookahead_screen_bounds_its_error_and_keeps_few_moves(confusion_problem):

@@ -311,7 +311,7 @@ class _LookaheadTables:
         order = np.argsort(policy.targets, kind="stable")
         betas = policy.betas[order]
         first, starts = np.unique(policy.targets[order], return_index=True)
-        ends = np.append(starts[1:], len(order))
+        ends = np.append(starts[1:], len(order))[: starts.size]
         chunks = [np.where(np.arange(c, c + width) < e, np.arange(c, c + width), c)
                   for a, e in zip(starts, ends, strict=True) for c in range(a, e, width)]
         columns = np.array(chunks, dtype=np.int64).reshape(-1, width)  # (K, width)
