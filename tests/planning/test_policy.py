@@ -246,16 +246,23 @@ def test_the_lookahead_returns_the_reference_actions_on_recorded_beliefs(confusi
                                               a[2]).kind != _reference_lookahead_act(
             policy, 0, b[1], problem.observation_model, b[2]).kind
     assert kinds == {"move", "declare"} and ties > 0 and straddles > 0
-    # a policy without plans (children valued by declaring alone) and one with a single plan
+    # a policy without plans (children valued by declaring alone), one with a single plan, and
+    # infinite energies to the unreachable viewpoints with every viewpoint allowed
     import dataclasses
 
-    for keep in (slice(0, 0), slice(0, 1)):
-        few = dataclasses.replace(policy, betas=policy.betas[keep],
-                                  targets=policy.targets[keep])
+    energy = policy.move_energy.copy()
+    energy[~problem.reachable] = np.inf
+    energy[:, ~problem.reachable] = np.inf
+    everywhere = np.ones(problem.reachable.size, dtype=bool)
+    for variant, allowed_all in ((dict(betas=policy.betas[:0], targets=policy.targets[:0]), 0),
+                                 (dict(betas=policy.betas[:1], targets=policy.targets[:1]), 0),
+                                 (dict(move_energy=energy), 1)):
+        other = dataclasses.replace(policy, **variant)
         for viewpoint, b, allowed, forbidden in cases[:60]:
-            assert few.lookahead_act(viewpoint, b, problem.observation_model, allowed,
-                                     forbidden) == _reference_lookahead_act(
-                few, viewpoint, b, problem.observation_model, allowed, forbidden)
+            allowed = everywhere if allowed_all else allowed
+            assert other.lookahead_act(viewpoint, b, problem.observation_model, allowed,
+                                       forbidden) == _reference_lookahead_act(
+                other, viewpoint, b, problem.observation_model, allowed, forbidden)
 
 
 def test_the_lookahead_screen_bounds_its_error_and_keeps_few_moves(confusion_problem):

@@ -169,8 +169,9 @@ class ActiveRecognitionPolicy:
         visited; one backup at the belief actually reached is less sensitive to them.
 
         Every move is first valued in float32 within a proven error (:meth:`_screen_values`);
-        only the moves that can be the best are then valued exactly (:meth:`_lookahead_values`),
-        so the action is the one the exact values of every move give."""
+        only the moves that can be the best are then valued exactly (:meth:`_lookahead_values`,
+        unless one alone can be and it surely beats declaring), so the action is the one the
+        exact values of every move give."""
         b = np.asarray(belief, dtype=np.float64)
         ok = np.asarray(allowed, dtype=bool).copy()
         ok[viewpoint] = False
@@ -191,7 +192,10 @@ class ActiveRecognitionPolicy:
             if np.all(np.isfinite(rough)):  # else (an infinite energy) every move exactly
                 if (rough + error).max() <= dec + TIE_TOL:
                     return declare
-                targets = targets[rough + error >= (rough - error).max()]
+                keep = rough + error >= (rough - error).max()
+                if keep.sum() == 1 and (rough - error)[keep][0] > dec + TIE_TOL:
+                    return ARAction("move", int(targets[keep][0]))  # best, and beats declaring
+                targets = targets[keep]
         q = self._lookahead_values(viewpoint, b, observation_model, targets)
         _, m = move_or_declare(q[None], np.asarray(dec)[None])
         return ARAction("move", int(targets[m[0]])) if m[0] >= 0 else declare
