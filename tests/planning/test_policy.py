@@ -314,3 +314,25 @@ def test_the_lookahead_returns_the_reference_actions_with_instance_types(confusi
                                     forbidden) == expected
         kinds.add(expected.kind)
     assert kinds == {"move", "declare"}
+
+
+def test_the_lookahead_matches_the_reference_with_children_of_probability_zero(
+        confusion_problem):
+    """Labels a belief cannot produce at some viewpoints (zeros in the model where the belief
+    has its mass): the children of probability 0 are valued exactly, as in the reference
+    (which declares whenever one meets a plan group of infinite energy, the viewpoint's own:
+    0 · inf is NaN; kept as it is, and the RuntimeWarning with it)."""
+    problem, policy = confusion_problem
+    model = problem.observation_model.copy()
+    model[::2, :2, :2] = 0.0  # classes 0 and 1 never labelled 0 or 1 at even viewpoints
+    model /= model.sum(axis=2, keepdims=True)
+    rng = np.random.default_rng(4)
+    for _ in range(40):
+        b = np.zeros(model.shape[1])
+        b[:2] = rng.dirichlet([1.0, 1.0])
+        b[2:] = rng.choice([0.0, 1e-3]) * rng.dirichlet(np.ones(model.shape[1] - 2))
+        b /= b.sum()
+        viewpoint = int(rng.choice(np.flatnonzero(problem.reachable)))
+        with np.errstate(invalid="ignore"):
+            assert policy.lookahead_act(viewpoint, b, model, problem.reachable) == \
+                _reference_lookahead_act(policy, viewpoint, b, model, problem.reachable)

@@ -234,15 +234,18 @@ class ActiveRecognitionPolicy:
         c = self.n_classes
         marginal = u if s == c else u.reshape(n, s // c, c, o).sum(axis=1)  # (J, C, O)
         child = -self.lambda_ * (prob - marginal.max(axis=1))
-        # plans by rows, children (j, o) by columns: the maxima over chunks and over the
+        # the children as beliefs (NaN where one has probability 0: then every move exactly),
+        # laid out by columns with the plans by rows: the maxima over chunks and over the
         # plans of a chunk are then elementwise maxima of contiguous rows
-        x = t.screen @ np.swapaxes(u, 0, 1).astype(np.float32, order="C").reshape(s, n * o)
-        x = x.reshape(t.width, -1, n, o)  # (W, K, J, O)
+        children = np.empty((s, n, o), dtype=np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            np.divide(np.swapaxes(u, 0, 1), prob, out=children, casting="same_kind")
+        x = (t.screen @ children.reshape(s, n * o)).reshape(t.width, -1, n, o)  # (W, K, J, O)
         best = x[0]
         for i in range(1, t.width):
             np.maximum(best, x[i], out=best)
-        best -= t.chunk_energy[targets].T[:, :, None] * prob.astype(np.float32)
-        rough = (self.discount * np.maximum(child, best.max(axis=0)).sum(axis=1)
+        best -= t.chunk_energy[targets].T[:, :, None]
+        rough = (self.discount * np.maximum(child, prob * best.max(axis=0)).sum(axis=1)
                  - self.move_energy[viewpoint, targets])
         return rough, t.error * prob.sum(axis=1) + SCREEN_SLACK
 
