@@ -228,18 +228,20 @@ class ActiveRecognitionPolicy:
         """:meth:`_lookahead_values` with a float32 product, and a bound (J,) on the difference
         between the two: |rough − exact| ≤ error wherever rough is finite."""
         t = self._lookahead
-        u = belief[None, :, None] * observation_model[targets]  # (J, S, O)
-        n, s, o = u.shape
-        prob = u.sum(axis=1)
+        like = observation_model[targets]  # (J, S, O)
+        n, s, o = like.shape
+        u = np.empty((s, n, o))  # the unnormalised children, states first
+        np.multiply(belief[:, None, None], np.swapaxes(like, 0, 1), out=u)
+        prob = u.sum(axis=0)
         c = self.n_classes
-        marginal = u if s == c else u.reshape(n, s // c, c, o).sum(axis=1)  # (J, C, O)
-        child = -self.lambda_ * (prob - marginal.max(axis=1))
-        # the children as beliefs (NaN where one has probability 0: then every move exactly),
-        # laid out by columns with the plans by rows: the maxima over chunks and over the
-        # plans of a chunk are then elementwise maxima of contiguous rows
+        marginal = u if s == c else u.reshape(s // c, c, n, o).sum(axis=0)  # (C, J, O)
+        child = -self.lambda_ * (prob - marginal.max(axis=0))
+        # the children as beliefs (NaN where one has probability 0: then every move exactly)
+        # by columns, the plans by rows: the maxima over chunks and over the plans of a chunk
+        # are then elementwise maxima of contiguous rows
         children = np.empty((s, n, o), dtype=np.float32)
         with np.errstate(divide="ignore", invalid="ignore"):
-            np.divide(np.swapaxes(u, 0, 1), prob, out=children, casting="same_kind")
+            np.multiply(u, 1.0 / prob, out=children, casting="same_kind")
         x = (t.screen @ children.reshape(s, n * o)).reshape(t.width, -1, n, o)  # (W, K, J, O)
         best = x[0]
         for i in range(1, t.width):
