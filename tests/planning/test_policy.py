@@ -230,7 +230,7 @@ def _recorded_beliefs(problem, policy, count, seed):
 def test_the_lookahead_returns_the_reference_actions_on_recorded_beliefs(confusion_problem):
     problem, policy = confusion_problem
     sizes = np.bincount(policy.targets)
-    assert (sizes > 8).sum() >= 2 and ((sizes > 0) & (sizes % 4 != 0)).any()  # chunks padded
+    assert (sizes > 8).sum() >= 2 and ((sizes > 0) & (sizes % 4 != 0)).any()  # single plans
     cases = _recorded_beliefs(problem, policy, 300, seed=0)
     assert len(cases) > 330
     kinds, ties, straddles = set(), 0, 0

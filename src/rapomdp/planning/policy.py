@@ -242,10 +242,12 @@ class ActiveRecognitionPolicy:
         children = np.empty((s, n, o), dtype=np.float32)
         with np.errstate(divide="ignore", invalid="ignore"):
             np.multiply(u, 1.0 / prob, out=children, casting="same_kind")
-        x = (t.screen @ children.reshape(s, n * o)).reshape(t.width, -1, n, o)  # (W, K, J, O)
-        best = x[0]
+        x = (t.screen @ children.reshape(s, n * o)).reshape(-1, n, o)  # (M, J, O)
+        k = (x.shape[0] - t.single) // t.width  # chunks of ``width``
         for i in range(1, t.width):
-            np.maximum(best, x[i], out=best)
+            np.maximum(x[t.single:t.single + k], x[t.single + i * k:t.single + (i + 1) * k],
+                       out=x[t.single:t.single + k])
+        best = x[:t.single + k]
         best -= t.chunk_energy[targets].T[:, :, None]
         rough = (self.discount * np.maximum(child, prob * best.max(axis=0)).sum(axis=1)
                  - self.move_energy[viewpoint, targets])
@@ -297,18 +299,22 @@ class _LookaheadTables:
     """A policy's plans arranged for :meth:`ActiveRecognitionPolicy.lookahead_act`.
 
     ``betas`` (M, S): the plans sorted by first target (stable), ``first`` (T,) the targets,
-    ``starts`` (T,) where each one's plans begin. The float32 screen splits each target's plans
-    into chunks of ``width`` (the last one padded with copies of its first plan) and lays them
-    out position-major: ``screen`` (width · K, S), row i · K + k the i-th plan of chunk k,
-    whose target's energies from each viewpoint are ``chunk_energy`` (V, K). ``error`` times a
-    move's total child probability (1 up to rounding) bounds the screen's error on its value
-    (float32 rounding of the inputs, the S-term sums and the energy subtraction, doubled).
-    ``values_nonpositive``: every plan and energy gives a child value of at most 0."""
+    ``starts`` (T,) where each one's plans begin. The float32 screen ``screen`` (M, S) holds
+    first the ``single`` plans left over when each target's plans are cut into chunks of
+    ``width``, then the chunks position-major (row single + i · K + k: the i-th plan of chunk
+    k), so that the best plan of each chunk is a maximum of ``width`` blocks of rows, written
+    over the first block: rows [0, single + K) are then one value per chunk (a single plan is
+    a chunk of one), whose target's energies from each viewpoint are ``chunk_energy``
+    (V, single + K). ``error`` times a move's total child probability (1 up to rounding)
+    bounds the screen's error on its value (float32 rounding of the children, the S-term sums
+    and the energy subtraction, doubled). ``values_nonpositive``: every plan and energy gives
+    a child value of at most 0."""
 
     betas: np.ndarray
     first: np.ndarray
     starts: np.ndarray
     width: int
+    single: int
     screen: np.ndarray
     chunk_energy: np.ndarray
     error: float
@@ -321,10 +327,14 @@ class _LookaheadTables:
         betas = policy.betas[order]
         first, starts = np.unique(policy.targets[order], return_index=True)
         ends = np.append(starts[1:], len(order))[: starts.size]
-        chunks = [np.where(np.arange(c, c + width) < e, np.arange(c, c + width), c)
-                  for a, e in zip(starts, ends, strict=True) for c in range(a, e, width)]
-        columns = np.array(chunks, dtype=np.int64).reshape(-1, width)  # (K, width)
-        chunk_targets = policy.targets[order][columns[:, 0]]
+        sizes = ends - starts
+        whole = starts + sizes // width * width  # where each target's single plans begin
+        single = np.concatenate([np.arange(a, e) for a, e in zip(whole, ends, strict=True)]
+                                + [np.zeros(0, dtype=np.int64)])
+        chunks = np.array([c for a, e in zip(starts, whole, strict=True)
+                           for c in range(a, e, width)], dtype=np.int64)  # first plans (K,)
+        rows = np.concatenate([single, (chunks[None, :] + np.arange(width)[:, None]).ravel()])
+        chunk_targets = policy.targets[order][np.concatenate([single, chunks])]
         energy = policy.move_energy
         finite = energy[:, first][np.isfinite(energy[:, first])]
         beta_max = float(np.abs(betas).max()) if betas.size else 0.0
@@ -335,7 +345,8 @@ class _LookaheadTables:
             first=first,
             starts=starts,
             width=width,
-            screen=np.ascontiguousarray(betas[columns.T.reshape(-1)], dtype=np.float32),
+            single=single.size,
+            screen=np.ascontiguousarray(betas[rows], dtype=np.float32),
             chunk_energy=np.ascontiguousarray(energy[:, chunk_targets], dtype=np.float32),
             error=2.0 * policy.discount * 2.0**-24 * ((n_states + 8) * beta_max
                                                       + 4 * energy_max),
