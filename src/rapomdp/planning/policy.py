@@ -189,7 +189,8 @@ class ActiveRecognitionPolicy:
             return declare  # every child is worth at most 0, so no move beats declaring
         if len(self.targets) and targets.size > 2:
             rough, error = self._screen_values(viewpoint, b, observation_model, targets)
-            if np.all(np.isfinite(rough)):  # else (an infinite energy) every move exactly
+            # (an infinite energy or a child of probability 0: every move exactly)
+            if np.all(np.isfinite(rough)):
                 if (rough + error).max() <= dec + TIE_TOL:
                     return declare
                 keep = rough + error >= (rough - error).max()
