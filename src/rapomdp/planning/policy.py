@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.io import ArtefactError, load_npz, save_npz
 from rapomdp.planning.rules import (
+    TIE_TOL,
     declare_value,
     declare_values,
     move_or_declare,
@@ -25,6 +27,11 @@ from rapomdp.planning.rules import (
 
 FORMAT_FLAT = "rapomdp.alpha-vector-policy.v1"
 FORMAT_AR = "rapomdp.active-recognition-policy.v1"
+
+#: Plans per chunk of the lookahead's float32 screen (a chunk holds plans of one first target).
+SCREEN_CHUNK = 4
+#: Absolute slack added to the screen's error bound (the float64 roundings of both paths).
+SCREEN_SLACK = 1e-9
 
 
 def save_npz_atomic(path: str | os.PathLike[str], **arrays: np.ndarray) -> Path:
@@ -159,7 +166,12 @@ class ActiveRecognitionPolicy:
 
         ``observation_model`` (V, S, O) must be the model the policy was solved on. A
         point-based lower bound's own plans can be poor away from the beliefs the solver
-        visited; one backup at the belief actually reached is less sensitive to them."""
+        visited; one backup at the belief actually reached is less sensitive to them.
+
+        Every move is first valued in float32 within a proven error (:meth:`_screen_values`);
+        only the moves that can be the best are then valued exactly (:meth:`_lookahead_values`,
+        unless one alone can be and it surely beats declaring), so the action is the one the
+        exact values of every move give."""
         b = np.asarray(belief, dtype=np.float64)
         ok = np.asarray(allowed, dtype=bool).copy()
         ok[viewpoint] = False
@@ -167,26 +179,80 @@ class ActiveRecognitionPolicy:
             ok &= ~np.asarray(forbidden, dtype=bool)
         targets = np.flatnonzero(ok)
         dec = declare_value(b, self.lambda_, self.n_classes)
-        k = int(np.argmax(declare_values(b, self.lambda_, self.n_classes)))
+        declare = ARAction("declare", int(np.argmax(declare_values(b, self.lambda_,
+                                                                    self.n_classes))))
         if targets.size == 0:
-            return ARAction("declare", k)
-        u = b[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)  # (J, O, S)
+            return declare
+        tables = self._lookahead
+        steps = self.move_energy[viewpoint, targets]
+        if tables.values_nonpositive and -steps.min() + SCREEN_SLACK <= dec + TIE_TOL:
+            return declare  # every child is worth at most 0, so no move beats declaring
+        if len(self.targets) and targets.size > 2:
+            rough, error = self._screen_values(viewpoint, b, observation_model, targets)
+            # (an infinite energy or a child of probability 0: every move exactly)
+            if np.all(np.isfinite(rough)):
+                if (rough + error).max() <= dec + TIE_TOL:
+                    return declare
+                keep = rough + error >= (rough - error).max()
+                if keep.sum() == 1 and (rough - error)[keep][0] > dec + TIE_TOL:
+                    return ARAction("move", int(targets[keep][0]))  # best, and beats declaring
+                targets = targets[keep]
+        q = self._lookahead_values(viewpoint, b, observation_model, targets)
+        _, m = move_or_declare(q[None], np.asarray(dec)[None])
+        return ARAction("move", int(targets[m[0]])) if m[0] >= 0 else declare
+
+    @cached_property
+    def _lookahead(self) -> _LookaheadTables:
+        """The plans' arrangement for the lookahead, computed once per policy."""
+        return _LookaheadTables.of(self)
+
+    def _lookahead_values(self, viewpoint: int, belief: np.ndarray,
+                          observation_model: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """The exact lookahead values q (J,) of moving from ``viewpoint`` to each of
+        ``targets``. Each move is valued on its own (one product per move), so its value does
+        not depend on which other moves are valued with it."""
+        u = belief[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)  # (J, O, S)
         prob = u.sum(axis=2)
         child = unnormalised_declare_value(u, self.lambda_, self.n_classes)  # (J, O)
         if len(self.targets):
             # a plan's move energy depends only on its first target, so the best plan of each
             # target group is found first (a max over plans sorted by target) and the energy
             # subtracted per group: the same maximum over far fewer elements
-            order = np.argsort(self.targets, kind="stable")
-            first_targets, starts = np.unique(self.targets[order], return_index=True)
-            best = np.maximum.reduceat(u @ self.betas[order].T, starts, axis=2)  # (J, O, T)
-            best -= prob[..., None] * self.move_energy[np.ix_(targets, first_targets)][:, None]
+            t = self._lookahead
+            best = np.maximum.reduceat(u @ t.betas.T, t.starts, axis=2)  # (J, O, T)
+            best -= prob[..., None] * self.move_energy[np.ix_(targets, t.first)][:, None]
             child = np.maximum(child, best.max(axis=2))
-        q = self.discount * child.sum(axis=1) - self.move_energy[viewpoint, targets]
-        _, m = move_or_declare(q[None], np.asarray(dec)[None])
-        if m[0] >= 0:
-            return ARAction("move", int(targets[m[0]]))
-        return ARAction("declare", k)
+        return self.discount * child.sum(axis=1) - self.move_energy[viewpoint, targets]
+
+    def _screen_values(self, viewpoint: int, belief: np.ndarray, observation_model: np.ndarray,
+                       targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_lookahead_values` with a float32 product, and a bound (J,) on the difference
+        between the two: |rough − exact| ≤ error wherever rough is finite."""
+        t = self._lookahead
+        like = observation_model[targets]  # (J, S, O)
+        n, s, o = like.shape
+        u = np.empty((s, n, o))  # the unnormalised children, states first
+        np.multiply(belief[:, None, None], np.swapaxes(like, 0, 1), out=u)
+        prob = u.sum(axis=0)
+        c = self.n_classes
+        marginal = u if s == c else u.reshape(s // c, c, n, o).sum(axis=0)  # (C, J, O)
+        child = -self.lambda_ * (prob - marginal.max(axis=0))
+        # the children as beliefs (NaN where one has probability 0: then every move exactly)
+        # by columns, the plans by rows: the maxima over chunks and over the plans of a chunk
+        # are then elementwise maxima of contiguous rows
+        children = np.empty((s, n, o), dtype=np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            np.multiply(u, 1.0 / prob, out=children, casting="same_kind")
+        x = (t.screen @ children.reshape(s, n * o)).reshape(-1, n, o)  # (M, J, O)
+        k = (x.shape[0] - t.single) // t.width  # chunks of ``width``
+        for i in range(1, t.width):
+            np.maximum(x[t.single:t.single + k], x[t.single + i * k:t.single + (i + 1) * k],
+                       out=x[t.single:t.single + k])
+        best = x[:t.single + k]
+        best -= t.chunk_energy[targets].T[:, :, None]
+        rough = (self.discount * np.maximum(child, prob * best.max(axis=0)).sum(axis=1)
+                 - self.move_energy[viewpoint, targets])
+        return rough, t.error * prob.sum(axis=1) + SCREEN_SLACK
 
     def upper(self, viewpoint: int, belief: np.ndarray) -> float:
         """The solver's upper bound on the optimal value at (viewpoint, belief)."""
@@ -226,4 +292,65 @@ class ActiveRecognitionPolicy:
             a["upper_points"],
             a["upper_values"],
             int(a["classes"]) if "classes" in a else 0,
+        )
+
+
+@dataclass(frozen=True)
+class _LookaheadTables:
+    """A policy's plans arranged for :meth:`ActiveRecognitionPolicy.lookahead_act`.
+
+    ``betas`` (M, S): the plans sorted by first target (stable), ``first`` (T,) the targets,
+    ``starts`` (T,) where each one's plans begin. The float32 screen ``screen`` (M, S) holds
+    first the ``single`` plans left over when each target's plans are cut into chunks of
+    ``width``, then the chunks position-major (row single + i · K + k: the i-th plan of chunk
+    k), so that the best plan of each chunk is a maximum of ``width`` blocks of rows, written
+    over the first block: rows [0, single + K) are then one value per chunk (a single plan is
+    a chunk of one), whose target's energies from each viewpoint are ``chunk_energy``
+    (V, single + K). ``error`` times a move's total child probability (1 up to rounding)
+    bounds the screen's error on its value (float32 rounding of the children, the S-term sums
+    and the energy subtraction, doubled). ``values_nonpositive``: every plan and energy gives
+    a child value of at most 0."""
+
+    betas: np.ndarray
+    first: np.ndarray
+    starts: np.ndarray
+    width: int
+    single: int
+    screen: np.ndarray
+    chunk_energy: np.ndarray
+    error: float
+    values_nonpositive: bool
+
+    @classmethod
+    def of(cls, policy: ActiveRecognitionPolicy, width: int = SCREEN_CHUNK
+           ) -> _LookaheadTables:
+        order = np.argsort(policy.targets, kind="stable")
+        betas = policy.betas[order]
+        first, starts = np.unique(policy.targets[order], return_index=True)
+        ends = np.append(starts[1:], len(order))[: starts.size]
+        sizes = ends - starts
+        whole = starts + sizes // width * width  # where each target's single plans begin
+        single = np.concatenate([np.arange(a, e) for a, e in zip(whole, ends, strict=True)]
+                                + [np.zeros(0, dtype=np.int64)])
+        chunks = np.array([c for a, e in zip(starts, whole, strict=True)
+                           for c in range(a, e, width)], dtype=np.int64)  # first plans (K,)
+        rows = np.concatenate([single, (chunks[None, :] + np.arange(width)[:, None]).ravel()])
+        chunk_targets = policy.targets[order][np.concatenate([single, chunks])]
+        energy = policy.move_energy
+        finite = energy[:, first][np.isfinite(energy[:, first])]
+        beta_max = float(np.abs(betas).max()) if betas.size else 0.0
+        energy_max = float(np.abs(finite).max()) if finite.size else 0.0
+        n_states = policy.n_states
+        return cls(
+            betas=betas,
+            first=first,
+            starts=starts,
+            width=width,
+            single=single.size,
+            screen=np.ascontiguousarray(betas[rows], dtype=np.float32),
+            chunk_energy=np.ascontiguousarray(energy[:, chunk_targets], dtype=np.float32),
+            error=2.0 * policy.discount * 2.0**-24 * ((n_states + 8) * beta_max
+                                                      + 4 * energy_max),
+            values_nonpositive=bool((betas.size == 0 or betas.max() <= 0)
+                                    and np.all(energy >= 0)),
         )
