@@ -63,7 +63,7 @@ def _scrub(value: object) -> object:
 #: Text that measures time, names the folder or is a random element id (plotly's div).
 VOLATILE = [
     (re.compile(r"^.*\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d.*$", re.M), "TIME-ROW"),
-    (re.compile(r"[\d.]+ (s|images/s)\b"), "N s"),
+    (re.compile(r"[\d.]+ (s|images/s|images per CPU second)\b"), "N s"),
     # one-decimal table cells are the report's seconds columns (stage records, solver table)
     (re.compile(r"(\| |<td>)\d+\.\d( \||</td>)"), r"\1N\2"),
     (re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}"), "UUID"),
