@@ -2,21 +2,12 @@
 
 from __future__ import annotations
 
-import threading
-from contextlib import contextmanager
-
 import numpy as np
-import pytest
 import torch
 
 from rapomdp.config import PreprocessConfig, TrainConfig
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
-from rapomdp.recognition.training import (
-    LabelledViews,
-    prefetched,
-    train_classifier,
-    validation_mask,
-)
+from rapomdp.recognition.training import LabelledViews, train_classifier, validation_mask
 
 TOY_CLASSES = ["disc", "cross", "bar", "ring"]
 
@@ -97,59 +88,6 @@ def test_extents_found_once_train_the_network_of_extents_found_per_batch(monkeyp
     monkeypatch.setattr(training, "object_extents", lambda depth: None)  # per batch, as before
     per_batch = weights()
     assert all(torch.equal(a, b) for a, b in zip(once, per_batch, strict=True))
-
-
-def test_batches_made_ahead_train_the_network_of_batches_made_in_turn(monkeypatch):
-    from rapomdp.recognition import training
-
-    cfg = TrainConfig(width=0.125, epochs=2, batch_size=16,
-                      preprocess=PreprocessConfig(input_size_px=32))
-    data = toy_views(10, seed=4)
-
-    def weights() -> list[torch.Tensor]:
-        classifier, _ = train_classifier(data, data, TOY_CLASSES, cfg, 144.3, 144.3, seed=2,
-                                         device=torch.device("cpu"))
-        return list(classifier.network.state_dict().values())
-
-    ahead = weights()
-
-    @contextmanager
-    def in_turn(items, ahead: int = 0):  # noqa: ANN001, ANN202
-        yield iter(items)
-
-    monkeypatch.setattr(training, "prefetched", in_turn)
-    assert all(torch.equal(a, b) for a, b in zip(ahead, weights(), strict=True))
-
-
-def test_prefetched_keeps_the_order_raises_where_it_failed_and_stops_on_leaving():
-    with prefetched(iter(range(50)), ahead=3) as stream:
-        assert list(stream) == list(range(50))
-
-    def failing():  # noqa: ANN202
-        yield from range(4)
-        raise ValueError("batch 4 is broken")
-
-    seen = []
-    with pytest.raises(ValueError, match="batch 4 is broken"), \
-            prefetched(failing()) as stream:
-        for item in stream:
-            seen.append(item)
-    assert seen == [0, 1, 2, 3]
-
-    made = []
-
-    def endless():  # noqa: ANN202
-        i = 0
-        while True:
-            made.append(i)
-            yield i
-            i += 1
-
-    before = threading.active_count()
-    with prefetched(endless(), ahead=2) as stream:
-        assert [next(stream) for _ in range(5)] == [0, 1, 2, 3, 4]
-    assert threading.active_count() == before  # the maker stopped with the block
-    assert len(made) <= 5 + 2 + 1  # at most `ahead` (and the one being put) beyond
 
 
 def test_validation_holds_out_a_fraction_of_every_models_views():

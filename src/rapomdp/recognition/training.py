@@ -9,13 +9,9 @@ input twice. Adam with the paper's learning rate, weight decay and batch size.
 
 from __future__ import annotations
 
-import queue
-import threading
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TypeVar
 
 import numpy as np
 import torch
@@ -28,57 +24,6 @@ from rapomdp.progress import progress_bar
 from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
 from rapomdp.recognition.preprocess import PreprocessParams, object_extents, preprocess
-
-T = TypeVar("T")
-
-
-#: Batches made ahead of the training step (a thread prepares them while the network trains).
-PREFETCH = 2
-
-
-@contextmanager
-def prefetched(items: Iterator[T], ahead: int = PREFETCH) -> Iterator[Iterator[T]]:
-    """``items`` made by a background thread, up to ``ahead`` in advance, in their order; an
-    exception there is raised here at the item it stopped at, and leaving the block stops the
-    thread. NumPy and PyTorch release the GIL in the heavy parts of making a batch (the crop's
-    matrix products), so it overlaps the training step."""
-    made: queue.Queue[tuple[str, object]] = queue.Queue(maxsize=ahead)
-    stop = threading.Event()
-
-    def put(kind: str, value: object) -> bool:
-        while not stop.is_set():
-            try:
-                made.put((kind, value), timeout=0.05)
-                return True
-            except queue.Full:
-                continue
-        return False
-
-    def work() -> None:
-        try:
-            for item in items:
-                if not put("item", item):
-                    return
-            put("end", None)
-        except BaseException as exc:  # noqa: BLE001 (re-raised in the consumer)
-            put("error", exc)
-
-    def consume() -> Iterator[T]:
-        while True:
-            kind, value = made.get()
-            if kind == "end":
-                return
-            if kind == "error":
-                raise value  # type: ignore[misc]
-            yield value  # type: ignore[misc]
-
-    thread = threading.Thread(target=work, name="train-batches", daemon=True)
-    thread.start()
-    try:
-        yield consume()
-    finally:
-        stop.set()
-        thread.join()
 
 
 @dataclass
@@ -208,28 +153,20 @@ def train_classifier(
     extents = None if cfg.augment.noise else object_extents(train.depth)
     noise = noise or NoiseConfig()
     history = History()
-    batches_per_epoch = -(-len(train) // cfg.batch_size)
-    def batches() -> Iterator[tuple[int, np.ndarray, torch.Tensor, torch.Tensor]]:
-        """Every epoch's batches in order: (batch number, indices, inputs, labels). The only
-        user of ``rng``, so its draws come in the same order wherever it runs."""
-        for _ in range(cfg.epochs):
+    batches = -(-len(train) // cfg.batch_size)
+    with progress_bar(progress, status=True) as bar:
+        task = bar.add_task("train", total=cfg.epochs * batches, status="", unit="batches")
+        for epoch in range(1, cfg.epochs + 1):
+            start_s = time.perf_counter()
+            network.train()
             order = rng.permutation(len(train))
-            for b in range(batches_per_epoch):
+            loss_sum, correct = 0.0, 0
+            for b in range(batches):
                 idx = np.sort(order[b * cfg.batch_size : (b + 1) * cfg.batch_size])
                 depth, shift, scale = augment_batch(train.depth[idx], cfg.augment, noise, rng)
                 x = torch.from_numpy(preprocess(depth, fx_px, fy_px, params, shift, scale,
                                                 None if extents is None else extents[idx]).images)
-                yield b, idx, x, torch.from_numpy(train.labels[idx])
-
-    with progress_bar(progress, status=True) as bar, prefetched(batches()) as stream:
-        task = bar.add_task("train", total=cfg.epochs * batches_per_epoch, status="",
-                            unit="batches")
-        for epoch in range(1, cfg.epochs + 1):
-            start_s = time.perf_counter()
-            network.train()
-            loss_sum, correct = 0.0, 0
-            for _ in range(batches_per_epoch):
-                b, idx, x, y = next(stream)
+                y = torch.from_numpy(train.labels[idx])
                 x, y = x.to(device), y.to(device)
                 logits = network(x)
                 loss = nn.functional.cross_entropy(logits, y)
