@@ -14,6 +14,10 @@ import json
 from pathlib import Path
 
 from rapomdp.config import METHOD_NAMES
+from rapomdp.experiment.metrics import paired_model_sums
+from rapomdp.study.bootstrap import SeedClusters, hierarchical_bootstrap
+from rapomdp.study.pooled import load_seed_results
+from rapomdp.study.spec import read_study
 
 #: The methods of the comparison, by key.
 COMPARED = ("learned", "ra", "random")
@@ -39,6 +43,25 @@ def training_lines(workspace: Path) -> list[str]:
     return lines
 
 
+def learned_minus_random(study: Path, resamples: int = 10_000) -> list[str]:
+    """Per configuration, Learned's paired accuracy minus Random's over the same (test model,
+    start) pairs, pooled over seeds with the study's interval (seeds and test models)."""
+    spec = read_study(study)
+    if spec is None:
+        return []
+    lines = []
+    for name, seeds in load_seed_results(spec, study).items():
+        if not all({"learned", "random"} <= set(r.table.methods) for r in seeds):
+            continue
+        clusters = [SeedClusters(*paired_model_sums(r.table, "learned", "random"))
+                    for r in seeds]
+        crossed = len({r.dataset_key for r in seeds}) == 1
+        d = hierarchical_bootstrap(clusters, resamples, 0, crossed=None if crossed else False)
+        lines.append(f"{name:<24}Learned − Random: {d.estimate:+.3f} [{d.low:+.3f}, "
+                     f"{d.high:+.3f}] over {len(seeds)} seeds")
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--study", "-s", type=Path, required=True)
@@ -59,6 +82,7 @@ def main() -> None:
         print(f"{r['dataset']:<24}{r['method']:<16}{float(r['accuracy']):>9.3f}"
               f"{float(r['energy_m']):>10.3f}{float(r['moves']):>7.2f}"
               f"{float(r['confidence_minus_accuracy']):>+9.3f}  {delta}")
+    print("\n".join(learned_minus_random(args.study)))
     print()
     for learn in sorted(args.study.glob("*/seed-*/learn/learn.json")):
         workspace = learn.parent.parent
