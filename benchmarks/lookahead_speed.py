@@ -15,6 +15,7 @@ shared), wall time with CPU time in brackets, per call.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -26,16 +27,13 @@ from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.methods import BayesBelief
 from rapomdp.io import load_npz
 from rapomdp.planning.momdp import update_beliefs
-from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
-from rapomdp.planning.rules import (
-    declare_value,
-    declare_values,
-    move_or_declare,
-    unnormalised_declare_value,
-)
+from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from tests.planning.planning_fixtures import reference_lookahead_act  # noqa: E402
 
 
 def recorded_cases(workspace: Path, repeats: int, model_name: str = "ra") -> tuple[
@@ -61,38 +59,6 @@ def recorded_cases(workspace: Path, repeats: int, model_name: str = "ra") -> tup
         visited[views] = True
         cases.append((int(views[0]), b, visited))
     return model, policy, reachable, cases
-
-
-def reference_lookahead_act(policy: ActiveRecognitionPolicy, viewpoint: int,
-                            belief: np.ndarray, observation_model: np.ndarray,
-                            allowed: np.ndarray, forbidden: np.ndarray | None = None
-                            ) -> ARAction:
-    """``lookahead_act`` before the float32 screen: every move valued exactly, the plans
-    sorted by target on every call."""
-    b = np.asarray(belief, dtype=np.float64)
-    ok = np.asarray(allowed, dtype=bool).copy()
-    ok[viewpoint] = False
-    if forbidden is not None:
-        ok &= ~np.asarray(forbidden, dtype=bool)
-    targets = np.flatnonzero(ok)
-    dec = declare_value(b, policy.lambda_, policy.n_classes)
-    k = int(np.argmax(declare_values(b, policy.lambda_, policy.n_classes)))
-    if targets.size == 0:
-        return ARAction("declare", k)
-    u = b[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)  # (J, O, S)
-    prob = u.sum(axis=2)
-    child = unnormalised_declare_value(u, policy.lambda_, policy.n_classes)  # (J, O)
-    if len(policy.targets):
-        order = np.argsort(policy.targets, kind="stable")
-        first_targets, starts = np.unique(policy.targets[order], return_index=True)
-        best = np.maximum.reduceat(u @ policy.betas[order].T, starts, axis=2)  # (J, O, T)
-        best -= prob[..., None] * policy.move_energy[np.ix_(targets, first_targets)][:, None]
-        child = np.maximum(child, best.max(axis=2))
-    q = policy.discount * child.sum(axis=1) - policy.move_energy[viewpoint, targets]
-    _, m = move_or_declare(q[None], np.asarray(dec)[None])
-    if m[0] >= 0:
-        return ARAction("move", int(targets[m[0]]))
-    return ARAction("declare", k)
 
 
 def median_times(calls: dict[str, Callable[[], None]], count: int, rounds: int

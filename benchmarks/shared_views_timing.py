@@ -15,17 +15,13 @@ their processes) change least with it.
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import resource
 import shutil
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+import stage_speed  # benchmarks/, the script's own folder
 
 REDONE = ("xrho", "classifier_eval", "observe", "vptree", "solve", "evaluate", "report")
 
@@ -35,22 +31,7 @@ def run_tree(src: Path, workspace: Path, threads: int
     """Redo the stages of :data:`REDONE` in ``workspace`` with the code of ``src``; each
     stage's own seconds from its record, the command's wall time and its CPU seconds (its
     processes' user + system time: what the load of other programs changes least)."""
-    env = {**os.environ, "PYTHONPATH": str(src.resolve()), "OMP_NUM_THREADS": "1"}
-    redo = [arg for name in REDONE if name != "xrho" for arg in ("--redo", name)]
-    start = time.perf_counter()
-    used = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run([sys.executable, "-c", "from rapomdp.cli import main; main()", "run",
-                    "-w", str(workspace), "--threads", str(threads), *redo],
-                   env=env, check=True, stdout=subprocess.DEVNULL)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - used.ru_utime) + (after.ru_stime - used.ru_stime)
-    seconds = {}
-    for name in REDONE:
-        record = workspace / name / "stage.json"
-        if record.is_file():
-            seconds[name] = float(json.loads(record.read_text())["seconds"])
-    return seconds, wall, cpu
+    return stage_speed.run_tree(src, workspace, [n for n in REDONE if n != "xrho"], threads)
 
 
 def compare_episodes(before: Path, after: Path) -> str:

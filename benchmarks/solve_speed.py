@@ -13,11 +13,10 @@ A solve is the same when its lower and upper bounds and the SHA-256 of the polic
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 from pathlib import Path
+
+from tree_run import run_json  # benchmarks/, the script's own folder
 
 #: Runs inside the tree's process: solve one model, print its CPU seconds, bounds and hash.
 SOLVE_ONE = r"""
@@ -51,10 +50,7 @@ print(json.dumps({"cpu_s": cpu, "lower": result.lower, "upper": result.upper,
 
 def solve_with(src: Path, workspace: Path, model: str) -> dict[str, object]:
     """One model's solve by the code of ``src`` in a fresh single-threaded process."""
-    env = {**os.environ, "PYTHONPATH": str(src.resolve()), "OMP_NUM_THREADS": "1"}
-    out = subprocess.run([sys.executable, "-c", SOLVE_ONE, str(workspace), model], env=env,
-                         check=True, capture_output=True, text=True).stdout
-    return dict(json.loads(out.strip().splitlines()[-1]))
+    return run_json(src, SOLVE_ONE, str(workspace), model)
 
 
 def main() -> None:

@@ -27,6 +27,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 from artefact_hashes import digest  # noqa: E402
+from tree_run import tree_env  # noqa: E402
 
 DEFAULT_STAGES = ("volume", "observe", "solve", "evaluate")
 
@@ -36,7 +37,7 @@ def run_tree(src: Path, workspace: Path, stages: list[str], threads: int
     """Redo ``stages`` in ``workspace`` with the code of ``src`` (the stages after them that
     are current stay; those that read them are redone too, as a run does); each stage's
     seconds, the command's wall and CPU seconds."""
-    env = {**os.environ, "PYTHONPATH": str(src.resolve()), "OMP_NUM_THREADS": "1"}
+    env = tree_env(src)
     redo = [arg for name in stages for arg in ("--redo", name)]
     start = time.perf_counter()
     used = resource.getrusage(resource.RUSAGE_CHILDREN)

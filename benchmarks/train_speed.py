@@ -10,11 +10,10 @@ the same load; and whether they train the same weights (SHA-256 of the state dic
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import subprocess
-import sys
 from pathlib import Path
+
+from tree_run import run_json  # benchmarks/, the script's own folder
 
 #: Runs inside the tree's process: the train stage's loop on W's renders, its seconds and hash.
 TRAIN = r"""
@@ -48,11 +47,9 @@ print(json.dumps({"images_per_s": int((~held).sum()) * epochs / wall, "wall_s": 
 
 
 def train_with(src: Path, workspace: Path, threads: int, epochs: int) -> dict[str, float]:
-    env = {**os.environ, "PYTHONPATH": str(src.resolve()), "OMP_NUM_THREADS": str(threads)}
-    out = subprocess.run([sys.executable, "-c", TRAIN, str(workspace), str(threads),
-                          str(epochs)], env=env, check=True, capture_output=True,
-                         text=True).stdout
-    return dict(json.loads(out.strip().splitlines()[-1]))
+    result = run_json(src, TRAIN, str(workspace), str(threads), str(epochs), threads=threads)
+    return {k: v for k, v in result.items() if isinstance(v, float)} | {
+        "sha256": result["sha256"]}  # type: ignore[dict-item]
 
 
 def main() -> None:

@@ -10,6 +10,7 @@ from rapomdp.planning.momdp import (
     benchmark_problem,
 )
 from rapomdp.planning.policy import ActiveRecognitionPolicy, AlphaVectorPolicy, ARAction
+from tests.planning.planning_fixtures import reference_lookahead_act
 
 
 def test_policies_round_trip_through_npz(tmp_path):
@@ -105,43 +106,6 @@ def test_the_lookahead_is_the_brute_force_backup_whatever_the_order_of_the_plans
     assert kinds == {"move", "declare"}  # both branches were exercised
 
 
-def _reference_lookahead_act(policy, viewpoint, belief, observation_model, allowed,
-                             forbidden=None):
-    """The lookahead as it was before the float32 screen (every move valued exactly, the
-    plans sorted by target on every call): the reference the faster one must match."""
-    from rapomdp.planning.rules import (
-        declare_value,
-        declare_values,
-        move_or_declare,
-        unnormalised_declare_value,
-    )
-
-    b = np.asarray(belief, dtype=np.float64)
-    ok = np.asarray(allowed, dtype=bool).copy()
-    ok[viewpoint] = False
-    if forbidden is not None:
-        ok &= ~np.asarray(forbidden, dtype=bool)
-    targets = np.flatnonzero(ok)
-    dec = declare_value(b, policy.lambda_, policy.n_classes)
-    k = int(np.argmax(declare_values(b, policy.lambda_, policy.n_classes)))
-    if targets.size == 0:
-        return ARAction("declare", k)
-    u = b[None, None, :] * np.swapaxes(observation_model[targets], 1, 2)
-    prob = u.sum(axis=2)
-    child = unnormalised_declare_value(u, policy.lambda_, policy.n_classes)
-    if len(policy.targets):
-        order = np.argsort(policy.targets, kind="stable")
-        first_targets, starts = np.unique(policy.targets[order], return_index=True)
-        best = np.maximum.reduceat(u @ policy.betas[order].T, starts, axis=2)
-        best -= prob[..., None] * policy.move_energy[np.ix_(targets, first_targets)][:, None]
-        child = np.maximum(child, best.max(axis=2))
-    q = policy.discount * child.sum(axis=1) - policy.move_energy[viewpoint, targets]
-    _, m = move_or_declare(q[None], np.asarray(dec)[None])
-    if m[0] >= 0:
-        return ARAction("move", int(targets[m[0]]))
-    return ARAction("declare", k)
-
-
 TWIN, TWIN_OF = 15, 8  # two viewpoints with the same rows, energies and plans: moves tie
 
 
@@ -213,14 +177,14 @@ def _recorded_beliefs(problem, policy, count, seed):
     for k in range(n_s):
         start = cases[k][1]
         end = np.eye(n_s)[k]
-        kind = [_reference_lookahead_act(policy, 0, (1 - t) * start + t * end, model,
+        kind = [reference_lookahead_act(policy, 0, (1 - t) * start + t * end, model,
                                          reachable).kind for t in (0.0, 1.0)]
         if kind[0] == kind[1]:
             continue
         lo, hi = 0.0, 1.0
         for _ in range(60):
             mid = 0.5 * (lo + hi)
-            act = _reference_lookahead_act(policy, 0, (1 - mid) * start + mid * end, model,
+            act = reference_lookahead_act(policy, 0, (1 - mid) * start + mid * end, model,
                                            reachable)
             lo, hi = (mid, hi) if act.kind == kind[0] else (lo, mid)
         cases += [(0, (1 - t) * start + t * end, reachable, None) for t in (lo, hi)]
@@ -235,15 +199,15 @@ def test_the_lookahead_returns_the_reference_actions_on_recorded_beliefs(confusi
     assert len(cases) > 330
     kinds, ties, straddles = set(), 0, 0
     for viewpoint, b, allowed, forbidden in cases:
-        expected = _reference_lookahead_act(policy, viewpoint, b, problem.observation_model,
+        expected = reference_lookahead_act(policy, viewpoint, b, problem.observation_model,
                                             allowed, forbidden)
         assert policy.lookahead_act(viewpoint, b, problem.observation_model, allowed,
                                     forbidden) == expected
         kinds.add(expected.kind)
         ties += expected in (ARAction("move", TWIN_OF), ARAction("move", TWIN))
     for a, b in zip(cases[-12::2], cases[-11::2], strict=True):  # the switch pairs
-        straddles += _reference_lookahead_act(policy, 0, a[1], problem.observation_model,
-                                              a[2]).kind != _reference_lookahead_act(
+        straddles += reference_lookahead_act(policy, 0, a[1], problem.observation_model,
+                                              a[2]).kind != reference_lookahead_act(
             policy, 0, b[1], problem.observation_model, b[2]).kind
     assert kinds == {"move", "declare"} and ties > 0 and straddles > 0
     # a policy without plans (children valued by declaring alone), one with a single plan, and
@@ -261,7 +225,7 @@ def test_the_lookahead_returns_the_reference_actions_on_recorded_beliefs(confusi
         for viewpoint, b, allowed, forbidden in cases[:60]:
             allowed = everywhere if allowed_all else allowed
             assert other.lookahead_act(viewpoint, b, problem.observation_model, allowed,
-                                       forbidden) == _reference_lookahead_act(
+                                       forbidden) == reference_lookahead_act(
                 other, viewpoint, b, problem.observation_model, allowed, forbidden)
 
 
@@ -308,7 +272,7 @@ def test_the_lookahead_returns_the_reference_actions_with_instance_types(confusi
     assert policy.n_states == 2 * n_c and policy.n_classes == n_c
     kinds = set()
     for viewpoint, b, allowed, forbidden in _recorded_beliefs(typed, policy, 150, seed=3):
-        expected = _reference_lookahead_act(policy, viewpoint, b, typed.observation_model,
+        expected = reference_lookahead_act(policy, viewpoint, b, typed.observation_model,
                                             allowed, forbidden)
         assert policy.lookahead_act(viewpoint, b, typed.observation_model, allowed,
                                     forbidden) == expected
@@ -335,4 +299,4 @@ def test_the_lookahead_matches_the_reference_with_children_of_probability_zero(
         viewpoint = int(rng.choice(np.flatnonzero(problem.reachable)))
         with np.errstate(invalid="ignore"):
             assert policy.lookahead_act(viewpoint, b, model, problem.reachable) == \
-                _reference_lookahead_act(policy, viewpoint, b, model, problem.reachable)
+                reference_lookahead_act(policy, viewpoint, b, model, problem.reachable)
