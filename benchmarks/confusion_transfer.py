@@ -39,7 +39,7 @@ and measures, per workspace:
 Only workspaces whose ``report/`` exists are read; nothing is written into them.
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/confusion_transfer.py \\
-        --root /work/main/runs/study-learned [--workspaces learned/seed-0 ...] \\
+        --root runs/study-learned [--workspaces learned/seed-0 ...] \\
         [--alphas 0 0.25 0.5 0.75 0.9 1] [--per-class real-cad-dev-learned/seed-0]
 """
 
@@ -254,15 +254,17 @@ def recorded_temperature(held: Held, key: str) -> float:
 
 def fuse(model: np.ndarray, first: np.ndarray, viewpoints: np.ndarray, labels: np.ndarray,
          offsets: np.ndarray) -> np.ndarray:
-    """Final naive-Bayes beliefs (E, C) of episodes from a uniform prior: the first step by
-    ``first``, the later by ``model`` (as :class:`BayesBelief` updates), in log space."""
-    log_m, log_f = np.log(np.maximum(model, 1e-300)), np.log(np.maximum(first, 1e-300))
-    step_log = log_m[viewpoints, :, labels]
-    step_log[offsets[:-1]] = log_f[viewpoints[offsets[:-1]], :, labels[offsets[:-1]]]
-    total = np.add.reduceat(step_log, offsets[:-1], axis=0)
-    total -= total.max(axis=1, keepdims=True)
-    b = np.exp(total)
-    return b / b.sum(axis=1, keepdims=True)
+    """Final beliefs (E, C) of episodes from a uniform prior, the first step by ``first``, the
+    later by ``model``: :class:`BayesBelief`, the closed loop's own update, on the labels."""
+    belief = BayesBelief(model, first)
+    one_hot = np.eye(model.shape[2])
+    finals = []
+    for start, end in zip(offsets[:-1], offsets[1:], strict=True):
+        belief.reset()
+        for j in range(start, end):
+            belief.update(int(viewpoints[j]), one_hot[labels[j]])
+        finals.append(belief.belief)
+    return np.array(finals)
 
 
 def episode_diagnostic(held: Held, root: Path, best: dict[str, float],
@@ -293,7 +295,7 @@ def episode_diagnostic(held: Held, root: Path, best: dict[str, float],
                 raise SystemExit(f"{root}: episode {which[i]} does not reproduce")
         own = fuse(model, first, views, labels, offsets)
         if not np.array_equal(own.argmax(axis=1), e["declared"][which]):
-            raise SystemExit(f"{root}: the vectorised fusion differs from BayesBelief")
+            raise SystemExit(f"{root}: the re-fused declarations differ from the record")
         t_rec = recorded_temperature(held, key)
         refit_same = np.allclose(temper(held.full[key], t_rec), model, atol=1e-9)
         rows = [("(a) workspace's own", own, own.max(axis=1))]

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +29,9 @@ def run_tree(src: Path, workspace: Path, threads: int
     """Redo the stages of :data:`REDONE` in ``workspace`` with the code of ``src``; each
     stage's own seconds from its record, the command's wall time and its CPU seconds (its
     processes' user + system time: what the load of other programs changes least)."""
-    return stage_speed.run_tree(src, workspace, [n for n in REDONE if n != "xrho"], threads)
+    seconds, wall, cpu = stage_speed.run_tree(src, workspace,
+                                              [n for n in REDONE if n != "xrho"], threads)
+    return {n: t for n, t in seconds.items() if n in REDONE}, wall, cpu
 
 
 def compare_episodes(before: Path, after: Path) -> str:
@@ -61,14 +61,11 @@ def main() -> None:
     parser.add_argument("--after", type=Path, required=True, help="the new tree's src/")
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory(dir=args.workspace.parent) as scratch:
-        results = {}
-        for label, src in (("before", args.before), ("after", args.after)):
-            copy = Path(scratch) / label
-            shutil.copytree(args.workspace, copy, copy_function=os.link,
-                            ignore=shutil.ignore_patterns(".lock"))  # its own lock
-            results[label] = run_tree(src, copy, args.threads)
-        identity = compare_episodes(Path(scratch) / "before", Path(scratch) / "after")
+    trees = {"before": args.before, "after": args.after}
+    with stage_speed.workspace_copies(args.workspace, list(trees)) as copies:
+        results = {label: run_tree(src, copies[label], args.threads)
+                   for label, src in trees.items()}
+        identity = compare_episodes(copies["before"], copies["after"])
     (before, wall_before, cpu_before), (after, wall_after, cpu_after) = (results["before"],
                                                                          results["after"])
     print(f"{'stage':<16}{'before s':>10}{'after s':>10}{'after/before':>14}")

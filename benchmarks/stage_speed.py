@@ -23,6 +23,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -32,27 +34,44 @@ from tree_run import tree_env  # noqa: E402
 DEFAULT_STAGES = ("volume", "observe", "solve", "evaluate")
 
 
+def stage_finished(workspace: Path) -> dict[str, str]:
+    """When each stage of ``workspace`` last finished, from its record."""
+    return {record.parent.name: str(json.loads(record.read_text()).get("finished"))
+            for record in workspace.glob("*/stage.json")}
+
+
 def run_tree(src: Path, workspace: Path, stages: list[str], threads: int
              ) -> tuple[dict[str, float], float, float]:
-    """Redo ``stages`` in ``workspace`` with the code of ``src`` (the stages after them that
-    are current stay; those that read them are redone too, as a run does); each stage's
-    seconds, the command's wall and CPU seconds."""
-    env = tree_env(src)
+    """Redo ``stages`` in ``workspace`` with the code of ``src`` (as a run does, so the stages
+    that read them are redone where their inputs changed); the seconds of every stage that
+    ran (its record's ``finished`` changed), the command's wall and CPU seconds."""
+    finished = stage_finished(workspace)
     redo = [arg for name in stages for arg in ("--redo", name)]
     start = time.perf_counter()
     used = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run([sys.executable, "-c", "from rapomdp.cli import main; main()", "run",
                     "-w", str(workspace), "--threads", str(threads), *redo],
-                   env=env, check=True, stdout=subprocess.DEVNULL)
+                   env=tree_env(src), check=True, stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - used.ru_utime) + (after.ru_stime - used.ru_stime)
-    seconds = {}
-    for record in sorted(workspace.glob("*/stage.json")):
-        data = json.loads(record.read_text())
-        if not data.get("shared_from"):
-            seconds[record.parent.name] = float(data["seconds"])
+    seconds = {name: float(json.loads((workspace / name / "stage.json").read_text())["seconds"])
+               for name, when in stage_finished(workspace).items()
+               if when != finished.get(name)}
     return seconds, wall, cpu
+
+
+@contextmanager
+def workspace_copies(workspace: Path, labels: Sequence[str]) -> Iterator[dict[str, Path]]:
+    """Hard-linked copies of ``workspace`` (each with its own lock), one per label, in a
+    temporary folder beside it that is removed on leaving. Artefacts are replaced whole,
+    never edited, so a run in a copy cannot change the original."""
+    with tempfile.TemporaryDirectory(dir=workspace.parent) as scratch:
+        copies = {label: Path(scratch) / label for label in labels}
+        for copy in copies.values():
+            shutil.copytree(workspace, copy, copy_function=os.link,
+                            ignore=shutil.ignore_patterns(".lock"))
+        yield copies
 
 
 def differing(before: Path, after: Path, stages: list[str]) -> tuple[int, list[str]]:
@@ -74,19 +93,12 @@ def main() -> None:
     parser.add_argument("--stages", nargs="+", default=list(DEFAULT_STAGES))
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory(dir=args.workspace.parent) as scratch:
-        results = {}
-        for label, src in (("before", args.before), ("after", args.after)):
-            copy = Path(scratch) / label
-            shutil.copytree(args.workspace, copy, copy_function=os.link,
-                            ignore=shutil.ignore_patterns(".lock"))
-            results[label] = run_tree(src, copy, args.stages, args.threads)
+    trees = {"before": args.before, "after": args.after}
+    with workspace_copies(args.workspace, list(trees)) as copies:
+        results = {label: run_tree(src, copies[label], args.stages, args.threads)
+                   for label, src in trees.items()}
         redone = sorted(set(results["before"][0]) & set(results["after"][0]))
-        redone = [s for s in redone
-                  if results["before"][0][s] != json.loads(
-                      (args.workspace / s / "stage.json").read_text()).get("seconds")]
-        compared, differ = differing(Path(scratch) / "before", Path(scratch) / "after",
-                                     redone)
+        compared, differ = differing(copies["before"], copies["after"], redone)
     (before, wall_b, cpu_b), (after, wall_a, cpu_a) = results["before"], results["after"]
     print(f"{'stage':<16}{'before s':>10}{'after s':>10}{'after/before':>14}")
     for name in redone:

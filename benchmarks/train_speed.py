@@ -46,10 +46,10 @@ print(json.dumps({"images_per_s": int((~held).sum()) * epochs / wall, "wall_s": 
 """
 
 
-def train_with(src: Path, workspace: Path, threads: int, epochs: int) -> dict[str, float]:
-    result = run_json(src, TRAIN, str(workspace), str(threads), str(epochs), threads=threads)
-    return {k: v for k, v in result.items() if isinstance(v, float)} | {
-        "sha256": result["sha256"]}  # type: ignore[dict-item]
+def train_with(src: Path, workspace: Path, threads: int, epochs: int) -> dict[str, object]:
+    """The train stage's loop on ``workspace`` with the code of ``src``: images/s, wall
+    seconds, the weights' SHA-256 and the last validation accuracy."""
+    return run_json(src, TRAIN, str(workspace), str(threads), str(epochs), threads=threads)
 
 
 def main() -> None:
@@ -70,9 +70,8 @@ def main() -> None:
             before = train_with(args.before, args.workspace, threads, args.epochs)
             after = train_with(args.after, args.workspace, threads, args.epochs)
             same = before["sha256"] == after["sha256"]
-            print(f"{threads:>7}{r + 1:>6}{before['images_per_s']:>14.0f}"
-                  f"{after['images_per_s']:>13.0f}"
-                  f"{after['images_per_s'] / before['images_per_s']:>7.2f}  "
+            b_rate, a_rate = float(before["images_per_s"]), float(after["images_per_s"])
+            print(f"{threads:>7}{r + 1:>6}{b_rate:>14.0f}{a_rate:>13.0f}{a_rate / b_rate:>7.2f}  "
                   f"{'yes' if same else 'NO'}")
     print(f"load average at the end: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
 
