@@ -110,6 +110,8 @@ def main() -> None:
                         help="with the Xtion sensor noise on (render.noise.enabled)")
     parser.add_argument("--compare", type=Path,
                         help="a --out file of another tree: print every difference, exit 1 if any")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="worker processes of the run (default 1; 2 exercises the pool)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         ws = args.workspace or Path(tmp) / "ws"
@@ -118,7 +120,7 @@ def main() -> None:
             if args.noise else TINY
         config.write_text(yaml.safe_dump(data))
         subprocess.run([sys.executable, "-m", "rapomdp.cli", "run", "-w", str(ws), "-c",
-                        str(config), "--workers", "1"], check=True, stdout=subprocess.DEVNULL)
+                        str(config), "--workers", str(args.workers)], check=True, stdout=subprocess.DEVNULL)
         hashes = {str(p.relative_to(ws)): digest(p, ws) for p in sorted(ws.rglob("*"))
                   if p.is_file() and p.name not in SKIP}
     for name, value in hashes.items():

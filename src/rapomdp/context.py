@@ -8,7 +8,11 @@ and passes it to every stage; a library caller passes its own, or gets ``RunCont
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rapomdp.processes import WorkerPool
 
 
 def default_workers() -> int:
@@ -23,12 +27,14 @@ class RunContext:
     :func:`default_workers`); ``threads``: PyTorch threads (None: the classifier's default,
     ``$RAPOMDP_THREADS`` or half the cores); ``progress``: rich progress bars on or off;
     ``scheduler``: a ``dask.distributed`` scheduler address the independent tasks go to (None:
-    the local process pool)."""
+    the local process pool); ``pool``: worker processes the run's stages share
+    (:func:`rapomdp.parallel.pooled`; None: each stage starts its own)."""
 
     workers: int | None = None
     threads: int | None = None
     progress: bool = True
     scheduler: str | None = None
+    pool: WorkerPool | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("workers", "threads"):
@@ -48,7 +54,7 @@ class RunContext:
 
     def in_worker(self) -> RunContext:
         """The context of a task inside a worker process: one thread, no bars of its own."""
-        return replace(self, workers=1, threads=1, progress=False, scheduler=None)
+        return replace(self, workers=1, threads=1, progress=False, scheduler=None, pool=None)
 
 
 #: One process, one thread, no progress bars: tests and quiet library use.

@@ -5,7 +5,8 @@ On the small shared machines this project targets, two single-threaded processes
 far better than one process with two PyTorch threads (see docs/recognition.md). Workers are
 started with ``spawn`` (safe whatever threads the parent has started); each task must be a
 module-level function of picklable arguments, and results come back in task order. A worker
-watches its parent and ends with it, also when the parent is killed (SIGKILL).
+watches its parent and ends with it, also when the parent is killed (SIGKILL); the stages of
+one run share their workers (:func:`pooled`, :mod:`rapomdp.processes`).
 
 How many workers, whether a bar shows and which scheduler come from the caller's
 :class:`~rapomdp.context.RunContext`. With a scheduler (``--scheduler tcp://host:port`` or
@@ -22,24 +23,23 @@ import asyncio
 import functools
 import os
 import re
-import signal
-import threading
-import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
-from multiprocessing import get_context
-from typing import Any, TypeVar
+from contextlib import ExitStack, contextmanager
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from rapomdp.config import SCHEDULER_PATTERN
+from rapomdp.processes import WorkerPool, sigint_held, single_threaded_worker
 from rapomdp.progress import progress_bar
+
+if TYPE_CHECKING:
+    from rapomdp.context import RunContext
 
 R = TypeVar("R")
 
 
-#: How often a worker process checks that its parent is alive, in seconds.
-PARENT_POLL_S = 0.5
 #: How long the scheduler's handshake may take before the address is refused, in seconds.
 HANDSHAKE_TIMEOUT_S = 10.0
 #: How often the parent reads the workers' progress reports, in seconds.
@@ -50,27 +50,10 @@ class WorkerError(RuntimeError):
     """A worker process died, or the Dask cluster cannot be used (named)."""
 
 
-def _watch_parent(parent_pid: int) -> None:
-    """End this process as soon as ``parent_pid`` is no longer its parent (it died)."""
-    while os.getppid() == parent_pid:
-        time.sleep(PARENT_POLL_S)
-    os._exit(70)
-
-
-def _single_threaded_worker(parent_pid: int | None = None) -> None:
-    """A worker's set-up: watch the parent (when given), one PyTorch thread."""
-    if parent_pid is not None:
-        threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
-                         name="rapomdp-parent-watch").start()
-    import torch
-
-    torch.set_num_threads(1)
-
-
 @functools.cache
 def _set_up_dask_worker(pid: int) -> None:
     """Set up a Dask worker process once (cached per process id)."""
-    _single_threaded_worker(None)
+    single_threaded_worker(None)
 
 
 def _dask_task(function: Callable[..., R], client_pid: int, task: tuple[Any, ...]) -> R:
@@ -163,31 +146,6 @@ def _run_on_dask(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]],
     return [results[i] for i in range(len(tasks))]
 
 
-@contextmanager
-def _sigint_held() -> Iterator[None]:
-    """SIGINT held back (blocked, not lost) in this thread while it starts worker processes:
-    they inherit the block, so a Ctrl-C (sent to the whole process group) reaches only this
-    process, which stops them (no traceback of theirs); the held signal arrives at the end."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-
-
-def _stop_pool(pool: ProcessPoolExecutor) -> None:
-    """Cancel what is queued and end the workers now (an interrupt must not wait for them)."""
-    # taken before the shutdown, which drops the pool's table of processes
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        if process.is_alive():
-            process.terminate()
-
-
 class TaskReport:
     """What a task of :func:`run_tasks` (with ``reports``) is given as its last argument:
     ``report(units)`` advances the bar by ``units`` as the task goes (from a worker process,
@@ -207,30 +165,28 @@ class TaskReport:
         return {"index": self.index, "_queue": self._queue, "_advance": None}
 
 
-def _report_queue(parent_pid: int) -> Any:
-    """A queue the workers' reports reach the parent through: a manager process's, started
-    with SIGINT held (a Ctrl-C is the parent's to handle) and ending with its parent."""
-    from multiprocessing.managers import SyncManager
-
-    manager = SyncManager(ctx=get_context("spawn"))
-    with _sigint_held():
-        manager.start(_watched_helper, (parent_pid,))
-    return manager
-
-
-def _watched_helper(parent_pid: int) -> None:
-    """A helper process's set-up: watch the parent (no PyTorch)."""
-    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
-                     name="rapomdp-parent-watch").start()
+@contextmanager
+def pooled(context: RunContext) -> Iterator[RunContext]:
+    """``context`` with a :class:`WorkerPool` of its ``worker_count`` processes, shared by
+    every call that passes it on until the block ends; ``context`` itself when it has a pool
+    already, sends tasks to a Dask scheduler, or uses one process."""
+    if context.pool is not None or context.uses_cluster or context.worker_count < 2:
+        yield context
+        return
+    with WorkerPool(context.worker_count) as pool:
+        yield replace(context, pool=pool)
 
 
 def run_tasks(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]], workers: int,
               description: str, progress: bool = True,
               scheduler: str | None = None, unit: str = "tasks",
-              sizes: Sequence[int] | None = None, reports: bool = False) -> list[R]:
+              sizes: Sequence[int] | None = None, reports: bool = False,
+              pool: WorkerPool | None = None) -> list[R]:
     """``[function(*task) for task in tasks]``, on the Dask ``scheduler`` when one is named,
     else over ``workers`` processes when more than one (in this process otherwise), with a
-    progress bar when ``progress``. A worker that dies raises :class:`WorkerError`.
+    progress bar when ``progress``. A worker that dies raises :class:`WorkerError`. The
+    processes are ``pool``'s when it has exactly as many as the call would use (else new
+    ones, ended when the call is).
 
     The bar counts ``unit`` (``models``, ``solves``, ``episodes``): each task is ``sizes[i]``
     of them (default 1). With ``reports`` each task is called with a :class:`TaskReport` as
@@ -261,37 +217,34 @@ def run_tasks(function: Callable[..., R], tasks: Sequence[tuple[Any, ...]], work
                 results[i] = function(*task, *extra)
                 advance(i, sizes[i])
             return [results[i] for i in range(len(tasks))]
-        manager = _report_queue(os.getpid()) if reports else None
-        queue = manager.Queue() if manager is not None else None
+        with ExitStack() as owned:
+            if pool is None or min(pool.workers, len(tasks)) != workers:
+                pool = owned.enter_context(WorkerPool(workers))
+            queue = pool.report_queue() if reports else None
 
-        def drain() -> None:
-            while queue is not None and not queue.empty():
-                advance(*queue.get())
+            def drain() -> None:
+                while queue is not None and not queue.empty():
+                    advance(*queue.get())
 
-        pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
-                                   initializer=_single_threaded_worker,
-                                   initargs=(os.getpid(),))
-        try:
-            with _sigint_held():  # the workers start on the first submissions
-                futures = {pool.submit(function, *task,
-                                       *((TaskReport(i, queue),) if reports else ())): i
-                           for i, task in enumerate(tasks)}
-            pending = set(futures)
-            while pending:
-                done, pending = wait(pending, timeout=REPORT_POLL_S,
-                                     return_when=FIRST_COMPLETED)
-                drain()
-                for future in done:
-                    results[futures[future]] = future.result()
-                    advance(futures[future], sizes[futures[future]])
-        except BrokenProcessPool:
-            raise WorkerError(f"{description}: a worker process died (killed, or out of "
-                              "memory); nothing of this stage was kept") from None
-        except BaseException:
-            _stop_pool(pool)
-            raise
-        finally:
-            if manager is not None:
-                manager.shutdown()
-        pool.shutdown(wait=True)
+            try:
+                executor = pool.executor()
+                with sigint_held():  # the workers start on the first submissions
+                    futures = {executor.submit(function, *task,
+                                               *((TaskReport(i, queue),) if reports else ())): i
+                               for i, task in enumerate(tasks)}
+                pending = set(futures)
+                while pending:
+                    done, pending = wait(pending, timeout=REPORT_POLL_S,
+                                         return_when=FIRST_COMPLETED)
+                    drain()
+                    for future in done:
+                        results[futures[future]] = future.result()
+                        advance(futures[future], sizes[futures[future]])
+            except BrokenProcessPool:
+                pool.stop()
+                raise WorkerError(f"{description}: a worker process died (killed, or out of "
+                                  "memory); nothing of this stage was kept") from None
+            except BaseException:
+                pool.stop()
+                raise
     return [results[i] for i in range(len(tasks))]

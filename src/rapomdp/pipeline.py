@@ -31,6 +31,7 @@ from rapomdp.experiment.sections import (
     REPORT_SECTIONS,
     learn_fingerprint,
 )
+from rapomdp.parallel import pooled
 from rapomdp.recognition.artefacts import EVAL_SECTIONS, TRAIN_SECTIONS, VPTREE_SECTIONS
 from rapomdp.workspace import Stage, StageError, StageInputs, StageResult, Workspace, stage_key
 
@@ -255,7 +256,7 @@ def run_pipeline(
         raise KeyError(unknown_stages_message(sorted(unknown)))
     stages = STAGES if until is None else stages_up_to(until)
     results = []
-    with workspace.locked():
+    with workspace.locked(), pooled(context) as context:
         for stage in stages:
             shared = None
             if stage.name not in force and not workspace.is_current(stage, config):

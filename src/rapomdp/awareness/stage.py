@@ -200,7 +200,8 @@ def run_saliency_stage(config: Config, inputs: StageInputs, out: Path,
               str(inputs.train), str(out), m.file, task_threads)
              for m in saliency_models(dataset, config.volume.models_per_class)]
     done = run_tasks(_saliency_task, tasks, workers, f"saliency ({cfg.method})",
-                     context.progress, context.scheduler, unit="volume models")
+                     context.progress, context.scheduler, unit="volume models",
+                     pool=context.pool)
     total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
     classifier = load_stage_classifier(config, inputs.train, dataset.classes,
                                        context.threads)

@@ -110,7 +110,7 @@ def run_xrho_stage(config: Config, inputs: StageInputs, out: Path, context: RunC
     models = [m for m in dataset.models if m.role in ROLE_STREAMS]
     run_tasks(_render_xrho_model, [(dataset, m, config, out) for m in models],
               context.worker_count, "xrho: the volume and test models at X_rho",
-              context.progress, context.scheduler, unit="models")
+              context.progress, context.scheduler, unit="models", pool=context.pool)
     vp = config.viewpoints
     write_json_atomic(out / XRHO_FILE, {
         "viewpoints": vp.count, "radius_m": vp.radius_m, "noise": config.render.noise.enabled,

@@ -71,7 +71,7 @@ def run_render_stage(config: Config, inputs: StageInputs, out: Path,
     run_tasks(_render_model, [(dataset, m, intrinsics, cfg, config.seed, out)
                               for m in dataset.models],
               context.worker_count, "render: training viewsphere", context.progress,
-              context.scheduler, unit="models")
+              context.scheduler, unit="models", pool=context.pool)
     write_json_atomic(
         out / RENDER_FILE,
         {"intrinsics": intrinsics.to_dict(), "views": cfg.views, "radius_m": cfg.radius_m,

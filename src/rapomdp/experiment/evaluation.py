@@ -271,7 +271,8 @@ def run_episodes(config: Config, inputs: StageInputs,
                                                    for share in shares],
                               count, "evaluate: episodes", context.progress,
                               context.scheduler, unit="episodes",
-                              sizes=[per_model * len(share) for share in shares], reports=True)
+                              sizes=[per_model * len(share) for share in shares], reports=True,
+                              pool=context.pool)
         per_model_records = [records for share in per_share for records in share]
     return [r for records in per_model_records for r in records], dataset
 
@@ -346,7 +347,7 @@ def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
         workers=context.worker_count, allow_stay=False, class_names=classes,
         memory_gb=solve.memory_gb, scheduler=context.scheduler, cost=gap,
         description=f"evaluate: λ sweep ({sweep_lambdas} m)",
-        start_beliefs=observation_priors(inputs.observe, models))
+        start_beliefs=observation_priors(inputs.observe, models), pool=context.pool)
 
 
 def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],

@@ -426,7 +426,7 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
               context.progress and in_process) for lam in lambdas]
     trained = run_tasks(_train_task, tasks, workers, "learn: PPO policies (one per λ)",
                         context.progress and not in_process, context.scheduler,
-                        unit="policies")
+                        unit="policies", pool=context.pool)
     trained_s = time.perf_counter() - began - recorded_s
     rows = [row for curve, _ in trained for row in curve]
     write_text_atomic(out / CURVES_CSV, curves_csv(rows))

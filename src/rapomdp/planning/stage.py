@@ -148,6 +148,7 @@ def run_solve_stage(config: Config, inputs: StageInputs, out: Path,
             memory_gb=config.solve.memory_gb,
             scheduler=context.scheduler,
             start_beliefs=observation_priors(inputs.observe, models),
+            pool=context.pool,
         )
     except MemoryCapError as exc:
         raise StageError(f"solve: {exc}") from None

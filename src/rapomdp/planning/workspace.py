@@ -26,6 +26,7 @@ from rapomdp.planning.momdp import (
     build_active_recognition_problem,
 )
 from rapomdp.planning.sarsop import ProgressCallback
+from rapomdp.processes import WorkerPool
 
 
 def _solve_one(P: np.ndarray, move_energy: np.ndarray, reachable: np.ndarray | None,
@@ -75,6 +76,7 @@ def solve_workspace_problems(
     memory_gb: float = DEFAULT_MEMORY_GB,
     scheduler: str | None = None,
     start_beliefs: Mapping[str, np.ndarray | None] | None = None,
+    pool: WorkerPool | None = None,
 ) -> dict[str, Path]:
     """Solve one active-recognition MOMDP per observation model; returns name → policy path.
     ``start_beliefs``: a model's start belief over its hidden states (a typed model's prior
@@ -83,10 +85,10 @@ def solve_workspace_problems(
     Each solve stops at ``precision``, after ``max_iterations`` iterations (reproducible) or
     after ``timeout`` seconds of process CPU time (not), whichever comes first, within
     ``memory_gb`` each (:class:`~rapomdp.planning.memory.MemoryCapError` when a problem cannot
-    fit); models are solved over ``workers`` processes, or on the Dask ``scheduler`` when one
-    is named. Writes ``out_dir/policy_<name>.npz`` (atomically) and
-    ``out_dir/solve_summary.json`` with the bounds reached, the time, the policy size and the
-    memory plan's note.
+    fit); models are solved over ``workers`` processes (``pool``'s when it has as many), or on
+    the Dask ``scheduler`` when one is named. Writes ``out_dir/policy_<name>.npz`` (atomically)
+    and ``out_dir/solve_summary.json`` with the bounds reached, the time, the policy size and
+    the memory plan's note.
     """
     out = Path(out_dir)
     names = list(observation_models)
@@ -96,7 +98,7 @@ def solve_workspace_problems(
     if (workers > 1 or scheduler is not None) and callback is None:
         rows = run_tasks(_solve_one, [(observation_models[n], move_energy, reachable, out, n,
                                        *common, start.get(n)) for n in names], workers,
-                         "solve: POMDPs", scheduler=scheduler, unit="solves")
+                         "solve: POMDPs", scheduler=scheduler, unit="solves", pool=pool)
     else:
         rows = [_solve_one(observation_models[n], move_energy, reachable, out, n, *common,
                            start.get(n), callback) for n in names]
@@ -123,6 +125,7 @@ def solve_problem_sets(
     cost: Mapping[str, float] | None = None,
     description: str = "solve: POMDPs",
     start_beliefs: Mapping[str, np.ndarray | None] | None = None,
+    pool: WorkerPool | None = None,
 ) -> dict[Path, dict[str, Path]]:
     """Several :func:`solve_workspace_problems` calls, (folder, λ, models) each, in one pool.
 
@@ -145,7 +148,7 @@ def solve_problem_sets(
     tasks = [(jobs[i][3], move_energy, reachable, jobs[i][0], jobs[i][2], jobs[i][1], *common,
               start.get(jobs[i][2])) for i in order]
     solved = run_tasks(_solve_one, tasks, workers, description, scheduler=scheduler,
-                       unit="solves")
+                       unit="solves", pool=pool)
     rows = dict(zip(order, solved, strict=True))
     paths: dict[Path, dict[str, Path]] = {}
     for folder, _, models in sets:

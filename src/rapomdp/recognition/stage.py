@@ -181,7 +181,7 @@ def run_classifier_eval_stage(config: Config, inputs: StageInputs, out: Path,
                             [files[i] for i in share], threads) for share in shares],
                           context.worker_count, "classifier: models at X_rho",
                           context.progress, context.scheduler, unit="models",
-                          sizes=[len(share) for share in shares])
+                          sizes=[len(share) for share in shares], pool=context.pool)
         per_model = [result for part in parts for result in part]
     volume_xrho = [x for x, _ in per_model[len(test_models):]]
     per_model = per_model[: len(test_models)]

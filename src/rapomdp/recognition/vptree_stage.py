@@ -34,6 +34,7 @@ from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import save_npz, write_json_atomic
 from rapomdp.parallel import run_tasks
+from rapomdp.processes import WorkerPool
 from rapomdp.progress import track
 from rapomdp.recognition.artefacts import (
     VPTREE_CLASSIFIER_FILE,
@@ -88,11 +89,12 @@ def _xrho_outputs(classifier: VocabularyTreeClassifier, images: XrhoViews,
 
 def xrho_outputs(classifier: VocabularyTreeClassifier, images: XrhoViews,
                  models: list[ModelEntry], description: str, progress: bool = True,
-                 workers: int = 1, scheduler: str | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+                 workers: int = 1, scheduler: str | None = None,
+                 pool: WorkerPool | None = None) -> tuple[np.ndarray, np.ndarray]:
     """True labels (M,) and the VP-tree's outputs (M, V, C) on models at X_rho (the xrho
-    stage's ``images``), over ``workers`` processes (or the Dask ``scheduler``); the outputs do
-    not depend on them, nor on how many images one call classifies.
+    stage's ``images``), over ``workers`` processes (``pool``'s when it has as many; or the
+    Dask ``scheduler``); the outputs do not depend on them, nor on how many images one call
+    classifies.
 
     In one process each model is a task; otherwise the models go in a few contiguous shares
     per worker, so the classifier travels to the workers a few times, not once per model.
@@ -102,7 +104,7 @@ def xrho_outputs(classifier: VocabularyTreeClassifier, images: XrhoViews,
               for share in np.array_split(np.arange(len(models)), min(shares, len(models)))]
     outputs = run_tasks(_xrho_outputs, [(classifier, images, g) for g in groups],
                         workers, description, progress, scheduler, unit="models",
-                        sizes=[len(g) for g in groups])
+                        sizes=[len(g) for g in groups], pool=pool)
     labels = [images.dataset.label(model) for model in models]
     return (np.array(labels, dtype=np.int64),
             np.stack([o for part in outputs for o in part]).astype(np.float32))
@@ -110,12 +112,12 @@ def xrho_outputs(classifier: VocabularyTreeClassifier, images: XrhoViews,
 
 def xrho_predictions(classifier: VocabularyTreeClassifier, images: XrhoViews,
                      models: list[ModelEntry], description: str, progress: bool = True,
-                     workers: int = 1, scheduler: str | None = None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+                     workers: int = 1, scheduler: str | None = None,
+                     pool: WorkerPool | None = None) -> tuple[np.ndarray, np.ndarray]:
     """True labels (M,) and the VP-tree's labels (M, V) on models at X_rho
     (:func:`xrho_outputs`)."""
     labels, outputs = xrho_outputs(classifier, images, models, description, progress, workers,
-                                   scheduler)
+                                   scheduler, pool)
     return labels, outputs.argmax(axis=2)
 
 
@@ -173,7 +175,7 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     images = load_xrho_views(inputs.xrho, dataset)
     volume_labels, volume_pred = xrho_predictions(
         classifier, images, volume_models, "vptree: volume models at X_rho", context.progress,
-        context.worker_count, context.scheduler)
+        context.worker_count, context.scheduler, context.pool)
     volume_groups = class_ranks(volume_models)
     observation = vptree_observation(
         volume_labels, volume_pred, volume_groups, len(dataset.classes),
@@ -188,7 +190,7 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     if test_models:
         test_labels, test_outputs = xrho_outputs(
             classifier, images, test_models, "vptree: test models at X_rho", context.progress,
-            context.worker_count, context.scheduler)
+            context.worker_count, context.scheduler, context.pool)
         test_pred = test_outputs.argmax(axis=2)
         test_accuracy = float((test_pred == test_labels[:, None]).mean())
     seconds["test"] = time.perf_counter() - step

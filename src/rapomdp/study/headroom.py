@@ -52,7 +52,7 @@ from rapomdp.experiment.evaluation import ClosedLoop, episode_rng, start_viewpoi
 from rapomdp.experiment.methods import POMDPPolicy
 from rapomdp.experiment.metrics import table1
 from rapomdp.io import markdown_table, write_json_atomic, write_text_atomic
-from rapomdp.parallel import run_tasks
+from rapomdp.parallel import pooled, run_tasks
 from rapomdp.pipeline import STAGE_NAMES, get_stage
 from rapomdp.planning.artefacts import load_solve_summary, policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
@@ -373,6 +373,12 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
     solved as the solve stage solves (``solve`` settings, λ, start viewpoint) over
     ``context``'s workers; writes ``headroom.md|csv|json`` into ``out`` (default
     ``W/headroom/``)."""
+    with pooled(context) as shared:
+        return _headroom(workspace, out, shared, rows)
+
+
+def _headroom(workspace: str | Path | Workspace, out: str | Path | None,
+              context: RunContext, rows: Sequence[str] | None) -> HeadroomResult:
     began = time.perf_counter()
     ws = workspace if isinstance(workspace, Workspace) else Workspace(workspace)
     config = ws.config()
@@ -409,7 +415,7 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
     per_share = run_tasks(_outputs_task, [(config_json, inputs, share) for share in shares],
                           count, "headroom: test models at X_rho", context.progress,
                           context.scheduler, unit="test models",
-                          sizes=[len(share) for share in shares])
+                          sizes=[len(share) for share in shares], pool=context.pool)
     outputs = [o for share in per_share for o in share]
     predicted = np.stack([o.argmax(axis=1) for o in outputs])
     recorded = RecordedObservation.load(inputs.observe)
@@ -442,7 +448,7 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
             start_viewpoint=start_viewpoint(motion.reachable), precision=s.precision,
             timeout=s.timeout_s, max_iterations=s.iterations, workers=count,
             allow_stay=False, class_names=classes, memory_gb=s.memory_gb,
-            scheduler=context.scheduler)
+            scheduler=context.scheduler, pool=context.pool)
     summary = load_solve_summary(policies) if to_solve else {}
     solve_s = time.perf_counter() - solve_began
     paths = {k: str(policies / policy_file(k)) for k in to_solve}
@@ -457,7 +463,8 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
         tasks.append((config_json, inputs, arms, assignment, share, [outputs[i] for i in idx]))
     records = [r for share in run_tasks(_episodes_task, tasks, count, "headroom: episodes",
                                         context.progress, context.scheduler,
-                                        unit="test models", sizes=[len(t[4]) for t in tasks])
+                                        unit="test models", sizes=[len(t[4]) for t in tasks],
+                                        pool=context.pool)
                for r in share]
     episodes_s = time.perf_counter() - episodes_began
     table = EpisodeTable.from_records(records, dataset, wanted)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from rapomdp.config import Config, config_from_dict
 from rapomdp.context import RunContext
-from rapomdp.parallel import run_tasks
+from rapomdp.parallel import pooled, run_tasks
 from rapomdp.pipeline import STAGE_NAMES, planned_keys, run_pipeline
 from rapomdp.study.spec import StudyDataset, StudySpec, check_study_folder, write_study
 from rapomdp.workspace import StageResult, Workspace
@@ -89,9 +89,10 @@ def run_study(spec: StudySpec, root: str | Path, context: RunContext = RunContex
         return lambda result: on_result(dataset, seed, result)
 
     if context.scheduler is None:
-        return [_run_seed(spec.config(d, seed), root, d.name, seed, sources[d.name], context,
-                          on_result=report(d.name, seed))
-                for d in spec.datasets for seed in spec.seeds]
+        with pooled(context) as context:
+            return [_run_seed(spec.config(d, seed), root, d.name, seed, sources[d.name],
+                              context, on_result=report(d.name, seed))
+                    for d in spec.datasets for seed in spec.seeds]
     # On a cluster: the shared stages once, here, then every seed as one task.
     for d in spec.datasets:
         makers: dict[int, set[str]] = {}
