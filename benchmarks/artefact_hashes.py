@@ -120,7 +120,8 @@ def main() -> None:
             if args.noise else TINY
         config.write_text(yaml.safe_dump(data))
         subprocess.run([sys.executable, "-m", "rapomdp.cli", "run", "-w", str(ws), "-c",
-                        str(config), "--workers", str(args.workers)], check=True, stdout=subprocess.DEVNULL)
+                        str(config), "--workers", str(args.workers)], check=True,
+                       stdout=subprocess.DEVNULL)
         hashes = {str(p.relative_to(ws)): digest(p, ws) for p in sorted(ws.rglob("*"))
                   if p.is_file() and p.name not in SKIP}
     for name, value in hashes.items():

@@ -4,7 +4,8 @@ after the other in one session, so the ratios compare like with like on a shared
 
     git archive <commit> src | tar -x -C /tmp/before            # the tree to compare against
     python benchmarks/stage_speed.py -w W --before /tmp/before/src \
-        [--after src] [--stages volume observe solve evaluate] [--threads 2]
+        [--after src] [--stages volume observe solve evaluate] [--threads 2] \
+        [--native-threads unset]
 
 Each stage's seconds come from its record; the command's CPU seconds (user + system of its
 processes) are what the load of other programs changes least. Artefacts are compared by
@@ -40,18 +41,25 @@ def stage_finished(workspace: Path) -> dict[str, str]:
             for record in workspace.glob("*/stage.json")}
 
 
-def run_tree(src: Path, workspace: Path, stages: list[str], threads: int
-             ) -> tuple[dict[str, float], float, float]:
+def run_tree(src: Path, workspace: Path, stages: list[str], threads: int,
+             native_threads: str = "1") -> tuple[dict[str, float], float, float]:
     """Redo ``stages`` in ``workspace`` with the code of ``src`` (as a run does, so the stages
-    that read them are redone where their inputs changed); the seconds of every stage that
-    ran (its record's ``finished`` changed), the command's wall and CPU seconds."""
+    that read them are redone where their inputs changed), ``OMP_NUM_THREADS`` set to
+    ``native_threads`` (``unset``: left out, as a plain command in a shell gets it); the seconds
+    of every stage that ran (its record's ``finished`` changed), the command's wall and CPU
+    seconds."""
+    env = tree_env(src)
+    if native_threads == "unset":
+        env.pop("OMP_NUM_THREADS")
+    else:
+        env["OMP_NUM_THREADS"] = native_threads
     finished = stage_finished(workspace)
     redo = [arg for name in stages for arg in ("--redo", name)]
     start = time.perf_counter()
     used = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run([sys.executable, "-c", "from rapomdp.cli import main; main()", "run",
                     "-w", str(workspace), "--threads", str(threads), *redo],
-                   env=tree_env(src), check=True, stdout=subprocess.DEVNULL)
+                   env=env, check=True, stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - used.ru_utime) + (after.ru_stime - used.ru_stime)
@@ -92,10 +100,14 @@ def main() -> None:
     parser.add_argument("--after", type=Path, default=Path("src"), help="the new tree's src/")
     parser.add_argument("--stages", nargs="+", default=list(DEFAULT_STAGES))
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--native-threads", default="1",
+                        help="OMP_NUM_THREADS of both runs: a number (default 1, as make sets "
+                        "it) or 'unset' (as a plain rapomdp command in a shell gets it)")
     args = parser.parse_args()
     trees = {"before": args.before, "after": args.after}
     with workspace_copies(args.workspace, list(trees)) as copies:
-        results = {label: run_tree(src, copies[label], args.stages, args.threads)
+        results = {label: run_tree(src, copies[label], args.stages, args.threads,
+                                   args.native_threads)
                    for label, src in trees.items()}
         redone = sorted(set(results["before"][0]) & set(results["after"][0]))
         compared, differ = differing(copies["before"], copies["after"], redone)

@@ -28,14 +28,26 @@ def _watch_parent(parent_pid: int) -> None:
     os._exit(70)
 
 
+#: The variables that size the native thread pools (OpenMP, OpenBLAS, MKL) a library reads
+#: when it loads.
+NATIVE_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def single_threaded_worker(parent_pid: int | None = None) -> None:
-    """A worker's set-up: watch the parent (when given), one PyTorch thread."""
+    """A worker's set-up: watch the parent (when given), one PyTorch thread and one BLAS /
+    OpenMP thread. Two workers that each let OpenBLAS start a thread per core measured the
+    solve stage 2x slower on 2 cores (benchmarks/results/worker_threads.txt)."""
     if parent_pid is not None:
         threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
                          name="rapomdp-parent-watch").start()
+    for name in NATIVE_THREAD_VARIABLES:  # libraries loaded from now on
+        os.environ[name] = "1"
+    import numpy  # noqa: F401 - its BLAS loaded, to be limited below
     import torch
+    from threadpoolctl import threadpool_limits
 
     torch.set_num_threads(1)
+    threadpool_limits(1)  # the pools of libraries loaded already
 
 
 @contextmanager
