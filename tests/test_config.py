@@ -29,6 +29,8 @@ def test_default_has_the_papers_values() -> None:
     assert cfg.volume.models_per_class == 1 and cfg.observe.evidence == "volume"
     # the belief's likelihoods tempered (chosen on the held-out closed loop, docs/awareness.md)
     assert cfg.observe.belief_correction == "temperature"
+    # wrong labels shrunk toward uniform only where the held-out objects support it
+    assert cfg.observe.wrong_labels == "auto"
     # and the VP-tree's, fitted the same way over its volume models (docs/recognition.md)
     assert cfg.vptree.belief_correction == "temperature"
     assert SplitConfig().extra == "train"

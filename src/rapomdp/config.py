@@ -268,6 +268,13 @@ class ObserveConfig(Section):
         "same model and a declaration names a class); similarity (a later view's evidence "
         "discounted by how alike it is to the views taken, fitted on held-out walks; "
         "replaces belief_correction) (docs/awareness.md §4.6)")
+    wrong_labels: Literal["auto", "none"] = Field(
+        "auto", description="where each model's wrong labels go: none (as counted on the "
+        "held-out objects); auto (per model, mixed toward uniform by the amount of 0-1 of "
+        "best leave-one-group-out log-likelihood, kept only if it beats none by more than one "
+        "standard error; none with fewer than 2 held-out objects a class). Where one object's "
+        "mistakes went need not be where another's go (docs/awareness.md §4.7). The nuisance "
+        "belief fits its own rows: none there")
     belief_correction: Literal["auto", "none", "temperature", "after_first"] = Field(
         "temperature", description="temperature: every model's likelihoods raised to a power "
         "fitted on held-out multi-view walks, so correlated views count less than independent "

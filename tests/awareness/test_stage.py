@@ -340,3 +340,29 @@ def test_saliency_volumes_use_each_classs_first_volume_models_only():
     assert [m.id for m in saliency_models(dataset, 1)] == ["a0", "b0"]
     assert [m.id for m in saliency_models(dataset, 2)] == ["a0", "a1", "b0", "b1"]
     assert len(saliency_models(dataset, None)) == 6
+
+
+def test_the_wrong_label_choice_is_recorded_per_model(workspace):
+    """observe.wrong_labels: each model's held-out choice in calibration.json, RA-POMDP's that
+    of its variant; with two classes a class's mistakes have one place to go, so the choice
+    keeps the counted rows and the models are those of ``none``."""
+    from rapomdp.awareness.evidence import WRONG_LABEL_SHRINKAGES
+
+    run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
+    auto = load_npz(workspace.root / "observe" / "observation_models.npz")
+    calibration = read_json(workspace.root / "observe" / "calibration.json")
+    made = calibration["wrong_labels"]
+    assert set(made) == set(auto["models"].tolist())
+    assert made["ra"] == made[f"ra_{calibration['ra_model']}"]
+    for record in made.values():
+        assert record["grid"] == list(WRONG_LABEL_SHRINKAGES)
+        assert record["amount"] == 0.0 and record["rule"] in {"best", "one standard error"}
+        assert abs(record["held_out"]["1"]["difference_to_none"]) < 1e-9
+    off = config_from_dict({**TINY, "observe": {**TINY["observe"], "wrong_labels": "none"}})
+    run_pipeline(off, workspace, until="observe", context=TEST_CONTEXT)
+    none = load_npz(workspace.root / "observe" / "observation_models.npz")
+    assert all(r["rule"] == "configured" for r in read_json(
+        workspace.root / "observe" / "calibration.json")["wrong_labels"].values())
+    for name in auto["models"].tolist():
+        np.testing.assert_allclose(auto[name], none[name], atol=1e-12)
+    run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)

@@ -594,6 +594,97 @@ def choose_ra_variant(evidence: Evidence,
     return VariantChoice(best, "best", reason, best, table, objects)
 
 
+WRONG_LABEL_SHRINKAGES = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0)
+"""The amounts ``observe.wrong_labels: auto`` scores: a grid fixed before any measurement of
+it, from none (the counted wrong labels) to uniform wrong labels."""
+
+
+def shrink_wrong_labels(probabilities: np.ndarray, amount: float) -> np.ndarray:
+    """The model (V, C, C) with each row's wrong labels mixed toward uniform by ``amount``,
+    its P(correct) kept: P_a(o | c, x) = (1 - a) P(o | c, x) + a (1 - P(c | c, x)) / (C - 1)
+    for o != c. Where a class's mistakes went on a few held-out objects need not be where
+    another object's go (docs/awareness.md §4.7); 0 returns the model."""
+    p = np.asarray(probabilities, dtype=np.float64)
+    c = p.shape[-1]
+    if p.ndim != 3 or p.shape[1] != c:
+        raise ValueError(f"wrong labels shrink a (V, C, C) model, got shape {p.shape}")
+    if not 0.0 <= amount <= 1.0:
+        raise ValueError(f"a shrinkage is in [0, 1], got {amount}")
+    idx = np.arange(c)
+    right = p[:, idx, idx]  # (V, C)
+    out = (1.0 - amount) * p + amount * ((1.0 - right) / max(c - 1, 1))[:, :, None]
+    out[:, idx, idx] = right
+    return out
+
+
+@dataclass
+class ShrinkageChoice:
+    """One model's wrong-label shrinkage and why: ``rule`` is ``configured`` (none),
+    ``best`` (the best held-out log-likelihood, better than none by more than one standard
+    error), ``one standard error`` (none: the best is not better by more) or ``too little
+    evidence`` (none: fewer than :data:`MIN_HELD_OUT_OBJECTS` held-out objects in some class);
+    ``held_out``: per amount its mean held-out log-likelihood per object and its paired
+    difference to none with the standard error."""
+
+    amount: float
+    rule: str
+    reason: str
+    held_out: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"amount": self.amount, "rule": self.rule, "reason": self.reason,
+                "grid": list(WRONG_LABEL_SHRINKAGES), "held_out": self.held_out}
+
+
+def choose_wrong_label_shrinkage(
+        evidence: Evidence, folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
+        name: str, configured: str) -> ShrinkageChoice:
+    """Model ``name``'s wrong-label shrinkage (:func:`shrink_wrong_labels`): none when
+    ``configured`` is ``none``; with ``auto`` the amount of :data:`WRONG_LABEL_SHRINKAGES` of
+    best mean held-out log-likelihood per object (each object scored by the fold models
+    fitted without its group, shrunk), kept only if it beats none by more than one standard
+    error of the paired difference over held-out objects; none when some class has fewer than
+    :data:`MIN_HELD_OUT_OBJECTS` held-out objects."""
+    if configured == "none":
+        return ShrinkageChoice(0.0, "configured", "observe.wrong_labels is 'none'")
+    covered = np.zeros(len(evidence.labels), dtype=bool)
+    for held, _ in folds:
+        covered |= held
+    classes = len(folds[0][1][name].classes) if folds else 0
+    counts = np.bincount(evidence.labels[covered], minlength=classes)
+    if not folds or counts.min() < MIN_HELD_OUT_OBJECTS:
+        return ShrinkageChoice(0.0, "too little evidence",
+                               f"too little held-out evidence to choose: some class has fewer "
+                               f"than {MIN_HELD_OUT_OBJECTS} held-out objects; none")
+    per_amount = {}
+    for amount in WRONG_LABEL_SHRINKAGES:
+        shrunk = [(held, {name: ObservationModel(
+                      shrink_wrong_labels(models[name].probabilities, amount),
+                      models[name].classes)}) for held, models in folds]
+        per_amount[amount] = held_out_object_log_likelihoods(evidence, shrunk)[name][covered]
+    table = {}
+    for amount, ll in per_amount.items():
+        d = ll - per_amount[0.0]
+        se = float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
+        table[f"{amount:g}"] = {"mean_log_likelihood": float(ll.mean()),
+                                "difference_to_none": float(d.mean()), "standard_error": se}
+    best = max(WRONG_LABEL_SHRINKAGES, key=lambda a: per_amount[a].mean())
+    row = table[f"{best:g}"]
+    if best == 0.0:
+        return ShrinkageChoice(0.0, "best", "none is the best held out", table)
+    if row["difference_to_none"] <= row["standard_error"]:
+        return ShrinkageChoice(0.0, "one standard error",
+                               f"{best:g} is the best held out, but not better than none by "
+                               f"more than one standard error ({row['difference_to_none']:+.4f}"
+                               f" ± {row['standard_error']:.4f} per object over "
+                               f"{int(covered.sum())} held-out objects)", table)
+    return ShrinkageChoice(best, "best",
+                           f"{best:g} is better held out than none by "
+                           f"{row['difference_to_none']:.4f} per object, more than one standard "
+                           f"error ({row['standard_error']:.4f}) over {int(covered.sum())} "
+                           "held-out objects", table)
+
+
 def choose_belief_correction(report: dict[str, float], configured: str) -> str:
     """The configured belief correction, or with ``auto`` the one of least held-out belief log
     loss on the walks of :func:`held_out_temperatures` (``report``: one model's row, the

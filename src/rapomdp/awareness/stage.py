@@ -59,11 +59,13 @@ from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit
 from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
     Evidence,
+    ShrinkageChoice,
     TransferKernel,
     VariantChoice,
     choose_belief_correction,
     choose_ra_variant,
     choose_transfer_kernel,
+    choose_wrong_label_shrinkage,
     fit_level,
     fit_observation_models,
     fit_softmax_temperature,
@@ -72,6 +74,7 @@ from rapomdp.awareness.evidence import (
     leave_one_group_out,
     salient_view_similarity,
     shift_level,
+    shrink_wrong_labels,
     transfer_kernel_grid,
     validation_quality,
     view_similarity_kernel,
@@ -328,6 +331,7 @@ class Observation:
     ra_choice: VariantChoice | None = None
     discounts: dict[str, ViewDiscount] = field(default_factory=dict)
     discount_kernel: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    wrong_labels: dict[str, ShrinkageChoice] = field(default_factory=dict)
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -425,9 +429,26 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         own = evidence.subset(evidence.volume_mask)
         levels = {name: fit_level(m.probabilities, own.labels, own.predicted)
                   for name, m in fitted.items()}
-        fitted = {name: _relevel(m, levels[name]) for name, m in fitted.items()}
+        fitted = {name: _with_probabilities(m, shift_level(m.probabilities, levels[name]))
+                  for name, m in fitted.items()}
+    # where each model's mistakes go, shrunk toward uniform by the held-out choice
+    # (observe.wrong_labels); the folds too, so the belief's corrections are fitted on the
+    # models the belief uses
+    shrinkage = {name: (choose_wrong_label_shrinkage(evidence, folds, name, cfg.wrong_labels)
+                        if cfg.belief != "nuisance" else
+                        ShrinkageChoice(0.0, "configured", "observe.belief 'nuisance' fits "
+                                        "its own rows"))
+                 for name in fitted}
+    fitted = {name: _with_probabilities(m, shrink_wrong_labels(
+                  m.probabilities, shrinkage[name].amount))
+              for name, m in fitted.items()}
+    folds = [(held, {name: (ObservationModel(shrink_wrong_labels(
+                  m.probabilities, shrinkage[name].amount), m.classes)
+                            if name in shrinkage else m) for name, m in models.items()})
+             for held, models in folds]
     single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
     levels["ra"] = levels[f"ra_{variant}"]
+    shrinkage["ra"] = shrinkage[f"ra_{variant}"]
     # the belief's model of one object's views (observe.belief): independent given the class
     # (naive), or given (class, instance type) with the per-object nuisance fitted by EM over
     # the held-out objects — for the folds (the walks that fit the temperature) and for all
@@ -506,7 +527,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                         "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
                        softmax_t, kernel, kernel_grid,
                        {name: nm.to_dict() for name, nm in nuisance.items()}, choice,
-                       discounts, discount_kernel)
+                       discounts, discount_kernel, shrinkage)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -552,8 +573,10 @@ def contrastive_scores(config: Config, views: TrainingViews, classifier: Classif
     return normalise_scores(raw)
 
 
-def _relevel(model: ObservationModel, shift: float) -> ObservationModel:
-    out = ObservationModel(shift_level(model.probabilities, shift), model.classes)
+def _with_probabilities(model: ObservationModel, probabilities: np.ndarray
+                        ) -> ObservationModel:
+    """``model``'s rows replaced (its score calibration kept, for the records)."""
+    out = ObservationModel(probabilities, model.classes)
     out.calibration = getattr(model, "calibration", None)  # type: ignore[attr-defined]
     return out
 
@@ -668,6 +691,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
         "transfer_kernel": {**result.transfer_kernel.to_dict(),
                             "grid": result.transfer_kernel_grid},
         "belief": config.observe.belief,
+        "wrong_labels": {name: c.to_dict() for name, c in result.wrong_labels.items()},
         **({"view_discounts": {name: {"scale": d.scale, "redundancy": d.redundancy,
                                       "planner_temperature": result.temperatures[name]}
                                for name, d in result.discounts.items()}}
