@@ -179,3 +179,22 @@ def test_save_load_round_trip_and_bad_files(fitted: VocabularyTreeClassifier,
         VocabularyTreeClassifier.load(tmp_path / "resized.npz")
 
 
+
+
+def test_the_tree_does_not_depend_on_the_threads_pytorch_was_given() -> None:
+    """scikit-learn's k-means follows PyTorch's OpenMP threads in a process that imported
+    PyTorch first; the tree fits on one thread whatever they are."""
+    import torch
+
+    rng = np.random.default_rng(0)
+    descriptors = (rng.normal(size=(6000, 24)) + rng.integers(0, 6, (6000, 1))).astype(
+        np.float32)
+    before = torch.get_num_threads()
+    centres = []
+    try:
+        for threads in (1, 2):
+            torch.set_num_threads(threads)
+            centres.append(VocabularyTree(4, 2).fit(descriptors, 3).centres)
+    finally:
+        torch.set_num_threads(before)
+    np.testing.assert_array_equal(centres[0], centres[1])

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 from sklearn.cluster import KMeans
+from threadpoolctl import threadpool_limits
 
 from rapomdp.io import ArtefactError, load_npz, save_npz
 from rapomdp.recognition.preprocess import as_depth_batch
@@ -134,7 +135,14 @@ class VocabularyTree:
 
         A node with fewer descriptors than ``branching`` keeps them as its first centres and
         repeats the last (an empty node repeats its own centre): such leaves stay unused.
+        The k-means run on one OpenMP thread: scikit-learn's thread count follows PyTorch's in
+        a process that imported PyTorch first, and the centres depend on it (another tree in
+        ``make demo`` than in a study of the same seed, before).
         """
+        with threadpool_limits(limits=1, user_api="openmp"):
+            return self._fit(descriptors, rng_seed, max_iter)
+
+    def _fit(self, descriptors: np.ndarray, rng_seed: int, max_iter: int) -> VocabularyTree:
         x = np.asarray(descriptors, dtype=np.float32)
         if x.ndim != 2 or x.shape[0] == 0:
             raise ValueError(f"descriptors must be a non-empty (N, D) array, got {x.shape}")
