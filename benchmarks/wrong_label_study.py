@@ -23,7 +23,7 @@ from rapomdp.experiment.episode_table import EpisodeTable
 from rapomdp.study.bootstrap import SeedClusters, hierarchical_bootstrap
 
 EPISODES = Path("evaluate") / "episodes.npz"
-METHODS = ("ra", "classifier", "random", "vptree", "static")
+METHODS = ("ra", "classifier", "random", "vptree", "static", "learned")
 
 
 def paired_sums(after: EpisodeTable, before: EpisodeTable, method: str
@@ -47,9 +47,11 @@ def paired_sums(after: EpisodeTable, before: EpisodeTable, method: str
 
 
 def summary(table: EpisodeTable, method: str) -> tuple[float, float, float]:
+    """Accuracy, mean energy (m) and mean confidence (the final belief in the declared
+    class) − accuracy."""
     sel = table.method == method
     return (float(table.correct[sel].mean()), float(table.energy[sel].mean()),
-            float(table.belief[sel].mean() - table.correct[sel].mean()))
+            float(table.final_confidence()[sel].mean() - table.correct[sel].mean()))
 
 
 def choices(workspace: Path) -> str:
