@@ -493,3 +493,21 @@ def test_a_gain_within_one_standard_error_keeps_the_counted_wrong_labels() -> No
     assert uniform["difference_to_none"] == pytest.approx(d.mean())
     assert uniform["standard_error"] == pytest.approx(d.std(ddof=1) / np.sqrt(6))
     assert "not better than none by more than one standard error" in choice.reason
+
+
+def test_a_model_some_folds_cannot_fit_is_chosen_on_the_folds_that_have_it() -> None:
+    """ra_viewpoint stacks over groups: a fold left with one group has none; the choice reads
+    the folds that fitted it, and no fold at all is too little evidence."""
+    names = list("abcdefgh")
+    evidence, scores = _planted_wrong_labels(per_object=True, seed=4)
+    folds = leave_one_group_out(evidence, scores, names, ObserveConfig())
+    full = choose_wrong_label_shrinkage(evidence, folds, "blackbox", "auto")
+    missing = [(held, {k: m for k, m in models.items() if k != "blackbox"}) if i == 0
+               else (held, models) for i, (held, models) in enumerate(folds)]
+    fewer = choose_wrong_label_shrinkage(evidence, missing, "blackbox", "auto")
+    assert fewer.rule == "best" and fewer.amount >= 0.75
+    assert fewer.held_out["1"] != full.held_out["1"]  # one group fewer scored
+    none = [(held, {k: m for k, m in models.items() if k != "blackbox"})
+            for held, models in folds]
+    assert choose_wrong_label_shrinkage(evidence, none, "blackbox", "auto").rule == \
+        "too little evidence"
