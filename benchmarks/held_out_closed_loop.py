@@ -15,6 +15,7 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
     python benchmarks/held_out_closed_loop.py --workspace W [--lambdas 2 8] [--starts 4]
         [--models ra classifier vptree] [--correction none|temperature|after_first]
         [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead] [--save F]
+        [--wrong-labels none|recorded]
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from rapomdp.awareness.evidence import (
     fit_observation_models,
     held_out_temperatures,
     leave_one_group_out,
+    shrink_wrong_labels,
 )
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
@@ -104,6 +106,10 @@ def main() -> None:
                              "temperature refitted alike")
     parser.add_argument("--iterations", type=int, default=None,
                         help="solver iterations (default: the workspace's solve.iterations)")
+    parser.add_argument("--wrong-labels", choices=["none", "recorded"], default="none",
+                        help="recorded: each model's wrong labels shrunk by the amount the "
+                        "observe stage chose (calibration.json: wrong_labels; chosen on every "
+                        "volume group, the held-out one included); none: as counted")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -172,6 +178,9 @@ def main() -> None:
             else:
                 key = cfg.random.observation_model if name == "random" else name
                 single = fitted[key].probabilities
+                if args.wrong_labels == "recorded":
+                    single = shrink_wrong_labels(single, calibration.get(
+                        "wrong_labels", {}).get(key, {}).get("amount", 0.0))
                 if args.temperature is not None:
                     planner = first = temper(single, args.temperature)
                 else:
@@ -225,7 +234,8 @@ def main() -> None:
     print(f"held-out closed loop on {len(volume_groups)} volume group(s) of "
           f"{len(classes)} classes ({args.starts} starts a model); RA model {variant}; "
           f"POMDPs act by {'a one-step lookahead' if lookahead else 'the solved plans'}; "
-          f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}")
+          f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}; wrong labels: "
+          f"{args.wrong_labels}")
     print("belief: final belief in the true class; confidence: in the declared class; "
           "ECE over the confidence (10 bins)")
     print(f"{'method':12s} {'lambda':>6s} {'accuracy':>8s} {'energy':>7s} {'belief':>7s} "
