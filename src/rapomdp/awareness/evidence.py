@@ -647,8 +647,10 @@ def choose_wrong_label_shrinkage(
     :data:`MIN_HELD_OUT_OBJECTS` held-out objects."""
     if configured == "none":
         return ShrinkageChoice(0.0, "configured", "observe.wrong_labels is 'none'")
-    folds = [(held, models) for held, models in folds if name in models]  # (ra_viewpoint
-    covered = np.zeros(len(evidence.labels), dtype=bool)                # needs two groups)
+    # the folds that fitted the model (ra_viewpoint stacks over groups: a fold left with one
+    # group has none)
+    folds = [(held, models) for held, models in folds if name in models]
+    covered = np.zeros(len(evidence.labels), dtype=bool)
     for held, _ in folds:
         covered |= held
     classes = len(folds[0][1][name].classes) if folds else 0
