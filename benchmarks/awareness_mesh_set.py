@@ -1,5 +1,5 @@
 """A second mesh set, built differently from the procedural generator, as a stand-in for unseen
-real objects: 10 classes composed of plain trimesh primitives (cylinders, cones, spheres,
+real objects: 11 classes composed of plain trimesh primitives (cylinders, cones, spheres,
 boxes, tori, capsules) with their own shapes and proportions, written as STL files in the
 generic folder layout (``<root>/<class>/<model>.stl``) and read back through the folder loader.
 Then the pipeline runs up to ``observe`` on it and the self-awareness quality table (test

@@ -41,6 +41,15 @@ def test_default_has_the_papers_values() -> None:
     assert cfg.render.noise.enabled is False
 
 
+def test_every_shipped_configuration_loads_and_the_folder_sets_read_their_meshes() -> None:
+    folder = Path(__file__).parents[1] / "configs"
+    configs = {p.stem: load_config(p) for p in sorted(folder.glob("*.yaml"))}
+    assert {"paper", "real-cad-dev", "mesh-set"} <= configs.keys()
+    assert str(configs["mesh-set"].dataset.path) == "runs/mesh-set/meshes"
+    assert configs["mesh-set"].dataset.source == "folder"
+    assert configs["real-cad-dev"].dataset.layout == "generic"
+
+
 def test_yaml_round_trip(tmp_path: Path) -> None:
     cfg = config_from_dict({"seed": 5, "camera": {"width": 80, "height": 60}})
     path = tmp_path / "c.yaml"
