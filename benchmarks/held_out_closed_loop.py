@@ -14,7 +14,8 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
 
     python benchmarks/held_out_closed_loop.py --workspace W [--lambdas 2 8] [--starts 4]
         [--models ra classifier vptree] [--correction none|temperature|after_first]
-        [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead] [--save F]
+        [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead]
+        [--lookahead-depth 1|2] [--lookahead-width N] [--save F]
         [--wrong-labels none|recorded]
 """
 
@@ -94,6 +95,12 @@ def main() -> None:
                         help="the POMDP methods act by a one-step lookahead on their value "
                              "(--no-lookahead: by the solved plans); default: as the "
                              "workspace's evaluate.lookahead")
+    parser.add_argument("--lookahead-depth", type=int, choices=[1, 2], default=None,
+                        help="views the lookahead looks ahead; default: as the workspace's "
+                             "evaluate.lookahead_depth")
+    parser.add_argument("--lookahead-width", type=int, default=None,
+                        help="moves a depth-2 lookahead values two views deep; default: as "
+                             "the workspace's evaluate.lookahead_width")
     parser.add_argument("--draws", type=int, default=1,
                         help="solve each POMDP K times, its model tempered by factors evenly "
                              f"spaced in [1 - {DRAW_SPREAD:g}, 1 + {DRAW_SPREAD:g}], and pool "
@@ -157,6 +164,8 @@ def main() -> None:
                                   else float(vptree["temperature"]))
     cfg = config.evaluate
     lookahead = cfg.lookahead if args.lookahead is None else args.lookahead
+    depth = cfg.lookahead_depth if args.lookahead_depth is None else args.lookahead_depth
+    width = cfg.lookahead_width if args.lookahead_width is None else args.lookahead_width
     rows: dict[tuple[str, float], list[tuple[bool, float, float, float, float, float]]] = {}
     for g in volume_groups:
         held = evidence.groups == g
@@ -208,7 +217,8 @@ def main() -> None:
                             max_iterations=args.iterations or config.solve.iterations).policy
                         method = POMDPPolicy(policy, model, name, first_view_model=first_model,
                                              lookahead_over=(motion.reachable if lookahead
-                                                             else None))
+                                                             else None),
+                                             lookahead_depth=depth, lookahead_width=width)
                     for r in range(len(held_labels)):
                         rng = class_seed(config.seed, f"held-out/{g}/{r}")
                         starts = rng.choice(np.flatnonzero(motion.reachable), args.starts,
@@ -233,7 +243,8 @@ def main() -> None:
               else f"the observe stage corrections (t: {fitted_t})")
     print(f"held-out closed loop on {len(volume_groups)} volume group(s) of "
           f"{len(classes)} classes ({args.starts} starts a model); RA model {variant}; "
-          f"POMDPs act by {'a one-step lookahead' if lookahead else 'the solved plans'}; "
+          f"POMDPs act by {f'a {depth}-step lookahead' if lookahead else 'the solved plans'}"
+          f"{f' (width {width})' if lookahead and depth > 1 else ''}; "
           f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}; wrong labels: "
           f"{args.wrong_labels}")
     print("belief: final belief in the true class; confidence: in the declared class; "

@@ -39,6 +39,10 @@ def test_default_has_the_papers_values() -> None:
         == (3, 1, 1)
     assert paper.evaluate.starts_per_model == 5 and paper.dataset.classes is None
     assert cfg.render.noise.enabled is False
+    # the POMDPs act by a one-step lookahead (depth 2 measured held out, docs/awareness.md §4.5)
+    assert cfg.evaluate.lookahead and cfg.evaluate.lookahead_depth == 1
+    with pytest.raises(ConfigError, match="lookahead_depth"):
+        config_from_dict({"evaluate": {"lookahead_depth": 3}})
 
 
 def test_every_shipped_configuration_loads_and_the_folder_sets_read_their_meshes() -> None:

@@ -447,6 +447,12 @@ class EvaluateConfig(Section):
         "value (one backup at the belief reached); false: by the solved plans' first moves. "
         "Chosen on held-out objects: more accurate at less energy and steadier under small "
         "model changes, a little less calibrated (the figures: docs/awareness.md §4.5)")
+    lookahead_depth: int = Field(
+        1, ge=1, le=2, description="views the lookahead looks ahead: 1, or 2 (the "
+        "lookahead_width moves of best one-step value valued again with the one-step "
+        "lookahead's value at every child; naive or nuisance beliefs only)")
+    lookahead_width: int = Field(
+        4, ge=1, le=4096, description="moves a depth-2 lookahead values two views deep")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "

@@ -174,7 +174,9 @@ class ClosedLoop:
                                first_view_model=first_view[key],
                                lookahead_over=motion.reachable if cfg.lookahead else None,
                                prior=priors[key], discount=discounts.get(key),
-                               similarity=discount_kernel)
+                               similarity=discount_kernel,
+                               lookahead_depth=cfg.lookahead_depth,
+                               lookahead_width=cfg.lookahead_width)
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}

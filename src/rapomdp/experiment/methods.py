@@ -16,7 +16,7 @@ import numpy as np
 
 from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
-from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
+from rapomdp.planning.policy import LOOKAHEAD_WIDTH, ActiveRecognitionPolicy, ARAction
 from rapomdp.planning.rules import class_marginal
 from rapomdp.recognition.belief import ViewDiscount, temper
 
@@ -191,8 +191,9 @@ class POMDPPolicy:
     POMDP treats images from one viewpoint as independent draws, but a noiseless sensor sees
     the same image again, which would count one piece of evidence twice. It then follows the
     best plan whose first move goes somewhere new (or declares). With ``lookahead_over`` (V,)
-    bool, it acts by a one-step lookahead on the policy's value over those viewpoints
-    (:meth:`ActiveRecognitionPolicy.lookahead_act`, ``evaluate.lookahead``).
+    bool, it acts by a lookahead on the policy's value over those viewpoints
+    (:meth:`ActiveRecognitionPolicy.lookahead_act`, ``evaluate.lookahead``), one view deep
+    or, with ``lookahead_depth`` 2, two (``evaluate.lookahead_depth``).
     """
 
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
@@ -200,7 +201,12 @@ class POMDPPolicy:
                  first_view_model: np.ndarray | None = None,
                  lookahead_over: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None) -> None:
+                 similarity: np.ndarray | None = None, lookahead_depth: int = 1,
+                 lookahead_width: int = LOOKAHEAD_WIDTH) -> None:
+        if lookahead_depth > 1 and discount is not None:
+            raise ValueError(f"{name}: a depth-{lookahead_depth} lookahead needs a belief "
+                             "whose model does not change with the views taken (observe.belief "
+                             "naive or nuisance), not a view discount")
         if observation_model.shape[0] != policy.n_viewpoints or \
                 observation_model.shape[1] != policy.n_states or \
                 observation_model.shape[2] != policy.n_classes:
@@ -212,6 +218,7 @@ class POMDPPolicy:
         self.policy = policy
         self.observation_model = observation_model
         self.lookahead_over = lookahead_over
+        self.lookahead_depth, self.lookahead_width = lookahead_depth, lookahead_width
         self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
                                   similarity)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
@@ -236,5 +243,6 @@ class POMDPPolicy:
             model = (self.observation_model if self._bayes.discount is None
                      else self._bayes.next_model())
             return self.policy.lookahead_act(viewpoint, self._bayes.state, model,
-                                             self.lookahead_over, forbidden)
+                                             self.lookahead_over, forbidden,
+                                             self.lookahead_depth, self.lookahead_width)
         return self.policy.act(viewpoint, self._bayes.state, forbidden)
