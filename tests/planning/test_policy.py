@@ -47,6 +47,14 @@ def _brute_force_lookahead(policy, problem, viewpoint, belief, allowed):
     return q
 
 
+def _best_action(q, belief, lam):
+    """The move of best value in ``q`` if it beats declaring the belief's argmax, else that."""
+    best = max(q, key=q.__getitem__)
+    if q[best] > -lam * (1.0 - belief.max()) + 1e-9:
+        return ARAction("move", best)
+    return ARAction("declare", int(np.argmax(belief)))
+
+
 def test_the_lookahead_takes_the_move_of_best_one_step_backup():
     problem = benchmark_problem(6, 3, seed=2, lambda_=10.0)
     policy = solve_active_recognition(problem, precision=1e-2, timeout=1e6,
@@ -95,10 +103,8 @@ def test_the_lookahead_is_the_brute_force_backup_whatever_the_order_of_the_plans
     for viewpoint in range(6):
         for _ in range(10):
             belief = rng.dirichlet(np.full(3, 0.7))
-            q = _brute_force_lookahead(policy, problem, viewpoint, belief, allowed)
-            best = max(q, key=q.__getitem__)
-            expected = (ARAction("move", best) if q[best] > -lam * (1.0 - belief.max()) + 1e-9
-                        else ARAction("declare", int(np.argmax(belief))))
+            expected = _best_action(
+                _brute_force_lookahead(policy, problem, viewpoint, belief, allowed), belief, lam)
             for plans in (policy, shuffled):
                 assert plans.lookahead_act(viewpoint, belief, problem.observation_model,
                                            allowed) == expected
@@ -139,10 +145,8 @@ def test_the_depth_two_lookahead_is_the_brute_force_two_step_backup():
     for viewpoint in range(6):
         for _ in range(6):
             belief = rng.dirichlet(np.full(3, 0.7))
-            q2 = _brute_force_two_step(policy, problem, viewpoint, belief, allowed)
-            best = max(q2, key=q2.__getitem__)
-            expected = (ARAction("move", best) if q2[best] > -lam * (1.0 - belief.max()) + 1e-9
-                        else ARAction("declare", int(np.argmax(belief))))
+            expected = _best_action(
+                _brute_force_two_step(policy, problem, viewpoint, belief, allowed), belief, lam)
             # width 5: every move of the 6 viewpoints is valued two views deep
             assert policy.lookahead_act(viewpoint, belief, problem.observation_model, allowed,
                                         depth=2, width=5) == expected
