@@ -15,7 +15,9 @@
 A variant is ``LABEL:KEY=VALUE,KEY=VALUE`` (no overrides: the workspace's own recipe, retrained
 with this tree's code so every row is timed in the same session). The first row of each
 workspace, ``(as found)``, is its classifier's volume accuracy as it is, and every variant's
-Δ is against it. Run it from the folder a dataset's relative ``path`` is relative to.
+Δ is against it. With ``--ensemble`` the mean of all the rows' probabilities is scored too
+(accuracy and single-view confidence − accuracy). Run it from the folder a dataset's
+relative ``path`` is relative to.
 Measured: ``benchmarks/results/train_recipe.txt``.
 """
 
@@ -47,13 +49,28 @@ def parse_variant(text: str) -> tuple[str, list[str]]:
     return label, [o for o in overrides.split(",") if o]
 
 
-def volume_accuracy(workspace: Path) -> float:
-    """Single-view accuracy over X_rho on the volume models (never the test models)."""
+def volume_outputs(workspace: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The classifier's probabilities (N, C) at X_rho of every volume model's view, and the
+    true classes (N,) (never the test models)."""
     dataset = load_dataset(workspace / "dataset")
     outputs = load_volume_probabilities(workspace / "classifier_eval")
-    correct = [np.argmax(outputs.of(m), axis=1) == dataset.label(m)
-               for m in dataset.with_role("volume")]
-    return float(np.concatenate(correct).mean())
+    models = dataset.with_role("volume")
+    probabilities = np.concatenate([outputs.of(m) for m in models])
+    labels = np.concatenate([np.full(len(outputs.of(m)), dataset.label(m)) for m in models])
+    return probabilities, labels
+
+
+def volume_accuracy(workspace: Path) -> float:
+    """Single-view accuracy over X_rho on the volume models (never the test models)."""
+    probabilities, labels = volume_outputs(workspace)
+    return float((probabilities.argmax(axis=1) == labels).mean())
+
+
+def single_view_figures(probabilities: np.ndarray, labels: np.ndarray) -> str:
+    """Accuracy and confidence − accuracy of single views (the mean top probability)."""
+    accuracy = float((probabilities.argmax(axis=1) == labels).mean())
+    return (f"accuracy {accuracy:.3f}, confidence − accuracy "
+            f"{float(probabilities.max(axis=1).mean()) - accuracy:+.3f}")
 
 
 def score(workspace: Path, overrides: list[str], threads: int) -> dict[str, float]:
@@ -78,6 +95,9 @@ def main() -> None:
                         help="LABEL:KEY=VALUE,... (repeatable); Δ volume is against the "
                         "workspace's classifier as found")
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--ensemble", action="store_true",
+                        help="also score the mean of every row's probabilities (the "
+                        "classifier as found and each variant's) on the volume models")
     args = parser.parse_args()
     print(f"# python benchmarks/train_recipe.py {' '.join(sys.argv[1:])}")
     print(f"{'workspace':<40} {'variant':<16} {'train':>6} {'val':>6} {'best val':>8} "
@@ -87,6 +107,7 @@ def main() -> None:
         reference = volume_accuracy(workspace)
         print(f"{str(workspace)[-40:]:<40} {'(as found)':<16} {'':>6} {'':>6} {'':>8} "
               f"{'':>4} {reference:7.3f}", flush=True)
+        members = [volume_outputs(workspace)]
         with workspace_copies(workspace, labels) as copies:
             for label, overrides in args.variant:
                 s = score(copies[label], overrides, args.threads)
@@ -94,6 +115,15 @@ def main() -> None:
                       f"{s['validation']:6.3f} {s['best_validation']:8.3f} "
                       f"{s['best_epoch']:4d} {s['volume']:7.3f} "
                       f"{s['volume'] - reference:+9.3f} {s['seconds']:8.1f}", flush=True)
+                members.append(volume_outputs(copies[label]))
+        if args.ensemble:
+            truth = members[0][1]
+            for i, (p, _) in enumerate(members):
+                name = "(as found)" if i == 0 else labels[i - 1]
+                print(f"  {name}: {single_view_figures(p, truth)}")
+            mean = np.mean([p for p, _ in members], axis=0)
+            print(f"  ensemble of the {len(members)} (mean of their probabilities): "
+                  f"{single_view_figures(mean, truth)}", flush=True)
 
 
 if __name__ == "__main__":
