@@ -16,7 +16,7 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
         [--models ra classifier vptree] [--correction none|temperature|after_first]
         [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead]
         [--lookahead-depth 1|2] [--lookahead-width N] [--save F]
-        [--wrong-labels none|recorded]
+        [--wrong-labels none|recorded] [--volume-labels F.npz]
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.evidence import (
+    Evidence,
     RecordedObservation,
     TransferKernel,
     fit_observation_models,
@@ -34,6 +35,7 @@ from rapomdp.awareness.evidence import (
     leave_one_group_out,
     shrink_wrong_labels,
 )
+from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
@@ -41,7 +43,7 @@ from rapomdp.io import load_npz, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
-from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
+from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE, load_volume_probabilities
 from rapomdp.recognition.belief import (
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
@@ -55,6 +57,27 @@ from rapomdp.workspace import Workspace
 
 #: Half-width of the relative change of t between policy draws (``--draws``).
 DRAW_SPREAD = 0.02
+
+
+def replaced_labels(ws: Workspace, evidence: Evidence, path: Path) -> Evidence:
+    """``evidence`` with the volume models' labels read from ``path`` (by model file), after
+    checking its rows are the dataset's volume models in order (their recorded labels are the
+    classifier_eval stage's argmax)."""
+    dataset = load_dataset(ws.require("dataset"))
+    models = dataset.with_role("volume")
+    outputs = load_volume_probabilities(ws.require("classifier_eval"))
+    recorded = np.stack([outputs.of(m).argmax(axis=1) for m in models])
+    if recorded.shape != evidence.predicted.shape or \
+            not np.array_equal(recorded, evidence.predicted):
+        raise SystemExit(f"{ws.root}: the observe stage's evidence rows are not the volume "
+                         "models in the dataset's order; cannot replace their labels")
+    arrays = load_npz(path)
+    by_file = dict(zip((str(f) for f in arrays["files"]), arrays["predicted"], strict=True))
+    missing = [m.file for m in models if m.file not in by_file]
+    if missing:
+        raise SystemExit(f"{path}: no labels of {missing[:3]}")
+    predicted = np.stack([by_file[m.file] for m in models]).astype(evidence.predicted.dtype)
+    return Evidence(evidence.labels, predicted, evidence.groups, evidence.volume_mask)
 
 
 class LabelScene:
@@ -117,6 +140,13 @@ def main() -> None:
                         help="recorded: each model's wrong labels shrunk by the amount the "
                         "observe stage chose (calibration.json: wrong_labels; chosen on every "
                         "volume group, the held-out one included); none: as counted")
+    parser.add_argument("--volume-labels", type=Path, default=None, metavar="F.npz",
+                        help="another classifier's labels of the volume models at X_rho "
+                             "(train_recipe.py --save-ensemble: files, predicted) in place of "
+                             "the trained one's, every model refitted on them and every "
+                             "temperature refitted on their walks (the saliency scores stay "
+                             "the trained classifier's): what that classifier would do held "
+                             "out")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -133,6 +163,8 @@ def main() -> None:
         raise SystemExit(f"{args.workspace}: its evidence holds cross-fitted rows; this closed "
                          "loop refits volume-only models: observe with observe.evidence=volume")
     volume_groups = np.unique(evidence.groups[evidence.volume_mask])
+    if args.volume_labels is not None:
+        evidence = replaced_labels(ws, evidence, args.volume_labels)
     robot = load_robot(ws.require("robot"))
     motion = Motion.from_robot(robot)
     start = start_viewpoint(motion.reachable)
@@ -145,6 +177,15 @@ def main() -> None:
         corrections = dict.fromkeys(corrections, args.correction)
         temperatures = {m: (1.0 if args.correction == "none" else fits[m][key]) for m in fits}
         temperatures["ra"] = temperatures[variant]
+    if args.volume_labels is not None and args.correction != "none":
+        # other labels make other models: every temperature refitted as the observe stage
+        # fits it (the same folds and walks)
+        refit, _ = held_out_temperatures(
+            evidence, leave_one_group_out(evidence, scores, classes, config.observe,
+                                          observe["directions"], kernel),
+            observe["directions"], TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW,
+            TEMPERATURE_NEIGHBOURS, class_seed(config.seed, "observe/temperature"))
+        temperatures = {**temperatures, **refit, "ra": refit[variant]}
     if args.kernel is not None and variant == "ra_transfer" and corrections[variant] != "none":
         # another kernel is another model: its walk temperature refitted as the observe stage
         # fits it (the same folds and walks)
@@ -246,7 +287,9 @@ def main() -> None:
           f"POMDPs act by {f'a {depth}-step lookahead' if lookahead else 'the solved plans'}"
           f"{f' (width {width})' if lookahead and depth > 1 else ''}; "
           f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}; wrong labels: "
-          f"{args.wrong_labels}")
+          f"{args.wrong_labels}"
+          + (f"; volume labels: {args.volume_labels} (temperatures refitted)"
+             if args.volume_labels is not None else ""))
     print("belief: final belief in the true class; confidence: in the declared class; "
           "ECE over the confidence (10 bins)")
     print(f"{'method':12s} {'lambda':>6s} {'accuracy':>8s} {'energy':>7s} {'belief':>7s} "

@@ -36,6 +36,7 @@ from stage_speed import workspace_copies  # noqa: E402
 from tree_run import tree_env  # noqa: E402
 
 from rapomdp.data.dataset import load_dataset  # noqa: E402
+from rapomdp.io import save_npz  # noqa: E402
 from rapomdp.recognition.artefacts import load_volume_probabilities  # noqa: E402
 
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -98,6 +99,9 @@ def main() -> None:
     parser.add_argument("--ensemble", action="store_true",
                         help="also score the mean of every row's probabilities (the "
                         "classifier as found and each variant's) on the volume models")
+    parser.add_argument("--save-ensemble", type=Path, default=None, metavar="DIR",
+                        help="with --ensemble: write the ensemble's labels of the volume "
+                        "models to DIR/<configuration>-<seed>.npz")
     args = parser.parse_args()
     print(f"# python benchmarks/train_recipe.py {' '.join(sys.argv[1:])}")
     print(f"{'workspace':<40} {'variant':<16} {'train':>6} {'val':>6} {'best val':>8} "
@@ -124,6 +128,15 @@ def main() -> None:
             mean = np.mean([p for p, _ in members], axis=0)
             print(f"  ensemble of the {len(members)} (mean of their probabilities): "
                   f"{single_view_figures(mean, truth)}", flush=True)
+            if args.save_ensemble is not None:
+                # the ensemble's labels of each volume model at X_rho, for
+                # held_out_closed_loop.py --volume-labels
+                dataset = load_dataset(workspace / "dataset")
+                files = [m.file for m in dataset.with_role("volume")]
+                labels_vc = mean.argmax(axis=1).reshape(len(files), -1)
+                args.save_ensemble.mkdir(parents=True, exist_ok=True)
+                save_npz(args.save_ensemble / f"{workspace.parent.name}-{workspace.name}.npz",
+                         files=np.array(files), predicted=labels_vc)
 
 
 if __name__ == "__main__":
