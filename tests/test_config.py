@@ -45,7 +45,7 @@ def test_default_has_the_papers_values() -> None:
         config_from_dict({"evaluate": {"lookahead_depth": 3}})
 
 
-def test_every_shipped_configuration_loads_and_the_folder_sets_read_their_meshes() -> None:
+def test_every_shipped_configuration_loads_and_the_folder_sets_name_their_mesh_folders() -> None:
     folder = Path(__file__).parents[1] / "configs"
     configs = {p.stem: load_config(p) for p in sorted(folder.glob("*.yaml"))}
     assert {"paper", "real-cad-dev", "mesh-set"} <= configs.keys()
