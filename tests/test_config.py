@@ -54,6 +54,17 @@ def test_every_shipped_configuration_loads_and_the_folder_sets_name_their_mesh_f
     assert configs["real-cad-dev"].dataset.layout == "generic"
 
 
+def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> None:
+    """``train.ensemble`` 1 is what every workspace before the option trained: left out of the
+    section (so of every stage key); any other value is in it, and in the YAML either way."""
+    assert "ensemble" not in Config().section("train")
+    assert Config().section("train") == {k: v for k, v in
+                                         Config().train.model_dump(mode="json").items()
+                                         if k != "ensemble"}
+    assert config_from_dict({"train": {"ensemble": 3}}).section("train")["ensemble"] == 3
+    assert yaml.safe_load(Config().to_yaml())["train"]["ensemble"] == 1
+
+
 def test_yaml_round_trip(tmp_path: Path) -> None:
     cfg = config_from_dict({"seed": 5, "camera": {"width": 80, "height": 60}})
     path = tmp_path / "c.yaml"
@@ -84,6 +95,9 @@ def test_wrong_keys_and_values_are_named(tmp_path: Path) -> None:
 
 
 def test_cross_field_rules_and_unreadable_files(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="'gradcam' attributes to one network's last "
+                       "convolution, and train.ensemble 3 trains 3 networks"):
+        config_from_dict({"train": {"ensemble": 3}, "saliency": {"method": "gradcam"}})
     with pytest.raises(ConfigError, match="source 'folder' needs dataset.path"):
         config_from_dict({"dataset": {"source": "folder"}})
     with pytest.raises(ConfigError, match="missing_full_deg must not be below"):

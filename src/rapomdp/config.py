@@ -14,7 +14,7 @@ import re
 import typing
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import yaml
 from pydantic import (
@@ -191,8 +191,16 @@ class TrainConfig(Section):
         None, ge=0, lt=2**32, description="the classifier's own seed (weights, batch order, "
         "validation split, the crossfit folds' training); null: the run's seed. A study varies "
         "it alone with --vary train")
+    ensemble: int = Field(
+        1, ge=1, le=16, description="networks trained from their own seeds whose mean "
+        "probability is the classifier (K times the training, saliency and inference time; "
+        "measured more accurate and calibrated on unseen objects: docs/recognition.md)")
     preprocess: PreprocessConfig = PreprocessConfig()
     augment: AugmentConfig = AugmentConfig()
+
+    #: Left out of the stage keys at 1, so that a workspace trained before the option keeps
+    #: its classifier (see :meth:`Config.section`).
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble",)
 
 
 class SaliencyConfig(Section):
@@ -574,6 +582,15 @@ class Config(Section):
     limits: LimitsConfig = LimitsConfig()
 
     @model_validator(mode="after")
+    def _gradcam_on_one_network(self) -> Config:
+        if self.saliency.method == "gradcam" and self.train.ensemble > 1:
+            raise ValueError("saliency.method 'gradcam' attributes to one network's last "
+                             f"convolution, and train.ensemble {self.train.ensemble} trains "
+                             f"{self.train.ensemble} networks: use another method (e.g. "
+                             "'mask') or train.ensemble 1")
+        return self
+
+    @model_validator(mode="after")
     def _cameras_outside_the_object(self) -> Config:
         for name, radius in (("render.radius_m", self.render.radius_m),
                              ("viewpoints.radius_m", self.viewpoints.radius_m)):
@@ -589,9 +606,17 @@ class Config(Section):
         return self.seed if self.train.seed is None else self.train.seed
 
     def section(self, name: str) -> Any:
-        """A section's values as plain JSON-able data (for hashing and records)."""
+        """A section's values as plain JSON-able data (for hashing and records); the fields a
+        section's ``hash_omits_default`` names are left out at their default (options added
+        after workspaces existed, whose default is what those workspaces did)."""
         value = getattr(self, name)
-        return value.model_dump(mode="json") if isinstance(value, BaseModel) else value
+        if not isinstance(value, BaseModel):
+            return value
+        data = value.model_dump(mode="json")
+        for key in getattr(value, "hash_omits_default", ()):
+            if getattr(value, key) == type(value).model_fields[key].default:
+                data.pop(key)
+        return data
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)

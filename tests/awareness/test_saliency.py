@@ -185,3 +185,23 @@ def test_contrastive_mask_highlights_what_tells_two_classes_apart(planted_inputs
     assert np.all(np.abs(right_share(plain) - 0.5) < 0.1)  # against all: both regions
     with pytest.raises(ValueError, match="against itself"):
         ContrastiveMask(net, params, against=0).attribute(planted_inputs, target)
+
+
+def test_the_mask_of_an_ensemble_of_copies_is_the_mask_of_the_network():
+    """An ensemble reaches the saliency as one network: of copies, the network's own mask."""
+    from dataclasses import replace
+
+    from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
+
+    torch.manual_seed(4)
+    network = DepthAlexNet(NetworkSpec(classes=3, input_size_px=32, width=0.125)).eval()
+    ensemble = DepthEnsemble(replace(network.spec, members=2)).eval()
+    for member in ensemble.members:
+        member.load_state_dict(network.state_dict())
+    inputs = torch.randn(2, 1, 32, 32, generator=torch.Generator().manual_seed(5))
+    target = torch.tensor([0, 2])
+    params = MaskParams.scaled(32, iterations=10)
+    alone = PerturbationMask(network, params, seed=1).attribute(inputs, target)
+    together = PerturbationMask(ensemble, params, seed=1).attribute(inputs, target)
+    assert float(alone.max()) > 0
+    torch.testing.assert_close(together, alone, atol=1e-4, rtol=0)

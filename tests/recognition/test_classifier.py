@@ -16,7 +16,7 @@ from rapomdp.recognition.classifier import (
     Classifier,
     default_threads,
 )
-from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
+from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec, build_network
 from rapomdp.recognition.preprocess import PreprocessParams
 
 CLASSES = ["cup", "mug", "vase"]
@@ -45,6 +45,26 @@ def test_round_trip_gives_identical_outputs(saved, render_model):
     np.testing.assert_array_equal(Classifier.load(folder).predict(depth[0]), expected[:1])
     assert Classifier.load(folder / META_FILE).classes == CLASSES
     assert loaded.fx_px == classifier.fx_px and loaded.preprocessing == PARAMS
+
+
+def test_an_ensemble_checkpoint_loads_as_the_same_ensemble(tmp_path, intrinsics, render_model):
+    torch.manual_seed(0)
+    network = build_network(NetworkSpec(len(CLASSES), 32, width=0.125, members=3))
+    classifier = Classifier(network, CLASSES, PARAMS, intrinsics.fx, intrinsics.fy)
+    classifier.save(tmp_path, config_hash="abc123")
+    loaded = Classifier.load(tmp_path, classes=CLASSES, device="cpu")
+    assert isinstance(loaded.network, DepthEnsemble) and len(loaded.network.members) == 3
+    assert json.loads((tmp_path / META_FILE).read_text())["network"]["members"] == 3
+    depth = render_model("vase", np.array([[0.6, 0.0, 0.1], [0.0, -0.6, 0.2]]))
+    np.testing.assert_array_equal(loaded.predict(depth), classifier.predict(depth))
+
+
+def test_a_checkpoint_written_before_ensembles_loads_as_one_network(saved):
+    _, folder = saved
+    meta = json.loads((folder / META_FILE).read_text())
+    del meta["network"]["members"]  # the metadata of a checkpoint from before the option
+    (folder / META_FILE).write_text(json.dumps(meta))
+    assert isinstance(Classifier.load(folder).network, DepthAlexNet)
 
 
 def test_mismatched_class_list_is_refused(saved):

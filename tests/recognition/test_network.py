@@ -1,14 +1,22 @@
-"""DepthAlexNet's pooling: the separable inference path gives PyTorch's values bit for bit."""
+"""DepthAlexNet's pooling: the separable inference path gives PyTorch's values bit for bit; an
+ensemble is the mean of its members' probabilities."""
 
 from __future__ import annotations
 
 import copy
+from dataclasses import replace
 
 import pytest
 import torch
 from torch import nn
 
-from rapomdp.recognition.network import DepthAlexNet, MaxPool2d, NetworkSpec
+from rapomdp.recognition.network import (
+    DepthAlexNet,
+    DepthEnsemble,
+    MaxPool2d,
+    NetworkSpec,
+    build_network,
+)
 
 
 def activations(shape: tuple[int, ...], seed: int) -> torch.Tensor:
@@ -59,3 +67,43 @@ def test_the_network_classifies_as_with_pytorchs_pooling() -> None:
     reference(b)[:, 2].sum().backward()
     assert a.grad is not None and b.grad is not None
     assert torch.equal(a.grad, b.grad)
+
+
+def ensemble_of_copies(network: DepthAlexNet, members: int) -> DepthEnsemble:
+    ensemble = DepthEnsemble(replace(network.spec, members=members)).eval()
+    for member in ensemble.members:
+        member.load_state_dict(network.state_dict())
+    return ensemble
+
+
+def test_an_ensemble_outputs_the_log_of_its_members_mean_probability() -> None:
+    torch.manual_seed(0)
+    ensemble = build_network(NetworkSpec(classes=5, input_size_px=32, width=0.125,
+                                         members=3)).eval()
+    assert isinstance(ensemble, DepthEnsemble) and len(ensemble.members) == 3
+    assert all(m.spec.members == 1 for m in ensemble.members)
+    x = torch.randn(4, 1, 32, 32, generator=torch.Generator().manual_seed(2))
+    with torch.inference_mode():
+        members = torch.stack([torch.softmax(m(x), dim=1) for m in ensemble.members])
+        out = ensemble(x)
+    # distinct members (each its own initialisation), and softmax(out) is their mean
+    assert not torch.allclose(members[0], members[1])
+    torch.testing.assert_close(torch.softmax(out, dim=1), members.mean(dim=0))
+    torch.testing.assert_close(out.exp().sum(dim=1), torch.ones(4))
+
+
+def test_an_ensemble_of_copies_is_the_network_itself() -> None:
+    torch.manual_seed(1)
+    network = DepthAlexNet(NetworkSpec(classes=4, input_size_px=32, width=0.125)).eval()
+    x = torch.randn(3, 1, 32, 32, generator=torch.Generator().manual_seed(3))
+    with torch.inference_mode():
+        torch.testing.assert_close(torch.softmax(ensemble_of_copies(network, 2)(x), dim=1),
+                                   torch.softmax(network(x), dim=1))
+
+
+def test_build_network_refuses_no_members() -> None:
+    assert isinstance(build_network(NetworkSpec(classes=3, input_size_px=32)), DepthAlexNet)
+    with pytest.raises(ValueError, match="members must be at least 1"):
+        build_network(NetworkSpec(classes=3, input_size_px=32, members=0))
+    with pytest.raises(ValueError, match="at least 2 members"):
+        DepthEnsemble(NetworkSpec(classes=3, input_size_px=32, members=1))

@@ -13,13 +13,17 @@ from typer.testing import CliRunner
 from rapomdp.cli import app
 from rapomdp.config import config_from_dict
 from rapomdp.data.dataset import load_dataset
+from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import load_xrho_views
+from rapomdp.data.training_views import load_training_views
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 from rapomdp.recognition.classifier import META_FILE, CheckpointMismatchError
-from rapomdp.recognition.stage import load_stage_classifier, train_config_hash
-from rapomdp.workspace import Workspace
+from rapomdp.recognition.network import DepthEnsemble
+from rapomdp.recognition.stage import load_stage_classifier, run_train_stage, train_config_hash
+from rapomdp.recognition.training import collect_views, validation_mask
+from rapomdp.workspace import StageInputs, Workspace
 from tests.conftest import SMALL_SPLIT, TEST_CONTEXT
 
 TINY = {
@@ -59,6 +63,36 @@ def test_train_stage_writes_a_checked_checkpoint(workspace):
     changed = config_from_dict({**TINY, "train": {**TINY["train"], "epochs": 3}})
     with pytest.raises(CheckpointMismatchError, match="configuration hash"):
         load_stage_classifier(changed, root / "train", ["cup", "bottle", "chair"])
+
+
+def test_an_ensemble_train_stage_writes_its_members_and_the_ensembles_accuracy(workspace,
+                                                                              tmp_path):
+    root, config = workspace
+    classes = ["cup", "bottle", "chair"]
+    ensemble = config_from_dict({**TINY, "train": {**TINY["train"], "ensemble": 2}})
+    inputs = StageInputs.of("train", {"dataset": root / "dataset", "render": root / "render"})
+    run_train_stage(ensemble, inputs, tmp_path, TEST_CONTEXT)
+    history = list(csv.DictReader((tmp_path / "history.csv").open()))
+    assert [(int(r["member"]), int(r["epoch"])) for r in history] == [(0, 1), (0, 2), (1, 1),
+                                                                       (1, 2)]
+    metrics = read_json(tmp_path / "metrics.json")
+    assert metrics["ensemble"] == 2
+    assert metrics["member_validation_accuracy"] == [float(history[1]["val_accuracy"]),
+                                                     float(history[3]["val_accuracy"])]
+    classifier = load_stage_classifier(ensemble, tmp_path, classes)
+    assert isinstance(classifier.network, DepthEnsemble)
+    # the validation accuracy is the ensemble's own, on the train stage's held-out views
+    data = collect_views(load_training_views(root / "render", root / "dataset"), "train")
+    held = validation_mask(data, 0.1, class_seed(ensemble.train_seed, "train/validation"))
+    assert held.sum() == metrics["validation_images"] == 9
+    predicted = classifier.predict(data.depth[held]).argmax(axis=1)
+    assert metrics["final_validation_accuracy"] == pytest.approx(
+        float((predicted == data.labels[held]).mean()))
+    # the single classifier's workspace does not take it, nor it the single classifier
+    with pytest.raises(CheckpointMismatchError, match="configuration hash"):
+        load_stage_classifier(config, tmp_path, classes)
+    with pytest.raises(CheckpointMismatchError, match="configuration hash"):
+        load_stage_classifier(ensemble, root / "train", classes)
 
 
 def test_the_stored_batch_outputs_give_the_labels_of_one_image_at_a_time(workspace):

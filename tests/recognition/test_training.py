@@ -1,4 +1,5 @@
-"""The network and its training: a separable toy set is learned; views are split per model."""
+"""The network and its training: a separable toy set is learned; views are split per model; an
+ensemble's members are trained from their own seeds."""
 
 from __future__ import annotations
 
@@ -6,8 +7,13 @@ import numpy as np
 import torch
 
 from rapomdp.config import PreprocessConfig, TrainConfig
-from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
-from rapomdp.recognition.training import LabelledViews, train_classifier, validation_mask
+from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
+from rapomdp.recognition.training import (
+    LabelledViews,
+    member_seed,
+    train_classifier,
+    validation_mask,
+)
 
 TOY_CLASSES = ["disc", "cross", "bar", "ring"]
 
@@ -110,3 +116,32 @@ def test_noise_augmentation_perturbs_only_the_object():
     error = np.abs(noisy - depth)[object_px]
     assert 0.0005 < error.mean() < 0.01  # millimetres: axial noise and disparity steps
     assert np.all(np.abs(shift) <= 0.05) and np.all((scale >= 0.9 - 1e-9) & (scale <= 1.1))
+
+
+def test_an_ensemble_is_its_members_trained_from_their_own_seeds():
+    cfg = TrainConfig(width=0.125, epochs=2, batch_size=32,
+                      preprocess=PreprocessConfig(input_size_px=32))
+    data = toy_views(10, seed=3)
+    single, _ = train_classifier(data, data, TOY_CLASSES, cfg, 144.3, 144.3, seed=5,
+                                 device=torch.device("cpu"), progress=False)
+    ensemble, history = train_classifier(
+        data, data, TOY_CLASSES, cfg.model_copy(update={"ensemble": 3}), 144.3, 144.3,
+        seed=5, device=torch.device("cpu"), progress=False)
+    assert isinstance(ensemble.network, DepthEnsemble)
+    assert ensemble.network.spec.members == 3
+    assert history.member == [0, 0, 1, 1, 2, 2] and history.epoch == [1, 2] * 3
+    inputs = torch.from_numpy(ensemble.preprocess(data.depth).images)
+    with torch.inference_mode():
+        members = [torch.softmax(m(inputs), dim=1).numpy() for m in ensemble.network.members]
+    # the first member is the single classifier of the seed; the others are other draws
+    np.testing.assert_array_equal(members[0], single.predict(data.depth))
+    assert not np.allclose(members[1], members[0]) and not np.allclose(members[2], members[1])
+    np.testing.assert_allclose(ensemble.predict(data.depth), np.mean(members, axis=0),
+                               atol=1e-6)
+
+
+def test_member_seeds_are_the_seed_then_draws_no_other_seed_shares():
+    assert member_seed(7, 0) == 7
+    seeds = {member_seed(s, m) for s in range(4) for m in range(1, 4)}
+    assert len(seeds) == 12 and not seeds & set(range(4))
+    assert member_seed(7, 2) == member_seed(7, 2)

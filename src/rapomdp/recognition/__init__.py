@@ -19,6 +19,8 @@ _EXPORTS = {
     "default_threads": "classifier",
     "select_device": "classifier",
     "DepthAlexNet": "network",
+    "DepthEnsemble": "network",
+    "build_network": "network",
     "NetworkSpec": "network",
     "Preprocessed": "preprocess",
     "PreprocessParams": "preprocess",

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from rapomdp.io import ArtefactError, read_json, write_bytes_atomic, write_json_atomic
-from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
+from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec, build_network
 from rapomdp.recognition.preprocess import Preprocessed, PreprocessParams, preprocess
 
 WEIGHTS_FILE = "classifier.pt"
@@ -93,7 +93,7 @@ class Classifier:
 
     def __init__(
         self,
-        network: DepthAlexNet,
+        network: DepthAlexNet | DepthEnsemble,
         classes: Sequence[str],
         preprocessing: PreprocessParams,
         fx_px: float,
@@ -229,7 +229,7 @@ class Classifier:
         try:
             state = torch.load(io.BytesIO(data), map_location=torch_device, weights_only=True)
             spec = NetworkSpec(**meta["network"])
-            network = DepthAlexNet(spec)
+            network = build_network(spec)
             network.load_state_dict(state)
         except Exception as exc:  # any unpickling or shape error is a bad checkpoint
             raise CheckpointError(f"{weights_path}: cannot load weights ({exc})") from exc

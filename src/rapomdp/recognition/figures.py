@@ -15,23 +15,31 @@ __all__ = ["confusion_figure", "hemisphere_figure", "save_png", "training_curves
 
 
 def training_curves(rows: Sequence[dict[str, float]], path: Path) -> Path:
-    """Loss and accuracy per epoch, training and validation."""
+    """Loss and accuracy per epoch, training and validation (each ensemble member's own
+    lines, fainter after the first, when ``rows`` hold a ``member`` column)."""
     from matplotlib.ticker import MaxNLocator
 
-    epoch = [r["epoch"] for r in rows]
+    members = sorted({int(r.get("member", 0)) for r in rows})
     with style():
         fig = new_figure(9.0, 3.6)
         ax_loss, ax_acc = fig.subplots(1, 2)
-        ax_loss.plot(epoch, [r["train_loss"] for r in rows], marker="o", ms=3, label="train")
-        ax_loss.plot(epoch, [r["val_loss"] for r in rows], "--", marker="s", ms=3,
-                     label="validation")
-        ax_loss.set(xlabel="epoch", ylabel="cross-entropy (nats)", title="Loss")
+        for member in members:
+            mine = [r for r in rows if int(r.get("member", 0)) == member]
+            epoch = [r["epoch"] for r in mine]
+            first = member == members[0]
+            look = {"alpha": 1.0 if first else 0.45, "ms": 3}
+            ax_loss.plot(epoch, [r["train_loss"] for r in mine], "-o", color="C0",
+                         label="train" if first else None, **look)
+            ax_loss.plot(epoch, [r["val_loss"] for r in mine], "--s", color="C1",
+                         label="validation" if first else None, **look)
+            ax_acc.plot(epoch, [r["train_accuracy"] for r in mine], "-o", color="C0",
+                        label="train (augmented)" if first else None, **look)
+            ax_acc.plot(epoch, [r["val_accuracy"] for r in mine], "--s", color="C1",
+                        label="validation (held-out views)" if first else None, **look)
+        suffix = f" ({len(members)} ensemble members)" if len(members) > 1 else ""
+        ax_loss.set(xlabel="epoch", ylabel="cross-entropy (nats)", title="Loss" + suffix)
         ax_loss.legend(loc="upper right")
-        ax_acc.plot(epoch, [r["train_accuracy"] for r in rows], marker="o", ms=3,
-                    label="train (augmented)")
-        ax_acc.plot(epoch, [r["val_accuracy"] for r in rows], "--", marker="s", ms=3,
-                    label="validation (held-out views)")
-        ax_acc.set(xlabel="epoch", ylabel="accuracy", ylim=(0, 1.02), title="Accuracy")
+        ax_acc.set(xlabel="epoch", ylabel="accuracy", ylim=(0, 1.02), title="Accuracy" + suffix)
         ax_acc.legend(loc="lower right")
         for ax in (ax_loss, ax_acc):
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))

@@ -105,20 +105,28 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
                            class_seed(config.train_seed, "train/validation"))
     device = configure_torch(config.train.device, context.threads)
     start = time.perf_counter()
+    val = data.subset(held)
     classifier, history = train_classifier(
-        data.subset(~held), data.subset(held), classes, config.train,
+        data.subset(~held), val, classes, config.train,
         views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device,
         config.render.noise, progress=context.progress,
     )
     wall_s = time.perf_counter() - start
-    train_images = int((~held).sum()) * config.train.epochs
+    members = config.train.ensemble
+    train_images = int((~held).sum()) * config.train.epochs * members
+    last = [i for i, m in enumerate(history.member) if i + 1 == len(history.member)
+            or history.member[i + 1] != m]  # each member's last epoch
+    val_accuracy = (history.val_accuracy[-1] if members == 1 or not len(val) else
+                    float((classifier.predict(val.depth).argmax(1) == val.labels).mean()))
     metrics = {
         "classes": classes,
         "train_images": int((~held).sum()),
         "validation_images": int(held.sum()),
         "epochs": config.train.epochs,
-        "final_train_accuracy": history.train_accuracy[-1],
-        "final_validation_accuracy": _finite(history.val_accuracy[-1]),
+        "ensemble": members,
+        "final_train_accuracy": float(np.mean([history.train_accuracy[i] for i in last])),
+        "final_validation_accuracy": _finite(val_accuracy),
+        "member_validation_accuracy": [_finite(history.val_accuracy[i]) for i in last],
         "wall_s": wall_s,
         "train_images_per_s": train_images / sum(history.seconds),
         "device": str(device),

@@ -10,8 +10,8 @@ input twice. Adam with the paper's learning rate, weight decay and batch size.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import torch
@@ -22,7 +22,7 @@ from rapomdp.data.noise import apply_sensor_noise
 from rapomdp.data.training_views import TrainingViews
 from rapomdp.progress import progress_bar
 from rapomdp.recognition.classifier import Classifier
-from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
+from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
 from rapomdp.recognition.preprocess import PreprocessParams, object_extents, preprocess
 
 
@@ -45,8 +45,9 @@ class LabelledViews:
 
 @dataclass
 class History:
-    """Per-epoch training record."""
+    """Per-epoch training record (of each ensemble member in turn: ``member``)."""
 
+    member: list[int] = field(default_factory=list)
     epoch: list[int] = field(default_factory=list)
     train_loss: list[float] = field(default_factory=list)
     train_accuracy: list[float] = field(default_factory=list)
@@ -55,7 +56,8 @@ class History:
     seconds: list[float] = field(default_factory=list)
 
     def rows(self) -> list[dict[str, float]]:
-        keys = ("epoch", "train_loss", "train_accuracy", "val_loss", "val_accuracy", "seconds")
+        keys = ("member", "epoch", "train_loss", "train_accuracy", "val_loss", "val_accuracy",
+                "seconds")
         return [{k: getattr(self, k)[i] for k in keys} for i in range(len(self.epoch))]
 
 
@@ -126,6 +128,15 @@ def evaluate_inputs(
     return loss / len(labels), correct / len(labels)
 
 
+def member_seed(seed: int, member: int) -> int:
+    """Ensemble member ``member``'s seed: ``seed`` itself for the first (an ensemble of one is
+    the single classifier), then draws of ``SeedSequence([seed, member])`` (so the members of
+    the seed-0 and seed-1 classifiers do not share weights)."""
+    if member == 0:
+        return seed
+    return int(np.random.SeedSequence([seed, member]).generate_state(1)[0])
+
+
 def train_classifier(
     train: LabelledViews,
     val: LabelledViews,
@@ -138,15 +149,12 @@ def train_classifier(
     noise: NoiseConfig | None = None,
     progress: bool = True,
 ) -> tuple[Classifier, History]:
-    """Train a DepthAlexNet on ``train``; report ``val`` after every epoch (on a progress bar
-    when ``progress``)."""
+    """Train ``cfg.ensemble`` DepthAlexNets on ``train``, each from its own
+    :func:`member_seed`; report ``val`` after every epoch (on a progress bar when
+    ``progress``). More than one member gives a :class:`DepthEnsemble`."""
     params = preprocess_params(cfg.preprocess)
-    spec = NetworkSpec(len(classes), params.input_size_px, cfg.width, cfg.dropout)
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
-    network = DepthAlexNet(spec).to(device)
-    optimiser = torch.optim.Adam(network.parameters(), lr=cfg.learning_rate,
-                                 weight_decay=cfg.weight_decay)
+    spec = NetworkSpec(len(classes), params.input_size_px, cfg.width, cfg.dropout,
+                       cfg.ensemble)
     val_inputs = preprocess(val.depth, fx_px, fy_px, params).images if len(val) else None
     # where the object is in each image does not change between epochs (unless the noise
     # augmentation changes the images): found once, the crop alone is redrawn per batch
@@ -154,41 +162,75 @@ def train_classifier(
     noise = noise or NoiseConfig()
     history = History()
     batches = -(-len(train) // cfg.batch_size)
+    members: list[DepthAlexNet] = []
     with progress_bar(progress, status=True) as bar:
-        task = bar.add_task("train", total=cfg.epochs * batches, status="", unit="batches")
-        for epoch in range(1, cfg.epochs + 1):
-            start_s = time.perf_counter()
-            network.train()
-            order = rng.permutation(len(train))
-            loss_sum, correct = 0.0, 0
-            for b in range(batches):
-                idx = np.sort(order[b * cfg.batch_size : (b + 1) * cfg.batch_size])
-                depth, shift, scale = augment_batch(train.depth[idx], cfg.augment, noise, rng)
-                x = torch.from_numpy(preprocess(depth, fx_px, fy_px, params, shift, scale,
-                                                None if extents is None else extents[idx]).images)
-                y = torch.from_numpy(train.labels[idx])
-                x, y = x.to(device), y.to(device)
-                logits = network(x)
-                loss = nn.functional.cross_entropy(logits, y)
-                optimiser.zero_grad(set_to_none=True)
-                loss.backward()
-                optimiser.step()
-                loss_sum += float(loss.detach()) * len(idx)
-                correct += int((logits.argmax(1) == y).sum())
-                seen = min((b + 1) * cfg.batch_size, len(train))
-                bar.update(task, advance=1, description=f"train {epoch}/{cfg.epochs}",
-                           status=f"loss {loss_sum / seen:.3f} acc {correct / seen:.1%}")
-            val_loss, val_acc = (
-                evaluate_inputs(network, val_inputs, val.labels, device)
-                if val_inputs is not None else (float("nan"), float("nan"))
-            )
-            history.epoch.append(epoch)
-            history.train_loss.append(loss_sum / len(train))
-            history.train_accuracy.append(correct / len(train))
-            history.val_loss.append(val_loss)
-            history.val_accuracy.append(val_acc)
-            history.seconds.append(time.perf_counter() - start_s)
-            bar.update(task, status=f"loss {loss_sum / len(train):.3f} "
-                       f"acc {correct / len(train):.1%} val {val_acc:.1%}")
+        task = bar.add_task("train", total=cfg.ensemble * cfg.epochs * batches, status="",
+                            unit="batches")
+        for member in range(cfg.ensemble):
+            name = "train" if cfg.ensemble == 1 else f"train member {member + 1}/{cfg.ensemble}"
+            members.append(_train_network(
+                replace(spec, members=1), train, val, val_inputs, extents, cfg, params,
+                fx_px, fy_px, member_seed(seed, member), device, noise, history, member,
+                lambda advance, text, status, name=name: bar.update(
+                    task, advance=advance, status=status,
+                    **({} if text is None else {"description": f"{name} {text}"}))))
+    if cfg.ensemble == 1:
+        network: DepthAlexNet | DepthEnsemble = members[0]
+    else:
+        network = DepthEnsemble(spec).to(device)
+        for slot, trained in zip(network.members, members, strict=True):
+            slot.load_state_dict(trained.state_dict())
     network.eval()
     return Classifier(network, classes, params, fx_px, fy_px, device), history
+
+
+def _train_network(
+    spec: NetworkSpec, train: LabelledViews, val: LabelledViews, val_inputs: np.ndarray | None,
+    extents: np.ndarray | None, cfg: TrainConfig, params: PreprocessParams, fx_px: float,
+    fy_px: float, seed: int, device: torch.device, noise: NoiseConfig, history: History,
+    member: int, report: Callable[[int, str | None, str], None],
+) -> DepthAlexNet:
+    """One DepthAlexNet trained from ``seed``; its epochs are appended to ``history``."""
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    network = DepthAlexNet(spec).to(device)
+    optimiser = torch.optim.Adam(network.parameters(), lr=cfg.learning_rate,
+                                 weight_decay=cfg.weight_decay)
+    batches = -(-len(train) // cfg.batch_size)
+    for epoch in range(1, cfg.epochs + 1):
+        start_s = time.perf_counter()
+        network.train()
+        order = rng.permutation(len(train))
+        loss_sum, correct = 0.0, 0
+        for b in range(batches):
+            idx = np.sort(order[b * cfg.batch_size : (b + 1) * cfg.batch_size])
+            depth, shift, scale = augment_batch(train.depth[idx], cfg.augment, noise, rng)
+            x = torch.from_numpy(preprocess(depth, fx_px, fy_px, params, shift, scale,
+                                            None if extents is None else extents[idx]).images)
+            y = torch.from_numpy(train.labels[idx])
+            x, y = x.to(device), y.to(device)
+            logits = network(x)
+            loss = nn.functional.cross_entropy(logits, y)
+            optimiser.zero_grad(set_to_none=True)
+            loss.backward()
+            optimiser.step()
+            loss_sum += float(loss.detach()) * len(idx)
+            correct += int((logits.argmax(1) == y).sum())
+            seen = min((b + 1) * cfg.batch_size, len(train))
+            report(1, f"{epoch}/{cfg.epochs}",
+                   f"loss {loss_sum / seen:.3f} acc {correct / seen:.1%}")
+        val_loss, val_acc = (
+            evaluate_inputs(network, val_inputs, val.labels, device)
+            if val_inputs is not None else (float("nan"), float("nan"))
+        )
+        history.member.append(member)
+        history.epoch.append(epoch)
+        history.train_loss.append(loss_sum / len(train))
+        history.train_accuracy.append(correct / len(train))
+        history.val_loss.append(val_loss)
+        history.val_accuracy.append(val_acc)
+        history.seconds.append(time.perf_counter() - start_s)
+        report(0, None, f"loss {loss_sum / len(train):.3f} acc {correct / len(train):.1%} "
+               f"val {val_acc:.1%}")
+    network.eval()
+    return network
