@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 
 from rapomdp.cli import app
 from rapomdp.config import config_from_dict
+from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import load_xrho_views
@@ -93,6 +94,24 @@ def test_an_ensemble_train_stage_writes_its_members_and_the_ensembles_accuracy(w
         load_stage_classifier(config, tmp_path, classes)
     with pytest.raises(CheckpointMismatchError, match="configuration hash"):
         load_stage_classifier(ensemble, root / "train", classes)
+
+
+def test_ensemble_members_trained_in_worker_processes_are_those_of_one_process(workspace,
+                                                                              tmp_path):
+    root, _ = workspace
+    ensemble = config_from_dict({**TINY, "train": {**TINY["train"], "ensemble": 3}})
+    inputs = StageInputs.of("train", {"dataset": root / "dataset", "render": root / "render"})
+    run_train_stage(ensemble, inputs, tmp_path / "one", TEST_CONTEXT)
+    run_train_stage(ensemble, inputs, tmp_path / "two",
+                    RunContext(workers=2, threads=1, progress=False))
+    assert (tmp_path / "one" / "classifier.pt").read_bytes() == \
+        (tmp_path / "two" / "classifier.pt").read_bytes()
+    rows = [list(csv.DictReader((tmp_path / run / "history.csv").open()))
+            for run in ("one", "two")]
+    assert [(r["member"], r["val_accuracy"]) for r in rows[0]] == \
+        [(r["member"], r["val_accuracy"]) for r in rows[1]]
+    metrics = [read_json(tmp_path / run / "metrics.json") for run in ("one", "two")]
+    assert metrics[0]["final_validation_accuracy"] == metrics[1]["final_validation_accuracy"]
 
 
 def test_the_stored_batch_outputs_give_the_labels_of_one_image_at_a_time(workspace):

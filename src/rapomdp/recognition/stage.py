@@ -24,7 +24,7 @@ from rapomdp.data.test_views import load_xrho_views
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import atomic_path, save_npz, stable_hash, write_json_atomic
-from rapomdp.parallel import run_tasks
+from rapomdp.parallel import TaskReport, run_tasks
 from rapomdp.progress import track
 from rapomdp.recognition.artefacts import (
     HEMISPHERE_FIGURE,
@@ -43,10 +43,15 @@ from rapomdp.recognition.classifier import (
 )
 from rapomdp.recognition.evaluation import SingleViewResult, write_confusion_csv
 from rapomdp.recognition.figures import confusion_figure, hemisphere_figure, training_curves
+from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
 from rapomdp.recognition.training import (
+    History,
     collect_views,
+    ensemble_classifier,
+    merge_histories,
     preprocess_params,
     train_classifier,
+    train_members,
     validation_mask,
 )
 from rapomdp.workspace import StageError, StageInputs, Workspace
@@ -93,6 +98,53 @@ def load_stage_classifier(config: Config, train_dir: Path, classes: list[str],
     )
 
 
+def _train_members_task(config: Config, render_dir: Path, dataset_dir: Path,
+                        members: list[int], threads: int, report: TaskReport,
+                        ) -> tuple[list[dict[str, torch.Tensor]], History]:
+    """A share of an ensemble's members, trained in a worker process on the train stage's
+    views and validation split (a task of the train stage): their weights and epochs."""
+    views = load_training_views(render_dir, dataset_dir)
+    data = collect_views(views, "train")
+    held = validation_mask(data, config.train.validation_fraction,
+                           class_seed(config.train_seed, "train/validation"))
+    device = configure_torch("cpu", threads)
+    networks, history = train_members(
+        data.subset(~held), data.subset(held), views.dataset.classes, config.train,
+        views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device, members,
+        config.render.noise, progress=False, report=report)
+    return [n.state_dict() for n in networks], history
+
+
+def _train_members_in_tasks(config: Config, inputs: StageInputs, views: TrainingViews,
+                            train_views: int, device: torch.device, context: RunContext,
+                            ) -> tuple[Classifier, History]:
+    """An ensemble trained a share of members per worker (each member from its own seed, as
+    in one process: the members do not depend on the worker count)."""
+    count = config.train.ensemble
+    shares = [list(map(int, share)) for share in
+              np.array_split(np.arange(count), min(count, context.worker_count))]
+    classes = views.dataset.classes
+    batches = config.train.epochs * -(-train_views // config.train.batch_size)
+    parts = run_tasks(_train_members_task,
+                      [(config, inputs.render, inputs.dataset, share,
+                        context.in_worker().threads) for share in shares],
+                      context.worker_count, f"train: {count} ensemble members",
+                      context.progress, context.scheduler, unit="batches",
+                      sizes=[len(share) * batches for share in shares], reports=True,
+                      pool=context.pool)
+    spec = NetworkSpec(len(classes), config.train.preprocess.input_size_px,
+                       config.train.width, config.train.dropout)
+    networks = []
+    for states, _ in parts:
+        for state in states:
+            network = DepthAlexNet(spec).to(device)
+            network.load_state_dict(state)
+            networks.append(network)
+    return (ensemble_classifier(networks, classes, config.train, views.intrinsics.fx,
+                                views.intrinsics.fy, device),
+            merge_histories([history for _, history in parts]))
+
+
 def run_train_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
     """Train the depth classifier on the train models' training-viewsphere renders."""
@@ -106,13 +158,18 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
     device = configure_torch(config.train.device, context.threads)
     start = time.perf_counter()
     val = data.subset(held)
-    classifier, history = train_classifier(
-        data.subset(~held), val, classes, config.train,
-        views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device,
-        config.render.noise, progress=context.progress,
-    )
-    wall_s = time.perf_counter() - start
     members = config.train.ensemble
+    if members > 1 and (context.worker_count > 1 or context.uses_cluster) \
+            and device.type == "cpu":
+        classifier, history = _train_members_in_tasks(config, inputs, views,
+                                                      int((~held).sum()), device, context)
+    else:
+        classifier, history = train_classifier(
+            data.subset(~held), val, classes, config.train,
+            views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device,
+            config.render.noise, progress=context.progress,
+        )
+    wall_s = time.perf_counter() - start
     train_images = int((~held).sum()) * config.train.epochs * members
     last = [i for i, m in enumerate(history.member) if i + 1 == len(history.member)
             or history.member[i + 1] != m]  # each member's last epoch

@@ -10,7 +10,7 @@ input twice. Adam with the paper's learning rate, weight decay and batch size.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -152,9 +152,31 @@ def train_classifier(
     """Train ``cfg.ensemble`` DepthAlexNets on ``train``, each from its own
     :func:`member_seed`; report ``val`` after every epoch (on a progress bar when
     ``progress``). More than one member gives a :class:`DepthEnsemble`."""
+    networks, history = train_members(train, val, classes, cfg, fx_px, fy_px, seed, device,
+                                      range(cfg.ensemble), noise, progress)
+    return ensemble_classifier(networks, classes, cfg, fx_px, fy_px, device), history
+
+
+def train_members(
+    train: LabelledViews,
+    val: LabelledViews,
+    classes: Sequence[str],
+    cfg: TrainConfig,
+    fx_px: float,
+    fy_px: float,
+    seed: int,
+    device: torch.device,
+    members: Iterable[int],
+    noise: NoiseConfig | None = None,
+    progress: bool = True,
+    report: Callable[[int], None] | None = None,
+) -> tuple[list[DepthAlexNet], History]:
+    """The ensemble members ``members`` (indices, each trained from :func:`member_seed`) and
+    their epochs; ``report(1)`` after every batch when given (a worker's share of the
+    ensemble)."""
     params = preprocess_params(cfg.preprocess)
-    spec = NetworkSpec(len(classes), params.input_size_px, cfg.width, cfg.dropout,
-                       cfg.ensemble)
+    spec = NetworkSpec(len(classes), params.input_size_px, cfg.width, cfg.dropout)
+    members = list(members)
     val_inputs = preprocess(val.depth, fx_px, fy_px, params).images if len(val) else None
     # where the object is in each image does not change between epochs (unless the noise
     # augmentation changes the images): found once, the crop alone is redrawn per batch
@@ -162,26 +184,49 @@ def train_classifier(
     noise = noise or NoiseConfig()
     history = History()
     batches = -(-len(train) // cfg.batch_size)
-    members: list[DepthAlexNet] = []
+    networks: list[DepthAlexNet] = []
     with progress_bar(progress, status=True) as bar:
-        task = bar.add_task("train", total=cfg.ensemble * cfg.epochs * batches, status="",
+        task = bar.add_task("train", total=len(members) * cfg.epochs * batches, status="",
                             unit="batches")
-        for member in range(cfg.ensemble):
+        for member in members:
             name = "train" if cfg.ensemble == 1 else f"train member {member + 1}/{cfg.ensemble}"
-            members.append(_train_network(
-                replace(spec, members=1), train, val, val_inputs, extents, cfg, params,
-                fx_px, fy_px, member_seed(seed, member), device, noise, history, member,
-                lambda advance, text, status, name=name: bar.update(
-                    task, advance=advance, status=status,
-                    **({} if text is None else {"description": f"{name} {text}"}))))
-    if cfg.ensemble == 1:
-        network: DepthAlexNet | DepthEnsemble = members[0]
+
+            def update(advance: int, text: str | None, status: str, name: str = name) -> None:
+                bar.update(task, advance=advance, status=status,
+                           **({} if text is None else {"description": f"{name} {text}"}))
+                if report is not None and advance:
+                    report(advance)
+
+            networks.append(_train_network(
+                spec, train, val, val_inputs, extents, cfg, params, fx_px, fy_px,
+                member_seed(seed, member), device, noise, history, member, update))
+    return networks, history
+
+
+def ensemble_classifier(networks: Sequence[DepthAlexNet], classes: Sequence[str],
+                        cfg: TrainConfig, fx_px: float, fy_px: float,
+                        device: torch.device) -> Classifier:
+    """The classifier of trained members: the one network, or their :class:`DepthEnsemble`."""
+    params = preprocess_params(cfg.preprocess)
+    if len(networks) == 1:
+        network: DepthAlexNet | DepthEnsemble = networks[0]
     else:
-        network = DepthEnsemble(spec).to(device)
-        for slot, trained in zip(network.members, members, strict=True):
+        network = DepthEnsemble(replace(networks[0].spec, members=len(networks))).to(device)
+        for slot, trained in zip(network.members, networks, strict=True):
             slot.load_state_dict(trained.state_dict())
     network.eval()
-    return Classifier(network, classes, params, fx_px, fy_px, device), history
+    return Classifier(network, classes, params, fx_px, fy_px, device)
+
+
+def merge_histories(histories: Sequence[History]) -> History:
+    """One record of several shares of an ensemble's members, in member order."""
+    rows = sorted((row for h in histories for row in h.rows()),
+                  key=lambda row: (row["member"], row["epoch"]))
+    merged = History()
+    for row in rows:
+        for key, value in row.items():
+            getattr(merged, key).append(value)
+    return merged
 
 
 def _train_network(
