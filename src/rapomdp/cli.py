@@ -457,10 +457,11 @@ def _context(threads: int | None = None, workers: int | None = None,
 @app.command()
 def train(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceOption = False,
           reconfigure: ReconfigureOption = False, overrides: OverridesArgument = None,
-          threads: ThreadsOption = None) -> None:
-    """Train the depth classifier on the training renders (and build what it needs)."""
-    _run(config, workspace, "train", ["train"] if force else [], _context(threads), overrides,
-         reconfigure)
+          threads: ThreadsOption = None, workers: WorkersOption = None) -> None:
+    """Train the depth classifier on the training renders (and build what it needs); an
+    ensemble (train.ensemble > 1) trains a share of its members per worker process."""
+    _run(config, workspace, "train", ["train"] if force else [], _context(threads, workers),
+         overrides, reconfigure)
 
 
 @app.command("classifier_eval")
@@ -675,9 +676,9 @@ def learn(workspace: WorkspaceOption, config: ConfigOption = None, force: ForceO
 
 WorkersOption = Annotated[
     int | None,
-    typer.Option(help="Processes for the stages that spread tasks (render, classifier_eval, "
-                      "vptree, saliency, solve, learn, evaluate; default: 2, or 1 on a single "
-                      "core); the results do not depend on it."),
+    typer.Option(help="Processes for the stages that spread tasks (render, train's ensemble "
+                      "members, classifier_eval, vptree, saliency, solve, learn, evaluate; "
+                      "default: 2, or 1 on a single core); the results do not depend on it."),
 ]
 
 
