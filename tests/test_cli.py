@@ -198,6 +198,8 @@ def test_workers_and_threads_reach_the_stages_as_one_run_context(tmp_path: Path,
     assert seen == [RunContext(workers=3, threads=2, progress=True)]
     runner.invoke(app, ["train", "-w", str(tmp_path / "ws")])
     assert seen[-1] == RunContext()
+    runner.invoke(app, ["train", "-w", str(tmp_path / "ws"), "--workers", "3"])
+    assert seen[-1] == RunContext(workers=3)  # an ensemble's members spread over them
 
 
 def test_fig1_view_help_says_what_write_fig1_picks() -> None:
