@@ -16,6 +16,7 @@ from rapomdp.recognition.network import (
     MaxPool2d,
     NetworkSpec,
     build_network,
+    member_networks,
 )
 
 
@@ -99,6 +100,15 @@ def test_an_ensemble_of_copies_is_the_network_itself() -> None:
     with torch.inference_mode():
         torch.testing.assert_close(torch.softmax(ensemble_of_copies(network, 2)(x), dim=1),
                                    torch.softmax(network(x), dim=1))
+
+
+def test_member_networks_are_an_ensembles_members_or_the_network_itself() -> None:
+    single = DepthAlexNet(NetworkSpec(classes=3, input_size_px=32, width=0.125))
+    ensemble = ensemble_of_copies(single, 3)
+    assert member_networks(single) == [single]
+    members = member_networks(ensemble)
+    assert len(members) == 3 and all(m is e for m, e in zip(members, ensemble.members,
+                                                              strict=True))
 
 
 def test_build_network_refuses_no_members() -> None:

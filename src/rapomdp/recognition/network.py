@@ -140,3 +140,10 @@ def build_network(spec: NetworkSpec) -> DepthAlexNet | DepthEnsemble:
     if spec.members < 1:
         raise ValueError(f"members must be at least 1, got {spec.members}")
     return DepthAlexNet(spec) if spec.members == 1 else DepthEnsemble(spec)
+
+
+def member_networks(network: DepthAlexNet | DepthEnsemble) -> list[DepthAlexNet]:
+    """The networks whose mean a classifier's network is: an ensemble's members, or itself."""
+    if isinstance(network, DepthEnsemble):
+        return [member for member in network.members if isinstance(member, DepthAlexNet)]
+    return [network]

@@ -43,7 +43,7 @@ from rapomdp.recognition.classifier import (
 )
 from rapomdp.recognition.evaluation import SingleViewResult, write_confusion_csv
 from rapomdp.recognition.figures import confusion_figure, hemisphere_figure, training_curves
-from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
+from rapomdp.recognition.network import DepthAlexNet, NetworkSpec, member_networks
 from rapomdp.recognition.training import (
     History,
     collect_views,
@@ -51,7 +51,6 @@ from rapomdp.recognition.training import (
     merge_histories,
     preprocess_params,
     train_classifier,
-    train_members,
     validation_mask,
 )
 from rapomdp.workspace import StageError, StageInputs, Workspace
@@ -108,11 +107,11 @@ def _train_members_task(config: Config, render_dir: Path, dataset_dir: Path,
     held = validation_mask(data, config.train.validation_fraction,
                            class_seed(config.train_seed, "train/validation"))
     device = configure_torch("cpu", threads)
-    networks, history = train_members(
+    classifier, history = train_classifier(
         data.subset(~held), data.subset(held), views.dataset.classes, config.train,
-        views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device, members,
-        config.render.noise, progress=False, report=report)
-    return [n.state_dict() for n in networks], history
+        views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device,
+        config.render.noise, progress=False, members=members, report=report)
+    return [n.state_dict() for n in member_networks(classifier.network)], history
 
 
 def _train_members_in_tasks(config: Config, inputs: StageInputs, views: TrainingViews,

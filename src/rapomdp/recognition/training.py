@@ -23,7 +23,12 @@ from rapomdp.data.training_views import TrainingViews
 from rapomdp.progress import progress_bar
 from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
-from rapomdp.recognition.preprocess import PreprocessParams, object_extents, preprocess
+from rapomdp.recognition.preprocess import (
+    ObjectExtents,
+    PreprocessParams,
+    object_extents,
+    preprocess,
+)
 
 
 @dataclass
@@ -148,35 +153,19 @@ def train_classifier(
     device: torch.device,
     noise: NoiseConfig | None = None,
     progress: bool = True,
+    members: Iterable[int] | None = None,
+    report: Callable[[int], None] | None = None,
 ) -> tuple[Classifier, History]:
     """Train ``cfg.ensemble`` DepthAlexNets on ``train``, each from its own
     :func:`member_seed`; report ``val`` after every epoch (on a progress bar when
-    ``progress``). More than one member gives a :class:`DepthEnsemble`."""
-    networks, history = train_members(train, val, classes, cfg, fx_px, fy_px, seed, device,
-                                      range(cfg.ensemble), noise, progress)
-    return ensemble_classifier(networks, classes, cfg, fx_px, fy_px, device), history
+    ``progress``). More than one member gives a :class:`DepthEnsemble`.
 
-
-def train_members(
-    train: LabelledViews,
-    val: LabelledViews,
-    classes: Sequence[str],
-    cfg: TrainConfig,
-    fx_px: float,
-    fy_px: float,
-    seed: int,
-    device: torch.device,
-    members: Iterable[int],
-    noise: NoiseConfig | None = None,
-    progress: bool = True,
-    report: Callable[[int], None] | None = None,
-) -> tuple[list[DepthAlexNet], History]:
-    """The ensemble members ``members`` (indices, each trained from :func:`member_seed`) and
-    their epochs; ``report(1)`` after every batch when given (a worker's share of the
-    ensemble)."""
+    ``members`` (indices; None: all) trains a share of the ensemble only (a worker's), and
+    ``report(1)`` is called after every batch when given.
+    """
     params = preprocess_params(cfg.preprocess)
     spec = NetworkSpec(len(classes), params.input_size_px, cfg.width, cfg.dropout)
-    members = list(members)
+    members = list(range(cfg.ensemble) if members is None else members)
     val_inputs = preprocess(val.depth, fx_px, fy_px, params).images if len(val) else None
     # where the object is in each image does not change between epochs (unless the noise
     # augmentation changes the images): found once, the crop alone is redrawn per batch
@@ -193,14 +182,14 @@ def train_members(
 
             def update(advance: int, text: str | None, status: str, name: str = name) -> None:
                 bar.update(task, advance=advance, status=status,
-                           **({} if text is None else {"description": f"{name} {text}"}))
+                           description=None if text is None else f"{name} {text}")
                 if report is not None and advance:
                     report(advance)
 
             networks.append(_train_network(
                 spec, train, val, val_inputs, extents, cfg, params, fx_px, fy_px,
                 member_seed(seed, member), device, noise, history, member, update))
-    return networks, history
+    return ensemble_classifier(networks, classes, cfg, fx_px, fy_px, device), history
 
 
 def ensemble_classifier(networks: Sequence[DepthAlexNet], classes: Sequence[str],
@@ -231,7 +220,7 @@ def merge_histories(histories: Sequence[History]) -> History:
 
 def _train_network(
     spec: NetworkSpec, train: LabelledViews, val: LabelledViews, val_inputs: np.ndarray | None,
-    extents: np.ndarray | None, cfg: TrainConfig, params: PreprocessParams, fx_px: float,
+    extents: ObjectExtents | None, cfg: TrainConfig, params: PreprocessParams, fx_px: float,
     fy_px: float, seed: int, device: torch.device, noise: NoiseConfig, history: History,
     member: int, report: Callable[[int, str | None, str], None],
 ) -> DepthAlexNet:
