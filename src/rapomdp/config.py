@@ -198,8 +198,7 @@ class TrainConfig(Section):
     preprocess: PreprocessConfig = PreprocessConfig()
     augment: AugmentConfig = AugmentConfig()
 
-    #: Left out of the stage keys at 1, so that a workspace trained before the option keeps
-    #: its classifier (see :meth:`Config.section`).
+    #: At 1, what every workspace before the option trained: out of the stage keys.
     hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble",)
 
 
@@ -613,7 +612,7 @@ class Config(Section):
         if not isinstance(value, BaseModel):
             return value
         data = value.model_dump(mode="json")
-        for key in getattr(value, "hash_omits_default", ()):
+        for key in value.hash_omits_default if isinstance(value, Section) else ():
             if getattr(value, key) == type(value).model_fields[key].default:
                 data.pop(key)
         return data

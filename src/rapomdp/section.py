@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import types
 import typing
-from typing import Any
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, ValidationInfo, field_validator
 
@@ -43,6 +43,10 @@ class Section(BaseModel):
     number is finite, and a boolean is never taken as a number (``views: true`` is not 1)."""
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
+
+    #: Fields added after workspaces existed, whose default is what those workspaces did:
+    #: left out of ``Config.section`` (so of every stage key) while at that default.
+    hash_omits_default: ClassVar[tuple[str, ...]] = ()
 
     @field_validator("*", mode="before")
     @classmethod
