@@ -805,8 +805,10 @@ def study(
 ) -> None:
     """Run the pipeline over seeds and configurations, then write the pooled report.
 
-    Each seed is a normal cached, resumable workspace; stages whose key another seed already
-    holds are shared (hard links), so `--vary train` trains only the classifiers again. The
+    Each seed is a normal cached, resumable workspace; stages whose key another seed or
+    configuration already holds are shared (hard links), so `--vary train` trains only the
+    classifiers again, and configurations that differ from the train stage on share what
+    comes before it. The
     report pools Table 1 over seeds with intervals that resample seeds and test models. With
     --scheduler each seed is one Dask task.
     """

@@ -1,11 +1,15 @@
-"""Seeds share exactly the stages whose keys match; a killed study resumes where it stopped."""
+"""Seeds and configurations share exactly the stages whose keys match; a killed study resumes
+where it stopped."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from rapomdp.pipeline import STAGE_NAMES, planned_keys
-from rapomdp.study.runner import seed_workspace, shared_stages
+from rapomdp.study.runner import run_study, seed_workspace, shared_across, shared_stages
 from rapomdp.study.spec import StudyDataset, StudySpec
 from rapomdp.workspace import Workspace
+from tests.conftest import TEST_CONTEXT
 from tests.study.conftest import TINY_STUDY, TinyStudy
 
 #: What a classifier's seed does not reach: the meshes, renders, the robot, the VP-tree.
@@ -91,3 +95,35 @@ def test_a_folder_that_is_no_study_is_refused_before_anything_is_written(tmp_pat
     with pytest.raises(ConfigError, match="not a rapomdp study .no study.yaml. and not empty"):
         run_study(spec, tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
+def test_configurations_that_differ_from_the_train_stage_on_share_what_comes_before() -> None:
+    longer = {**TINY_STUDY, "train": {**TINY_STUDY["train"], "epochs": 3}}
+    spec = StudySpec((StudyDataset("tiny", TINY_STUDY), StudyDataset("longer", longer)),
+                     seeds=(0, 1), vary="all")
+    plan = shared_across(spec)
+    assert plan[("tiny", 0)] == {} and plan[("tiny", 1)] == {}  # vary all: seeds share nothing
+    assert plan[("longer", 0)] == dict.fromkeys(UNTRAINED, ("tiny", 0))
+    assert plan[("longer", 1)] == dict.fromkeys(UNTRAINED, ("tiny", 1))
+    # within one configuration, the seeds' plan is the one shared_stages gives
+    assert shared_stages(spec, spec.datasets[1]) == {0: {}, 1: {}}
+
+
+def test_a_study_of_two_configurations_makes_their_common_stages_once(tmp_path) -> None:
+    longer = {**TINY_STUDY, "train": {**TINY_STUDY["train"], "epochs": 3}}
+    spec = StudySpec((StudyDataset("tiny", TINY_STUDY), StudyDataset("longer", longer)),
+                     seeds=(0,), vary="all")
+    runs = run_study(spec, tmp_path, TEST_CONTEXT)
+    adopted = {r.name: r.shared_from for r in runs[1].results if r.shared_from}
+    assert set(adopted) == UNTRAINED
+    assert all(Path(source).name == "seed-0" and Path(source).parent.name == "tiny"
+               for source in adopted.values())
+    for name in UNTRAINED:  # hard links: the very same files
+        mine = seed_workspace(tmp_path, "longer", 0).stage_dir(name)
+        theirs = seed_workspace(tmp_path, "tiny", 0).stage_dir(name)
+        some = next(p for p in sorted(theirs.rglob("*"))
+                    if p.is_file() and p.name != "stage.json")
+        assert (mine / some.relative_to(theirs)).samefile(some)
+    first, second = (Workspace(tmp_path / d / "seed-0").manifest()["stages"]
+                     for d in ("tiny", "longer"))
+    assert first["train"]["key"] != second["train"]["key"]

@@ -1,10 +1,12 @@
 """Run a study: each (configuration, seed) is a normal cached, resumable workspace
-``S/<configuration>/seed-<seed>``; a stage whose key another seed's workspace already holds is
-taken from it (hard links) instead of being run again.
+``S/<configuration>/seed-<seed>``; a stage whose key another workspace of the study already
+holds (another seed's, or another configuration's) is taken from it (hard links) instead of
+being run again.
 
 Seeds are independent tasks: with a Dask scheduler they run as one task each, after the stages
-they share have been made once; without one they run one after the other, each stage using the
-local worker pool as a plain run does. A killed study resumes where it stopped: finished seeds
+they share within their configuration have been made once; without one they run one after the
+other, each stage using the local worker pool as a plain run does, and share across
+configurations too. A killed study resumes where it stopped: finished seeds
 are cached whole, and the seed it was in resumes at its first unfinished stage.
 """
 
@@ -37,27 +39,43 @@ def seed_workspace(root: str | Path, dataset: str, seed: int) -> Workspace:
     return Workspace(Path(root) / dataset / f"seed-{seed}")
 
 
-def shared_stages(spec: StudySpec, dataset: StudyDataset) -> dict[int, dict[str, int]]:
-    """For each seed, the stages it shares and the first seed that makes each (equal planned
-    keys; :func:`rapomdp.pipeline.planned_keys`)."""
-    first: dict[str, int] = {}
-    shared: dict[int, dict[str, int]] = {}
-    for seed in spec.seeds:
-        keys = planned_keys(spec.config(dataset, seed))
-        shared[seed] = {}
-        for name, key in keys.items():
+def _first_makers(spec: StudySpec, runs: Sequence[tuple[StudyDataset, int]]
+                  ) -> dict[tuple[str, int], dict[str, tuple[str, int]]]:
+    """For each (configuration, seed) of ``runs``, in that order, the stages it shares and the
+    first run that makes each (equal planned keys: :func:`rapomdp.pipeline.planned_keys`)."""
+    first: dict[str, tuple[str, int]] = {}
+    shared: dict[tuple[str, int], dict[str, tuple[str, int]]] = {}
+    for dataset, seed in runs:
+        mine = shared[(dataset.name, seed)] = {}
+        for name, key in planned_keys(spec.config(dataset, seed)).items():
             if key in first:
-                shared[seed][name] = first[key]
+                mine[name] = first[key]
             else:
-                first[key] = seed
+                first[key] = (dataset.name, seed)
     return shared
 
 
-def _run_seed(config: Config, root: Path, dataset: str, seed: int, sources: Sequence[int],
-              context: RunContext, until: str | None = None,
+def shared_stages(spec: StudySpec, dataset: StudyDataset) -> dict[int, dict[str, int]]:
+    """For each seed of one configuration, the stages it shares and the first seed that makes
+    each (equal planned keys; :func:`rapomdp.pipeline.planned_keys`)."""
+    plan = _first_makers(spec, [(dataset, seed) for seed in spec.seeds])
+    return {seed: {name: maker[1] for name, maker in plan[(dataset.name, seed)].items()}
+            for seed in spec.seeds}
+
+
+def shared_across(spec: StudySpec) -> dict[tuple[str, int], dict[str, tuple[str, int]]]:
+    """For each (configuration, seed), in the order a study runs them, the stages it shares and
+    the first (configuration, seed) that makes each: across seeds, and across configurations
+    (two that differ from the train stage on make their dataset, renders, robot and VP-tree
+    once)."""
+    return _first_makers(spec, [(d, seed) for d in spec.datasets for seed in spec.seeds])
+
+
+def _run_seed(config: Config, root: Path, dataset: str, seed: int,
+              sources: Sequence[tuple[str, int]], context: RunContext, until: str | None = None,
               on_result: Callable[[StageResult], None] | None = None) -> SeedRun:
     ws = seed_workspace(root, dataset, seed)
-    share = [seed_workspace(root, dataset, s) for s in sources]
+    share = [seed_workspace(root, name, s) for name, s in sources]
     results = run_pipeline(config, ws, until=until, on_result=on_result, context=context,
                            share_from=share)
     return SeedRun(dataset, seed, ws.root, results)
@@ -65,9 +83,11 @@ def _run_seed(config: Config, root: Path, dataset: str, seed: int, sources: Sequ
 
 def _seed_task(config_json: str, root: str, dataset: str, seed: int, sources: list[int],
                context: RunContext) -> SeedRun:
-    """One seed as a task of a Dask worker (one thread, no bars of its own)."""
+    """One seed as a task of a Dask worker (one thread, no bars of its own); it shares from
+    its own configuration's seeds only (another configuration's may still be running)."""
     config = config_from_dict(json.loads(config_json))
-    return _run_seed(config, Path(root), dataset, seed, sources, context.in_worker())
+    return _run_seed(config, Path(root), dataset, seed, [(dataset, s) for s in sources],
+                     context.in_worker())
 
 
 def run_study(spec: StudySpec, root: str | Path, context: RunContext = RunContext(),
@@ -89,9 +109,11 @@ def run_study(spec: StudySpec, root: str | Path, context: RunContext = RunContex
         return lambda result: on_result(dataset, seed, result)
 
     if context.scheduler is None:
+        across = shared_across(spec)
         with pooled(context) as context:
-            return [_run_seed(spec.config(d, seed), root, d.name, seed, sources[d.name],
-                              context, on_result=report(d.name, seed))
+            return [_run_seed(spec.config(d, seed), root, d.name, seed,
+                              sorted(set(across[(d.name, seed)].values())), context,
+                              on_result=report(d.name, seed))
                     for d in spec.datasets for seed in spec.seeds]
     # On a cluster: the shared stages once, here, then every seed as one task.
     for d in spec.datasets:
