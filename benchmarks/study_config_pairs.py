@@ -19,34 +19,21 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.config import METHOD_NAMES
+from rapomdp.experiment.metrics import paired_model_sums
 from rapomdp.recognition.belief import expected_calibration_error
 from rapomdp.study.bootstrap import SeedClusters, hierarchical_bootstrap
 from rapomdp.study.pooled import SeedResult, common_methods, load_seed_results
 from rapomdp.study.spec import read_study
 
 
-def _pair_keys(result: SeedResult, method: str) -> tuple[np.ndarray, np.ndarray]:
-    """The (model#start) keys of one method's episodes, sorted, and their rows."""
-    table = result.table
-    rows = np.flatnonzero(table.method == method)
-    keys = np.char.add(np.char.add(table.model[rows].astype(str), "#"),
-                       table.start[rows].astype(str))
-    order = np.argsort(keys, kind="stable")
-    return keys[order], rows[order]
-
-
 def seed_clusters(base: SeedResult, variant: SeedResult, method: str) -> SeedClusters:
     """One seed's test models with their summed paired differences variant − base."""
-    keys_b, rows_b = _pair_keys(base, method)
-    keys_v, rows_v = _pair_keys(variant, method)
-    if keys_b.shape != keys_v.shape or np.any(keys_b != keys_v):
-        raise SystemExit(f"seed {base.seed}, {method}: the configurations did not run from the "
-                         "same (test model, start) pairs; they are not paired")
-    diff = (variant.table.correct[rows_v].astype(float)
-            - base.table.correct[rows_b].astype(float))
-    models, cluster = np.unique(base.table.model[rows_b], return_inverse=True)
-    return SeedClusters(models, np.bincount(cluster, weights=diff, minlength=models.size),
-                        np.bincount(cluster, minlength=models.size).astype(float))
+    try:
+        models, sums, pairs = paired_model_sums(variant.table, method, method, base.table)
+    except ValueError as exc:
+        raise SystemExit(f"seed {base.seed}, {method}: {exc}; the configurations are not "
+                         "paired") from None
+    return SeedClusters(models, sums, pairs)
 
 
 def summary(results: list[SeedResult], method: str) -> tuple[float, float, float, float]:

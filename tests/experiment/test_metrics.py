@@ -16,6 +16,7 @@ from rapomdp.experiment.metrics import (
     paired_accuracy_difference,
     paired_against,
     paired_csv,
+    paired_model_sums,
     read_tradeoff_csv,
     rows_csv,
     summarise,
@@ -115,6 +116,22 @@ def test_paired_difference_needs_the_same_pairs() -> None:
         paired_accuracy_difference(table, "static", "ra")
     with pytest.raises(ValueError, match="no episodes of method 'random'"):
         paired_accuracy_difference(table, "random", "ra")
+
+
+def test_a_method_pairs_with_itself_in_another_table_of_the_same_pairs() -> None:
+    """Two configurations of one seed: the same method's episodes, matched by (model, start)."""
+    base = np.zeros((4, 3), dtype=bool)
+    variant = base.copy()
+    variant[0, :] = True  # the variant is right from every start of model 0, and nothing else
+    models, sums, pairs = paired_model_sums(_episodes({"ra": variant}, 3), "ra", "ra",
+                                            _episodes({"ra": base}, 3))
+    assert list(models) == ["m0.npz", "m1.npz", "m2.npz", "m3.npz"]
+    np.testing.assert_array_equal(sums, [3.0, 0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(pairs, [3.0, 3.0, 3.0, 3.0])
+    shifted = _episodes({"ra": base}, 3)
+    shifted.start[0] += 1
+    with pytest.raises(ValueError, match="did not run from the same"):
+        paired_model_sums(_episodes({"ra": variant}, 3), "ra", "ra", shifted)
 
 
 def test_markdown_has_the_paired_column() -> None:

@@ -141,29 +141,32 @@ def cluster_bootstrap_difference(per_model_sum: np.ndarray, per_model_pairs: np.
     return estimate, float(low), float(high)
 
 
-def paired_model_sums(table: EpisodeTable, method: str, reference: str
+def paired_model_sums(table: EpisodeTable, method: str, reference: str,
+                      reference_table: EpisodeTable | None = None,
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each test model's summed paired accuracy difference ``method`` − ``reference`` and its
     number of (model, start) pairs: ``(models, sums, pairs)``, models sorted.
 
     Both methods must have run from exactly the same pairs (the evaluation guarantees it; a
-    table that breaks it is an error).
+    table that breaks it is an error). ``reference_table``: the reference's episodes come from
+    another table of the same pairs (another configuration of the same seed).
     """
-    keys = {}
-    for key in (method, reference):
-        sel = np.flatnonzero(table.method == key)
+    other = table if reference_table is None else reference_table
+    sorted_pairs = []
+    for key, source in ((method, table), (reference, other)):
+        sel = np.flatnonzero(source.method == key)
         if sel.size == 0:
             raise ValueError(f"no episodes of method '{key}'")
-        pairs = np.char.add(np.char.add(table.model[sel].astype(str), "#"),
-                            table.start[sel].astype(str))
+        pairs = np.char.add(np.char.add(source.model[sel].astype(str), "#"),
+                            source.start[sel].astype(str))
         order = np.argsort(pairs, kind="stable")
-        keys[key] = (pairs[order], sel[order])
-    (pairs_m, rows_m), (pairs_r, rows_r) = keys[method], keys[reference]
+        sorted_pairs.append((pairs[order], sel[order]))
+    (pairs_m, rows_m), (pairs_r, rows_r) = sorted_pairs
     if pairs_m.shape != pairs_r.shape or np.any(pairs_m != pairs_r) \
             or np.unique(pairs_m).size != pairs_m.size:
         raise ValueError(f"methods '{method}' and '{reference}' did not run from the same "
                          "(test model, start) pairs")
-    diff = table.correct[rows_m].astype(np.float64) - table.correct[rows_r].astype(np.float64)
+    diff = table.correct[rows_m].astype(np.float64) - other.correct[rows_r].astype(np.float64)
     models, cluster = np.unique(table.model[rows_m], return_inverse=True)
     sums = np.bincount(cluster, weights=diff, minlength=models.size)
     sizes = np.bincount(cluster, minlength=models.size).astype(np.float64)
