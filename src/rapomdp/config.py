@@ -460,6 +460,12 @@ class EvaluateConfig(Section):
         "lookahead's value at every child; naive or nuisance beliefs only)")
     lookahead_width: int = Field(
         4, ge=1, le=4096, description="moves a depth-2 lookahead values two views deep")
+    declared_confidence: Literal["calibrated", "belief"] = Field(
+        "calibrated", description="what Random and the POMDP methods report after their "
+        "views: calibrated (the belief they act on ** a, renormalised, a fitted per "
+        "observation model where held-out walks stop, by the observe and vptree stages), or "
+        "belief (the belief itself). The actions are the same either way. Chosen on held-out "
+        "objects (docs/awareness.md §4.8)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "

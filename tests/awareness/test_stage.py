@@ -366,3 +366,19 @@ def test_the_wrong_label_choice_is_recorded_per_model(workspace):
     for name in auto["models"].tolist():
         np.testing.assert_allclose(auto[name], none[name], atol=1e-12)
     run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
+
+
+def test_the_declared_confidence_is_fitted_per_model_and_recorded_with_its_held_out_score(
+        workspace):
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
+    record = read_json(workspace.root / "observe" / "calibration.json")
+    declared = record["declared_confidence"]
+    assert set(declared) == set(MODELS)  # every model, "ra" its chosen variant's
+    assert declared["ra"] == declared[f"ra_{record['ra_model']}"]
+    groups = len(np.unique(data["evidence_groups"]))
+    for name, fit in declared.items():
+        assert float(data[f"declared_temperature_{name}"]) == fit["temperature"]
+        assert 0.05 <= fit["temperature"] <= 2.0
+        assert len(fit["held_out_temperatures"]) == len(fit["groups"]) == groups
+        assert fit["stops"] == groups * 2 * 16 * 6  # rows a group x walks a row x thresholds
+        assert 0.0 <= fit["ece"] <= 1.0 and 0.0 <= fit["declared_ece"] <= 1.0

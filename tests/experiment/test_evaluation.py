@@ -300,3 +300,31 @@ def test_run_and_demo_end_with_the_report_who_won_the_wall_time_and_memory(
     assert f"contact sheet written to {ws.root / 'contact_sheet.png'}" in demo.output
     assert (ws.root / "contact_sheet.png").read_bytes()[:4] == b"\x89PNG"
     assert demo.output.splitlines()[-3:-1] == [story, paired]
+
+
+def test_calibrated_declarations_change_what_is_reported_and_no_action(workspace,
+                                                                       monkeypatch) -> None:
+    from rapomdp.experiment.methods import StaticPolicy
+
+    ws, config = workspace
+    assert config.evaluate.declared_confidence == "calibrated"  # chosen held out (§4.8)
+    plain_config = config.model_copy(update={
+        "evaluate": config.evaluate.model_copy(update={"declared_confidence": "belief"})})
+    plain = ClosedLoop.load(plain_config, _inputs(ws))
+    fitted = {"classifier": 0.5, "ra": 0.25, "vptree": 0.8}
+    monkeypatch.setattr(evaluation, "declared_temperatures",
+                        lambda observe, offered, vptree: {n: fitted.get(n, 1.0) for n in offered})
+    calibrated = ClosedLoop.load(config, _inputs(ws))
+    random_model = config.evaluate.random.observation_model
+    expected = {"random": fitted[random_model], **fitted}
+    for key, method in calibrated.methods.items():
+        if isinstance(method, StaticPolicy):
+            continue
+        assert method._bayes.declared_temperature == expected[key.split("@")[0]], key
+        assert plain.methods[key]._bayes.declared_temperature == 1.0
+    model = plain.dataset.with_role("test")[0]
+    for a, b in zip(plain.run_model(model), calibrated.run_model(model), strict=True):
+        assert a.method == b.method and a.episode.actions == b.episode.actions
+        t = 1.0 if a.method == "static" else expected[a.method.split("@")[0]]
+        tempered = a.episode.beliefs ** t
+        assert np.allclose(b.episode.beliefs, tempered / tempered.sum(axis=1, keepdims=True))

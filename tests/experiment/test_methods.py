@@ -246,3 +246,34 @@ def test_a_pomdp_method_looks_two_views_ahead_when_asked_and_never_with_a_view_d
         POMDPPolicy(policy, problem.observation_model, "ra", lookahead_over=allowed,
                     prior=None, discount=ViewDiscount(0.8, 1.0), similarity=np.eye(6),
                     lookahead_depth=2)
+
+
+def test_random_walk_stops_on_its_belief_and_reports_the_declared_one(motion: Motion) -> None:
+    informative = confusion(0)
+    recogniser = TableRecogniser(np.zeros(V, dtype=int), confidence=0.9)
+    episodes = {}
+    for a in (1.0, 0.3):
+        walk = RandomWalkPolicy(informative, motion.distance_m, motion.reachable,
+                                belief_threshold=0.8, max_moves=30, declared_temperature=a)
+        episodes[a] = run_episode(ViewScene(), recogniser, walk, motion, 0, 100,
+                                  np.random.default_rng(0))
+    plain, declared = episodes[1.0], episodes[0.3]
+    assert declared.actions == plain.actions  # the same stop, though it reports less than 0.8
+    assert plain.beliefs[-1].max() >= 0.8 > declared.beliefs[-1].max()
+    expected = plain.beliefs ** 0.3
+    assert np.allclose(declared.beliefs, expected / expected.sum(axis=1, keepdims=True))
+    with pytest.raises(ValueError, match="declared-confidence temperature must be positive"):
+        RandomWalkPolicy(informative, motion.distance_m, motion.reachable,
+                         declared_temperature=0.0)
+
+
+def test_a_pomdp_method_acts_on_its_belief_and_reports_the_declared_one(motion: Motion,
+                                                                        solved) -> None:
+    P, policy = solved
+    labels = np.random.default_rng(4).integers(0, C, size=V)
+    runs = [run_episode(ViewScene(), TableRecogniser(labels),
+                        POMDPPolicy(policy, P, "RA-POMDP", declared_temperature=a), motion, 0,
+                        30, np.random.default_rng(0)) for a in (1.0, 0.5)]
+    assert runs[1].actions == runs[0].actions
+    expected = np.sqrt(runs[0].beliefs)
+    assert np.allclose(runs[1].beliefs, expected / expected.sum(axis=1, keepdims=True))

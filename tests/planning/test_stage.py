@@ -167,3 +167,21 @@ def test_solve_stage_records_the_memory_note_and_refuses_what_cannot_fit(
         run_solve_stage(tiny, inputs, out, TEST_CONTEXT)
     with pytest.raises(ValueError, match="memory_gb"):
         config_from_dict({"solve": {"memory_gb": float("nan")}})
+
+
+def test_declared_temperatures_are_read_per_model_and_default_to_one(tmp_path) -> None:
+    from rapomdp.awareness.artefacts import DECLARED_PREFIX, OBSERVATION_FILE
+    from rapomdp.planning.stage import declared_temperatures
+    from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
+
+    (tmp_path / "observe").mkdir()
+    (tmp_path / "vptree").mkdir()
+    model = np.full((2, 2, 2), 0.5)
+    save_npz(tmp_path / "observe" / OBSERVATION_FILE, ra=model, classifier=model,
+             **{f"{DECLARED_PREFIX}ra": np.array(0.4)})
+    save_npz(tmp_path / "vptree" / VPTREE_OBSERVATION_FILE, vptree=model,
+             declared_temperature=np.array(0.7))
+    offered = {"ra": model, "classifier": model, "vptree": model}
+    assert declared_temperatures(tmp_path / "observe", offered, tmp_path / "vptree") == {
+        "ra": 0.4, "classifier": 1.0, "vptree": 0.7}
+    assert declared_temperatures(tmp_path / "observe", {"ra": model}) == {"ra": 0.4}

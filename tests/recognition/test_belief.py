@@ -5,16 +5,23 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.special import logsumexp
 
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.recognition.belief import (
+    DECLARED_STOP_THRESHOLDS,
     belief_log_loss,
+    declared_belief,
+    declared_confidence,
     expected_calibration_error,
+    fit_declared_temperature,
     fit_temperature,
     fold_of_rows,
     held_out_groups,
     held_out_walks,
     random_walks,
+    stop_steps,
+    stopped_log_beliefs,
     temper,
     walk_calibration,
     walk_log_beliefs,
@@ -205,3 +212,71 @@ def test_temper_takes_one_temperature_per_viewpoint():
     for v in range(4):
         np.testing.assert_allclose(out[v], temper(p[v:v + 1], float(t[v]))[0])
     np.testing.assert_allclose(out[2], 1.0 / 3)  # weight 0: no evidence
+
+
+def _posterior_walks(rng: np.random.Generator, walks: int = 3000, steps: int = 8,
+                     classes: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Log posteriors (E, L, C) of walks whose every view emits a label independently from a
+    known model (right with 0.6, each wrong label 0.2): Bayes with that model is calibrated at
+    any stop, whatever the stopping rule. And each walk's true class (E,)."""
+    true = rng.integers(0, classes, walks)
+    right = rng.random((walks, steps)) < 0.6
+    wrong = (true[:, None] + rng.integers(1, classes, (walks, steps))) % classes
+    labels = np.where(right, true[:, None], wrong)
+    log_lik = np.where(labels[..., None] == np.arange(classes), np.log(0.6), np.log(0.2))
+    cumulative = np.cumsum(log_lik, axis=1)
+    return cumulative - logsumexp(cumulative, axis=2, keepdims=True), true
+
+
+def test_walks_stop_where_the_belief_first_reaches_the_threshold_or_at_their_end():
+    belief = np.array([[[0.5, 0.5], [0.8, 0.2], [0.95, 0.05]],
+                       [[0.6, 0.4], [0.6, 0.4], [0.7, 0.3]]])
+    log_belief = np.log(belief)
+    assert stop_steps(log_belief, 0.8).tolist() == [1, 2]
+    assert stop_steps(log_belief, 0.5).tolist() == [0, 0]
+    final, walk = stopped_log_beliefs(log_belief, (0.8, 0.9))
+    assert walk.tolist() == [0, 1, 0, 1]
+    assert np.allclose(np.exp(final), belief[[0, 1, 0, 1], [1, 2, 2, 2]])
+
+
+def test_the_declared_belief_keeps_the_argmax_and_flattens_below_one():
+    belief = np.array([[0.7, 0.2, 0.1], [0.1, 0.05, 0.85]])
+    flat = declared_belief(belief, 0.5)
+    assert np.allclose(flat.sum(axis=1), 1.0)
+    assert np.array_equal(flat.argmax(axis=1), belief.argmax(axis=1))
+    assert np.allclose(flat[0], np.sqrt(belief[0]) / np.sqrt(belief[0]).sum())
+    assert np.all(flat.max(axis=1) < belief.max(axis=1))
+    assert np.array_equal(declared_belief(belief[0], 1.0), belief[0])
+
+
+def test_the_declared_temperature_undoes_a_planted_overconfidence_where_walks_stop():
+    rng = np.random.default_rng(11)
+    log_belief, true = _posterior_walks(rng)
+    final, walk = stopped_log_beliefs(log_belief)
+    assert len(walk) == len(DECLARED_STOP_THRESHOLDS) * len(true)
+    # the Bayes posterior is calibrated at any stop; counting every view three times is not
+    assert fit_declared_temperature(final, true[walk]) == pytest.approx(1.0, abs=0.1)
+    tripled = 3.0 * log_belief
+    tripled -= logsumexp(tripled, axis=2, keepdims=True)
+    final3, walk3 = stopped_log_beliefs(tripled)
+    assert fit_declared_temperature(final3, true[walk3]) == pytest.approx(1 / 3, abs=0.05)
+    with pytest.raises(ValueError, match="no stopped beliefs"):
+        fit_declared_temperature(final[:0], true[:0])
+
+
+def test_declared_confidence_is_scored_leave_one_group_out():
+    rng = np.random.default_rng(12)
+    log_belief, true = _posterior_walks(rng)
+    tripled = 3.0 * log_belief
+    tripled -= logsumexp(tripled, axis=2, keepdims=True)
+    groups = np.arange(len(true)) % 3
+    fit = declared_confidence(tripled, true, groups)
+    assert fit.groups == (0, 1, 2) and len(fit.held_out_temperatures) == 3
+    assert all(abs(a - 1 / 3) < 0.07 for a in fit.held_out_temperatures)
+    assert fit.stops == len(DECLARED_STOP_THRESHOLDS) * len(true)
+    assert fit.confidence - fit.accuracy > 0.1  # the tripled belief is overconfident
+    assert abs(fit.declared_confidence - fit.accuracy) < 0.03
+    assert fit.declared_ece < 0.5 * fit.ece
+    alone = declared_confidence(tripled, true, np.zeros(len(true), np.int64))
+    assert alone.groups == () and alone.held_out_temperatures == ()
+    assert np.isnan(alone.declared_ece) and alone.temperature == pytest.approx(fit.temperature)

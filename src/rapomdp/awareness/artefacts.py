@@ -36,6 +36,10 @@ PRIOR_PREFIX = "prior_"
 #: ``view_discount_<name>`` and the viewpoints' similarity it reads (V, V) :data:`DISCOUNT_KERNEL`.
 DISCOUNT_PREFIX = "view_discount_"
 DISCOUNT_KERNEL = "view_discount_kernel"
+#: A model's declared-confidence temperature (a scalar; absent: 1, the belief as it is) in
+#: :data:`OBSERVATION_FILE`: what a policy reports is its belief ** a, renormalised, a fitted
+#: where held-out walks stop (``evaluate.declared_confidence``).
+DECLARED_PREFIX = "declared_temperature_"
 QUALITY_CSV = "quality.csv"
 QUALITY_MD = "quality.md"
 VALIDATION_CSV = "validation.csv"

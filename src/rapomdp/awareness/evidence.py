@@ -37,7 +37,10 @@ from rapomdp.config import ObserveConfig
 from rapomdp.geometry.viewsphere import geodesic_distance_matrix
 from rapomdp.io import load_npz, read_json
 from rapomdp.recognition.belief import (
+    DECLARED_WALK_LENGTH,
+    DeclaredConfidence,
     ViewDiscount,
+    declared_confidence,
     fit_temperature,
     fit_view_discount,
     fold_of_rows,
@@ -45,6 +48,7 @@ from rapomdp.recognition.belief import (
     held_out_walks,
     mean_later_weight,
     walk_calibration,
+    walk_log_beliefs,
 )
 from rapomdp.recognition.evaluation import viewpoint_label_counts
 
@@ -821,3 +825,36 @@ def held_out_temperatures(evidence: Evidence,
                                              evidence.predicted, walks, walk_row, first,
                                              priors)
     return temperatures, calibration
+
+
+def held_out_declared_confidence(evidence: Evidence,
+                                 folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
+                                 temperatures: Mapping[str, float],
+                                 corrections: Mapping[str, str], directions: np.ndarray,
+                                 starts_per_row: int, neighbours: int,
+                                 rng: np.random.Generator) -> dict[str, DeclaredConfidence]:
+    """Per model, the declared confidence fitted where held-out walks stop
+    (:func:`~rapomdp.recognition.belief.declared_confidence`): each group's walks of
+    ``DECLARED_WALK_LENGTH`` views updated by the models fitted without it, with the belief's
+    own correction (``temperatures``; ``after_first``: the first view in full). A view
+    discount's belief (``similarity``) depends on the views taken and is not fitted here.
+    Empty without folds."""
+    if not folds:
+        return {}
+    row_model = fold_of_rows([held for held, _ in folds], len(evidence.labels))
+    walks, walk_row = held_out_walks(row_model, directions, rng, DECLARED_WALK_LENGTH,
+                                     starts_per_row, neighbours)
+    fitted: dict[str, DeclaredConfidence] = {}
+    for name in (n for n in folds[0][1] if all(n in m for _, m in folds)):
+        correction = corrections.get(name, "none")
+        if correction == "similarity":
+            continue
+        models = [m[name].probabilities for _, m in folds]
+        priors = ([m[name].prior for _, m in folds]
+                  if all(m[name].prior is not None for _, m in folds) else None)
+        log_beliefs = walk_log_beliefs(
+            temperatures.get(name, 1.0), models, row_model, evidence.predicted, walks,
+            walk_row, 1.0 if correction == "after_first" else None, priors)
+        fitted[name] = declared_confidence(log_beliefs, evidence.labels[walk_row],
+                                           row_model[walk_row])
+    return fitted

@@ -39,6 +39,7 @@ from rich.console import Console
 from rapomdp.awareness.artefacts import (
     CALIBRATION_FIGURE,
     CALIBRATION_FILE,
+    DECLARED_PREFIX,
     DISCOUNT_KERNEL,
     DISCOUNT_PREFIX,
     FIRST_VIEW_PREFIX,
@@ -69,6 +70,7 @@ from rapomdp.awareness.evidence import (
     fit_level,
     fit_observation_models,
     fit_softmax_temperature,
+    held_out_declared_confidence,
     held_out_temperatures,
     held_out_view_discounts,
     leave_one_group_out,
@@ -114,6 +116,7 @@ from rapomdp.recognition.belief import (
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
     TEMPERATURE_WALKS_PER_ROW,
+    DeclaredConfidence,
     ViewDiscount,
     temper,
 )
@@ -332,6 +335,7 @@ class Observation:
     discounts: dict[str, ViewDiscount] = field(default_factory=dict)
     discount_kernel: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     wrong_labels: dict[str, ShrinkageChoice] = field(default_factory=dict)
+    declared: dict[str, DeclaredConfidence] = field(default_factory=dict)
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -502,6 +506,14 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     temperatures["ra"] = temperatures.get(f"ra_{variant}", 1.0)
     if f"ra_{variant}" in discounts:
         discounts["ra"] = discounts[f"ra_{variant}"]
+    # what a policy reports after its views: its belief ** a, a fitted where held-out walks
+    # stop (evaluate.declared_confidence); the belief it acts on is unchanged
+    declared = held_out_declared_confidence(
+        evidence, belief_folds, temperatures, corrections, directions,
+        TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+        class_seed(config.seed, "observe/declared"))
+    if f"ra_{variant}" in declared:
+        declared["ra"] = declared[f"ra_{variant}"]
     models: dict[str, ObservationModel] = {
         name: ObservationModel(temper(m.probabilities, temperatures[name]), classes, m.prior)
         for name, m in belief_models.items()}
@@ -527,7 +539,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                         "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
                        softmax_t, kernel, kernel_grid,
                        {name: nm.to_dict() for name, nm in nuisance.items()}, choice,
-                       discounts, discount_kernel, shrinkage)
+                       discounts, discount_kernel, shrinkage, declared)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -660,6 +672,8 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
              **({DISCOUNT_KERNEL: result.discount_kernel} if result.discounts else {}),
              **{f"{DISCOUNT_PREFIX}{name}": d.to_array()
                 for name, d in result.discounts.items()},
+             **{f"{DECLARED_PREFIX}{name}": np.array(d.temperature)
+                for name, d in result.declared.items()},
              models=np.array(list(result.models)), classes=np.array(dataset.classes),
              temperatures=np.array([result.temperatures[n] for n in result.models]),
              **{f"{FIRST_VIEW_PREFIX}{name}": m.probabilities
@@ -692,6 +706,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                             "grid": result.transfer_kernel_grid},
         "belief": config.observe.belief,
         "wrong_labels": {name: c.to_dict() for name, c in result.wrong_labels.items()},
+        "declared_confidence": {name: d.to_dict() for name, d in result.declared.items()},
         **({"view_discounts": {name: {"scale": d.scale, "redundancy": d.redundancy,
                                       "planner_temperature": result.temperatures[name]}
                                for name, d in result.discounts.items()}}

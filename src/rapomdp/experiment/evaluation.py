@@ -68,6 +68,7 @@ from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import (
+    declared_temperatures,
     first_view_models,
     observation_priors,
     offered_observation_models,
@@ -138,6 +139,10 @@ class ClosedLoop:
         discounts = {name: ViewDiscount(float(d[0]), float(d[1]))
                      for name, d in discount_arrays.items()}
         cfg = config.evaluate
+        # what each belief reports after its views (evaluate.declared_confidence)
+        declared = (declared_temperatures(inputs.observe, observation, inputs.vptree_dir)
+                    if cfg.declared_confidence == "calibrated" else
+                    dict.fromkeys(observation, 1.0))
 
         def method(key: str, random_threshold: float, solve_dir: Path,
                    lambda_: float = config.solve.wrong_declaration_cost_m) -> Policy:
@@ -151,7 +156,8 @@ class ClosedLoop:
                 return LearnedPolicy(network, spec, observation[name], motion.reachable,
                                      METHOD_NAMES[key], first_view_model=first_view[name],
                                      prior=priors[name], discount=discounts.get(name),
-                                     similarity=discount_kernel)
+                                     similarity=discount_kernel,
+                                     declared_temperature=declared[name])
             if key == "static":
                 return StaticPolicy(METHOD_NAMES[key],
                                     softmax_temperature=load_softmax_temperature(inputs.observe))
@@ -164,7 +170,8 @@ class ClosedLoop:
                     observation[name], motion.distance_m, motion.reachable,
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
                     METHOD_NAMES[key], first_view_model=first_view[name], prior=priors[name],
-                    discount=discounts.get(name), similarity=discount_kernel)
+                    discount=discounts.get(name), similarity=discount_kernel,
+                    declared_temperature=declared[name])
             path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
@@ -176,7 +183,8 @@ class ClosedLoop:
                                prior=priors[key], discount=discounts.get(key),
                                similarity=discount_kernel,
                                lookahead_depth=cfg.lookahead_depth,
-                               lookahead_width=cfg.lookahead_width)
+                               lookahead_width=cfg.lookahead_width,
+                               declared_temperature=declared[key])
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}

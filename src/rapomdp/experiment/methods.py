@@ -18,7 +18,7 @@ from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import LOOKAHEAD_WIDTH, ActiveRecognitionPolicy, ARAction
 from rapomdp.planning.rules import class_marginal
-from rapomdp.recognition.belief import ViewDiscount, temper
+from rapomdp.recognition.belief import ViewDiscount, declared_belief, temper
 
 
 class BayesBelief:
@@ -34,12 +34,21 @@ class BayesBelief:
     With a ``discount`` (:class:`~rapomdp.recognition.belief.ViewDiscount`, ``observe.belief:
     similarity``) and the viewpoints' ``similarity`` (V, V), an update uses the first-view
     model tempered by the weight the discount gives that view after the views already taken
-    (:meth:`next_model`); P is then the solved policy's memoryless stand-in."""
+    (:meth:`next_model`); P is then the solved policy's memoryless stand-in.
+
+    ``declared`` is what a policy reports: the class belief raised to ``declared_temperature``
+    and renormalised (``evaluate.declared_confidence``, fitted where held-out walks stop); the
+    policy acts on ``belief`` and ``state``, which it leaves alone."""
 
     def __init__(self, observation_model: np.ndarray,
                  first_view_model: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None) -> None:
+                 similarity: np.ndarray | None = None,
+                 declared_temperature: float = 1.0) -> None:
+        if not declared_temperature > 0:
+            raise ValueError(f"the declared-confidence temperature must be positive, got "
+                             f"{declared_temperature}")
+        self.declared_temperature = float(declared_temperature)
         self.observation_model = np.asarray(observation_model, dtype=np.float64)
         self.first_view_model = (self.observation_model if first_view_model is None
                                  else np.asarray(first_view_model, dtype=np.float64))
@@ -85,6 +94,12 @@ class BayesBelief:
     def belief(self) -> np.ndarray:
         """The class distribution (C,): the state distribution summed over instance types."""
         return class_marginal(self.state, self.n_classes)
+
+    @property
+    def declared(self) -> np.ndarray:
+        """The class belief as reported: ``belief`` ** ``declared_temperature``, renormalised
+        (the same argmax)."""
+        return declared_belief(self.belief, self.declared_temperature)
 
     def reset(self) -> None:
         self.state = self.prior.copy()
@@ -138,7 +153,9 @@ class RandomWalkPolicy:
 
     The belief is updated with ``observation_model`` (Eq. 5). Stop rule: declare the most likely
     class once the belief's maximum reaches ``belief_threshold``, after ``max_moves`` moves, or
-    when every neighbour has been visited.
+    when every neighbour has been visited. What it reports (``belief``) is that belief raised
+    to ``declared_temperature`` and renormalised (``evaluate.declared_confidence``); it stops
+    and declares by the belief itself.
     """
 
     def __init__(self, observation_model: np.ndarray, distance_m: np.ndarray,
@@ -146,7 +163,8 @@ class RandomWalkPolicy:
                  max_moves: int = 10, name: str = "Random", recogniser: str = "cnn",
                  first_view_model: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None) -> None:
+                 similarity: np.ndarray | None = None,
+                 declared_temperature: float = 1.0) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
         if max_moves < 0:
@@ -155,7 +173,7 @@ class RandomWalkPolicy:
         self.neighbours = k_nearest(distance_m, neighbours, allowed=reachable)
         self.belief_threshold, self.max_moves = float(belief_threshold), int(max_moves)
         self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity)
+                                  similarity, declared_temperature)
         self._visited: set[int] = set()
         self._rng = np.random.default_rng()
 
@@ -170,7 +188,7 @@ class RandomWalkPolicy:
 
     @property
     def belief(self) -> np.ndarray:
-        return self._bayes.belief
+        return self._bayes.declared
 
     def act(self, viewpoint: int) -> ARAction:
         belief = self._bayes.belief
@@ -193,7 +211,9 @@ class POMDPPolicy:
     best plan whose first move goes somewhere new (or declares). With ``lookahead_over`` (V,)
     bool, it acts by a lookahead on the policy's value over those viewpoints
     (:meth:`ActiveRecognitionPolicy.lookahead_act`, ``evaluate.lookahead``), one view deep
-    or, with ``lookahead_depth`` 2, two (``evaluate.lookahead_depth``).
+    or, with ``lookahead_depth`` 2, two (``evaluate.lookahead_depth``). It reports its belief
+    raised to ``declared_temperature`` and renormalised (``evaluate.declared_confidence``) and
+    acts on the belief itself.
     """
 
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
@@ -202,7 +222,8 @@ class POMDPPolicy:
                  lookahead_over: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
                  similarity: np.ndarray | None = None, lookahead_depth: int = 1,
-                 lookahead_width: int = LOOKAHEAD_WIDTH) -> None:
+                 lookahead_width: int = LOOKAHEAD_WIDTH,
+                 declared_temperature: float = 1.0) -> None:
         if lookahead_depth > 1 and discount is not None:
             raise ValueError(f"{name}: a depth-{lookahead_depth} lookahead needs a belief "
                              "whose model does not change with the views taken (observe.belief "
@@ -220,7 +241,7 @@ class POMDPPolicy:
         self.lookahead_over = lookahead_over
         self.lookahead_depth, self.lookahead_width = lookahead_depth, lookahead_width
         self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity)
+                                  similarity, declared_temperature)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
     def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
@@ -233,7 +254,7 @@ class POMDPPolicy:
 
     @property
     def belief(self) -> np.ndarray:
-        return self._bayes.belief
+        return self._bayes.declared
 
     def act(self, viewpoint: int) -> ARAction:
         forbidden = None if self.revisit else self._visited

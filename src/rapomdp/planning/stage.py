@@ -18,7 +18,12 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
-from rapomdp.awareness.artefacts import FIRST_VIEW_PREFIX, OBSERVATION_FILE, PRIOR_PREFIX
+from rapomdp.awareness.artefacts import (
+    DECLARED_PREFIX,
+    FIRST_VIEW_PREFIX,
+    OBSERVATION_FILE,
+    PRIOR_PREFIX,
+)
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.io import load_npz
@@ -49,6 +54,21 @@ def observation_priors(observe_dir: Path, offered: dict[str, np.ndarray]
     ``observe.belief: nuisance``), None (uniform over the classes) for the others."""
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     return {name: observe.get(f"{PRIOR_PREFIX}{name}") for name in offered}
+
+
+def declared_temperatures(observe_dir: Path, offered: dict[str, np.ndarray],
+                          vptree_dir: Path | None = None) -> dict[str, float]:
+    """Each ``offered`` model's declared-confidence temperature (the observe stage's
+    ``declared_temperature_<name>``, the vptree stage's ``declared_temperature``): what a
+    policy with that belief reports is its belief ** a. 1 where none was fitted (one held-out
+    group, a view discount's belief)."""
+    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
+    vptree: dict[str, np.ndarray] = (load_npz(Path(vptree_dir) / VPTREE_FILE)
+                                     if vptree_dir is not None else {})
+    found = {name: observe.get(f"{DECLARED_PREFIX}{name}") for name in offered}
+    if "vptree" in offered:
+        found["vptree"] = vptree.get("declared_temperature")
+    return {name: 1.0 if a is None else float(np.asarray(a)) for name, a in found.items()}
 
 
 def offered_observation_models(observe_dir: Path, vptree_dir: Path | None = None

@@ -355,3 +355,122 @@ def walk_calibration(temperature: float, models: Sequence[np.ndarray], row_model
             report[f"belief_{step}_{label}"] = float(confidence.mean())
             report[f"accuracy_{step}"] = float(right.mean())
     return report
+
+
+# -- the declared confidence: calibrated where episodes stop ---------------------------------
+
+DECLARED_STOP_THRESHOLDS = (0.5, 0.7, 0.8, 0.9, 0.95, 0.99)
+"""The max beliefs at which held-out walks are stopped to fit the declared confidence: a range
+of stopping rules, since a POMDP declares at beliefs its λ decides."""
+DECLARED_WALK_LENGTH = 11
+"""Views per held-out walk the declared confidence is fitted on (Random's default budget of 10
+moves after the first view)."""
+
+
+def stop_steps(log_beliefs: np.ndarray, threshold: float) -> np.ndarray:
+    """(E,) each walk's stop: the first step whose max belief reaches ``threshold``, else the
+    last (``log_beliefs`` (E, L, C))."""
+    reached = np.exp(np.asarray(log_beliefs)).max(axis=2) >= threshold
+    reached[:, -1] = True
+    return reached.argmax(axis=1)
+
+
+def stopped_log_beliefs(log_beliefs: np.ndarray,
+                        thresholds: Sequence[float] = DECLARED_STOP_THRESHOLDS
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """The log beliefs (E·T, C) where the walks (E, L, C) stop under each threshold (T of
+    them, threshold-major) and each stop's walk (E·T,)."""
+    walks = np.arange(log_beliefs.shape[0])
+    finals = [log_beliefs[walks, stop_steps(log_beliefs, t)] for t in thresholds]
+    return np.concatenate(finals), np.tile(walks, len(thresholds))
+
+
+def declared_log_beliefs(log_beliefs: np.ndarray, temperature: float) -> np.ndarray:
+    """log b' with b' ∝ b ** ``temperature`` over the last axis: the declared confidence's
+    form. The argmax is b's (a temperature > 0 keeps the order of the classes)."""
+    scaled = temperature * np.asarray(log_beliefs, dtype=np.float64)
+    return scaled - logsumexp(scaled, axis=-1, keepdims=True)
+
+
+def declared_belief(belief: np.ndarray, temperature: float) -> np.ndarray:
+    """The belief reported for a class belief (C,) (or beliefs (..., C)) after its views:
+    b ** t renormalised (t = 1: the belief itself). The policy acts on the belief; only what
+    it reports is calibrated (:func:`fit_declared_temperature`)."""
+    b = np.asarray(belief, dtype=np.float64)
+    if temperature == 1.0:
+        return b
+    return np.exp(declared_log_beliefs(np.log(np.maximum(b, 1e-300)), temperature))
+
+
+def _declared_log_loss(temperature: float, log_beliefs: np.ndarray, true: np.ndarray) -> float:
+    declared = declared_log_beliefs(log_beliefs, temperature)
+    return float(-declared[np.arange(len(true)), true].mean())
+
+
+def fit_declared_temperature(log_beliefs: np.ndarray, true: np.ndarray,
+                             bounds: tuple[float, float] = TEMPERATURE_BOUNDS) -> float:
+    """The temperature a that minimises the mean −log b'(true class) of the declared beliefs
+    b' ∝ b ** a over stopped beliefs ``log_beliefs`` (M, C) (bounded 1-D search)."""
+    if len(true) == 0:
+        raise ValueError("no stopped beliefs to fit the declared confidence on")
+    result = minimize_scalar(_declared_log_loss, bounds=bounds, method="bounded",
+                             args=(np.asarray(log_beliefs, dtype=np.float64),
+                                   np.asarray(true)), options={"xatol": 1e-3})
+    return float(result.x)
+
+
+@dataclass(frozen=True)
+class DeclaredConfidence:
+    """The declared-confidence temperature of one model and what held out says of it:
+    ``temperature`` fitted on every group's stopped walks; per group (``groups``), the one
+    fitted on the other groups' (``held_out_temperatures``); pooled over the groups' stops, the
+    accuracy, the mean confidence and ECE of the belief (``confidence``, ``ece``) and of the
+    declared belief each group gets from the others' fit (``declared_confidence``,
+    ``declared_ece``). NaN for those without two groups."""
+
+    temperature: float
+    groups: tuple[int, ...]
+    held_out_temperatures: tuple[float, ...]
+    stops: int
+    accuracy: float
+    confidence: float
+    ece: float
+    declared_confidence: float
+    declared_ece: float
+
+    def to_dict(self) -> dict[str, object]:
+        return {"temperature": self.temperature, "groups": list(self.groups),
+                "held_out_temperatures": list(self.held_out_temperatures),
+                "stops": self.stops, "accuracy": self.accuracy,
+                "confidence": self.confidence, "ece": self.ece,
+                "declared_confidence": self.declared_confidence,
+                "declared_ece": self.declared_ece}
+
+
+def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
+                        thresholds: Sequence[float] = DECLARED_STOP_THRESHOLDS
+                        ) -> DeclaredConfidence:
+    """Fit the declared confidence on held-out walks' log beliefs (E, L, C) of true classes
+    ``true`` (E,), each walk of group ``groups`` (E,), stopped at every threshold; and score it
+    leave-one-group-out (each group's stops by the temperature the other groups' give)."""
+    final, walk = stopped_log_beliefs(log_beliefs, thresholds)
+    labels, stop_group = np.asarray(true)[walk], np.asarray(groups)[walk]
+    temperature = fit_declared_temperature(final, labels)
+    right = final.argmax(axis=1) == labels
+    confidence = np.exp(final.max(axis=1))
+    names = tuple(int(g) for g in np.unique(stop_group))
+    held: list[float] = []
+    declared = np.full(len(labels), np.nan)
+    if len(names) >= 2:
+        for g in names:
+            mine = stop_group == g
+            a = fit_declared_temperature(final[~mine], labels[~mine])
+            held.append(a)
+            declared[mine] = np.exp(declared_log_beliefs(final[mine], a).max(axis=1))
+    ok = len(held) > 0
+    return DeclaredConfidence(
+        temperature, names if ok else (), tuple(held), int(len(labels)),
+        float(right.mean()), float(confidence.mean()),
+        expected_calibration_error(confidence, right),
+        float(declared.mean()) if ok else float("nan"),
+        expected_calibration_error(declared, right) if ok else float("nan"))

@@ -10,11 +10,13 @@ single-view accuracy on the test models at X_rho.
 
 ``W/vptree/``: ``vocabulary_tree.npz`` (the classifier), ``observation_model.npz`` with
 ``vptree`` (V, C, C) the tempered model (the planner's and the belief's), ``untempered`` the
-raw confusion, ``temperature``, ``classes`` and the held-out evidence it was fitted on
+raw confusion, ``temperature``, ``declared_temperature`` (what the belief reports after its
+views is b ** a: a fitted where longer held-out walks stop; absent without two held-out
+groups), ``classes`` and the held-out evidence it was fitted on
 (``volume_labels`` (M,), ``volume_predictions`` (M, V), ``volume_groups`` (M,)), and
 ``vptree.json`` (classes, train_images, descriptors_fit, leaves, accuracy_test_xrho,
 accuracy_volume_xrho, belief_correction, temperature, temperature_note, held_out_belief,
-seconds).
+declared_confidence, seconds).
 """
 
 from __future__ import annotations
@@ -44,12 +46,16 @@ from rapomdp.recognition.artefacts import (
     VPTREE_SUMMARY_FILE,
 )
 from rapomdp.recognition.belief import (
+    DECLARED_WALK_LENGTH,
+    DeclaredConfidence,
+    declared_confidence,
     fit_temperature,
     fold_of_rows,
     held_out_groups,
     held_out_walks,
     temper,
     walk_calibration,
+    walk_log_beliefs,
 )
 from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.recognition.vocabulary_tree import DescriptorParams, VocabularyTreeClassifier
@@ -133,6 +139,7 @@ class VPTreeObservation:
     temperature: float = 1.0
     held_out_belief: dict[str, float] = field(default_factory=dict)
     note: str | None = None
+    declared: DeclaredConfidence | None = None
 
 
 def vptree_observation(labels: np.ndarray, predicted: np.ndarray, groups: np.ndarray,
@@ -157,7 +164,12 @@ def vptree_observation(labels: np.ndarray, predicted: np.ndarray, groups: np.nda
     walks, walk_row = held_out_walks(row_model, directions, rng)
     t = fit_temperature(models, row_model, labels, predicted, walks, walk_row)
     report = walk_calibration(t, models, row_model, labels, predicted, walks, walk_row)
-    return VPTreeObservation(temper(raw, t), raw, t, report)
+    # the declared confidence: fitted where longer held-out walks stop (as the observe stage's)
+    long_walks, long_row = held_out_walks(row_model, directions, rng, DECLARED_WALK_LENGTH)
+    declared = declared_confidence(
+        walk_log_beliefs(t, models, row_model, predicted, long_walks, long_row),
+        labels[long_row], row_model[long_row])
+    return VPTreeObservation(temper(raw, t), raw, t, report, declared=declared)
 
 
 def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
@@ -198,6 +210,8 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     save_npz(out / VPTREE_OBSERVATION_FILE, **{VPTREE_MODEL_NAME: observation.model},
              untempered=observation.untempered,
              temperature=np.array(observation.temperature),
+             **({"declared_temperature": np.array(observation.declared.temperature)}
+                if observation.declared is not None else {}),
              classes=np.array(dataset.classes),
              volume_labels=volume_labels, volume_predictions=volume_pred,
              volume_groups=volume_groups)
@@ -217,6 +231,8 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
         "temperature": observation.temperature,
         "temperature_note": observation.note,
         "held_out_belief": observation.held_out_belief,
+        "declared_confidence": (observation.declared.to_dict()
+                                if observation.declared is not None else None),
         "seconds": seconds,
     })
 
