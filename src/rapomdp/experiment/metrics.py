@@ -256,6 +256,18 @@ BELIEF_CALIBRATION_HEADER = ["Method", "Accuracy", "Belief in the true class", "
                              "Confidence − accuracy", "ECE"]
 
 
+def reported_belief_note(declared_confidence: str) -> str:
+    """What the methods' final beliefs in the calibration table are, per
+    ``evaluate.declared_confidence``."""
+    if declared_confidence == "calibrated":
+        return ("Random and the POMDP methods report their belief raised to the declared-"
+                "confidence temperature of its model (fitted where held-out walks stop; their "
+                "actions are the belief's: evaluate.declared_confidence), Static the "
+                "classifier's softmax at its held-out temperature.")
+    return ("Every method reports the belief it acts on (evaluate.declared_confidence: "
+            "belief), Static the classifier's softmax at its held-out temperature.")
+
+
 def belief_calibration_cells(table: EpisodeTable) -> tuple[list[str], list[list[str]]]:
     """Every method's final belief against its accuracy: the mean belief in the true class, the
     mean confidence (the belief in the declared class, which a calibrated belief's accuracy

@@ -18,7 +18,11 @@ from pathlib import Path
 from rapomdp.config import Config
 from rapomdp.data.dataset import load_dataset, role_count_lines
 from rapomdp.experiment.episode_table import EPISODES_FILE, SUMMARY_FILE, EpisodeTable
-from rapomdp.experiment.metrics import belief_calibration_cells, table1_story
+from rapomdp.experiment.metrics import (
+    belief_calibration_cells,
+    reported_belief_note,
+    table1_story,
+)
 from rapomdp.experiment.report import evaluation_summaries, figure_class
 from rapomdp.io import (
     atomic_path,
@@ -98,8 +102,10 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
                   "(test model, start) pairs):", "", _read(evaluate / "tradeoff.md"), "",
                   f"![Accuracy against energy]({figures_link}/demo_tradeoff.png)", ""]
     if episodes is not None:
+        declared = workspace.config(default=Config()).evaluate.declared_confidence
         lines += ["**Calibration of the final belief** (confidence: the belief in the declared "
-                  "class, which a calibrated belief's accuracy equals; ECE over 10 bins):", "",
+                  "class, which a calibrated belief's accuracy equals; ECE over 10 bins). "
+                  + reported_belief_note(declared), "",
                   markdown_table(*belief_calibration_cells(episodes)).strip(), ""]
     lines += ["**Self-awareness** (observation models on the test models):", "",
               _read(workspace.require("observe") / "quality.md"), "",

@@ -67,6 +67,7 @@ from rapomdp.experiment.metrics import (
     per_class,
     per_class_cells,
     read_tradeoff_csv,
+    reported_belief_note,
     table1,
     table1_cells,
     table1_story,
@@ -468,7 +469,7 @@ def _awareness(b: _Builder, config: Config, inputs: StageInputs, class_name: str
              "Calibration: the classifier's accuracy per viewpoint-score bin on the held-out "
              "evidence (which RA variant is RA-POMDP's model could not be read).",
              observe_how)
-    _self_awareness(b, inputs, class_name, observe_how)
+    _self_awareness(b, inputs, class_name, observe_how, config.evaluate.declared_confidence)
 
 
 def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
@@ -543,7 +544,8 @@ def _identical_rows(observe: Path, choice: RAChoice | None) -> str:
     return ("Equal rows: " + "; ".join(parts) + ".") if parts else ""
 
 
-def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str) -> None:
+def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
+                    declared_confidence: str) -> None:
     """Predicted vs observed P(correct), one class's hemispheres and the calibration of every
     method's final belief."""
     from rapomdp.awareness.report import AWARENESS_RELIABILITY, write_awareness_figures
@@ -564,10 +566,12 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str)
                        f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
     episodes = inputs.evaluate / EPISODES_FILE
     if episodes.exists():
-        _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate)
+        _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate,
+                            declared_confidence)
 
 
-def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> None:
+def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path,
+                        declared_confidence: str) -> None:
     """Every method's final belief against its accuracy (:func:`belief_calibration_cells`) and
     the reliability of its confidence."""
     from rapomdp.awareness.figures import reliability_figure
@@ -580,7 +584,8 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> Non
     b.add(Paragraph("Calibration of every method's final belief in the closed loop on the test "
                     "models: the mean belief in the true class; the confidence (the belief in "
                     "the declared class), which a calibrated belief's accuracy equals; ECE of "
-                    "the confidence over 10 equal-width bins:"))
+                    "the confidence over 10 equal-width bins. "
+                    + reported_belief_note(declared_confidence)))
     b.add(Table(*belief_calibration_cells(table)))
     figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
                                 xlabel="final belief in the declared class",
