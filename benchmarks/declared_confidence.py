@@ -15,7 +15,13 @@ parent folder's name, as a study lays them out) this prints:
    final belief is raised to its model's a (or, when the evaluate stage already reported
    declared beliefs, taken back to the belief by 1 / a).
 
-    python benchmarks/declared_confidence.py -w W [W ...]
+3. With ``--candidates``, the second round's candidates
+   (``benchmarks/results/declared_confidence_rule_v2.md``), held out only: each workspace's
+   observe stage is computed again (not written) and its walks fitted by the log loss of the
+   true class (A, round one's) and by the confidence's cross-entropy (B), pooled over the
+   thresholds and at Random's own threshold (C); then the rule.
+
+    python benchmarks/declared_confidence.py -w W [W ...] [--candidates]
 """
 
 from __future__ import annotations
@@ -26,10 +32,23 @@ from pathlib import Path
 
 import numpy as np
 
+from rapomdp.awareness.evidence import held_out_declared_confidence
+from rapomdp.awareness.stage import observe_inputs
+from rapomdp.data.dataset import load_dataset
+from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import read_json
+from rapomdp.pipeline import get_stage
 from rapomdp.planning.stage import declared_temperatures, offered_observation_models
-from rapomdp.recognition.belief import declared_belief, expected_calibration_error
+from rapomdp.recognition.belief import (
+    TEMPERATURE_NEIGHBOURS,
+    TEMPERATURE_WALKS_PER_ROW,
+    DeclaredConfidence,
+    declared_belief,
+    expected_calibration_error,
+)
+from rapomdp.workspace import Workspace
 
 RULE_MODELS = ("ra", "classifier")
 #: The model whose belief each method reports (Random's: evaluate.random.observation_model).
@@ -72,9 +91,69 @@ def test_rows(workspace: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.nda
     return rows
 
 
+def candidates(workspace: Path) -> dict[str, dict[str, DeclaredConfidence]]:
+    """Per criterion, per model (RA-POMDP's and the Classifier), the declared confidence fitted
+    on the observe stage's own held-out walks (the stage's seed)."""
+    ws = Workspace(workspace)
+    config = ws.config()
+    inputs = ws.inputs(get_stage("observe"))
+    result = observe_inputs(config, inputs, load_dataset(inputs.dataset), threads=1,
+                            progress=False)
+    directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
+    out = {}
+    for criterion in ("log_loss", "confidence"):
+        fits = held_out_declared_confidence(
+            result.evidence, result.belief_folds, result.temperatures, result.corrections,
+            directions, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+            class_seed(config.seed, "observe/declared"), criterion)
+        out[criterion] = {"ra": fits[f"ra_{result.ra_variant}"],
+                          "classifier": fits["classifier"]}
+    return out
+
+
+def run_candidates(by_config: dict[str, list[Path]], random_threshold: float) -> None:
+    print("\n3) second round, held out (leave-one-group-out ECE at the stops; mean of seeds)")
+    ece: dict[tuple[str, str, str], list[float]] = defaultdict(list)
+    at_random: dict[tuple[str, str], list[tuple[float, float]]] = defaultdict(list)
+    for config, workspaces in by_config.items():
+        for w in workspaces:
+            fits = candidates(w)
+            for criterion, models in fits.items():
+                for model, fit in models.items():
+                    ece[config, criterion, model].append(fit.declared_ece)
+                    k = fit.thresholds.index(random_threshold)
+                    print(f"{str(w):44s} {criterion:10s} {model:10s} a {fit.temperature:.3f} "
+                          f"ECE belief {fit.ece:.3f} declared {fit.declared_ece:.3f} | at "
+                          f"{random_threshold:g}: a {fit.threshold_temperatures[k]:.3f} ECE "
+                          f"belief {fit.threshold_ece[k]:.3f} pooled a "
+                          f"{fit.threshold_declared_ece[k]:.3f} own a "
+                          f"{fit.threshold_own_ece[k]:.3f}")
+                    if model == "classifier":
+                        at_random[config, criterion].append(
+                            (fit.threshold_declared_ece[k], fit.threshold_own_ece[k]))
+    means = {key: float(np.mean(v)) for key, v in ece.items()}
+    for key, value in sorted(means.items()):
+        print(f"  {key[0]:24s} {key[1]:10s} {key[2]:10s} held-out ECE {value:.3f}")
+    b_wins = all(means[c, "confidence", m] < means[c, "log_loss", m]
+                 for c in by_config for m in RULE_MODELS)
+    kept = "confidence" if b_wins else "log_loss"
+    print(f"rule 1 (B's ECE below A's for {' and '.join(RULE_MODELS)} on every set): "
+          f"{'met: B' if b_wins else 'not met: A stays'}")
+    own_wins = True
+    for c in by_config:
+        pooled, own = np.mean(at_random[c, kept], axis=0)
+        own_wins &= bool(own < pooled)
+        print(f"  {c:24s} {kept:10s} classifier at {random_threshold:g}: ECE pooled a "
+              f"{pooled:.3f}, own a {own:.3f}")
+    print(f"rule 2 (Random's own threshold's a, ECE below the pooled a's on every set): "
+          f"{'met: C' if own_wins else 'not met: the pooled a'}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workspace", "-w", type=Path, nargs="+", required=True)
+    parser.add_argument("--candidates", action="store_true",
+                        help="the second round's candidates, held out (recomputes observe)")
     args = parser.parse_args()
     by_config: dict[str, list[Path]] = defaultdict(list)
     for w in args.workspace:
@@ -123,6 +202,12 @@ def main() -> None:
                   f"{expected_calibration_error(belief, right):6.3f} "
                   f"{declared.mean() - right.mean():+13.3f} "
                   f"{expected_calibration_error(declared, right):6.3f}   {per_seed}")
+    if args.candidates:
+        thresholds = {Workspace(w).config().evaluate.random.belief_threshold
+                      for w in args.workspace}
+        if len(thresholds) != 1:
+            raise SystemExit(f"the workspaces' Random thresholds differ: {sorted(thresholds)}")
+        run_candidates(by_config, thresholds.pop())
 
 
 if __name__ == "__main__":

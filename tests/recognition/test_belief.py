@@ -280,3 +280,26 @@ def test_declared_confidence_is_scored_leave_one_group_out():
     alone = declared_confidence(tripled, true, np.zeros(len(true), np.int64))
     assert alone.groups == () and alone.held_out_temperatures == ()
     assert np.isnan(alone.declared_ece) and alone.temperature == pytest.approx(fit.temperature)
+
+
+def test_either_criterion_and_every_threshold_undo_a_planted_overconfidence():
+    rng = np.random.default_rng(13)
+    log_belief, true = _posterior_walks(rng)
+    tripled = 3.0 * log_belief
+    tripled -= logsumexp(tripled, axis=2, keepdims=True)
+    final, walk = stopped_log_beliefs(tripled)
+    assert fit_declared_temperature(final, true[walk], criterion="confidence") == \
+        pytest.approx(1 / 3, abs=0.06)
+    with pytest.raises(ValueError, match="criterion must be one of log_loss, confidence"):
+        fit_declared_temperature(final, true[walk], criterion="brier")
+    fit = declared_confidence(tripled, true, np.arange(len(true)) % 3, criterion="confidence")
+    assert fit.criterion == "confidence"
+    assert fit.thresholds == DECLARED_STOP_THRESHOLDS
+    # a Bayes posterior is calibrated at any stop, so every threshold's own fit is ~1/3 too
+    assert all(abs(a - 1 / 3) < 0.08 for a in fit.threshold_temperatures)
+    assert all(own < belief for own, belief in zip(fit.threshold_own_ece, fit.threshold_ece,
+                                                   strict=True))
+    low, high = fit.threshold_temperatures[2], fit.threshold_temperatures[3]  # 0.8, 0.9
+    assert fit.temperature_at(0.85) == pytest.approx((low + high) / 2)
+    assert fit.temperature_at(0.999) == fit.threshold_temperatures[-1]
+    assert fit.to_dict()["thresholds"] == list(DECLARED_STOP_THRESHOLDS)

@@ -832,12 +832,14 @@ def held_out_declared_confidence(evidence: Evidence,
                                  temperatures: Mapping[str, float],
                                  corrections: Mapping[str, str], directions: np.ndarray,
                                  starts_per_row: int, neighbours: int,
-                                 rng: np.random.Generator) -> dict[str, DeclaredConfidence]:
+                                 rng: np.random.Generator, criterion: str = "log_loss"
+                                 ) -> dict[str, DeclaredConfidence]:
     """Per model, the declared confidence fitted where held-out walks stop
     (:func:`~rapomdp.recognition.belief.declared_confidence`): each group's walks of
     ``DECLARED_WALK_LENGTH`` views updated by the models fitted without it, with the belief's
     own correction (``temperatures``; ``after_first``: the first view in full). A view
     discount's belief (``similarity``) depends on the views taken and is not fitted here.
+    ``criterion``: what a minimises (:data:`~rapomdp.recognition.belief.DECLARED_CRITERIA`).
     Empty without folds."""
     if not folds:
         return {}
@@ -856,5 +858,5 @@ def held_out_declared_confidence(evidence: Evidence,
             temperatures.get(name, 1.0), models, row_model, evidence.predicted, walks,
             walk_row, 1.0 if correction == "after_first" else None, priors)
         fitted[name] = declared_confidence(log_beliefs, evidence.labels[walk_row],
-                                           row_model[walk_row])
+                                           row_model[walk_row], criterion=criterion)
     return fitted

@@ -336,6 +336,10 @@ class Observation:
     discount_kernel: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     wrong_labels: dict[str, ShrinkageChoice] = field(default_factory=dict)
     declared: dict[str, DeclaredConfidence] = field(default_factory=dict)
+    #: Each held-out group's rows and the belief's models fitted without it (the walks'
+    #: models: the temperature's and the declared confidence's).
+    belief_folds: list[tuple[np.ndarray, dict[str, ObservationModel]]] = field(
+        default_factory=list)
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -539,7 +543,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                         "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
                        softmax_t, kernel, kernel_grid,
                        {name: nm.to_dict() for name, nm in nuisance.items()}, choice,
-                       discounts, discount_kernel, shrinkage, declared)
+                       discounts, discount_kernel, shrinkage, declared, belief_folds)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -642,6 +646,21 @@ def run_crossfit_stage(config: Config, inputs: StageInputs, out: Path,
     })
 
 
+def observe_inputs(config: Config, inputs: StageInputs, dataset: Dataset,
+                   threads: int | None = None, progress: bool = True) -> Observation:
+    """:func:`observe` on a workspace's stage folders (what the observe stage computes)."""
+    classifier = load_stage_classifier(config, inputs.train, dataset.classes, threads)
+    volumes = {name: SaliencyVolume.load(inputs.volume / volume_file(name))
+               for name in dataset.classes}
+    crossfit = (CrossfitOutcomes.load(inputs.crossfit / CROSSFIT_FILE)
+                if inputs.crossfit_dir is not None else None)
+    views = (load_training_views(inputs.render, inputs.dataset)
+             if inputs.render_dir is not None else None)
+    return observe(config, dataset, classifier, volumes, crossfit=crossfit, views=views,
+                   progress=progress,
+                   source=stored_outcomes(inputs.xrho, inputs.classifier_eval, dataset))
+
+
 def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                       context: RunContext) -> None:
     """Viewpoint scores, the RA variants / Classifier / black-box observation models fitted on
@@ -649,17 +668,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
     from rapomdp.awareness.figures import calibration_figure, calibration_score
 
     dataset = load_dataset(inputs.dataset)
-    classifier = load_stage_classifier(config, inputs.train, dataset.classes,
-                                       context.threads)
-    volumes = {name: SaliencyVolume.load(inputs.volume / volume_file(name))
-               for name in dataset.classes}
-    crossfit = (CrossfitOutcomes.load(inputs.crossfit / CROSSFIT_FILE)
-                if inputs.crossfit_dir is not None else None)
-    views = (load_training_views(inputs.render, inputs.dataset)
-             if inputs.render_dir is not None else None)
-    result = observe(config, dataset, classifier, volumes, crossfit=crossfit, views=views,
-                     progress=context.progress,
-                     source=stored_outcomes(inputs.xrho, inputs.classifier_eval, dataset))
+    result = observe_inputs(config, inputs, dataset, context.threads, context.progress)
     write_quality(result.quality, out / QUALITY_CSV, out / QUALITY_MD)
     if result.validation:
         write_quality(result.validation, out / VALIDATION_CSV, out / VALIDATION_MD)

@@ -402,33 +402,54 @@ def declared_belief(belief: np.ndarray, temperature: float) -> np.ndarray:
     return np.exp(declared_log_beliefs(np.log(np.maximum(b, 1e-300)), temperature))
 
 
-def _declared_log_loss(temperature: float, log_beliefs: np.ndarray, true: np.ndarray) -> float:
+DECLARED_CRITERIA = ("log_loss", "confidence")
+"""What the declared temperature minimises over the stops: ``log_loss``, the mean −log of the
+declared belief in the true class; ``confidence``, the binary cross-entropy of the declared
+confidence (the declared belief's maximum) against whether its argmax is the true class."""
+
+
+def _declared_loss(temperature: float, log_beliefs: np.ndarray, true: np.ndarray,
+                   criterion: str) -> float:
     declared = declared_log_beliefs(log_beliefs, temperature)
-    return float(-declared[np.arange(len(true)), true].mean())
+    if criterion == "log_loss":
+        return float(-declared[np.arange(len(true)), true].mean())
+    right = declared.argmax(axis=1) == true
+    log_confidence = np.minimum(declared.max(axis=1), -1e-12)
+    log_doubt = np.log(-np.expm1(log_confidence))  # log(1 − confidence), exact near 1
+    return float(-np.where(right, log_confidence, log_doubt).mean())
 
 
 def fit_declared_temperature(log_beliefs: np.ndarray, true: np.ndarray,
-                             bounds: tuple[float, float] = TEMPERATURE_BOUNDS) -> float:
-    """The temperature a that minimises the mean −log b'(true class) of the declared beliefs
-    b' ∝ b ** a over stopped beliefs ``log_beliefs`` (M, C) (bounded 1-D search)."""
+                             bounds: tuple[float, float] = TEMPERATURE_BOUNDS,
+                             criterion: str = "log_loss") -> float:
+    """The temperature a that minimises ``criterion`` (:data:`DECLARED_CRITERIA`) of the
+    declared beliefs b' ∝ b ** a over stopped beliefs ``log_beliefs`` (M, C) of true classes
+    ``true`` (M,) (bounded 1-D search)."""
+    if criterion not in DECLARED_CRITERIA:
+        raise ValueError(f"criterion must be one of {', '.join(DECLARED_CRITERIA)}, got "
+                         f"{criterion!r}")
     if len(true) == 0:
         raise ValueError("no stopped beliefs to fit the declared confidence on")
-    result = minimize_scalar(_declared_log_loss, bounds=bounds, method="bounded",
+    result = minimize_scalar(_declared_loss, bounds=bounds, method="bounded",
                              args=(np.asarray(log_beliefs, dtype=np.float64),
-                                   np.asarray(true)), options={"xatol": 1e-3})
+                                   np.asarray(true), criterion), options={"xatol": 1e-3})
     return float(result.x)
 
 
 @dataclass(frozen=True)
 class DeclaredConfidence:
     """The declared-confidence temperature of one model and what held out says of it:
-    ``temperature`` fitted on every group's stopped walks; per group (``groups``), the one
-    fitted on the other groups' (``held_out_temperatures``); pooled over the groups' stops, the
-    accuracy, the mean confidence and ECE of the belief (``confidence``, ``ece``) and of the
-    declared belief each group gets from the others' fit (``declared_confidence``,
-    ``declared_ece``). NaN for those without two groups."""
+    ``temperature`` fitted on every group's stops (every threshold pooled) by ``criterion``;
+    per group (``groups``), the one fitted on the other groups' (``held_out_temperatures``);
+    pooled over the groups' stops, the accuracy, the mean confidence and ECE of the belief
+    (``confidence``, ``ece``) and of the declared belief each group gets from the others' fit
+    (``declared_confidence``, ``declared_ece``). Per threshold (``thresholds``): the a fitted on
+    that threshold's stops alone (``threshold_temperatures``) and, held out, the ECE at those
+    stops of the belief, of the pooled fit and of the threshold's own fit (``threshold_ece``,
+    ``threshold_declared_ece``, ``threshold_own_ece``). NaN where there are not two groups."""
 
     temperature: float
+    criterion: str
     groups: tuple[int, ...]
     held_out_temperatures: tuple[float, ...]
     stops: int
@@ -437,40 +458,70 @@ class DeclaredConfidence:
     ece: float
     declared_confidence: float
     declared_ece: float
+    thresholds: tuple[float, ...] = ()
+    threshold_temperatures: tuple[float, ...] = ()
+    threshold_ece: tuple[float, ...] = ()
+    threshold_declared_ece: tuple[float, ...] = ()
+    threshold_own_ece: tuple[float, ...] = ()
 
     def to_dict(self) -> dict[str, object]:
-        return {"temperature": self.temperature, "groups": list(self.groups),
-                "held_out_temperatures": list(self.held_out_temperatures),
-                "stops": self.stops, "accuracy": self.accuracy,
-                "confidence": self.confidence, "ece": self.ece,
-                "declared_confidence": self.declared_confidence,
-                "declared_ece": self.declared_ece}
+        return {name: (list(value) if isinstance(value, tuple) else value)
+                for name, value in self.__dict__.items()}
+
+    def temperature_at(self, threshold: float) -> float:
+        """The a fitted on the stops of ``threshold`` (interpolated between the fitted
+        thresholds, the nearest beyond them)."""
+        if not self.thresholds:
+            return self.temperature
+        return float(np.interp(threshold, self.thresholds, self.threshold_temperatures))
 
 
 def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
-                        thresholds: Sequence[float] = DECLARED_STOP_THRESHOLDS
-                        ) -> DeclaredConfidence:
+                        thresholds: Sequence[float] = DECLARED_STOP_THRESHOLDS,
+                        criterion: str = "log_loss") -> DeclaredConfidence:
     """Fit the declared confidence on held-out walks' log beliefs (E, L, C) of true classes
-    ``true`` (E,), each walk of group ``groups`` (E,), stopped at every threshold; and score it
-    leave-one-group-out (each group's stops by the temperature the other groups' give)."""
+    ``true`` (E,), each walk of group ``groups`` (E,), stopped at every threshold (pooled, and
+    each threshold alone); and score it leave-one-group-out (each group's stops by the
+    temperature the other groups' give)."""
     final, walk = stopped_log_beliefs(log_beliefs, thresholds)
     labels, stop_group = np.asarray(true)[walk], np.asarray(groups)[walk]
-    temperature = fit_declared_temperature(final, labels)
+    at = np.repeat(np.arange(len(thresholds)), len(true))  # each stop's threshold
     right = final.argmax(axis=1) == labels
     confidence = np.exp(final.max(axis=1))
     names = tuple(int(g) for g in np.unique(stop_group))
+
+    def fit(rows: np.ndarray) -> float:
+        return fit_declared_temperature(final[rows], labels[rows], criterion=criterion)
+
+    temperature = fit(np.ones(len(labels), dtype=bool))
+    own = tuple(fit(at == k) for k in range(len(thresholds)))
     held: list[float] = []
     declared = np.full(len(labels), np.nan)
+    declared_own = np.full(len(labels), np.nan)
     if len(names) >= 2:
         for g in names:
             mine = stop_group == g
-            a = fit_declared_temperature(final[~mine], labels[~mine])
+            a = fit(~mine)
             held.append(a)
             declared[mine] = np.exp(declared_log_beliefs(final[mine], a).max(axis=1))
+            for k in range(len(thresholds)):
+                rows = mine & (at == k)
+                a_k = fit(~mine & (at == k))
+                declared_own[rows] = np.exp(declared_log_beliefs(final[rows], a_k).max(axis=1))
     ok = len(held) > 0
+    nan = float("nan")
+
+    def ece(values: np.ndarray, rows: np.ndarray | None = None) -> float:
+        rows = np.ones(len(labels), dtype=bool) if rows is None else rows
+        return expected_calibration_error(values[rows], right[rows]) if ok else nan
+
+    per_threshold = [at == k for k in range(len(thresholds))]
     return DeclaredConfidence(
-        temperature, names if ok else (), tuple(held), int(len(labels)),
+        temperature, criterion, names if ok else (), tuple(held), int(len(labels)),
         float(right.mean()), float(confidence.mean()),
         expected_calibration_error(confidence, right),
-        float(declared.mean()) if ok else float("nan"),
-        expected_calibration_error(declared, right) if ok else float("nan"))
+        float(declared.mean()) if ok else nan, ece(declared),
+        tuple(float(t) for t in thresholds), own,
+        tuple(expected_calibration_error(confidence[r], right[r]) for r in per_threshold),
+        tuple(ece(declared, r) for r in per_threshold),
+        tuple(ece(declared_own, r) for r in per_threshold))
