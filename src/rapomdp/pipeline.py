@@ -155,8 +155,9 @@ STAGES: list[Stage] = [
         run=_deferred("observe"),
         sections=OBSERVE_SECTIONS,
         inputs=("dataset", "render", "train", "xrho", "classifier_eval", "volume", "crossfit"),
-        version="3",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence; 3: the
-        # declared confidence fitted where held-out walks stop
+        version="4",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence; 3: the
+        # declared confidence fitted where held-out walks stop; 4: by the confidence's
+        # cross-entropy, and at each stop threshold
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
     Stage(
@@ -164,7 +165,8 @@ STAGES: list[Stage] = [
         run=_deferred("vptree"),
         sections=VPTREE_SECTIONS,
         inputs=("dataset", "render", "xrho"),
-        version="2",  # 2: the declared confidence fitted where held-out walks stop
+        version="3",  # 2: the declared confidence fitted where held-out walks stop; 3: by the
+        # confidence's cross-entropy, and at each stop threshold
         description="VP-tree baseline: vocabulary-tree classifier, its confusion P(o | class, x)",
     ),
     Stage(

@@ -368,6 +368,12 @@ def test_the_wrong_label_choice_is_recorded_per_model(workspace):
     run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
 
 
+def fit_thresholds() -> list[float]:
+    from rapomdp.recognition.belief import DECLARED_STOP_THRESHOLDS
+
+    return list(DECLARED_STOP_THRESHOLDS)
+
+
 def test_the_declared_confidence_is_fitted_per_model_and_recorded_with_its_held_out_score(
         workspace):
     data = load_npz(workspace.root / "observe" / "observation_models.npz")
@@ -376,8 +382,13 @@ def test_the_declared_confidence_is_fitted_per_model_and_recorded_with_its_held_
     assert set(declared) == set(MODELS)  # every model, "ra" its chosen variant's
     assert declared["ra"] == declared[f"ra_{record['ra_model']}"]
     groups = len(np.unique(data["evidence_groups"]))
+    assert data["declared_thresholds"].tolist() == fit_thresholds()
     for name, fit in declared.items():
+        assert fit["criterion"] == "confidence"  # chosen held out (docs/awareness.md §4.8)
         assert float(data[f"declared_temperature_{name}"]) == fit["temperature"]
+        assert data[f"declared_threshold_temperatures_{name}"].tolist() == \
+            fit["threshold_temperatures"]
+        assert len(fit["threshold_own_ece"]) == len(fit_thresholds())
         assert 0.05 <= fit["temperature"] <= 2.0
         assert len(fit["held_out_temperatures"]) == len(fit["groups"]) == groups
         assert fit["stops"] == groups * 2 * 16 * 6  # rows a group x walks a row x thresholds

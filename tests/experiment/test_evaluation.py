@@ -310,21 +310,30 @@ def test_calibrated_declarations_change_what_is_reported_and_no_action(workspace
     assert config.evaluate.declared_confidence == "calibrated"  # chosen held out (§4.8)
     plain_config = config.model_copy(update={
         "evaluate": config.evaluate.model_copy(update={"declared_confidence": "belief"})})
-    plain = ClosedLoop.load(plain_config, _inputs(ws))
+    plain = ClosedLoop.load(plain_config, _inputs(ws), sweep_dir=ws.require("evaluate") / "sweep")
     fitted = {"classifier": 0.5, "ra": 0.25, "vptree": 0.8}
-    monkeypatch.setattr(evaluation, "declared_temperatures",
-                        lambda observe, offered, vptree: {n: fitted.get(n, 1.0) for n in offered})
-    calibrated = ClosedLoop.load(config, _inputs(ws))
-    random_model = config.evaluate.random.observation_model
-    expected = {"random": fitted[random_model], **fitted}
+
+    def fake(observe, offered, vptree, stop_threshold=None):  # Random: its threshold's a
+        return {n: fitted.get(n, 1.0) if stop_threshold is None else stop_threshold / 2
+                for n in offered}
+
+    monkeypatch.setattr(evaluation, "declared_temperatures", fake)
+    sweep = ws.require("evaluate") / "sweep"
+    calibrated = ClosedLoop.load(config, _inputs(ws), sweep_dir=sweep)
+    expected = {}
     for key, method in calibrated.methods.items():
         if isinstance(method, StaticPolicy):
             continue
-        assert method._bayes.declared_temperature == expected[key.split("@")[0]], key
+        name = key.split("@")[0]
+        expected[key] = (method.belief_threshold / 2 if name == "random" else fitted[name])
+        assert method._bayes.declared_temperature == expected[key], key
         assert plain.methods[key]._bayes.declared_temperature == 1.0
+    thresholds = {m.belief_threshold for k, m in calibrated.methods.items()
+                  if k.startswith("random")}
+    assert len(thresholds) == 1 + len(config.evaluate.random_thresholds)  # the sweep's too
     model = plain.dataset.with_role("test")[0]
     for a, b in zip(plain.run_model(model), calibrated.run_model(model), strict=True):
         assert a.method == b.method and a.episode.actions == b.episode.actions
-        t = 1.0 if a.method == "static" else expected[a.method.split("@")[0]]
+        t = 1.0 if a.method == "static" else expected[a.method]
         tempered = a.episode.beliefs ** t
         assert np.allclose(b.episode.beliefs, tempered / tempered.sum(axis=1, keepdims=True))

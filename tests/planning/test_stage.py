@@ -170,7 +170,12 @@ def test_solve_stage_records_the_memory_note_and_refuses_what_cannot_fit(
 
 
 def test_declared_temperatures_are_read_per_model_and_default_to_one(tmp_path) -> None:
-    from rapomdp.awareness.artefacts import DECLARED_PREFIX, OBSERVATION_FILE
+    from rapomdp.awareness.artefacts import (
+        DECLARED_PREFIX,
+        DECLARED_THRESHOLD_PREFIX,
+        DECLARED_THRESHOLDS,
+        OBSERVATION_FILE,
+    )
     from rapomdp.planning.stage import declared_temperatures
     from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
 
@@ -178,10 +183,20 @@ def test_declared_temperatures_are_read_per_model_and_default_to_one(tmp_path) -
     (tmp_path / "vptree").mkdir()
     model = np.full((2, 2, 2), 0.5)
     save_npz(tmp_path / "observe" / OBSERVATION_FILE, ra=model, classifier=model,
-             **{f"{DECLARED_PREFIX}ra": np.array(0.4)})
+             **{f"{DECLARED_PREFIX}ra": np.array(0.4),
+                f"{DECLARED_THRESHOLD_PREFIX}ra": np.array([0.6, 0.5, 0.3]),
+                DECLARED_THRESHOLDS: np.array([0.5, 0.8, 0.9])})
     save_npz(tmp_path / "vptree" / VPTREE_OBSERVATION_FILE, vptree=model,
              declared_temperature=np.array(0.7))
     offered = {"ra": model, "classifier": model, "vptree": model}
     assert declared_temperatures(tmp_path / "observe", offered, tmp_path / "vptree") == {
         "ra": 0.4, "classifier": 1.0, "vptree": 0.7}
     assert declared_temperatures(tmp_path / "observe", {"ra": model}) == {"ra": 0.4}
+    # a policy stopping at a threshold: that threshold's a, interpolated, the ends held; the
+    # pooled a where a stage fitted no thresholds (the VP-tree here), 1 where it fitted none
+    at = declared_temperatures(tmp_path / "observe", offered, tmp_path / "vptree", 0.85)
+    assert at == pytest.approx({"ra": 0.4, "classifier": 1.0, "vptree": 0.7})
+    assert declared_temperatures(tmp_path / "observe", {"ra": model}, None, 0.99)["ra"] == \
+        pytest.approx(0.3)
+    assert declared_temperatures(tmp_path / "observe", {"ra": model}, None, 0.8)["ra"] == \
+        pytest.approx(0.5)

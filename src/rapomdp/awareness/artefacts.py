@@ -40,6 +40,11 @@ DISCOUNT_KERNEL = "view_discount_kernel"
 #: :data:`OBSERVATION_FILE`: what a policy reports is its belief ** a, renormalised, a fitted
 #: where held-out walks stop (``evaluate.declared_confidence``).
 DECLARED_PREFIX = "declared_temperature_"
+#: The stop thresholds the declared confidence was also fitted at one by one (T,), and each
+#: model's a at each (``declared_threshold_temperatures_<name>``, (T,)): a policy that stops at
+#: a belief threshold of its own (Random) reports with the a of that threshold.
+DECLARED_THRESHOLDS = "declared_thresholds"
+DECLARED_THRESHOLD_PREFIX = "declared_threshold_temperatures_"
 QUALITY_CSV = "quality.csv"
 QUALITY_MD = "quality.md"
 VALIDATION_CSV = "validation.csv"

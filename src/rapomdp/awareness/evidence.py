@@ -37,6 +37,7 @@ from rapomdp.config import ObserveConfig
 from rapomdp.geometry.viewsphere import geodesic_distance_matrix
 from rapomdp.io import load_npz, read_json
 from rapomdp.recognition.belief import (
+    DECLARED_CRITERION,
     DECLARED_WALK_LENGTH,
     DeclaredConfidence,
     ViewDiscount,
@@ -832,7 +833,8 @@ def held_out_declared_confidence(evidence: Evidence,
                                  temperatures: Mapping[str, float],
                                  corrections: Mapping[str, str], directions: np.ndarray,
                                  starts_per_row: int, neighbours: int,
-                                 rng: np.random.Generator, criterion: str = "log_loss"
+                                 rng: np.random.Generator,
+                                 criterion: str = DECLARED_CRITERION
                                  ) -> dict[str, DeclaredConfidence]:
     """Per model, the declared confidence fitted where held-out walks stop
     (:func:`~rapomdp.recognition.belief.declared_confidence`): each group's walks of

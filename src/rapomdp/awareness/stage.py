@@ -40,6 +40,8 @@ from rapomdp.awareness.artefacts import (
     CALIBRATION_FIGURE,
     CALIBRATION_FILE,
     DECLARED_PREFIX,
+    DECLARED_THRESHOLD_PREFIX,
+    DECLARED_THRESHOLDS,
     DISCOUNT_KERNEL,
     DISCOUNT_PREFIX,
     FIRST_VIEW_PREFIX,
@@ -113,6 +115,7 @@ from rapomdp.parallel import run_tasks
 from rapomdp.progress import track
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 from rapomdp.recognition.belief import (
+    DECLARED_STOP_THRESHOLDS,
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
     TEMPERATURE_WALKS_PER_ROW,
@@ -683,6 +686,10 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                 for name, d in result.discounts.items()},
              **{f"{DECLARED_PREFIX}{name}": np.array(d.temperature)
                 for name, d in result.declared.items()},
+             **{f"{DECLARED_THRESHOLD_PREFIX}{name}": np.array(d.threshold_temperatures)
+                for name, d in result.declared.items()},
+             **({DECLARED_THRESHOLDS: np.array(DECLARED_STOP_THRESHOLDS)}
+                if result.declared else {}),
              models=np.array(list(result.models)), classes=np.array(dataset.classes),
              temperatures=np.array([result.temperatures[n] for n in result.models]),
              **{f"{FIRST_VIEW_PREFIX}{name}": m.probabilities

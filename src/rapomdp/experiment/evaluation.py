@@ -139,10 +139,19 @@ class ClosedLoop:
         discounts = {name: ViewDiscount(float(d[0]), float(d[1]))
                      for name, d in discount_arrays.items()}
         cfg = config.evaluate
-        # what each belief reports after its views (evaluate.declared_confidence)
-        declared = (declared_temperatures(inputs.observe, observation, inputs.vptree_dir)
-                    if cfg.declared_confidence == "calibrated" else
-                    dict.fromkeys(observation, 1.0))
+        # what each belief reports after its views (evaluate.declared_confidence); Random
+        # stops at a belief threshold, so it reports with the a fitted at its threshold
+        calibrated = cfg.declared_confidence == "calibrated"
+        pooled = (declared_temperatures(inputs.observe, observation, inputs.vptree_dir)
+                  if calibrated else {})
+
+        def declared(name: str, stop_threshold: float | None = None) -> float:
+            if not calibrated:
+                return 1.0
+            if stop_threshold is None:
+                return pooled[name]
+            return declared_temperatures(inputs.observe, {name: observation[name]},
+                                         inputs.vptree_dir, stop_threshold)[name]
 
         def method(key: str, random_threshold: float, solve_dir: Path,
                    lambda_: float = config.solve.wrong_declaration_cost_m) -> Policy:
@@ -157,7 +166,7 @@ class ClosedLoop:
                                      METHOD_NAMES[key], first_view_model=first_view[name],
                                      prior=priors[name], discount=discounts.get(name),
                                      similarity=discount_kernel,
-                                     declared_temperature=declared[name])
+                                     declared_temperature=declared(name))
             if key == "static":
                 return StaticPolicy(METHOD_NAMES[key],
                                     softmax_temperature=load_softmax_temperature(inputs.observe))
@@ -171,7 +180,7 @@ class ClosedLoop:
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
                     METHOD_NAMES[key], first_view_model=first_view[name], prior=priors[name],
                     discount=discounts.get(name), similarity=discount_kernel,
-                    declared_temperature=declared[name])
+                    declared_temperature=declared(name, random_threshold))
             path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
@@ -184,7 +193,7 @@ class ClosedLoop:
                                similarity=discount_kernel,
                                lookahead_depth=cfg.lookahead_depth,
                                lookahead_width=cfg.lookahead_width,
-                               declared_temperature=declared[key])
+                               declared_temperature=declared(key))
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}

@@ -20,6 +20,8 @@ from rich.console import Console
 
 from rapomdp.awareness.artefacts import (
     DECLARED_PREFIX,
+    DECLARED_THRESHOLD_PREFIX,
+    DECLARED_THRESHOLDS,
     FIRST_VIEW_PREFIX,
     OBSERVATION_FILE,
     PRIOR_PREFIX,
@@ -57,18 +59,33 @@ def observation_priors(observe_dir: Path, offered: dict[str, np.ndarray]
 
 
 def declared_temperatures(observe_dir: Path, offered: dict[str, np.ndarray],
-                          vptree_dir: Path | None = None) -> dict[str, float]:
+                          vptree_dir: Path | None = None,
+                          stop_threshold: float | None = None) -> dict[str, float]:
     """Each ``offered`` model's declared-confidence temperature (the observe stage's
     ``declared_temperature_<name>``, the vptree stage's ``declared_temperature``): what a
-    policy with that belief reports is its belief ** a. 1 where none was fitted (one held-out
-    group, a view discount's belief)."""
+    policy with that belief reports is its belief ** a. With ``stop_threshold`` (a policy that
+    stops once its belief reaches it: Random), the a fitted at that threshold, interpolated
+    between the thresholds fitted (the pooled a where a stage fitted none). 1 where none was
+    fitted (one held-out group, a view discount's belief)."""
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     vptree: dict[str, np.ndarray] = (load_npz(Path(vptree_dir) / VPTREE_FILE)
                                      if vptree_dir is not None else {})
-    found = {name: observe.get(f"{DECLARED_PREFIX}{name}") for name in offered}
+    arrays = {name: (observe.get(f"{DECLARED_PREFIX}{name}"),
+                     observe.get(f"{DECLARED_THRESHOLD_PREFIX}{name}"),
+                     observe.get(DECLARED_THRESHOLDS)) for name in offered}
     if "vptree" in offered:
-        found["vptree"] = vptree.get("declared_temperature")
-    return {name: 1.0 if a is None else float(np.asarray(a)) for name, a in found.items()}
+        arrays["vptree"] = (vptree.get("declared_temperature"),
+                            vptree.get("declared_threshold_temperatures"),
+                            vptree.get("declared_thresholds"))
+    out = {}
+    for name, (pooled, per_threshold, thresholds) in arrays.items():
+        if pooled is None:
+            out[name] = 1.0
+        elif stop_threshold is None or per_threshold is None or thresholds is None:
+            out[name] = float(np.asarray(pooled))
+        else:
+            out[name] = float(np.interp(stop_threshold, thresholds, per_threshold))
+    return out
 
 
 def offered_observation_models(observe_dir: Path, vptree_dir: Path | None = None

@@ -406,6 +406,10 @@ DECLARED_CRITERIA = ("log_loss", "confidence")
 """What the declared temperature minimises over the stops: ``log_loss``, the mean −log of the
 declared belief in the true class; ``confidence``, the binary cross-entropy of the declared
 confidence (the declared belief's maximum) against whether its argmax is the true class."""
+DECLARED_CRITERION = "confidence"
+"""The criterion the stages fit with: chosen on held-out walks, the second round of
+``benchmarks/results/declared_confidence_rule_v2.md`` (lower held-out ECE than ``log_loss``
+for RA's and the Classifier's model on both development sets)."""
 
 
 def _declared_loss(temperature: float, log_beliefs: np.ndarray, true: np.ndarray,
@@ -421,7 +425,7 @@ def _declared_loss(temperature: float, log_beliefs: np.ndarray, true: np.ndarray
 
 def fit_declared_temperature(log_beliefs: np.ndarray, true: np.ndarray,
                              bounds: tuple[float, float] = TEMPERATURE_BOUNDS,
-                             criterion: str = "log_loss") -> float:
+                             criterion: str = DECLARED_CRITERION) -> float:
     """The temperature a that minimises ``criterion`` (:data:`DECLARED_CRITERIA`) of the
     declared beliefs b' ∝ b ** a over stopped beliefs ``log_beliefs`` (M, C) of true classes
     ``true`` (M,) (bounded 1-D search)."""
@@ -478,7 +482,7 @@ class DeclaredConfidence:
 
 def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
                         thresholds: Sequence[float] = DECLARED_STOP_THRESHOLDS,
-                        criterion: str = "log_loss") -> DeclaredConfidence:
+                        criterion: str = DECLARED_CRITERION) -> DeclaredConfidence:
     """Fit the declared confidence on held-out walks' log beliefs (E, L, C) of true classes
     ``true`` (E,), each walk of group ``groups`` (E,), stopped at every threshold (pooled, and
     each threshold alone); and score it leave-one-group-out (each group's stops by the

@@ -12,7 +12,8 @@ single-view accuracy on the test models at X_rho.
 ``vptree`` (V, C, C) the tempered model (the planner's and the belief's), ``untempered`` the
 raw confusion, ``temperature``, ``declared_temperature`` (what the belief reports after its
 views is b ** a: a fitted where longer held-out walks stop; absent without two held-out
-groups), ``classes`` and the held-out evidence it was fitted on
+groups) with ``declared_thresholds`` and ``declared_threshold_temperatures`` (a fitted at each
+stop threshold alone), ``classes`` and the held-out evidence it was fitted on
 (``volume_labels`` (M,), ``volume_predictions`` (M, V), ``volume_groups`` (M,)), and
 ``vptree.json`` (classes, train_images, descriptors_fit, leaves, accuracy_test_xrho,
 accuracy_volume_xrho, belief_correction, temperature, temperature_note, held_out_belief,
@@ -210,7 +211,10 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     save_npz(out / VPTREE_OBSERVATION_FILE, **{VPTREE_MODEL_NAME: observation.model},
              untempered=observation.untempered,
              temperature=np.array(observation.temperature),
-             **({"declared_temperature": np.array(observation.declared.temperature)}
+             **({"declared_temperature": np.array(observation.declared.temperature),
+                 "declared_thresholds": np.array(observation.declared.thresholds),
+                 "declared_threshold_temperatures":
+                     np.array(observation.declared.threshold_temperatures)}
                 if observation.declared is not None else {}),
              classes=np.array(dataset.classes),
              volume_labels=volume_labels, volume_predictions=volume_pred,
