@@ -57,6 +57,9 @@ def test_report_pools_each_seed_and_pairs_against_ra(tiny_study: TinyStudy) -> N
     text = (out / "report.md").read_text()
     assert "2 seeds (0, 1), vary: train" in text and "### Seed 1" in text
     assert "Stage time of the study's 2 seeds" in text
+    # what the confidence columns are: the declared confidence, as the seeds' evaluate ran
+    assert "Confidence − accuracy and ECE: Random and the POMDP methods report their belief " \
+        "raised to the declared-confidence temperature" in text
 
 
 def test_vary_train_pairs_crossed_over_the_same_test_models(tiny_study: TinyStudy) -> None:
@@ -73,6 +76,7 @@ def test_the_readme_block_follows_the_study(tiny_study: TinyStudy, tmp_path: Pat
     first = readme.read_text()
     assert "old" not in first and first.endswith(f"{END}\n\nafter\n")
     assert "2 seeds (0, 1), vary train" in first and "'tiny'" in first
+    assert "Confidence − accuracy and ECE: Random and the POMDP methods" in first
     # another outcome in seed 1: every RA-POMDP episode right
     path = root / "tiny" / "seed-1" / "evaluate" / EPISODES_FILE
     table = EpisodeTable.load(path)
@@ -96,3 +100,24 @@ def test_cli_reports_and_refuses_a_changed_study(tiny_study: TinyStudy) -> None:
                                   "--report-only"])
     assert changed.exit_code == 2
     assert "seeds [0, 1]" in changed.output and "--reconfigure" in changed.output
+
+
+def test_the_confidence_line_reads_what_each_seeds_evaluate_stage_reported(
+        tiny_study: TinyStudy, tmp_path: Path) -> None:
+    from rapomdp.io import read_json, write_json_atomic
+    from rapomdp.study.report import reported_confidence
+
+    root = tmp_path / "study"
+    shutil.copytree(tiny_study.root, root)
+    results = load_seed_results(tiny_study.spec, root)["tiny"]
+    record = root / "tiny" / "seed-1" / "evaluate" / "stage.json"
+    stage = read_json(record)
+    del stage["config"]["evaluate"]["declared_confidence"]  # a seed from before the option
+    record.unlink()
+    write_json_atomic(record, stage)
+    assert "reported differently (evaluate.declared_confidence belief, calibrated)" in \
+        reported_confidence(results)
+    assert reported_confidence(results[1:]) == (
+        "Confidence − accuracy and ECE: Every method reports the belief it acts on "
+        "(evaluate.declared_confidence: belief), Static the classifier's softmax at its "
+        "held-out temperature.")

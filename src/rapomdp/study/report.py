@@ -11,9 +11,9 @@ from pathlib import Path
 
 from rapomdp.config import METHOD_NAMES
 from rapomdp.experiment.figures import tradeoff
-from rapomdp.experiment.metrics import standing_phrases
+from rapomdp.experiment.metrics import reported_belief_note, standing_phrases
 from rapomdp.experiment.report import Block, Heading, Image, Paragraph, Table, to_html, to_markdown
-from rapomdp.io import markdown_table, read_text, write_text_atomic
+from rapomdp.io import markdown_table, read_json, read_text, write_text_atomic
 from rapomdp.study.pooled import (
     REFERENCE,
     PooledPoint,
@@ -149,6 +149,18 @@ class StudyReport:
     stories: dict[str, str]
 
 
+def reported_confidence(seeds: Sequence[SeedResult]) -> str:
+    """What the confidence columns of a configuration's pooled table are: what its methods
+    reported (``evaluate.declared_confidence`` as each seed's evaluate stage ran; absent: it
+    predates the option, and reported the belief)."""
+    values = {str(read_json(r.workspace / "evaluate" / "stage.json")["config"]["evaluate"]
+                  .get("declared_confidence", "belief")) for r in seeds}
+    if len(values) > 1:
+        return ("Confidence − accuracy and ECE: the seeds' evaluate stages reported differently "
+                f"(evaluate.declared_confidence {', '.join(sorted(values))}).")
+    return "Confidence − accuracy and ECE: " + reported_belief_note(values.pop())
+
+
 def write_study_report(spec: StudySpec, root: str | Path,
                        resamples: int = 10_000) -> StudyReport:
     """``S/report/``: report.md and .html, table1_pooled.csv, table1_seeds.csv,
@@ -182,6 +194,7 @@ def write_study_report(spec: StudySpec, root: str | Path,
         blocks += [Heading(f"Configuration '{name}'"),
                    Paragraph(stories[name]),
                    Table(header, cells),
+                   Paragraph(reported_confidence(seeds)),
                    Paragraph(f"Stage time of the study's {len(seeds)} seeds: {spent:.0f} s "
                              f"(shared stages counted once; sharing saved {shared:.0f} s).")]
         if points:
@@ -219,7 +232,8 @@ def study_markdown(spec: StudySpec, root: str | Path, resamples: int = 10_000) -
     for name, seeds in results.items():
         rows = pooled_table(seeds, resamples)
         lines += [study_story(name, rows, spec.seeds, spec.vary), "",
-                  markdown_table(*pooled_cells(rows)).strip(), ""]
+                  markdown_table(*pooled_cells(rows)).strip(), "",
+                  reported_confidence(seeds), ""]
     return "\n".join(lines).rstrip()
 
 
