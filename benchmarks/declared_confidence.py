@@ -71,18 +71,23 @@ def held_out(workspace: Path) -> dict[str, dict[str, float]]:
 def test_rows(workspace: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per method: (correct, confidence as the belief, confidence as declared) of the
     evaluate stage's Table 1 episodes."""
-    stage = read_json(workspace / "evaluate" / "stage.json")["config"]["evaluate"]
+    config = read_json(workspace / "evaluate" / "stage.json")["config"]
+    stage = config["evaluate"]
     reported_declared = stage.get("declared_confidence", "belief") == "calibrated"
     random_model = stage["random"]["observation_model"]
     offered, _ = offered_observation_models(workspace / "observe", workspace / "vptree")
     temperatures = declared_temperatures(workspace / "observe", offered, workspace / "vptree")
+    # Random reports with the a fitted at its own stop threshold (where the stage fitted one)
+    random_a = declared_temperatures(workspace / "observe", {random_model: offered[random_model]},
+                                     None, stage["random"]["belief_threshold"])[random_model]
     table = EpisodeTable.load(workspace / "evaluate" / EPISODES_FILE)
     final = table.step_beliefs[table.offsets[1:] - 1]  # (E, C)
     rows = {}
     for method in table.methods:
         mine = table.method == method
-        model = random_model if method == "random" else METHOD_MODELS.get(str(method))
-        a = temperatures.get(model, 1.0) if model is not None else 1.0
+        model = METHOD_MODELS.get(str(method))  # Static and the learned baseline: a = 1
+        a = (random_a if method == "random" else
+             temperatures.get(model, 1.0) if model is not None else 1.0)
         beliefs = final[mine]
         if reported_declared and a != 1.0:
             beliefs = declared_belief(beliefs, 1.0 / a)

@@ -463,9 +463,10 @@ class EvaluateConfig(Section):
     declared_confidence: Literal["calibrated", "belief"] = Field(
         "calibrated", description="what Random and the POMDP methods report after their "
         "views: calibrated (the belief they act on ** a, renormalised, a fitted per "
-        "observation model where held-out walks stop, by the observe and vptree stages), or "
-        "belief (the belief itself). The actions are the same either way. Chosen on held-out "
-        "objects (docs/awareness.md §4.8)")
+        "observation model where held-out walks stop, by the observe and vptree stages; "
+        "Random's at its own stop belief), or belief (the belief itself). The actions are the "
+        "same either way; Static and the learned baseline report as before. Chosen on "
+        "held-out objects (docs/awareness.md §4.8)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "

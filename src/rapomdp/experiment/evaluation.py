@@ -165,8 +165,7 @@ class ClosedLoop:
                 return LearnedPolicy(network, spec, observation[name], motion.reachable,
                                      METHOD_NAMES[key], first_view_model=first_view[name],
                                      prior=priors[name], discount=discounts.get(name),
-                                     similarity=discount_kernel,
-                                     declared_temperature=declared(name))
+                                     similarity=discount_kernel)
             if key == "static":
                 return StaticPolicy(METHOD_NAMES[key],
                                     softmax_temperature=load_softmax_temperature(inputs.observe))

@@ -185,8 +185,7 @@ class LearnedPolicy:
                  reachable: np.ndarray, name: str = "Learned (PPO)", recogniser: str = "cnn",
                  first_view_model: np.ndarray | None = None, prior: np.ndarray | None = None,
                  discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None,
-                 declared_temperature: float = 1.0) -> None:
+                 similarity: np.ndarray | None = None) -> None:
         shape = np.shape(observation_model)
         if len(shape) != 3 or (shape[0], shape[2]) != (spec.viewpoints, spec.classes):
             raise ValueError(f"{name}: the policy was trained on {spec.viewpoints} viewpoints "
@@ -199,7 +198,7 @@ class LearnedPolicy:
         self.network, self.spec = network, spec
         self.reachable = np.asarray(reachable, dtype=bool)
         self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity, declared_temperature)
+                                  similarity)
         self._visited = np.zeros(spec.viewpoints, dtype=bool)
         self._looks = 0
 
@@ -215,7 +214,7 @@ class LearnedPolicy:
 
     @property
     def belief(self) -> np.ndarray:
-        return self._bayes.declared
+        return self._bayes.belief
 
     def act(self, viewpoint: int) -> ARAction:
         spec = self.spec

@@ -263,7 +263,8 @@ def reported_belief_note(declared_confidence: str) -> str:
         return ("Random and the POMDP methods report their belief raised to the declared-"
                 "confidence temperature of its model (fitted where held-out walks stop; their "
                 "actions are the belief's: evaluate.declared_confidence), Static the "
-                "classifier's softmax at its held-out temperature.")
+                "classifier's softmax at its held-out temperature, the learned baseline its "
+                "belief as it is.")
     return ("Every method reports the belief it acts on (evaluate.declared_confidence: "
             "belief), Static the classifier's softmax at its held-out temperature.")
 
