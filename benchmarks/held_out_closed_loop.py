@@ -16,7 +16,13 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
         [--models ra classifier vptree] [--correction none|temperature|after_first]
         [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead]
         [--lookahead-depth 1|2] [--lookahead-width N] [--save F]
-        [--wrong-labels none|recorded] [--volume-labels F.npz]
+        [--wrong-labels none|recorded] [--volume-labels F.npz] [--declared]
+
+``--declared``: the declared confidence (``evaluate.declared_confidence``, docs/awareness.md
+§4.8) at each method's held-out stops: confidence − accuracy and ECE of the belief, of the
+belief raised to the a the stages fitted on held-out walks (Random's at its threshold; fitted
+on every volume group, the held-out one included), and of the belief raised to the a fitted on
+these episodes themselves, each group's by the other groups' episodes; and that a.
 """
 
 from __future__ import annotations
@@ -42,13 +48,19 @@ from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
 from rapomdp.io import load_npz, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
-from rapomdp.planning.stage import start_viewpoint
+from rapomdp.planning.stage import (
+    declared_temperatures,
+    offered_observation_models,
+    start_viewpoint,
+)
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE, load_volume_probabilities
 from rapomdp.recognition.belief import (
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
     TEMPERATURE_WALKS_PER_ROW,
+    declared_log_beliefs,
     expected_calibration_error,
+    fit_declared_temperature,
     temper,
 )
 from rapomdp.recognition.evaluation import viewpoint_confusion
@@ -95,6 +107,41 @@ class LabelRecogniser:
 
     def predict(self, depth_images: np.ndarray) -> np.ndarray:
         return np.eye(self.classes)[self.labels[depth_images[:, 0, 0].astype(int)]]
+
+
+def declared_at_stops(ws: Workspace, finals: dict[tuple[str, float], list[np.ndarray]],
+                      random_model: str, random_threshold: float) -> None:
+    """Print the declared confidence at each method's held-out stops (``--declared``)."""
+    offered, _ = offered_observation_models(ws.require("observe"), ws.stage_dir("vptree"))
+    print("\ndeclared confidence at the held-out stops: confidence - accuracy / ECE")
+    print(f"{'method':12s} {'lambda':>6s} {'belief':>15s} {'stage a':>7s} {'as declared':>15s} "
+          f"{'loop a':>7s} {'loop a, held out':>17s}")
+    for (name, lam), values in finals.items():
+        data = np.stack(values)
+        log_b = np.log(np.maximum(data[:, :-2], 1e-300))
+        truth, group = data[:, -2].astype(np.int64), data[:, -1].astype(np.int64)
+        right = log_b.argmax(axis=1) == truth
+        model = random_model if name == "random" else name
+        a_stage = declared_temperatures(
+            ws.require("observe"), {model: offered[model]}, ws.stage_dir("vptree"),
+            random_threshold if name == "random" else None)[model]
+        loop_a = fit_declared_temperature(log_b, truth)
+        held = np.empty(len(truth))
+        for g in np.unique(group):
+            mine = group == g
+            a = fit_declared_temperature(log_b[~mine], truth[~mine])
+            held[mine] = np.exp(declared_log_beliefs(log_b[mine], a).max(axis=1))
+
+        belief = _gap(np.exp(log_b.max(axis=1)), right)
+        declared = _gap(np.exp(declared_log_beliefs(log_b, a_stage).max(axis=1)), right)
+        print(f"{name:12s} {lam:6g} {belief:>15s} {a_stage:7.3f} {declared:>15s} "
+              f"{loop_a:7.3f} {_gap(held, right):>17s}")
+
+
+def _gap(confidence: np.ndarray, right: np.ndarray) -> str:
+    """'confidence − accuracy / ECE'."""
+    return (f"{confidence.mean() - right.mean():+.3f} / "
+            f"{expected_calibration_error(confidence, right):.3f}")
 
 
 def main() -> None:
@@ -147,6 +194,8 @@ def main() -> None:
                              "temperature refitted on their walks (the saliency scores stay "
                              "the trained classifier's): what that classifier would do held "
                              "out")
+    parser.add_argument("--declared", action="store_true",
+                        help="the declared confidence at each method's held-out stops (above)")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -208,6 +257,7 @@ def main() -> None:
     depth = cfg.lookahead_depth if args.lookahead_depth is None else args.lookahead_depth
     width = cfg.lookahead_width if args.lookahead_width is None else args.lookahead_width
     rows: dict[tuple[str, float], list[tuple[bool, float, float, float, float, float]]] = {}
+    finals: dict[tuple[str, float], list[np.ndarray]] = {}  # (final belief, truth, group)
     for g in volume_groups:
         held = evidence.groups == g
         fitted = fit_observation_models(evidence.subset(~held), scores, classes, config.observe,
@@ -274,6 +324,8 @@ def main() -> None:
                                  float(episode.beliefs[-1, truth]),
                                  float(episode.beliefs[-1, episode.declared]),
                                  float(g * 10_000 + r), float(d)))
+                            finals.setdefault((name, lam), []).append(
+                                np.concatenate([episode.beliefs[-1], [truth, g]]))
         static = part.predicted == part.labels[:, None]
         rows.setdefault(("static", 0.0), []).extend(
             (bool(c), 0.0, float("nan"), float("nan"), float(g * 10_000 + r), 0.0)
@@ -311,6 +363,9 @@ def main() -> None:
     if args.save is not None:
         save_npz(args.save, **{f"{name}@{lam:g}": np.array(v, dtype=np.float64)
                                for (name, lam), v in rows.items()})
+    if args.declared:
+        declared_at_stops(ws, finals, cfg.random.observation_model,
+                          cfg.random.belief_threshold)
     if "ra" not in args.models:
         return
     budget = table[("random", 0.0)]
