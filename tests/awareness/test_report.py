@@ -50,3 +50,26 @@ def test_models_that_are_one_model_are_grouped_whatever_their_temperature() -> N
     observe["ra_area"] = temper(other + 1e-3 * (other > 0.5), 0.9) / temper(
         other + 1e-3 * (other > 0.5), 0.9).sum(axis=2, keepdims=True)
     assert identical_models(observe) == [["ra", "ra_transfer"]]
+
+
+def test_the_declared_confidence_table_lists_the_methods_models_fitted_held_out(tmp_path):
+    from rapomdp.awareness.report import declared_confidence_cells
+    from rapomdp.io import write_json_atomic
+
+    def record(a: float, groups: list[int]) -> dict:
+        return {"temperature": a, "groups": groups, "accuracy": 0.7, "confidence": 0.8,
+                "ece": 0.12, "declared_confidence": 0.71, "declared_ece": 0.05}
+
+    observe, vptree = tmp_path / "observe", tmp_path / "vptree"
+    observe.mkdir()
+    vptree.mkdir()
+    write_json_atomic(observe / "calibration.json", {"declared_confidence": {
+        "ra": record(0.6, [0, 1, 2]), "classifier": record(0.7, []),  # one group: no row
+        "blackbox": record(0.5, [0, 1])}})  # not a method's model
+    write_json_atomic(vptree / "vptree.json", {"declared_confidence": record(0.8, [0, 1])})
+    header, rows = declared_confidence_cells(observe, vptree)
+    assert header[1] == "a" and len(header) == len(rows[0])
+    assert [r[:2] for r in rows] == [["ra", "0.600"], ["vptree", "0.800"]]
+    assert rows[0][2:] == ["0.700", "0.800", "0.120", "0.710", "0.050"]
+    write_json_atomic(observe / "calibration.json", {})  # a workspace from before the option
+    assert declared_confidence_cells(observe, None)[1] == []

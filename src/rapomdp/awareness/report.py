@@ -11,7 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import OBSERVATION_FILE, PRIOR_PREFIX, volume_file
+from rapomdp.awareness.artefacts import (
+    CALIBRATION_FILE,
+    OBSERVATION_FILE,
+    PRIOR_PREFIX,
+    volume_file,
+)
 from rapomdp.awareness.figures import (
     fig1,
     hemisphere_pair_figure,
@@ -22,7 +27,8 @@ from rapomdp.awareness.observation import single_view_marginal
 from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
-from rapomdp.io import atomic_path, load_npz
+from rapomdp.io import atomic_path, load_npz, read_json
+from rapomdp.recognition.artefacts import VPTREE_SUMMARY_FILE
 from rapomdp.recognition.belief import reliability, temper
 from rapomdp.workspace import StageError, Workspace
 
@@ -87,6 +93,35 @@ def write_reliability_csv(curves: Mapping[str, tuple[np.ndarray, np.ndarray, np.
         writer.writeheader()
         writer.writerows(reliability_rows(curves))
     return Path(path)
+
+
+DECLARED_MODELS = ("ra", "classifier", "vptree")
+"""The models whose declared confidence the report shows: the methods' (RA-POMDP, the
+Classifier POMDP and Random, the VP-tree)."""
+
+
+def declared_confidence_cells(observe_dir: Path, vptree_dir: Path | None = None
+                              ) -> tuple[list[str], list[list[str]]]:
+    """The declared confidence's held-out record (``calibration.json`` / ``vptree.json:
+    declared_confidence``): per model, a and, at the stops of the held-out walks, the accuracy
+    and the confidence and ECE of the belief and of the declared belief (each group by the
+    others' a). No rows for a workspace from before it or without two held-out groups."""
+    records = dict(read_json(Path(observe_dir) / CALIBRATION_FILE).get("declared_confidence",
+                                                                         {}))
+    vptree = Path(vptree_dir) / VPTREE_SUMMARY_FILE if vptree_dir is not None else None
+    if vptree is not None and vptree.is_file():
+        records["vptree"] = read_json(vptree).get("declared_confidence")
+    header = ["Model", "a", "Accuracy at the stops", "Belief: confidence", "ECE",
+              "Declared (held out): confidence", "ECE"]
+    rows = []
+    for name in DECLARED_MODELS:
+        r = records.get(name)
+        if not r or not r.get("groups"):
+            continue
+        rows.append([name, f"{r['temperature']:.3f}", f"{r['accuracy']:.3f}",
+                     f"{r['confidence']:.3f}", f"{r['ece']:.3f}",
+                     f"{r['declared_confidence']:.3f}", f"{r['declared_ece']:.3f}"])
+    return header, rows
 
 
 def single_view_models(observe: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

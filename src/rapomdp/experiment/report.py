@@ -40,7 +40,7 @@ from rapomdp.awareness.artefacts import (
 )
 from rapomdp.awareness.figures import RELIABILITY_MIN_COUNT, calibration_caption
 from rapomdp.awareness.quality import quality_cells
-from rapomdp.awareness.report import FIGURES_DIR, write_fig1
+from rapomdp.awareness.report import FIGURES_DIR, declared_confidence_cells, write_fig1
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
@@ -568,6 +568,17 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
     if episodes.exists():
         _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate,
                             declared_confidence)
+    vptree = b.root / "vptree"  # not an input of the report stage (as the VP-tree summary)
+    header, rows = declared_confidence_cells(observe, vptree if vptree.is_dir() else None)
+    if rows:
+        b.add(Paragraph("The declared confidence (evaluate.declared_confidence), fitted on "
+                        "held-out random walks stopped at belief thresholds 0.5 to 0.99: per "
+                        "model, a and, at those stops, the belief's and the declared belief's "
+                        "confidence and ECE, each held-out group scored by the a the other "
+                        "groups give (docs/awareness.md §4.8)" +
+                        ("." if declared_confidence == "calibrated" else
+                         "; this run reported the belief itself.")))
+        b.add(Table(header, rows))
 
 
 def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path,
