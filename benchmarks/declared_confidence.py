@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rapomdp.awareness.artefacts import load_declared_confidence
 from rapomdp.awareness.evidence import held_out_declared_confidence
 from rapomdp.awareness.stage import observe_inputs
 from rapomdp.data.dataset import load_dataset
@@ -57,11 +58,7 @@ METHOD_MODELS = {"ra": "ra", "classifier": "classifier", "vptree": "vptree"}
 
 def held_out(workspace: Path) -> dict[str, dict[str, float]]:
     """Per model, the observe (and vptree) stage's held-out declared-confidence record."""
-    records = dict(read_json(workspace / "observe" / "calibration.json")
-                   .get("declared_confidence", {}))
-    vptree = workspace / "vptree" / "vptree.json"
-    if vptree.exists() and read_json(vptree).get("declared_confidence"):
-        records["vptree"] = read_json(vptree)["declared_confidence"]
+    records = load_declared_confidence(workspace / "observe", workspace / "vptree")
     if not records:
         raise SystemExit(f"{workspace}: no declared confidence recorded (redo its observe stage "
                          "with this version: rapomdp run -w W --until observe)")

@@ -21,17 +21,15 @@ import numpy as np
 
 from rapomdp.awareness.evidence import RecordedObservation, leave_one_group_out
 from rapomdp.data.splits import class_seed
-from rapomdp.recognition.belief import fold_of_rows, held_out_walks, walk_log_beliefs
+from rapomdp.recognition.belief import (
+    fold_of_rows,
+    held_out_walks,
+    stop_steps,
+    walk_log_beliefs,
+)
 from rapomdp.workspace import Workspace
 
 TEMPERATURES = (1.0, 0.75, 0.6, 0.5, 0.4, 0.3, 0.25, 0.2, 0.15)
-
-
-def stop_steps(log_beliefs: np.ndarray, threshold: float) -> np.ndarray:
-    """(E,) the first step whose max belief reaches ``threshold`` (else the last)."""
-    reached = np.exp(log_beliefs).max(axis=2) >= threshold
-    reached[:, -1] = True
-    return reached.argmax(axis=1)
 
 
 def main() -> None:

@@ -16,12 +16,13 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from rapomdp.config import Config
 from rapomdp.io import ArtefactError, load_npz, read_json, stable_hash
-from rapomdp.recognition.artefacts import TRAIN_SECTIONS
+from rapomdp.recognition.artefacts import TRAIN_SECTIONS, VPTREE_SUMMARY_FILE
 
 SALIENCY_FILE = "saliency.json"
 VOLUME_FILE = "volume.json"
@@ -154,3 +155,16 @@ def crossfit_fingerprint(config: Config) -> str:
     cfg = config.observe
     return stable_hash({"crossfit": cfg.evidence != "volume", "folds": cfg.crossfit_folds,
                         "epochs": crossfit_epochs(config)})
+
+
+def load_declared_confidence(observe_dir: str | Path, vptree_dir: str | Path | None = None
+                             ) -> dict[str, dict[str, Any]]:
+    """The declared confidence's held-out record per model (``calibration.json:
+    declared_confidence``, and ``vptree`` from ``vptree.json`` when ``vptree_dir`` holds one):
+    empty for a workspace from before it."""
+    records = dict(read_json(Path(observe_dir) / CALIBRATION_FILE).get("declared_confidence",
+                                                                         {}))
+    vptree = Path(vptree_dir) / VPTREE_SUMMARY_FILE if vptree_dir is not None else None
+    if vptree is not None and vptree.is_file() and read_json(vptree).get("declared_confidence"):
+        records["vptree"] = read_json(vptree)["declared_confidence"]
+    return records

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import (
-    CALIBRATION_FILE,
     OBSERVATION_FILE,
     PRIOR_PREFIX,
+    load_declared_confidence,
     volume_file,
 )
 from rapomdp.awareness.figures import (
@@ -27,8 +27,7 @@ from rapomdp.awareness.observation import single_view_marginal
 from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
-from rapomdp.io import atomic_path, load_npz, read_json
-from rapomdp.recognition.artefacts import VPTREE_SUMMARY_FILE
+from rapomdp.io import atomic_path, load_npz
 from rapomdp.recognition.belief import reliability, temper
 from rapomdp.workspace import StageError, Workspace
 
@@ -106,11 +105,7 @@ def declared_confidence_cells(observe_dir: Path, vptree_dir: Path | None = None
     declared_confidence``): per model, a and, at the stops of the held-out walks, the accuracy
     and the confidence and ECE of the belief and of the declared belief (each group by the
     others' a). No rows for a workspace from before it or without two held-out groups."""
-    records = dict(read_json(Path(observe_dir) / CALIBRATION_FILE).get("declared_confidence",
-                                                                         {}))
-    vptree = Path(vptree_dir) / VPTREE_SUMMARY_FILE if vptree_dir is not None else None
-    if vptree is not None and vptree.is_file():
-        records["vptree"] = read_json(vptree).get("declared_confidence")
+    records = load_declared_confidence(observe_dir, vptree_dir)
     header = ["Model", "a", "Accuracy at the stops", "Belief: confidence", "ECE",
               "Declared (held out): confidence", "ECE"]
     rows = []

@@ -472,13 +472,6 @@ class DeclaredConfidence:
         return {name: (list(value) if isinstance(value, tuple) else value)
                 for name, value in self.__dict__.items()}
 
-    def temperature_at(self, threshold: float) -> float:
-        """The a fitted on the stops of ``threshold`` (interpolated between the fitted
-        thresholds, the nearest beyond them)."""
-        if not self.thresholds:
-            return self.temperature
-        return float(np.interp(threshold, self.thresholds, self.threshold_temperatures))
-
 
 def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
                         thresholds: Sequence[float] = DECLARED_STOP_THRESHOLDS,
