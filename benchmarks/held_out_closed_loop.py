@@ -44,6 +44,7 @@ from rapomdp.awareness.evidence import (
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
+from rapomdp.experiment.held_out import LabelRecogniser, LabelScene
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
 from rapomdp.io import load_npz, save_npz
 from rapomdp.planning.ar_solver import solve_active_recognition
@@ -60,7 +61,7 @@ from rapomdp.recognition.belief import (
     TEMPERATURE_WALKS_PER_ROW,
     declared_log_beliefs,
     expected_calibration_error,
-    fit_declared_temperature,
+    stops_declared_confidence,
     temper,
 )
 from rapomdp.recognition.evaluation import viewpoint_confusion
@@ -92,23 +93,6 @@ def replaced_labels(ws: Workspace, evidence: Evidence, path: Path) -> Evidence:
     return Evidence(evidence.labels, predicted, evidence.groups, evidence.volume_mask)
 
 
-class LabelScene:
-    """A held-out model's view at x is the index x (its label is looked up by the recogniser)."""
-
-    def look(self, viewpoint: int, rng: np.random.Generator) -> np.ndarray:
-        return np.full((1, 1), float(viewpoint))
-
-
-class LabelRecogniser:
-    """The classifier's recorded label at each X_rho viewpoint of one model, one-hot."""
-
-    def __init__(self, labels: np.ndarray, classes: int) -> None:
-        self.labels, self.classes = labels, classes
-
-    def predict(self, depth_images: np.ndarray) -> np.ndarray:
-        return np.eye(self.classes)[self.labels[depth_images[:, 0, 0].astype(int)]]
-
-
 def declared_at_stops(ws: Workspace, finals: dict[tuple[str, float], list[np.ndarray]],
                       random_model: str, random_threshold: float) -> None:
     """Print the declared confidence at each method's held-out stops (``--declared``)."""
@@ -125,17 +109,13 @@ def declared_at_stops(ws: Workspace, finals: dict[tuple[str, float], list[np.nda
         a_stage = declared_temperatures(
             ws.require("observe"), {model: offered[model]}, ws.stage_dir("vptree"),
             random_threshold if name == "random" else None)[model]
-        loop_a = fit_declared_temperature(log_b, truth)
-        held = np.empty(len(truth))
-        for g in np.unique(group):
-            mine = group == g
-            a = fit_declared_temperature(log_b[~mine], truth[~mine])
-            held[mine] = np.exp(declared_log_beliefs(log_b[mine], a).max(axis=1))
+        fit = stops_declared_confidence(log_b, truth, group)
+        held = f"{fit.declared_confidence - fit.accuracy:+.3f} / {fit.declared_ece:.3f}"
 
         belief = _gap(np.exp(log_b.max(axis=1)), right)
         declared = _gap(np.exp(declared_log_beliefs(log_b, a_stage).max(axis=1)), right)
         print(f"{name:12s} {lam:6g} {belief:>15s} {a_stage:7.3f} {declared:>15s} "
-              f"{loop_a:7.3f} {_gap(held, right):>17s}")
+              f"{fit.temperature:7.3f} {held:>17s}")
 
 
 def _gap(confidence: np.ndarray, right: np.ndarray) -> str:

@@ -511,3 +511,20 @@ def test_a_model_some_folds_cannot_fit_is_chosen_on_the_folds_that_have_it() -> 
             for held, models in folds]
     assert choose_wrong_label_shrinkage(evidence, none, "blackbox", "auto").rule == \
         "too little evidence"
+
+
+def test_shrunk_folds_shrink_the_named_models_wrong_labels_and_keep_the_rest():
+    from rapomdp.awareness.evidence import shrink_wrong_labels, shrunk_folds
+    from rapomdp.awareness.observation import ObservationModel
+
+    rng = np.random.default_rng(3)
+    p = rng.dirichlet(np.ones(3), size=(4, 3))
+    held = np.array([True, False])
+    folds = [(held, {"a": ObservationModel(p, ["x", "y", "z"]),
+                     "b": ObservationModel(p, ["x", "y", "z"])})]
+    (mask, models), = shrunk_folds(folds, {"a": 0.5})
+    assert mask is held
+    assert np.allclose(models["a"].probabilities, shrink_wrong_labels(p, 0.5))
+    assert models["b"] is folds[0][1]["b"]
+    idx = np.arange(3)
+    assert np.allclose(models["a"].probabilities[:, idx, idx], p[:, idx, idx])

@@ -393,3 +393,30 @@ def test_the_declared_confidence_is_fitted_per_model_and_recorded_with_its_held_
         assert len(fit["held_out_temperatures"]) == len(fit["groups"]) == groups
         assert fit["stops"] == groups * 2 * 16 * 6  # rows a group x walks a row x thresholds
         assert 0.0 <= fit["ece"] <= 1.0 and 0.0 <= fit["declared_ece"] <= 1.0
+
+
+def test_the_recorded_belief_folds_are_those_the_stage_fitted_its_declared_confidence_on(
+        workspace):
+    from rapomdp.awareness.evidence import held_out_declared_confidence
+    from rapomdp.data.splits import class_seed
+    from rapomdp.recognition.belief import TEMPERATURE_NEIGHBOURS, TEMPERATURE_WALKS_PER_ROW
+
+    config = config_from_dict(TINY)
+    recorded = RecordedObservation.load(workspace.root / "observe")
+    folds = recorded.belief_folds(config.observe)
+    assert len(folds) == len(np.unique(recorded.evidence.groups)) >= 2
+    for held, models in folds:
+        assert np.array_equal(models["ra"].probabilities,
+                              models[recorded.variant].probabilities)
+    calibration = recorded.calibration
+    refit = held_out_declared_confidence(
+        recorded.evidence, [(held, {n: m for n, m in models.items() if n != "ra"})
+                            for held, models in folds],
+        calibration["temperatures"], calibration["belief_corrections"],
+        recorded.arrays["directions"], TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+        class_seed(config.seed, "observe/declared"))
+    for name in ("classifier", "blackbox", "ra_paper", "ra_class"):  # no float32 similarity
+        assert refit[name].temperature == pytest.approx(
+            calibration["declared_confidence"][name]["temperature"], abs=1e-9), name
+    with pytest.raises(ValueError, match="observe.belief 'naive' only"):
+        recorded.belief_folds(config.observe.model_copy(update={"belief": "nuisance"}))

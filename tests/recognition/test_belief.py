@@ -22,6 +22,7 @@ from rapomdp.recognition.belief import (
     random_walks,
     stop_steps,
     stopped_log_beliefs,
+    stops_declared_confidence,
     temper,
     walk_calibration,
     walk_log_beliefs,
@@ -300,3 +301,26 @@ def test_either_criterion_and_every_threshold_undo_a_planted_overconfidence():
     assert all(own < belief for own, belief in zip(fit.threshold_own_ece, fit.threshold_ece,
                                                    strict=True))
     assert fit.to_dict()["thresholds"] == list(DECLARED_STOP_THRESHOLDS)
+
+
+def test_a_policys_own_stops_fit_the_declared_confidence_held_out_by_group():
+    rng = np.random.default_rng(14)
+    log_belief, true = _posterior_walks(rng)
+    tripled = 3.0 * log_belief
+    tripled -= logsumexp(tripled, axis=2, keepdims=True)
+    # a policy's own stops: any rule (here: a step drawn per episode), no threshold
+    steps = rng.integers(0, log_belief.shape[1], len(true))
+    final = tripled[np.arange(len(true)), steps]
+    groups = np.arange(len(true)) % 3
+    fit = stops_declared_confidence(final, true, groups)
+    assert fit.temperature == pytest.approx(1 / 3, abs=0.06)
+    assert fit.stops == len(true) and fit.thresholds == () and fit.threshold_temperatures == ()
+    assert fit.groups == (0, 1, 2) and all(abs(a - 1 / 3) < 0.08
+                                           for a in fit.held_out_temperatures)
+    assert fit.confidence - fit.accuracy > 0.1 and abs(fit.declared_confidence
+                                                       - fit.accuracy) < 0.03
+    calibrated = stops_declared_confidence(log_belief[np.arange(len(true)), steps], true,
+                                           groups)
+    assert calibrated.temperature == pytest.approx(1.0, abs=0.12)  # Bayes: left as it is
+    alone = stops_declared_confidence(final, true, np.zeros(len(true), np.int64))
+    assert alone.groups == () and np.isnan(alone.declared_ece)

@@ -289,6 +289,22 @@ class RecordedObservation:
                    recorded_evidence(arrays), recorded_scores(arrays),
                    recorded_transfer_kernel(calibration), f"ra_{calibration['ra_model']}")
 
+    def belief_folds(self, cfg: ObserveConfig) -> Folds:
+        """The held-out folds the stage fitted its belief's corrections on, refitted from what
+        it recorded (``cfg``: the observe configuration it ran with): every model fitted
+        without each volume group, its wrong labels shrunk by the stage's choice, and ``ra``
+        the chosen variant's. A naive belief's only (the nuisance belief's folds are fitted by
+        EM, a view discount's belief depends on the views taken)."""
+        if cfg.belief != "naive":
+            raise ValueError(f"the held-out folds are refitted for observe.belief 'naive' only, "
+                             f"the stage ran with {cfg.belief!r}")
+        folds = leave_one_group_out(self.evidence, self.scores, self.classes, cfg,
+                                    self.arrays["directions"], self.transfer_kernel)
+        amounts = {name: float(choice["amount"])
+                   for name, choice in self.calibration.get("wrong_labels", {}).items()}
+        return [(held, {**models, "ra": models[self.variant]})
+                for held, models in shrunk_folds(folds, amounts)]
+
 
 def salient_view_similarity(seen_saliency: np.ndarray | sparse.spmatrix) -> np.ndarray:
     """Cosine similarity (V, V) of the saliency each viewpoint sees: ``seen_saliency``
@@ -620,6 +636,21 @@ def shrink_wrong_labels(probabilities: np.ndarray, amount: float) -> np.ndarray:
     out = (1.0 - amount) * p + amount * ((1.0 - right) / max(c - 1, 1))[:, :, None]
     out[:, idx, idx] = right
     return out
+
+
+Folds = list[tuple[np.ndarray, dict[str, ObservationModel]]]
+"""Leave-one-group-out folds: each held-out group's rows (N,) bool and the models fitted
+without it, by name."""
+
+
+def shrunk_folds(folds: Folds, amounts: Mapping[str, float]) -> Folds:
+    """``folds`` with each named model's wrong labels shrunk by its amount
+    (:func:`shrink_wrong_labels`; models not in ``amounts`` as they are): the belief's
+    held-out models as the observe stage fits its corrections on them."""
+    return [(held, {name: (ObservationModel(shrink_wrong_labels(m.probabilities, amounts[name]),
+                                            m.classes) if name in amounts else m)
+                    for name, m in models.items()})
+            for held, models in folds]
 
 
 @dataclass

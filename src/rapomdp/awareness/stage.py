@@ -79,6 +79,7 @@ from rapomdp.awareness.evidence import (
     salient_view_similarity,
     shift_level,
     shrink_wrong_labels,
+    shrunk_folds,
     transfer_kernel_grid,
     validation_quality,
     view_similarity_kernel,
@@ -453,10 +454,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     fitted = {name: _with_probabilities(m, shrink_wrong_labels(
                   m.probabilities, shrinkage[name].amount))
               for name, m in fitted.items()}
-    folds = [(held, {name: (ObservationModel(shrink_wrong_labels(
-                  m.probabilities, shrinkage[name].amount), m.classes)
-                            if name in shrinkage else m) for name, m in models.items()})
-             for held, models in folds]
+    folds = shrunk_folds(folds, {name: choice.amount for name, choice in shrinkage.items()})
     single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
     levels["ra"] = levels[f"ra_{variant}"]
     shrinkage["ra"] = shrinkage[f"ra_{variant}"]

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -61,6 +61,7 @@ from rapomdp.experiment.episode_table import (
     EpisodeTable,
     episodes_csv,
 )
+from rapomdp.experiment.held_out import HELD_OUT_DIR, ClosedLoopFit, closed_loop_declared
 from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
 from rapomdp.experiment.sections import LEARNED
@@ -123,11 +124,14 @@ class ClosedLoop:
 
     @classmethod
     def load(cls, config: Config, inputs: StageInputs, threads: int | None = None,
-             sweep_dir: Path | None = None) -> ClosedLoop:
+             sweep_dir: Path | None = None,
+             declared_fit: Mapping[str, float] | None = None) -> ClosedLoop:
         """The closed loop of a workspace's stage folders; the CNN uses ``threads`` threads.
 
         With ``sweep_dir`` (the evaluate stage's ``sweep/``, from :func:`solve_sweep`) the
-        accuracy-energy sweep's settings run alongside Table 1's methods.
+        accuracy-energy sweep's settings run alongside Table 1's methods. ``declared_fit``:
+        POMDP methods' declared-confidence a fitted on their held-out closed loop
+        (:func:`~rapomdp.experiment.held_out.closed_loop_declared`), in place of the walks'.
         """
         dataset = load_dataset(inputs.dataset)
         robot = load_robot(inputs.robot)
@@ -149,7 +153,7 @@ class ClosedLoop:
             if not calibrated:
                 return 1.0
             if stop_threshold is None:
-                return pooled[name]
+                return (declared_fit or {}).get(name, pooled[name])
             return declared_temperatures(inputs.observe, {name: observation[name]},
                                          inputs.vptree_dir, stop_threshold)[name]
 
@@ -248,12 +252,12 @@ class ClosedLoop:
 
 
 def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | None,
-                     model_files: list[str],
+                     declared_fit: dict[str, float] | None, model_files: list[str],
                      report: Callable[[int], None] | None = None) -> list[list[EpisodeRecord]]:
     """A worker's task: load the closed loop once, run each of its test models (``report``:
     told each model's episodes as they finish)."""
     loop = ClosedLoop.load(Config.model_validate_json(config_json), inputs, threads=1,
-                           sweep_dir=sweep_dir)
+                           sweep_dir=sweep_dir, declared_fit=declared_fit)
     by_file = {m.file: m for m in loop.dataset.with_role("test")}
     out = []
     for name in model_files:
@@ -264,12 +268,14 @@ def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | No
 
 
 def run_episodes(config: Config, inputs: StageInputs,
-                 context: RunContext = RunContext(), sweep_dir: Path | None = None
+                 context: RunContext = RunContext(), sweep_dir: Path | None = None,
+                 declared_fit: dict[str, float] | None = None
                  ) -> tuple[list[EpisodeRecord], Dataset]:
-    """Every test model x start x method (and sweep setting, with ``sweep_dir``: see
-    :meth:`ClosedLoop.load`), over ``context``'s worker processes (each loads the closed loop
-    once and runs a contiguous share of the test models); records in a fixed order (test
-    models as listed, then start, then method), whatever the number of workers."""
+    """Every test model x start x method (and sweep setting, with ``sweep_dir``; a POMDP
+    method's declared confidence by ``declared_fit``: see :meth:`ClosedLoop.load`), over
+    ``context``'s worker processes (each loads the closed loop once and runs a contiguous
+    share of the test models); records in a fixed order (test models as listed, then start,
+    then method), whatever the number of workers."""
     dataset = load_dataset(inputs.dataset)
     models = dataset.with_role("test")
     per_model = config.evaluate.starts_per_model * (
@@ -277,7 +283,7 @@ def run_episodes(config: Config, inputs: StageInputs,
     # On a Dask cluster every test model is a task of its own (the cluster spreads them).
     count = len(models) if context.uses_cluster else min(context.worker_count, len(models))
     if count <= 1 and not context.uses_cluster:
-        loop = ClosedLoop.load(config, inputs, context.threads, sweep_dir)
+        loop = ClosedLoop.load(config, inputs, context.threads, sweep_dir, declared_fit)
         per_model_records = run_tasks(loop.run_model, [(m,) for m in models], 1,
                                       "evaluate: episodes", context.progress,
                                       unit="episodes", sizes=[per_model] * len(models))
@@ -285,7 +291,8 @@ def run_episodes(config: Config, inputs: StageInputs,
         config_json = config.model_dump_json()
         shares = [[models[i].file for i in share]
                   for share in np.array_split(np.arange(len(models)), count)]
-        per_share = run_tasks(_run_models_task, [(config_json, inputs, sweep_dir, share)
+        per_share = run_tasks(_run_models_task, [(config_json, inputs, sweep_dir,
+                                                   declared_fit, share)
                                                    for share in shares],
                               count, "evaluate: episodes", context.progress,
                               context.scheduler, unit="episodes",
@@ -425,8 +432,18 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
         sweep_dir = out / "sweep"
         solve_sweep(config, inputs, sweep_dir, context)
     solved_s = time.perf_counter() - began
-    records, dataset = run_episodes(config, inputs, context, sweep_dir)
-    episodes_s = time.perf_counter() - began - solved_s
+    cfg = config.evaluate
+    fits: dict[str, ClosedLoopFit] = {}
+    if cfg.declared_fit != "walks" and cfg.declared_confidence == "calibrated":
+        # the POMDPs' declared confidence, fitted where they stop on held-out objects
+        fits = closed_loop_declared(config, inputs, [m for m in cfg.methods
+                                                     if m not in NOT_POMDP],
+                                    out / HELD_OUT_DIR, context,
+                                    per_fold=cfg.declared_fit == "closed_loop_per_fold")
+    held_out_s = time.perf_counter() - began - solved_s
+    records, dataset = run_episodes(config, inputs, context, sweep_dir,
+                                    {name: fit.declared.temperature for name, fit in fits.items()})
+    episodes_s = time.perf_counter() - began - solved_s - held_out_s
     methods = list(config.evaluate.methods)
     sweep = [r for r in records if r.method not in methods]
     table = EpisodeTable.from_records([r for r in records if r.method in methods], dataset,
@@ -465,7 +482,10 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
         "workers": min(context.worker_count, len(dataset.with_role("test"))),
         "tradeoff_points": len(points),
         "sweep_episodes": len(sweep),
-        "seconds": {"sweep_solve_wall": solved_s, "episodes_wall": episodes_s,
+        "declared_fit": {"kind": cfg.declared_fit,
+                         "closed_loop": {name: fit.to_dict() for name, fit in fits.items()}},
+        "seconds": {"sweep_solve_wall": solved_s, "held_out_wall": held_out_s,
+                    "episodes_wall": episodes_s,
                     "episodes_cpu": cpu,
                     "sweep_episodes_cpu": float(sum(r.cpu_seconds for r in sweep)),
                     "total": time.perf_counter() - began},

@@ -481,8 +481,27 @@ def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.nd
     each threshold alone); and score it leave-one-group-out (each group's stops by the
     temperature the other groups' give)."""
     final, walk = stopped_log_beliefs(log_beliefs, thresholds)
-    labels, stop_group = np.asarray(true)[walk], np.asarray(groups)[walk]
     at = np.repeat(np.arange(len(thresholds)), len(true))  # each stop's threshold
+    return _declared_at_stops(final, np.asarray(true)[walk], np.asarray(groups)[walk], at,
+                              thresholds, criterion)
+
+
+def stops_declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
+                              criterion: str = DECLARED_CRITERION) -> DeclaredConfidence:
+    """The declared confidence fitted on stops a policy made itself (log beliefs (M, C) where
+    its held-out episodes declared, true classes ``true`` (M,), each episode's held-out group
+    ``groups`` (M,)) and scored leave-one-group-out, as :func:`declared_confidence` does for
+    walks; no thresholds (the policy's own stop rule made the stops)."""
+    log_beliefs = np.asarray(log_beliefs, dtype=np.float64)
+    return _declared_at_stops(log_beliefs, np.asarray(true), np.asarray(groups),
+                              np.zeros(len(log_beliefs), dtype=np.int64), (), criterion)
+
+
+def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.ndarray,
+                       at: np.ndarray, thresholds: Sequence[float], criterion: str
+                       ) -> DeclaredConfidence:
+    """:func:`declared_confidence` on stopped log beliefs ``final`` (S, C) of true classes
+    ``labels``, groups ``stop_group`` and thresholds' indices ``at`` (S,) each."""
     right = final.argmax(axis=1) == labels
     confidence = np.exp(final.max(axis=1))
     names = tuple(int(g) for g in np.unique(stop_group))

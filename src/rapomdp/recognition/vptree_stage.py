@@ -143,6 +143,15 @@ class VPTreeObservation:
     declared: DeclaredConfidence | None = None
 
 
+def vptree_folds(labels: np.ndarray, predicted: np.ndarray, groups: np.ndarray, classes: int,
+                 pseudo_count: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Leave-one-group-out folds of the VP-tree's confusion: each held-out group's rows (M,)
+    bool and the (untempered) confusion (V, C, C) of the VP-tree's labels ``predicted``
+    (M, V) of the other groups' models (true classes ``labels`` (M,), groups ``groups``)."""
+    return [(held, viewpoint_confusion(labels[~held], predicted[~held], classes, pseudo_count))
+            for held in held_out_groups(labels, groups)]
+
+
 def vptree_observation(labels: np.ndarray, predicted: np.ndarray, groups: np.ndarray,
                        classes: int, cfg: VPTreeConfig, directions: np.ndarray,
                        rng: np.random.Generator) -> VPTreeObservation:
@@ -154,13 +163,13 @@ def vptree_observation(labels: np.ndarray, predicted: np.ndarray, groups: np.nda
     raw = viewpoint_confusion(labels, predicted, classes, cfg.pseudo_count)
     if cfg.belief_correction == "none":
         return VPTreeObservation(raw, raw, note="vptree.belief_correction is none")
-    held = held_out_groups(labels, groups)
-    if len(held) < 2:
+    folds = vptree_folds(labels, predicted, groups, classes, cfg.pseudo_count)
+    if len(folds) < 2:
         return VPTreeObservation(raw, raw, note=(
-            f"t = 1: {len(held)} held-out group(s) of volume models, two are needed (two or "
+            f"t = 1: {len(folds)} held-out group(s) of volume models, two are needed (two or "
             "more volume models per class, dataset.split.volume)"))
-    models = [viewpoint_confusion(labels[~h], predicted[~h], classes, cfg.pseudo_count)
-              for h in held]
+    held = [h for h, _ in folds]
+    models = [m for _, m in folds]
     row_model = fold_of_rows(held, len(labels))
     walks, walk_row = held_out_walks(row_model, directions, rng)
     t = fit_temperature(models, row_model, labels, predicted, walks, walk_row)

@@ -1,0 +1,233 @@
+"""The held-out closed loop: each POMDP method run on objects its observation model never saw.
+
+For every volume group g (the g-th volume model of every class), a method's model is the one
+fitted without g (as the observe or vptree stage fitted it for its held-out walks), tempered by
+the belief's own t, solved at λ and run from seeded starts on each of g's models, its views
+the labels the classifier gave that model at X_rho (recorded by the stages: an episode is
+exact). Where these episodes stop is where the method itself stops on unseen objects, so the
+declared confidence of ``evaluate.declared_fit: closed_loop`` is fitted there
+(:func:`~rapomdp.recognition.belief.stops_declared_confidence`). Only volume models and their
+recorded labels are read, never the test models.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rapomdp.awareness.evidence import RecordedObservation
+from rapomdp.config import Config
+from rapomdp.context import RunContext
+from rapomdp.data.splits import class_seed
+from rapomdp.experiment.episode import Motion, run_episode
+from rapomdp.experiment.methods import POMDPPolicy
+from rapomdp.io import load_npz, write_json_atomic
+from rapomdp.planning.artefacts import policy_file
+from rapomdp.planning.policy import ActiveRecognitionPolicy
+from rapomdp.planning.stage import start_viewpoint
+from rapomdp.progress import track
+from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
+from rapomdp.recognition.belief import (
+    DeclaredConfidence,
+    stops_declared_confidence,
+    temper,
+)
+from rapomdp.recognition.vptree_stage import vptree_folds
+from rapomdp.robot.artefacts import load_robot
+from rapomdp.workspace import StageError, StageInputs
+
+HELD_OUT_STARTS = 4
+"""Seeded reachable starts per held-out model (each group's models × starts are the stops)."""
+
+HELD_OUT_DIR = "held_out"
+"""The evaluate stage's folder of the held-out closed loop (its solves and record)."""
+DECLARED_FIT_FILE = "declared_fit.json"
+"""The record of the closed-loop fit in :data:`HELD_OUT_DIR`."""
+
+
+class LabelScene:
+    """A held-out model's view at x is the index x (its label is looked up by the recogniser)."""
+
+    def look(self, viewpoint: int, rng: np.random.Generator) -> np.ndarray:
+        return np.full((1, 1), float(viewpoint))
+
+
+class LabelRecogniser:
+    """The classifier's recorded label at each X_rho viewpoint of one model, one-hot."""
+
+    def __init__(self, labels: np.ndarray, classes: int) -> None:
+        self.labels, self.classes = labels, classes
+
+    def predict(self, depth_images: np.ndarray) -> np.ndarray:
+        return np.eye(self.classes)[self.labels[depth_images[:, 0, 0].astype(int)]]
+
+
+@dataclass(frozen=True)
+class HeldOutFold:
+    """One method's held-out group: its models' true classes ``labels`` (M,) and recorded
+    labels ``predicted`` (M, V), and the method's ``model`` (V, C, C) fitted without them
+    (the planner's and the belief's) with the belief's ``first_view`` model."""
+
+    group: int
+    labels: np.ndarray
+    predicted: np.ndarray
+    model: np.ndarray
+    first_view: np.ndarray
+
+
+def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
+                   ) -> dict[str, list[HeldOutFold]]:
+    """Each POMDP method's held-out groups (``vptree``: the vptree stage's labels of the
+    volume models; the others: the observe stage's refitted folds, ``ra`` its chosen
+    variant). Empty lists where there are fewer than two groups to hold out."""
+    out: dict[str, list[HeldOutFold]] = {}
+    cnn = [m for m in methods if m != "vptree"]
+    if cnn:
+        recorded = RecordedObservation.load(inputs.observe)
+        try:
+            folds = recorded.belief_folds(config.observe)
+        except ValueError as exc:
+            raise StageError(f"evaluate.declared_fit closed_loop: {exc}") from None
+        temperatures = recorded.calibration["temperatures"]
+        corrections = recorded.calibration["belief_corrections"]
+        evidence = recorded.evidence
+        for name in cnn:
+            out[name] = []
+            if len(folds) < 2:
+                continue
+            for held, models in folds:
+                rows = held & evidence.volume_mask  # the modelled classifier's own labels
+                if not rows.any():
+                    continue
+                single = models[name].probabilities
+                planner = temper(single, float(temperatures[name]))
+                first = single if corrections[name] == "after_first" else planner
+                out[name].append(HeldOutFold(int(evidence.groups[rows][0]),
+                                             evidence.labels[rows], evidence.predicted[rows],
+                                             planner, first))
+    if "vptree" in methods:
+        vptree = load_npz(inputs.vptree / VPTREE_OBSERVATION_FILE)
+        if "volume_predictions" not in vptree:
+            raise StageError("evaluate.declared_fit closed_loop: the vptree stage predates "
+                             "the saved volume labels: rapomdp run -w W --redo vptree")
+        labels, predicted = vptree["volume_labels"], vptree["volume_predictions"]
+        groups, t = vptree["volume_groups"], float(vptree["temperature"])
+        folds_v = vptree_folds(labels, predicted, groups, len(vptree["classes"]),
+                               config.vptree.pseudo_count)
+        out["vptree"] = [] if len(folds_v) < 2 else [
+            HeldOutFold(int(groups[held][0]), labels[held], predicted[held], temper(m, t),
+                        temper(m, t)) for held, m in folds_v]
+    return out
+
+
+def held_out_policy(config: Config, policy: ActiveRecognitionPolicy, fold: HeldOutFold,
+                    name: str, motion: Motion) -> POMDPPolicy:
+    """The evaluate stage's POMDP method (lookahead, revisit) on a held-out fold's model; it
+    reports its belief as it is (its stops are what the declared confidence is fitted on)."""
+    cfg = config.evaluate
+    return POMDPPolicy(policy, fold.model, name, revisit=cfg.revisit,
+                       first_view_model=fold.first_view,
+                       lookahead_over=motion.reachable if cfg.lookahead else None,
+                       lookahead_depth=cfg.lookahead_depth,
+                       lookahead_width=cfg.lookahead_width)
+
+
+def held_out_stops(config: Config, policy: POMDPPolicy, fold: HeldOutFold, motion: Motion,
+                   starts: int = HELD_OUT_STARTS
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The final log beliefs (M·starts, C), the true class, whether the declaration was right
+    and the movement energy (m) of each episode of ``policy`` from ``starts`` seeded reachable
+    starts on each held-out model of ``fold`` (the starts depend on the group and model only,
+    so every method starts from the same ones)."""
+    classes = fold.model.shape[2]
+    reachable = np.flatnonzero(motion.reachable)
+    finals, truth, right, energy = [], [], [], []
+    for r in range(len(fold.labels)):
+        rng = class_seed(config.seed, f"held-out/{fold.group}/{r}")
+        for s in rng.choice(reachable, min(starts, reachable.size), replace=False):
+            episode = run_episode(LabelScene(), LabelRecogniser(fold.predicted[r], classes),
+                                  policy, motion, int(s), config.evaluate.max_moves, rng)
+            finals.append(np.log(np.maximum(episode.beliefs[-1], 1e-300)))
+            truth.append(int(fold.labels[r]))
+            right.append(episode.declared == int(fold.labels[r]))
+            energy.append(float(episode.move_energy.sum()))
+    return np.array(finals), np.array(truth), np.array(right), np.array(energy)
+
+
+@dataclass(frozen=True)
+class ClosedLoopFit:
+    """One method's held-out closed loop: its ``declared`` confidence fitted at the stops,
+    the loop's ``accuracy`` and mean ``energy`` (m), and the ``episodes`` run."""
+
+    declared: DeclaredConfidence
+    accuracy: float
+    energy: float
+    episodes: int
+
+    def to_dict(self) -> dict[str, object]:
+        return {"declared_confidence": self.declared.to_dict(), "accuracy": self.accuracy,
+                "energy": self.energy, "episodes": self.episodes}
+
+
+def solve_held_out_folds(config: Config, folds: dict[str, list[HeldOutFold]], robot_dir: Path,
+                         out: Path, context: RunContext = RunContext()) -> None:
+    """Solve every (method, group) fold model at ``solve.wrong_declaration_cost_m``, as the
+    solve stage solves the workspace's, into ``out/group_<g>/`` (one pool)."""
+    from rapomdp.planning.workspace import solve_problem_sets
+
+    robot = load_robot(robot_dir)
+    reachable = robot["reachable"].astype(bool)
+    solve = config.solve
+    groups = sorted({f.group for fs in folds.values() for f in fs})
+    sets = [(out / f"group_{g}", solve.wrong_declaration_cost_m,
+             {name: f.model for name, fs in folds.items() for f in fs if f.group == g})
+            for g in groups]
+    solve_problem_sets(
+        sets, robot["energy"], reachable, discount=solve.discount,
+        start_viewpoint=start_viewpoint(reachable), precision=solve.precision,
+        timeout=solve.timeout_s, max_iterations=solve.iterations,
+        workers=context.worker_count, allow_stay=False, memory_gb=solve.memory_gb,
+        scheduler=context.scheduler, description="evaluate: held-out closed loop, solves",
+        pool=context.pool)
+
+
+def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[str],
+                         out: Path, context: RunContext = RunContext(),
+                         per_fold: bool = False) -> dict[str, ClosedLoopFit]:
+    """Fit each POMDP method's declared confidence on its held-out closed loop and write
+    ``out/declared_fit.json``: every group's episodes update the belief by the model fitted
+    without the group and look ahead with it; the plan (the value the lookahead reads) is the
+    solve stage's policy, or with ``per_fold`` the fold model's own, solved into ``out``
+    (:func:`solve_held_out_folds`: a solve per method and group; measured within 0.02 of the
+    solve stage's a on both development sets, docs/awareness.md §4.8). Methods with fewer
+    than two held-out groups are left out (they keep the walks' a)."""
+    folds = {name: f for name, f in held_out_folds(config, inputs, methods).items() if f}
+    if not folds:
+        return {}
+    if per_fold:
+        solve_held_out_folds(config, folds, inputs.robot, out, context)
+    motion = Motion.from_robot(load_robot(inputs.robot))
+    fits: dict[str, ClosedLoopFit] = {}
+    pairs = [(name, fold) for name, fs in folds.items() for fold in fs]
+    parts: dict[str, list[tuple[np.ndarray, ...]]] = {}
+    for name, fold in track(pairs, "evaluate: held-out closed loop", context.progress,
+                            unit="groups"):
+        plans = out / f"group_{fold.group}" if per_fold else inputs.solve
+        policy = ActiveRecognitionPolicy.load(plans / policy_file(name))
+        stops = held_out_stops(config, held_out_policy(config, policy, fold, name, motion),
+                               fold, motion)
+        parts.setdefault(name, []).append((*stops, np.full(len(stops[1]), fold.group)))
+    for name, rows in parts.items():
+        log_b, truth, right, energy, group = (np.concatenate(a) for a in zip(*rows,
+                                                                              strict=True))
+        fits[name] = ClosedLoopFit(stops_declared_confidence(log_b, truth, group),
+                                   float(right.mean()), float(energy.mean()), int(len(truth)))
+    write_json_atomic(out / DECLARED_FIT_FILE, {
+        "lambda_m": config.solve.wrong_declaration_cost_m,
+        "starts_per_model": HELD_OUT_STARTS,
+        "plans": "per fold" if per_fold else "solve stage",
+        "methods": {name: fit.to_dict() for name, fit in fits.items()}})
+    return fits

@@ -1,0 +1,134 @@
+"""The held-out closed loop and the declared confidence fitted at its stops, on a tiny
+three-class workspace with two volume models a class (two groups to hold out)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rapomdp.config import Config, config_from_dict
+from rapomdp.data.dataset import class_ranks, load_dataset
+from rapomdp.experiment.evaluation import ClosedLoop
+from rapomdp.experiment.held_out import (
+    DECLARED_FIT_FILE,
+    HELD_OUT_DIR,
+    HELD_OUT_STARTS,
+    closed_loop_declared,
+    held_out_folds,
+)
+from rapomdp.io import read_json
+from rapomdp.pipeline import get_stage, run_pipeline
+from rapomdp.planning.stage import declared_temperatures
+from rapomdp.recognition.artefacts import load_volume_probabilities
+from rapomdp.robot.artefacts import load_robot
+from rapomdp.workspace import StageError, StageInputs, Workspace
+from tests.conftest import TEST_CONTEXT
+from tests.experiment.conftest import TINY
+
+POMDPS = ["vptree", "classifier", "ra"]
+HELD_OUT_TINY = {
+    **TINY,
+    "dataset": {**TINY["dataset"], "split": {"train": 3, "volume": 2, "test": 1}},
+    "train": {**TINY["train"], "epochs": 8},  # a classifier whose labels differ by model
+    "evaluate": {**TINY["evaluate"], "methods": ["random", *POMDPS], "lambdas": [],
+                 "random_thresholds": [], "declared_fit": "closed_loop"},
+}
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory: pytest.TempPathFactory) -> tuple[Workspace, Config]:
+    config = config_from_dict(HELD_OUT_TINY)
+    ws = Workspace(tmp_path_factory.mktemp("held-out"))
+    run_pipeline(config, ws, context=TEST_CONTEXT)
+    return ws, config
+
+
+def _inputs(ws: Workspace) -> StageInputs:
+    return ws.inputs(get_stage("evaluate"))
+
+
+def test_each_method_holds_out_each_volume_group_and_reads_its_recorded_labels(workspace):
+    ws, config = workspace
+    folds = held_out_folds(config, _inputs(ws), POMDPS)
+    dataset = load_dataset(ws.require("dataset"))
+    volume = dataset.with_role("volume")
+    ranks = class_ranks(volume)
+    outputs = load_volume_probabilities(ws.require("classifier_eval"))
+    test_files = {m.file for m in dataset.with_role("test")}
+    assert test_files.isdisjoint(m.file for m in volume)
+    for name in POMDPS:
+        assert [f.group for f in folds[name]] == [0, 1], name
+        for fold in folds[name]:
+            mine = [m for m, g in zip(volume, ranks, strict=True) if g == fold.group]
+            assert fold.labels.tolist() == [dataset.label(m) for m in mine]
+            if name != "vptree":  # the classifier's labels of exactly this group's models
+                expected = np.stack([outputs.of(m).argmax(axis=1) for m in mine])
+                np.testing.assert_array_equal(fold.predicted, expected)
+            assert np.allclose(fold.model.sum(axis=2), 1.0)
+        # a fold's model is fitted without its group: the two folds' models differ
+        assert not np.allclose(folds[name][0].model, folds[name][1].model), name
+    with pytest.raises(StageError, match="observe.belief 'naive' only"):
+        held_out_folds(config.model_copy(update={"observe": config.observe.model_copy(
+            update={"belief": "nuisance"})}), _inputs(ws), ["ra"])
+
+
+def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace):
+    ws, config = workspace
+    summary = read_json(ws.require("evaluate") / "evaluate.json")
+    assert summary["declared_fit"]["kind"] == "closed_loop"
+    fits = summary["declared_fit"]["closed_loop"]
+    record = read_json(ws.require("evaluate") / HELD_OUT_DIR / DECLARED_FIT_FILE)
+    assert record["plans"] == "solve stage" and record["methods"] == fits
+    reachable = int(load_robot(ws.require("robot"))["reachable"].sum())
+    stops = 2 * 3 * min(HELD_OUT_STARTS, reachable)  # groups x classes x starts
+    assert set(fits) == set(POMDPS)
+    for name, fit in fits.items():
+        declared = fit["declared_confidence"]
+        assert fit["episodes"] == declared["stops"] == stops, name
+        assert declared["groups"] == [0, 1] and declared["thresholds"] == []
+        assert 0.05 <= declared["temperature"] <= 2.0
+        assert 0.0 <= fit["accuracy"] <= 1.0 and fit["energy"] >= 0.0
+    a = {name: fit["declared_confidence"]["temperature"] for name, fit in fits.items()}
+    loop = ClosedLoop.load(config, _inputs(ws), declared_fit=a)
+    for name in POMDPS:
+        assert loop.methods[name]._bayes.declared_temperature == a[name]
+    # Random keeps the walks' a at its threshold
+    offered = {config.evaluate.random.observation_model: None}
+    walks = declared_temperatures(ws.require("observe"), offered, ws.require("vptree"),
+                                  config.evaluate.random.belief_threshold)
+    assert loop.methods["random"]._bayes.declared_temperature == \
+        walks[config.evaluate.random.observation_model]
+    # the evaluate stage's episodes report b ** a: the POMDPs' final confidences there are
+    # those of the episodes rerun with the a (same actions, same beliefs before the report)
+    model = loop.dataset.with_role("test")[0]
+    saved = {(r.method, r.start): r for r in loop.run_model(model)}
+    plain = ClosedLoop.load(config.model_copy(update={"evaluate": config.evaluate.model_copy(
+        update={"declared_confidence": "belief"})}), _inputs(ws))
+    for episode_record in plain.run_model(model):
+        if episode_record.method in POMDPS:
+            t = a[episode_record.method]
+            b = episode_record.episode.beliefs ** t
+            assert np.allclose(saved[(episode_record.method, episode_record.start)].episode.beliefs,
+                               b / b.sum(axis=1, keepdims=True))
+
+
+def test_per_fold_plans_are_solved_for_every_method_and_group(workspace, tmp_path):
+    ws, config = workspace
+    fits = closed_loop_declared(config, _inputs(ws), ["classifier", "ra"], tmp_path,
+                                TEST_CONTEXT, per_fold=True)
+    assert set(fits) == {"classifier", "ra"}
+    for g in (0, 1):
+        assert {p.name for p in (tmp_path / f"group_{g}").glob("policy_*.npz")} == \
+            {"policy_classifier.npz", "policy_ra.npz"}
+    record = read_json(tmp_path / DECLARED_FIT_FILE)
+    assert record["plans"] == "per fold"
+    assert record["methods"]["ra"]["declared_confidence"]["temperature"] == \
+        fits["ra"].declared.temperature
+
+
+def test_one_volume_group_leaves_every_method_the_walks_a(pipeline_workspace, tmp_path):
+    ws, config = pipeline_workspace  # one volume model a class: no group can be held out
+    assert config.dataset.split.volume == 1
+    assert closed_loop_declared(config, ws.inputs(get_stage("evaluate")), POMDPS,
+                                tmp_path / "held_out") == {}
+    assert not (tmp_path / "held_out").exists()
