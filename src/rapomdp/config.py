@@ -468,14 +468,15 @@ class EvaluateConfig(Section):
         "same either way; Static and the learned baseline report as before. Chosen on "
         "held-out objects (docs/awareness.md §4.8)")
     declared_fit: Literal["walks", "closed_loop", "closed_loop_per_fold"] = Field(
-        "walks", description="where the POMDP methods' a (declared_confidence: calibrated) is "
-        "fitted: walks (the observe and vptree stages' held-out random walks stopped at "
-        "belief thresholds); closed_loop (the method's own held-out closed loop: each volume "
-        "group's models run from 4 starts on their recorded labels, the belief and the "
-        "lookahead by the model fitted without the group, the plan the solve stage's; "
-        "seconds, a naive belief only); closed_loop_per_fold (the same with each fold's "
-        "model solved too: no plan saw the group, one solve a method and group). Random "
-        "keeps the walks' a (docs/awareness.md §4.8)")
+        "closed_loop", description="where the POMDP methods' a (declared_confidence: "
+        "calibrated) is fitted: walks (the observe and vptree stages' held-out random walks "
+        "stopped at belief thresholds); closed_loop (the method's own held-out closed loop: "
+        "each volume group's models run from 4 starts on their recorded labels, the belief "
+        "and the lookahead by the model fitted without the group, the plan the solve "
+        "stage's; seconds, a naive belief only); closed_loop_per_fold (the same with each "
+        "fold's model solved too: no plan saw the group, one solve a method and group). "
+        "Random keeps the walks' a. closed_loop chosen on held-out objects by a rule written "
+        "first (docs/awareness.md §4.8)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "

@@ -405,7 +405,7 @@ def test_the_recorded_belief_folds_are_those_the_stage_fitted_its_declared_confi
     recorded = RecordedObservation.load(workspace.root / "observe")
     folds = recorded.belief_folds(config.observe)
     assert len(folds) == len(np.unique(recorded.evidence.groups)) >= 2
-    for held, models in folds:
+    for _, models in folds:
         assert np.array_equal(models["ra"].probabilities,
                               models[recorded.variant].probabilities)
     calibration = recorded.calibration

@@ -160,12 +160,15 @@ def held_out_stops(config: Config, policy: POMDPPolicy, fold: HeldOutFold, motio
 @dataclass(frozen=True)
 class ClosedLoopFit:
     """One method's held-out closed loop: its ``declared`` confidence fitted at the stops,
-    the loop's ``accuracy`` and mean ``energy`` (m), and the ``episodes`` run."""
+    the loop's ``accuracy`` and mean ``energy`` (m), the ``episodes`` run, and the stops
+    themselves (``log_beliefs`` (episodes, C), ``truth`` (episodes,); not recorded)."""
 
     declared: DeclaredConfidence
     accuracy: float
     energy: float
     episodes: int
+    log_beliefs: np.ndarray
+    truth: np.ndarray
 
     def to_dict(self) -> dict[str, object]:
         return {"declared_confidence": self.declared.to_dict(), "accuracy": self.accuracy,
@@ -224,7 +227,8 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
         log_b, truth, right, energy, group = (np.concatenate(a) for a in zip(*rows,
                                                                               strict=True))
         fits[name] = ClosedLoopFit(stops_declared_confidence(log_b, truth, group),
-                                   float(right.mean()), float(energy.mean()), int(len(truth)))
+                                   float(right.mean()), float(energy.mean()), int(len(truth)),
+                                   log_b, truth)
     write_json_atomic(out / DECLARED_FIT_FILE, {
         "lambda_m": config.solve.wrong_declaration_cost_m,
         "starts_per_model": HELD_OUT_STARTS,
