@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rapomdp.config import Config, config_from_dict
+from rapomdp.config import METHOD_NAMES, Config, config_from_dict
 from rapomdp.data.dataset import class_ranks, load_dataset
 from rapomdp.experiment.evaluation import ClosedLoop
 from rapomdp.experiment.held_out import (
@@ -15,7 +15,9 @@ from rapomdp.experiment.held_out import (
     HELD_OUT_STARTS,
     closed_loop_declared,
     held_out_folds,
+    load_declared_fit,
 )
+from rapomdp.experiment.report import closed_loop_cells
 from rapomdp.io import read_json
 from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.planning.stage import declared_temperatures
@@ -132,3 +134,20 @@ def test_one_volume_group_leaves_every_method_the_walks_a(pipeline_workspace, tm
     assert closed_loop_declared(config, ws.inputs(get_stage("evaluate")), POMDPS,
                                 tmp_path / "held_out") == {}
     assert not (tmp_path / "held_out").exists()
+
+
+def test_the_report_shows_the_closed_loop_fit_and_says_what_was_reported(workspace):
+    ws, _ = workspace
+    record = load_declared_fit(ws.require("evaluate"))
+    header, rows = closed_loop_cells(record)
+    assert header[:2] == ["Method", "a"] and len(rows) == len(POMDPS)
+    for row in rows:
+        key = next(k for k in POMDPS if METHOD_NAMES[k] == row[0])
+        fit = record["methods"][key]
+        assert row[1] == f"{fit['declared_confidence']['temperature']:.3f}"
+        assert row[-1] == str(fit["episodes"])
+    report = (ws.require("report") / "report.md").read_text()
+    assert "fitted at their own held-out closed-loop stops (evaluate.declared_fit: " \
+           "closed_loop)" in report
+    assert "a POMDP method's where its own held-out closed loop stops" in report
+    assert rows[0][1] in report

@@ -115,9 +115,17 @@ def test_the_confidence_line_reads_what_each_seeds_evaluate_stage_reported(
     del stage["config"]["evaluate"]["declared_confidence"]  # a seed from before the option
     record.unlink()
     write_json_atomic(record, stage)
-    assert "reported differently (evaluate.declared_confidence belief, calibrated)" in \
-        reported_confidence(results)
+    assert ("reported differently (evaluate.declared_confidence, declared_fit: belief, "
+            "closed_loop; calibrated, closed_loop)") in reported_confidence(results)
     assert reported_confidence(results[1:]) == (
         "Confidence − accuracy and ECE: Every method reports the belief it acts on "
         "(evaluate.declared_confidence: belief), Static the classifier's softmax at its "
         "held-out temperature.")
+    assert "a POMDP method's where its own held-out closed loop stops" in \
+        reported_confidence(results[:1])
+    # a seed from before evaluate.declared_fit fitted every a on walks
+    stage["config"]["evaluate"].update(declared_confidence="calibrated")
+    del stage["config"]["evaluate"]["declared_fit"]
+    record.unlink()
+    write_json_atomic(record, stage)
+    assert "(fitted where held-out walks stop;" in reported_confidence(results[1:])

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.methods import POMDPPolicy
-from rapomdp.io import load_npz, write_json_atomic
+from rapomdp.io import load_npz, read_json, write_json_atomic
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import start_viewpoint
@@ -155,6 +156,14 @@ def held_out_stops(config: Config, policy: POMDPPolicy, fold: HeldOutFold, motio
             right.append(episode.declared == int(fold.labels[r]))
             energy.append(float(episode.move_energy.sum()))
     return np.array(finals), np.array(truth), np.array(right), np.array(energy)
+
+
+def load_declared_fit(evaluate_dir: Path) -> dict[str, Any] | None:
+    """An evaluate stage's record of its held-out closed-loop fit (``held_out/
+    declared_fit.json``), None where it fitted none (``evaluate.declared_fit: walks``, one
+    held-out group, or a stage from before the option)."""
+    path = Path(evaluate_dir) / HELD_OUT_DIR / DECLARED_FIT_FILE
+    return read_json(path) if path.is_file() else None
 
 
 @dataclass(frozen=True)

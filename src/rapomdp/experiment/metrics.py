@@ -256,13 +256,16 @@ BELIEF_CALIBRATION_HEADER = ["Method", "Accuracy", "Belief in the true class", "
                              "Confidence − accuracy", "ECE"]
 
 
-def reported_belief_note(declared_confidence: str) -> str:
+def reported_belief_note(declared_confidence: str, declared_fit: str = "walks") -> str:
     """What the methods' final beliefs in the calibration table are, per
-    ``evaluate.declared_confidence``."""
+    ``evaluate.declared_confidence`` and ``evaluate.declared_fit``."""
     if declared_confidence == "calibrated":
+        where = ("fitted where held-out walks stop" if declared_fit == "walks" else
+                 "Random's fitted where held-out walks stop at its threshold, a POMDP "
+                 "method's where its own held-out closed loop stops")
         return ("Random and the POMDP methods report their belief raised to the declared-"
-                "confidence temperature of its model (fitted where held-out walks stop; their "
-                "actions are the belief's: evaluate.declared_confidence), Static the "
+                f"confidence temperature of its model ({where}; their actions are the "
+                "belief's: evaluate.declared_confidence, evaluate.declared_fit), Static the "
                 "classifier's softmax at its held-out temperature, the learned baseline its "
                 "belief as it is.")
     return ("Every method reports the belief it acts on (evaluate.declared_confidence: "

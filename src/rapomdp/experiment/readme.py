@@ -102,10 +102,10 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
                   "(test model, start) pairs):", "", _read(evaluate / "tradeoff.md"), "",
                   f"![Accuracy against energy]({figures_link}/demo_tradeoff.png)", ""]
     if episodes is not None:
-        declared = workspace.config(default=Config()).evaluate.declared_confidence
+        ran = workspace.config(default=Config()).evaluate
         lines += ["**Calibration of the final belief** (confidence: the belief in the declared "
                   "class, which a calibrated belief's accuracy equals; ECE over 10 bins). "
-                  + reported_belief_note(declared), "",
+                  + reported_belief_note(ran.declared_confidence, ran.declared_fit), "",
                   markdown_table(*belief_calibration_cells(episodes)).strip(), ""]
     lines += ["**Self-awareness** (observation models on the test models):", "",
               _read(workspace.require("observe") / "quality.md"), "",

@@ -41,7 +41,7 @@ from rapomdp.awareness.artefacts import (
 from rapomdp.awareness.figures import RELIABILITY_MIN_COUNT, calibration_caption
 from rapomdp.awareness.quality import quality_cells
 from rapomdp.awareness.report import FIGURES_DIR, declared_confidence_cells, write_fig1
-from rapomdp.config import METHOD_NAMES, Config
+from rapomdp.config import METHOD_NAMES, Config, EvaluateConfig
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
 from rapomdp.experiment.episode_table import (
@@ -55,6 +55,7 @@ from rapomdp.experiment.episode_table import (
 )
 from rapomdp.experiment.evaluation import PAIRED_REFERENCE
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
+from rapomdp.experiment.held_out import load_declared_fit
 from rapomdp.experiment.learned import CURVES_FIGURE, LEARN_SUMMARY
 from rapomdp.experiment.metrics import (
     PER_CLASS_NOTE,
@@ -469,7 +470,7 @@ def _awareness(b: _Builder, config: Config, inputs: StageInputs, class_name: str
              "Calibration: the classifier's accuracy per viewpoint-score bin on the held-out "
              "evidence (which RA variant is RA-POMDP's model could not be read).",
              observe_how)
-    _self_awareness(b, inputs, class_name, observe_how, config.evaluate.declared_confidence)
+    _self_awareness(b, inputs, class_name, observe_how, config.evaluate)
 
 
 def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
@@ -545,7 +546,7 @@ def _identical_rows(observe: Path, choice: RAChoice | None) -> str:
 
 
 def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
-                    declared_confidence: str) -> None:
+                    ran: EvaluateConfig) -> None:
     """Predicted vs observed P(correct), one class's hemispheres and the calibration of every
     method's final belief."""
     from rapomdp.awareness.report import AWARENESS_RELIABILITY, write_awareness_figures
@@ -566,8 +567,7 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
                        f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
     episodes = inputs.evaluate / EPISODES_FILE
     if episodes.exists():
-        _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate,
-                            declared_confidence)
+        _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate, ran)
     vptree = b.root / "vptree"  # not an input of the report stage (as the VP-tree summary)
     header, rows = declared_confidence_cells(observe, vptree if vptree.is_dir() else None)
     if rows:
@@ -576,13 +576,43 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
                         "model, a and, at those stops, the belief's and the declared belief's "
                         "confidence and ECE, each held-out group scored by the a the other "
                         "groups give (docs/awareness.md §4.8)" +
-                        ("." if declared_confidence == "calibrated" else
+                        ("." if ran.declared_confidence == "calibrated" else
                          "; this run reported the belief itself.")))
         b.add(Table(header, rows))
+    record = load_declared_fit(inputs.evaluate)
+    if record is not None and record["methods"]:
+        plans = ("the solve stage's plan" if record["plans"] == "solve stage"
+                 else "each fold's own plan")
+        b.add(Paragraph(
+            "The POMDP methods' declared confidence, fitted at their own held-out closed-loop "
+            f"stops (evaluate.declared_fit: {ran.declared_fit}): each volume group's models run "
+            f"from {record['starts_per_model']} starts, the belief and the lookahead by the "
+            f"model fitted without the group, {plans}, λ = {record['lambda_m']:g} m; per "
+            "method a, the loop's accuracy and energy, and at its stops the belief's and the "
+            "declared belief's confidence and ECE (each group by the a the other groups "
+            "give). These a are the ones the methods above reported with."))
+        b.add(Table(*closed_loop_cells(record)))
+
+
+def closed_loop_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """The held-out closed loop's record (``held_out/declared_fit.json``) as a table: per
+    POMDP method a, the loop's accuracy and mean energy, the belief's and the declared
+    belief's (held out) confidence and ECE at its stops, and the stops."""
+    header = ["Method", "a", "Accuracy", "Energy (m)", "Belief: confidence", "ECE",
+              "Declared (held out): confidence", "ECE", "Stops"]
+    rows = []
+    for name, fit in record["methods"].items():
+        d = fit["declared_confidence"]
+        rows.append([METHOD_NAMES.get(name, name), f"{d['temperature']:.3f}",
+                     f"{fit['accuracy']:.3f}", f"{fit['energy']:.2f}",
+                     f"{d['confidence']:.3f}", f"{d['ece']:.3f}",
+                     f"{d['declared_confidence']:.3f}", f"{d['declared_ece']:.3f}",
+                     str(fit["episodes"])])
+    return header, rows
 
 
 def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path,
-                        declared_confidence: str) -> None:
+                        ran: EvaluateConfig) -> None:
     """Every method's final belief against its accuracy (:func:`belief_calibration_cells`) and
     the reliability of its confidence."""
     from rapomdp.awareness.figures import reliability_figure
@@ -596,7 +626,7 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path,
                     "models: the mean belief in the true class; the confidence (the belief in "
                     "the declared class), which a calibrated belief's accuracy equals; ECE of "
                     "the confidence over 10 equal-width bins. "
-                    + reported_belief_note(declared_confidence)))
+                    + reported_belief_note(ran.declared_confidence, ran.declared_fit)))
     b.add(Table(*belief_calibration_cells(table)))
     figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
                                 xlabel="final belief in the declared class",

@@ -151,14 +151,17 @@ class StudyReport:
 
 def reported_confidence(seeds: Sequence[SeedResult]) -> str:
     """What the confidence columns of a configuration's pooled table are: what its methods
-    reported (``evaluate.declared_confidence`` as each seed's evaluate stage ran; absent: it
-    predates the option, and reported the belief)."""
-    values = {str(read_json(r.workspace / "evaluate" / "stage.json")["config"]["evaluate"]
-                  .get("declared_confidence", "belief")) for r in seeds}
-    if len(values) > 1:
+    reported (``evaluate.declared_confidence`` and ``evaluate.declared_fit`` as each seed's
+    evaluate stage ran; absent: it predates the option, and reported the belief, or fitted
+    on walks)."""
+    ran = {(str(e.get("declared_confidence", "belief")), str(e.get("declared_fit", "walks")))
+           for e in (read_json(r.workspace / "evaluate" / "stage.json")["config"]["evaluate"]
+                     for r in seeds)}
+    if len(ran) > 1:
         return ("Confidence − accuracy and ECE: the seeds' evaluate stages reported differently "
-                f"(evaluate.declared_confidence {', '.join(sorted(values))}).")
-    return "Confidence − accuracy and ECE: " + reported_belief_note(values.pop())
+                f"(evaluate.declared_confidence, declared_fit: "
+                f"{'; '.join(', '.join(v) for v in sorted(ran))}).")
+    return "Confidence − accuracy and ECE: " + reported_belief_note(*ran.pop())
 
 
 def write_study_report(spec: StudySpec, root: str | Path,
