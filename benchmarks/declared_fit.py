@@ -11,7 +11,11 @@ every group's walks) and of the belief raised to the loop's a fitted on the othe
 episodes (leave-one-group-out); then the mean of each over the workspaces.
 
     python benchmarks/declared_fit.py -w W [W ...] [--methods ra classifier vptree]
-        [--per-fold]
+        [--per-fold] [--test]
+
+``--test`` instead prints, per workspace and method, what the evaluate stage's test episodes
+reported (confidence − accuracy / ECE of the final confidence): a diagnostic read after the
+choice, never a choice.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.context import RunContext
+from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.experiment.held_out import closed_loop_declared
 from rapomdp.pipeline import get_stage
 from rapomdp.planning.stage import declared_temperatures, offered_observation_models
@@ -36,7 +41,12 @@ def main() -> None:
     parser.add_argument("--methods", nargs="+", default=["ra", "classifier", "vptree"])
     parser.add_argument("--per-fold", action="store_true",
                         help="solve each fold's model (closed_loop_per_fold): minutes a run")
+    parser.add_argument("--test", action="store_true",
+                        help="the test episodes' reported calibration (after the choice)")
     args = parser.parse_args()
+    if args.test:
+        test_diagnostic(args.workspace)
+        return
     rows: dict[str, list[tuple[float, ...]]] = {}
     print(f"{'workspace':48s} {'method':10s} {'n':>4s} {'accuracy':>8s} {'belief':>15s} "
           f"{'walk a':>6s} {'walk a':>15s} {'loop a':>6s} {'loop a, held out':>16s}")
@@ -70,6 +80,23 @@ def main() -> None:
         m = np.mean(np.array(values), axis=0)
         print(f"{name:10s} {m[0]:+.3f} / {m[1]:.3f} {m[2]:+.3f} / {m[3]:.3f} "
               f"{m[4]:+.3f} / {m[5]:.3f}")
+
+
+def test_diagnostic(workspaces: list[Path]) -> None:
+    """Per workspace and method: confidence − accuracy / ECE the test episodes reported, and
+    the evaluate stage's declared_fit kind."""
+    for root in workspaces:
+        ws = Workspace(root)
+        table = EpisodeTable.load(ws.require("evaluate") / EPISODES_FILE)
+        kind = ws.config().evaluate.declared_fit
+        confidence = table.final_confidence()
+        cells = []
+        for method in table.methods:
+            mine = table.method == method
+            right = table.correct[mine].astype(float)
+            cells.append(f"{method} {confidence[mine].mean() - right.mean():+.3f} / "
+                         f"{expected_calibration_error(confidence[mine], right):.3f}")
+        print(f"{str(root):48s} ({kind}) " + "; ".join(cells))
 
 
 if __name__ == "__main__":

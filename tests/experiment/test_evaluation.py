@@ -308,6 +308,10 @@ def test_calibrated_declarations_change_what_is_reported_and_no_action(workspace
 
     ws, config = workspace
     assert config.evaluate.declared_confidence == "calibrated"  # chosen held out (§4.8)
+    assert config.evaluate.declared_fit == "closed_loop"  # chosen held out (§4.8, round 3)
+    # one volume model a class: no closed loop to fit on, every method keeps the walks' a
+    assert read_json(ws.require("evaluate") / "evaluate.json")["declared_fit"] == {
+        "kind": "closed_loop", "closed_loop": {}}
     plain_config = config.model_copy(update={
         "evaluate": config.evaluate.model_copy(update={"declared_confidence": "belief"})})
     plain = ClosedLoop.load(plain_config, _inputs(ws), sweep_dir=ws.require("evaluate") / "sweep")
