@@ -14,6 +14,7 @@ from rapomdp.experiment.held_out import (
     HELD_OUT_DIR,
     HELD_OUT_STARTS,
     closed_loop_declared,
+    closed_loop_skipped,
     held_out_folds,
     load_declared_fit,
 )
@@ -23,7 +24,7 @@ from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.planning.stage import declared_temperatures
 from rapomdp.recognition.artefacts import load_volume_probabilities
 from rapomdp.robot.artefacts import load_robot
-from rapomdp.workspace import StageError, StageInputs, Workspace
+from rapomdp.workspace import StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT
 from tests.experiment.conftest import TINY
 
@@ -69,9 +70,11 @@ def test_each_method_holds_out_each_volume_group_and_reads_its_recorded_labels(w
             assert np.allclose(fold.model.sum(axis=2), 1.0)
         # a fold's model is fitted without its group: the two folds' models differ
         assert not np.allclose(folds[name][0].model, folds[name][1].model), name
-    with pytest.raises(StageError, match="observe.belief 'naive' only"):
-        held_out_folds(config.model_copy(update={"observe": config.observe.model_copy(
-            update={"belief": "nuisance"})}), _inputs(ws), ["ra"])
+    nuisance = config.model_copy(update={"observe": config.observe.model_copy(
+        update={"belief": "nuisance"})})
+    assert held_out_folds(nuisance, _inputs(ws), ["ra"]) == {"ra": []}
+    assert closed_loop_skipped(nuisance, "ra") == (
+        "observe.belief nuisance: the held-out folds are refitted for a naive belief only")
 
 
 def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace):
@@ -81,6 +84,7 @@ def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace)
     fits = summary["declared_fit"]["closed_loop"]
     record = read_json(ws.require("evaluate") / HELD_OUT_DIR / DECLARED_FIT_FILE)
     assert record["plans"] == "solve stage" and record["methods"] == fits
+    assert record["walks_kept"] == {}
     reachable = int(load_robot(ws.require("robot"))["reachable"].sum())
     stops = 2 * 3 * min(HELD_OUT_STARTS, reachable)  # groups x classes x starts
     assert set(fits) == set(POMDPS)
@@ -126,6 +130,17 @@ def test_per_fold_plans_are_solved_for_every_method_and_group(workspace, tmp_pat
     assert record["plans"] == "per fold"
     assert record["methods"]["ra"]["declared_confidence"]["temperature"] == \
         fits["ra"].declared.temperature
+
+
+def test_a_belief_without_refitted_folds_keeps_the_walks_a_and_the_record_says_why(
+        workspace, tmp_path):
+    ws, config = workspace
+    nuisance = config.model_copy(update={"observe": config.observe.model_copy(
+        update={"belief": "nuisance"})})
+    fits = closed_loop_declared(nuisance, _inputs(ws), ["ra", "vptree"], tmp_path)
+    assert set(fits) == {"vptree"}  # the VP-tree's folds do not depend on observe.belief
+    record = read_json(tmp_path / DECLARED_FIT_FILE)
+    assert record["walks_kept"] == {"ra": closed_loop_skipped(nuisance, "ra")}
 
 
 def test_one_volume_group_leaves_every_method_the_walks_a(pipeline_workspace, tmp_path):

@@ -296,8 +296,8 @@ class RecordedObservation:
         the chosen variant's. A naive belief's only (the nuisance belief's folds are fitted by
         EM, a view discount's belief depends on the views taken)."""
         if cfg.belief != "naive":
-            raise ValueError(f"the held-out folds are refitted for observe.belief 'naive' only, "
-                             f"the stage ran with {cfg.belief!r}")
+            raise ValueError(f"the held-out folds are refitted for observe.belief 'naive' "
+                             f"only; the stage ran with {cfg.belief!r}")
         folds = leave_one_group_out(self.evidence, self.scores, self.classes, cfg,
                                     self.arrays["directions"], self.transfer_kernel)
         amounts = {name: float(choice["amount"])

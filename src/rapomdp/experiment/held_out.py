@@ -83,15 +83,15 @@ def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
                    ) -> dict[str, list[HeldOutFold]]:
     """Each POMDP method's held-out groups (``vptree``: the vptree stage's labels of the
     volume models; the others: the observe stage's refitted folds, ``ra`` its chosen
-    variant). Empty lists where there are fewer than two groups to hold out."""
+    variant). Empty lists where there are fewer than two groups to hold out, and for the
+    observe stage's models unless their belief is naive (:func:`closed_loop_skipped`)."""
     out: dict[str, list[HeldOutFold]] = {}
     cnn = [m for m in methods if m != "vptree"]
-    if cnn:
+    if cnn and config.observe.belief != "naive":
+        out.update({name: [] for name in cnn})
+    elif cnn:
         recorded = RecordedObservation.load(inputs.observe)
-        try:
-            folds = recorded.belief_folds(config.observe)
-        except ValueError as exc:
-            raise StageError(f"evaluate.declared_fit closed_loop: {exc}") from None
+        folds = recorded.belief_folds(config.observe)
         temperatures = recorded.calibration["temperatures"]
         corrections = recorded.calibration["belief_corrections"]
         evidence = recorded.evidence
@@ -122,6 +122,14 @@ def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
             HeldOutFold(int(groups[held][0]), labels[held], predicted[held], temper(m, t),
                         temper(m, t)) for held, m in folds_v]
     return out
+
+
+def closed_loop_skipped(config: Config, name: str) -> str:
+    """Why a POMDP method has no held-out closed loop (it keeps the walks' a)."""
+    if name != "vptree" and config.observe.belief != "naive":
+        return (f"observe.belief {config.observe.belief}: the held-out folds are refitted for "
+                "a naive belief only")
+    return "fewer than two held-out groups of volume models (dataset.split.volume)"
 
 
 def held_out_policy(config: Config, policy: ActiveRecognitionPolicy, fold: HeldOutFold,
@@ -214,9 +222,10 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
     without the group and look ahead with it; the plan (the value the lookahead reads) is the
     solve stage's policy, or with ``per_fold`` the fold model's own, solved into ``out``
     (:func:`solve_held_out_folds`: a solve per method and group; measured within 0.02 of the
-    solve stage's a on both development sets, docs/awareness.md §4.8). Methods with fewer
-    than two held-out groups are left out (they keep the walks' a)."""
-    folds = {name: f for name, f in held_out_folds(config, inputs, methods).items() if f}
+    solve stage's a on both development sets, docs/awareness.md §4.8). Methods without
+    held-out folds are left out (they keep the walks' a; the record says why)."""
+    all_folds = held_out_folds(config, inputs, methods)
+    folds = {name: f for name, f in all_folds.items() if f}
     if not folds:
         return {}
     if per_fold:
@@ -242,5 +251,7 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
         "lambda_m": config.solve.wrong_declaration_cost_m,
         "starts_per_model": HELD_OUT_STARTS,
         "plans": "per fold" if per_fold else "solve stage",
-        "methods": {name: fit.to_dict() for name, fit in fits.items()}})
+        "methods": {name: fit.to_dict() for name, fit in fits.items()},
+        "walks_kept": {name: closed_loop_skipped(config, name)
+                       for name in all_folds if name not in folds}})
     return fits
