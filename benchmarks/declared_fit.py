@@ -7,8 +7,9 @@ does (``experiment.held_out.closed_loop_declared``: each volume group's models f
 the belief and the lookahead by the model fitted without the group; the plan the solve
 stage's, or each fold's own with ``--per-fold``) and prints, at those stops, confidence −
 accuracy / ECE of the belief, of the belief raised to the walks' a (the stages', fitted on
-every group's walks) and of the belief raised to the loop's a fitted on the other groups'
-episodes (leave-one-group-out); then the mean of each over the workspaces.
+every group's walks; for ``learned``, the learned baseline, a = 1: its belief as it reported
+it) and of the belief raised to the loop's a fitted on the other groups' episodes
+(leave-one-group-out); then the mean of each over the workspaces.
 
     python benchmarks/declared_fit.py -w W [W ...] [--methods ra classifier vptree]
         [--per-fold] [--test]
@@ -29,6 +30,7 @@ import numpy as np
 from rapomdp.context import RunContext
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.experiment.held_out import closed_loop_declared
+from rapomdp.experiment.sections import LEARNED
 from rapomdp.pipeline import get_stage
 from rapomdp.planning.stage import declared_temperatures, offered_observation_models
 from rapomdp.recognition.belief import declared_log_beliefs, expected_calibration_error
@@ -58,8 +60,9 @@ def main() -> None:
             fits = closed_loop_declared(config, inputs, args.methods, Path(tmp),
                                         RunContext(progress=False), per_fold=args.per_fold)
         offered, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
-        walk = declared_temperatures(inputs.observe, {m: offered[m] for m in fits},
-                                     inputs.vptree_dir)
+        walk = declared_temperatures(inputs.observe, {m: offered[m] for m in fits
+                                                      if m != LEARNED}, inputs.vptree_dir)
+        walk[LEARNED] = 1.0  # the learned baseline reported its belief (round four's rule)
         for name, fit in fits.items():
             log_b, truth = fit.log_beliefs, fit.truth
             right = log_b.argmax(axis=1) == truth

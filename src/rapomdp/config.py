@@ -475,7 +475,8 @@ class EvaluateConfig(Section):
         "and the lookahead by the model fitted without the group, the plan the solve "
         "stage's; seconds, a naive belief only); closed_loop_per_fold (the same with each "
         "fold's model solved too: no plan saw the group, one solve a method and group). "
-        "Random keeps the walks' a. closed_loop chosen on held-out objects by a rule written "
+        "The closed loop fits the learned baseline's a too (1 with walks); Random keeps the "
+        "walks' a. closed_loop chosen on held-out objects by a rule written "
         "first (docs/awareness.md §4.8)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "

@@ -26,14 +26,16 @@ from rapomdp.recognition.artefacts import load_volume_probabilities
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT
-from tests.experiment.conftest import TINY
+from tests.experiment.conftest import LEARNED_TINY, TINY
 
 POMDPS = ["vptree", "classifier", "ra"]
+FITTED = [*POMDPS, "learned"]  # every method whose a the closed loop fits
 HELD_OUT_TINY = {
     **TINY,
     "dataset": {**TINY["dataset"], "split": {"train": 3, "volume": 2, "test": 1}},
     "train": {**TINY["train"], "epochs": 8},  # a classifier whose labels differ by model
-    "evaluate": {**TINY["evaluate"], "methods": ["random", *POMDPS], "lambdas": [],
+    "learn": LEARNED_TINY["learn"],
+    "evaluate": {**TINY["evaluate"], "methods": ["random", *FITTED], "lambdas": [],
                  "random_thresholds": [], "declared_fit": "closed_loop"},
 }
 
@@ -87,7 +89,7 @@ def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace)
     assert record["walks_kept"] == {}
     reachable = int(load_robot(ws.require("robot"))["reachable"].sum())
     stops = 2 * 3 * min(HELD_OUT_STARTS, reachable)  # groups x classes x starts
-    assert set(fits) == set(POMDPS)
+    assert set(fits) == set(FITTED)
     for name, fit in fits.items():
         declared = fit["declared_confidence"]
         assert fit["episodes"] == declared["stops"] == stops, name
@@ -96,7 +98,7 @@ def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace)
         assert 0.0 <= fit["accuracy"] <= 1.0 and fit["energy"] >= 0.0
     a = {name: fit["declared_confidence"]["temperature"] for name, fit in fits.items()}
     loop = ClosedLoop.load(config, _inputs(ws), declared_fit=a)
-    for name in POMDPS:
+    for name in FITTED:
         assert loop.methods[name]._bayes.declared_temperature == a[name]
     # Random keeps the walks' a at its threshold
     offered = {config.evaluate.random.observation_model: None}
@@ -111,7 +113,7 @@ def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace)
     plain = ClosedLoop.load(config.model_copy(update={"evaluate": config.evaluate.model_copy(
         update={"declared_confidence": "belief"})}), _inputs(ws))
     for episode_record in plain.run_model(model):
-        if episode_record.method in POMDPS:
+        if episode_record.method in FITTED:
             t = a[episode_record.method]
             b = episode_record.episode.beliefs ** t
             assert np.allclose(saved[(episode_record.method, episode_record.start)].episode.beliefs,
@@ -155,14 +157,14 @@ def test_the_report_shows_the_closed_loop_fit_and_says_what_was_reported(workspa
     ws, _ = workspace
     record = load_declared_fit(ws.require("evaluate"))
     header, rows = closed_loop_cells(record)
-    assert header[:2] == ["Method", "a"] and len(rows) == len(POMDPS)
+    assert header[:2] == ["Method", "a"] and len(rows) == len(FITTED)
     for row in rows:
-        key = next(k for k in POMDPS if METHOD_NAMES[k] == row[0])
+        key = next(k for k in FITTED if METHOD_NAMES[k] == row[0])
         fit = record["methods"][key]
         assert row[1] == f"{fit['declared_confidence']['temperature']:.3f}"
         assert row[-1] == str(fit["episodes"])
     report = (ws.require("report") / "report.md").read_text()
     assert "fitted at their own held-out closed-loop stops (evaluate.declared_fit: " \
            "closed_loop)" in report
-    assert "a POMDP method's where its own held-out closed loop stops" in report
+    assert "the others' where their own held-out closed loop stops" in report
     assert rows[0][1] in report

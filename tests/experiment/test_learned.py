@@ -148,3 +148,21 @@ def test_the_method_refuses_a_model_of_another_shape() -> None:
     _, model, motion = _problem()
     with pytest.raises(ValueError, match="trained on 6 viewpoints and 3 classes"):
         LearnedPolicy(PolicyNetwork.of(_spec()), _spec(), model[:, :2, :2], motion.reachable)
+
+
+def test_a_declared_temperature_changes_what_it_reports_and_no_action() -> None:
+    evidence, model, motion = _problem(1)
+    torch.manual_seed(4)
+    spec = _spec(max_moves=3, declare="map")
+    network = PolicyNetwork.of(spec)
+    plain = LearnedPolicy(network, spec, model, motion.reachable)
+    sharp = LearnedPolicy(network, spec, model, motion.reachable, declared_temperature=1.5)
+    for m in range(evidence.models):
+        memo = {v: evidence.outputs[m, v] for v in range(V)}
+        a = run_episode(None, None, plain, motion, 0, 10,  # type: ignore[arg-type]
+                        np.random.default_rng(0), memo)
+        b = run_episode(None, None, sharp, motion, 0, 10,  # type: ignore[arg-type]
+                        np.random.default_rng(0), memo)
+        assert a.actions == b.actions and a.declared == b.declared
+        raised = a.beliefs ** 1.5
+        np.testing.assert_allclose(b.beliefs, raised / raised.sum(axis=1, keepdims=True))

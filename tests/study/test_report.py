@@ -58,8 +58,8 @@ def test_report_pools_each_seed_and_pairs_against_ra(tiny_study: TinyStudy) -> N
     assert "2 seeds (0, 1), vary: train" in text and "### Seed 1" in text
     assert "Stage time of the study's 2 seeds" in text
     # what the confidence columns are: the declared confidence, as the seeds' evaluate ran
-    assert "Confidence − accuracy and ECE: Random and the POMDP methods report their belief " \
-        "raised to the declared-confidence temperature" in text
+    assert "Confidence − accuracy and ECE: Random, the POMDP methods and the learned " \
+        "baseline report their belief raised to a declared-confidence temperature" in text
 
 
 def test_vary_train_pairs_crossed_over_the_same_test_models(tiny_study: TinyStudy) -> None:
@@ -74,9 +74,9 @@ def test_the_readme_block_follows_the_study(tiny_study: TinyStudy, tmp_path: Pat
     readme.write_text(f"# x\n\n{BEGIN}\nold\n{END}\n\nafter\n")
     update_study_readme(tiny_study.spec, root, readme)
     first = readme.read_text()
-    assert "old" not in first and first.endswith(f"{END}\n\nafter\n")
+    assert "\nold\n" not in first and first.endswith(f"{END}\n\nafter\n")
     assert "2 seeds (0, 1), vary train" in first and "'tiny'" in first
-    assert "Confidence − accuracy and ECE: Random and the POMDP methods" in first
+    assert "Confidence − accuracy and ECE: Random, the POMDP methods and the learned" in first
     # another outcome in seed 1: every RA-POMDP episode right
     path = root / "tiny" / "seed-1" / "evaluate" / EPISODES_FILE
     table = EpisodeTable.load(path)
@@ -121,7 +121,7 @@ def test_the_confidence_line_reads_what_each_seeds_evaluate_stage_reported(
         "Confidence − accuracy and ECE: Every method reports the belief it acts on "
         "(evaluate.declared_confidence: belief), Static the classifier's softmax at its "
         "held-out temperature.")
-    assert "a POMDP method's where its own held-out closed loop stops" in \
+    assert "the others' where their own held-out closed loop stops" in \
         reported_confidence(results[:1])
     # a seed from before evaluate.declared_fit fitted every a on walks
     stage["config"]["evaluate"].update(declared_confidence="calibrated")

@@ -166,10 +166,13 @@ class ClosedLoop:
                 if name not in observation:
                     raise StageError(f"the learned policy's belief uses observation model "
                                      f"'{name}', which the workspace lacks")
+                # its a is fitted where its own held-out closed loop stops (else: 1)
                 return LearnedPolicy(network, spec, observation[name], motion.reachable,
                                      METHOD_NAMES[key], first_view_model=first_view[name],
                                      prior=priors[name], discount=discounts.get(name),
-                                     similarity=discount_kernel)
+                                     similarity=discount_kernel,
+                                     declared_temperature=(declared_fit or {}).get(LEARNED, 1.0)
+                                     if calibrated else 1.0)
             if key == "static":
                 return StaticPolicy(METHOD_NAMES[key],
                                     softmax_temperature=load_softmax_temperature(inputs.observe))
@@ -437,7 +440,7 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
     if cfg.declared_fit != "walks" and cfg.declared_confidence == "calibrated":
         # the POMDPs' declared confidence, fitted where they stop on held-out objects
         fits = closed_loop_declared(config, inputs, [m for m in cfg.methods
-                                                     if m not in NOT_POMDP],
+                                                     if m not in ("static", "random")],
                                     out / HELD_OUT_DIR, context,
                                     per_fold=cfg.declared_fit == "closed_loop_per_fold")
     held_out_s = time.perf_counter() - began - solved_s

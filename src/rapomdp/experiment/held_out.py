@@ -23,8 +23,10 @@ from rapomdp.awareness.evidence import RecordedObservation
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
-from rapomdp.experiment.episode import Motion, run_episode
+from rapomdp.experiment.episode import Motion, Policy, run_episode
+from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
 from rapomdp.experiment.methods import POMDPPolicy
+from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import load_npz, read_json, write_json_atomic
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
@@ -144,7 +146,7 @@ def held_out_policy(config: Config, policy: ActiveRecognitionPolicy, fold: HeldO
                        lookahead_width=cfg.lookahead_width)
 
 
-def held_out_stops(config: Config, policy: POMDPPolicy, fold: HeldOutFold, motion: Motion,
+def held_out_stops(config: Config, policy: Policy, fold: HeldOutFold, motion: Motion,
                    starts: int = HELD_OUT_STARTS
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The final log beliefs (M·starts, C), the true class, whether the declaration was right
@@ -217,29 +219,42 @@ def solve_held_out_folds(config: Config, folds: dict[str, list[HeldOutFold]], ro
 def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[str],
                          out: Path, context: RunContext = RunContext(),
                          per_fold: bool = False) -> dict[str, ClosedLoopFit]:
-    """Fit each POMDP method's declared confidence on its held-out closed loop and write
+    """Fit each method's declared confidence on its held-out closed loop and write
     ``out/declared_fit.json``: every group's episodes update the belief by the model fitted
-    without the group and look ahead with it; the plan (the value the lookahead reads) is the
-    solve stage's policy, or with ``per_fold`` the fold model's own, solved into ``out``
-    (:func:`solve_held_out_folds`: a solve per method and group; measured within 0.02 of the
-    solve stage's a on both development sets, docs/awareness.md §4.8). Methods without
-    held-out folds are left out (they keep the walks' a; the record says why)."""
-    all_folds = held_out_folds(config, inputs, methods)
+    without the group (a POMDP also looks ahead with it). A POMDP's plan (the value the
+    lookahead reads) is the solve stage's policy, or with ``per_fold`` the fold model's own,
+    solved into ``out`` (:func:`solve_held_out_folds`: a solve per method and group; measured
+    within 0.02 of the solve stage's a on both development sets, docs/awareness.md §4.8); the
+    learned baseline (``learned``) is the learn stage's policy at Table 1's λ, its belief by its
+    observation model's folds. Methods without held-out folds are left out (they keep the
+    walks' a; the record says why)."""
+    learned = (load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
+               if LEARNED in methods else None)
+    model_of = {name: (learned[1].observation_model if name == LEARNED and learned else name)
+                for name in methods}
+    by_model = held_out_folds(config, inputs, sorted(set(model_of.values())))
+    all_folds = {name: by_model[model] for name, model in model_of.items()}
     folds = {name: f for name, f in all_folds.items() if f}
     if not folds:
         return {}
     if per_fold:
-        solve_held_out_folds(config, folds, inputs.robot, out, context)
+        solve_held_out_folds(config, {n: f for n, f in folds.items() if n != LEARNED},
+                             inputs.robot, out, context)
     motion = Motion.from_robot(load_robot(inputs.robot))
     fits: dict[str, ClosedLoopFit] = {}
     pairs = [(name, fold) for name, fs in folds.items() for fold in fs]
     parts: dict[str, list[tuple[np.ndarray, ...]]] = {}
     for name, fold in track(pairs, "evaluate: held-out closed loop", context.progress,
                             unit="groups"):
-        plans = out / f"group_{fold.group}" if per_fold else inputs.solve
-        policy = ActiveRecognitionPolicy.load(plans / policy_file(name))
-        stops = held_out_stops(config, held_out_policy(config, policy, fold, name, motion),
-                               fold, motion)
+        policy: Policy
+        if name == LEARNED and learned is not None:
+            policy = LearnedPolicy(*learned, fold.model, motion.reachable, name,
+                                   first_view_model=fold.first_view)
+        else:
+            plans = out / f"group_{fold.group}" if per_fold else inputs.solve
+            policy = held_out_policy(config, ActiveRecognitionPolicy.load(
+                plans / policy_file(name)), fold, name, motion)
+        stops = held_out_stops(config, policy, fold, motion)
         parts.setdefault(name, []).append((*stops, np.full(len(stops[1]), fold.group)))
     for name, rows in parts.items():
         log_b, truth, right, energy, group = (np.concatenate(a) for a in zip(*rows,
@@ -252,6 +267,6 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
         "starts_per_model": HELD_OUT_STARTS,
         "plans": "per fold" if per_fold else "solve stage",
         "methods": {name: fit.to_dict() for name, fit in fits.items()},
-        "walks_kept": {name: closed_loop_skipped(config, name)
+        "walks_kept": {name: closed_loop_skipped(config, model_of[name])
                        for name in all_folds if name not in folds}})
     return fits

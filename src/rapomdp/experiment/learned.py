@@ -179,13 +179,15 @@ def load_learned_policy(folder: str | Path, lambda_: float) -> tuple[PolicyNetwo
 class LearnedPolicy:
     """A learned policy in the closed loop: Eq. 5 with its observation model, then the
     network's most likely valid action on (belief, viewpoint, visited); with ``declare`` "map"
-    its stop declares the belief's most likely class."""
+    its stop declares the belief's most likely class. It reports its belief raised to
+    ``declared_temperature`` (1: as it is; ``evaluate.declared_fit``), acting on the belief."""
 
     def __init__(self, network: PolicyNetwork, spec: PolicySpec, observation_model: np.ndarray,
                  reachable: np.ndarray, name: str = "Learned (PPO)", recogniser: str = "cnn",
                  first_view_model: np.ndarray | None = None, prior: np.ndarray | None = None,
                  discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None) -> None:
+                 similarity: np.ndarray | None = None,
+                 declared_temperature: float = 1.0) -> None:
         shape = np.shape(observation_model)
         if len(shape) != 3 or (shape[0], shape[2]) != (spec.viewpoints, spec.classes):
             raise ValueError(f"{name}: the policy was trained on {spec.viewpoints} viewpoints "
@@ -198,7 +200,7 @@ class LearnedPolicy:
         self.network, self.spec = network, spec
         self.reachable = np.asarray(reachable, dtype=bool)
         self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity)
+                                  similarity, declared_temperature)
         self._visited = np.zeros(spec.viewpoints, dtype=bool)
         self._looks = 0
 
@@ -214,7 +216,7 @@ class LearnedPolicy:
 
     @property
     def belief(self) -> np.ndarray:
-        return self._bayes.belief
+        return self._bayes.declared
 
     def act(self, viewpoint: int) -> ARAction:
         spec = self.spec

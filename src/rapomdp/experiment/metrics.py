@@ -259,15 +259,19 @@ BELIEF_CALIBRATION_HEADER = ["Method", "Accuracy", "Belief in the true class", "
 def reported_belief_note(declared_confidence: str, declared_fit: str = "walks") -> str:
     """What the methods' final beliefs in the calibration table are, per
     ``evaluate.declared_confidence`` and ``evaluate.declared_fit``."""
-    if declared_confidence == "calibrated":
-        where = ("fitted where held-out walks stop" if declared_fit == "walks" else
-                 "Random's fitted where held-out walks stop at its threshold, a POMDP "
-                 "method's where its own held-out closed loop stops")
+    if declared_confidence == "calibrated" and declared_fit == "walks":
         return ("Random and the POMDP methods report their belief raised to the declared-"
-                f"confidence temperature of its model ({where}; their actions are the "
-                "belief's: evaluate.declared_confidence, evaluate.declared_fit), Static the "
-                "classifier's softmax at its held-out temperature, the learned baseline its "
-                "belief as it is.")
+                "confidence temperature of its model (fitted where held-out walks stop; their "
+                "actions are the belief's: evaluate.declared_confidence, "
+                "evaluate.declared_fit), Static the classifier's softmax at its held-out "
+                "temperature, the learned baseline its belief as it is.")
+    if declared_confidence == "calibrated":
+        return ("Random, the POMDP methods and the learned baseline report their belief "
+                "raised to a declared-confidence temperature (Random's fitted where held-out "
+                "walks reach its stop belief, the others' where their own held-out closed "
+                "loop stops; their actions are the belief's: evaluate.declared_confidence, "
+                "evaluate.declared_fit), Static the classifier's softmax at its held-out "
+                "temperature.")
     return ("Every method reports the belief it acts on (evaluate.declared_confidence: "
             "belief), Static the classifier's softmax at its held-out temperature.")
 

@@ -584,10 +584,11 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
         plans = ("the solve stage's plan" if record["plans"] == "solve stage"
                  else "each fold's own plan")
         b.add(Paragraph(
-            "The POMDP methods' declared confidence, fitted at their own held-out closed-loop "
-            f"stops (evaluate.declared_fit: {ran.declared_fit}): each volume group's models run "
-            f"from {record['starts_per_model']} starts, the belief and the lookahead by the "
-            f"model fitted without the group, {plans}, λ = {record['lambda_m']:g} m; per "
+            "The POMDP methods' and the learned baseline's declared confidence, fitted at "
+            f"their own held-out closed-loop stops (evaluate.declared_fit: {ran.declared_fit}): "
+            f"each volume group's models run from {record['starts_per_model']} starts, the "
+            "belief (and a POMDP's lookahead) by the model fitted without the group, a POMDP "
+            f"by {plans}, λ = {record['lambda_m']:g} m; per "
             "method a, the loop's accuracy and energy, and at its stops the belief's and the "
             "declared belief's confidence and ECE (each group by the a the other groups "
             "give). These a are the ones the methods above reported with."))
