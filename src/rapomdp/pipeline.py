@@ -188,6 +188,7 @@ STAGES: list[Stage] = [
     Stage(
         name="evaluate",
         run=_deferred("evaluate"),
+        version="2",  # 2: the learned baseline reports with its held-out closed-loop a
         sections=EVALUATE_SECTIONS,
         inputs=("dataset", "train", "classifier_eval", "observe", "vptree", "robot", "solve",
                 "learn"),
