@@ -17,6 +17,9 @@ number of workers). Writes into the stage folder:
   method solved (``sweep/lambda_<λ>/``) and run at each ``evaluate.lambdas``, Random at each
   ``evaluate.random_thresholds``, the learned baseline (``learned``) at each λ the learn stage
   trained it at, Static one point; Table 1's settings are points of it;
+- ``held_out/declared_fit.json`` (``evaluate.declared_fit`` closed_loop): where the POMDP
+  methods and the learned baseline stop in their held-out closed loop and the a fitted there
+  (:mod:`rapomdp.experiment.held_out`);
 - ``evaluate.json``: counts, timing, images per second of the episode loop.
 """
 
@@ -130,8 +133,9 @@ class ClosedLoop:
 
         With ``sweep_dir`` (the evaluate stage's ``sweep/``, from :func:`solve_sweep`) the
         accuracy-energy sweep's settings run alongside Table 1's methods. ``declared_fit``:
-        POMDP methods' declared-confidence a fitted on their held-out closed loop
-        (:func:`~rapomdp.experiment.held_out.closed_loop_declared`), in place of the walks'.
+        the declared-confidence a of POMDP methods and of the learned baseline fitted on their
+        held-out closed loop (:func:`~rapomdp.experiment.held_out.closed_loop_declared`), in
+        place of the walks' (the learned baseline's: 1).
         """
         dataset = load_dataset(inputs.dataset)
         robot = load_robot(inputs.robot)
@@ -274,8 +278,8 @@ def run_episodes(config: Config, inputs: StageInputs,
                  context: RunContext = RunContext(), sweep_dir: Path | None = None,
                  declared_fit: dict[str, float] | None = None
                  ) -> tuple[list[EpisodeRecord], Dataset]:
-    """Every test model x start x method (and sweep setting, with ``sweep_dir``; a POMDP
-    method's declared confidence by ``declared_fit``: see :meth:`ClosedLoop.load`), over
+    """Every test model x start x method (and sweep setting, with ``sweep_dir``; the
+    declared confidence of the methods in ``declared_fit`` by it: see :meth:`ClosedLoop.load`), over
     ``context``'s worker processes (each loads the closed loop once and runs a contiguous
     share of the test models); records in a fixed order (test models as listed, then start,
     then method), whatever the number of workers."""
