@@ -24,7 +24,7 @@ from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.planning.stage import declared_temperatures
 from rapomdp.recognition.artefacts import load_volume_probabilities
 from rapomdp.robot.artefacts import load_robot
-from rapomdp.workspace import StageInputs, Workspace
+from rapomdp.workspace import StageError, StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT
 from tests.experiment.conftest import LEARNED_TINY, TINY
 
@@ -143,6 +143,17 @@ def test_a_belief_without_refitted_folds_keeps_the_walks_a_and_the_record_says_w
     assert set(fits) == {"vptree"}  # the VP-tree's folds do not depend on observe.belief
     record = read_json(tmp_path / DECLARED_FIT_FILE)
     assert record["walks_kept"] == {"ra": closed_loop_skipped(nuisance, "ra")}
+
+
+def test_a_method_the_solve_stage_did_not_solve_is_named(workspace, tmp_path):
+    ws, config = workspace
+    inputs = _inputs(ws)
+    empty = StageInputs("evaluate", dataset_dir=inputs.dataset_dir, observe_dir=inputs.observe,
+                        vptree_dir=inputs.vptree_dir, robot_dir=inputs.robot,
+                        solve_dir=tmp_path / "solve")
+    with pytest.raises(StageError, match="method 'ra' needs policy_ra.npz from the solve "
+                                         "stage for its held-out closed loop"):
+        closed_loop_declared(config, empty, ["ra"], tmp_path / "held_out")
 
 
 def test_one_volume_group_leaves_every_method_the_walks_a(pipeline_workspace, tmp_path):

@@ -251,9 +251,12 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
             policy = LearnedPolicy(*learned, fold.model, motion.reachable, name,
                                    first_view_model=fold.first_view)
         else:
-            plans = out / f"group_{fold.group}" if per_fold else inputs.solve
-            policy = held_out_policy(config, ActiveRecognitionPolicy.load(
-                plans / policy_file(name)), fold, name, motion)
+            path = (out / f"group_{fold.group}" if per_fold else inputs.solve) / policy_file(name)
+            if not path.is_file():
+                raise StageError(f"method '{name}' needs {path.name} from the solve stage for "
+                                 f"its held-out closed loop: add '{name}' to solve.models")
+            policy = held_out_policy(config, ActiveRecognitionPolicy.load(path), fold, name,
+                                     motion)
         stops = held_out_stops(config, policy, fold, motion)
         parts.setdefault(name, []).append((*stops, np.full(len(stops[1]), fold.group)))
     for name, rows in parts.items():
