@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from rapomdp.config import METHOD_NAMES, Config, config_from_dict
+from rapomdp.context import RunContext
 from rapomdp.data.dataset import class_ranks, load_dataset
 from rapomdp.experiment.evaluation import ClosedLoop
 from rapomdp.experiment.held_out import (
@@ -118,6 +119,15 @@ def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace)
             b = episode_record.episode.beliefs ** t
             assert np.allclose(saved[(episode_record.method, episode_record.start)].episode.beliefs,
                                b / b.sum(axis=1, keepdims=True))
+
+
+def test_the_fit_does_not_depend_on_the_number_of_workers(workspace, tmp_path):
+    ws, config = workspace
+    record = read_json(ws.require("evaluate") / HELD_OUT_DIR / DECLARED_FIT_FILE)
+    fits = closed_loop_declared(config, _inputs(ws), FITTED, tmp_path,
+                                RunContext(workers=2, progress=False))
+    for name, fit in fits.items():
+        assert fit.to_dict() == record["methods"][name], name
 
 
 def test_per_fold_plans_are_solved_for_every_method_and_group(workspace, tmp_path):

@@ -28,10 +28,10 @@ from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
 from rapomdp.experiment.methods import POMDPPolicy
 from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import load_npz, read_json, write_json_atomic
+from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import start_viewpoint
-from rapomdp.progress import track
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
 from rapomdp.recognition.belief import (
     DeclaredConfidence,
@@ -216,6 +216,23 @@ def solve_held_out_folds(config: Config, folds: dict[str, list[HeldOutFold]], ro
         pool=context.pool)
 
 
+def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldOutFold,
+                   plans: str | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A worker's task: one method's episodes on one held-out group (:func:`held_out_stops`);
+    ``plans``: the POMDP's policy file, None for the learned baseline."""
+    config = Config.model_validate_json(config_json)
+    motion = Motion.from_robot(load_robot(inputs.robot))
+    policy: Policy
+    if plans is None:
+        network, spec = load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
+        policy = LearnedPolicy(network, spec, fold.model, motion.reachable, name,
+                               first_view_model=fold.first_view)
+    else:
+        policy = held_out_policy(config, ActiveRecognitionPolicy.load(plans), fold, name,
+                                 motion)
+    return held_out_stops(config, policy, fold, motion)
+
+
 def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[str],
                          out: Path, context: RunContext = RunContext(),
                          per_fold: bool = False) -> dict[str, ClosedLoopFit]:
@@ -228,10 +245,10 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
     learned baseline (``learned``) is the learn stage's policy at Table 1's λ, its belief by its
     observation model's folds. Methods without held-out folds are left out (they keep the
     walks' a; the record says why)."""
-    learned = (load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
-               if LEARNED in methods else None)
-    model_of = {name: (learned[1].observation_model if name == LEARNED and learned else name)
-                for name in methods}
+    model_of = {name: name for name in methods}
+    if LEARNED in methods:  # its belief's observation model
+        _, spec = load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
+        model_of[LEARNED] = spec.observation_model
     by_model = held_out_folds(config, inputs, sorted(set(model_of.values())))
     all_folds = {name: by_model[model] for name, model in model_of.items()}
     folds = {name: f for name, f in all_folds.items() if f}
@@ -240,25 +257,26 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
     if per_fold:
         solve_held_out_folds(config, {n: f for n, f in folds.items() if n != LEARNED},
                              inputs.robot, out, context)
-    motion = Motion.from_robot(load_robot(inputs.robot))
-    fits: dict[str, ClosedLoopFit] = {}
     pairs = [(name, fold) for name, fs in folds.items() for fold in fs]
-    parts: dict[str, list[tuple[np.ndarray, ...]]] = {}
-    for name, fold in track(pairs, "evaluate: held-out closed loop", context.progress,
-                            unit="groups"):
-        policy: Policy
-        if name == LEARNED and learned is not None:
-            policy = LearnedPolicy(*learned, fold.model, motion.reachable, name,
-                                   first_view_model=fold.first_view)
-        else:
+    config_json = config.model_dump_json()
+    tasks = []
+    for name, fold in pairs:
+        plans = None  # the learned baseline: the learn stage's policy
+        if name != LEARNED:
             path = (out / f"group_{fold.group}" if per_fold else inputs.solve) / policy_file(name)
             if not path.is_file():
                 raise StageError(f"method '{name}' needs {path.name} from the solve stage for "
                                  f"its held-out closed loop: add '{name}' to solve.models")
-            policy = held_out_policy(config, ActiveRecognitionPolicy.load(path), fold, name,
-                                     motion)
-        stops = held_out_stops(config, policy, fold, motion)
-        parts.setdefault(name, []).append((*stops, np.full(len(stops[1]), fold.group)))
+            plans = str(path)
+        tasks.append((config_json, inputs, name, fold, plans))
+    stops = run_tasks(_held_out_task, tasks, context.worker_count,
+                      "evaluate: held-out closed loop", context.progress, context.scheduler,
+                      unit="episodes", sizes=[len(fold.labels) * HELD_OUT_STARTS
+                                              for _, fold in pairs], pool=context.pool)
+    parts: dict[str, list[tuple[np.ndarray, ...]]] = {}
+    for (name, fold), part in zip(pairs, stops, strict=True):
+        parts.setdefault(name, []).append((*part, np.full(len(part[1]), fold.group)))
+    fits: dict[str, ClosedLoopFit] = {}
     for name, rows in parts.items():
         log_b, truth, right, energy, group = (np.concatenate(a) for a in zip(*rows,
                                                                               strict=True))
