@@ -185,7 +185,7 @@ def test_the_report_shows_the_closed_loop_fit_and_says_what_was_reported(workspa
         assert row[1] == f"{fit['declared_confidence']['temperature']:.3f}"
         assert row[-1] == str(fit["episodes"])
     report = (ws.require("report") / "report.md").read_text()
-    assert "fitted at their own held-out closed-loop stops (evaluate.declared_fit: " \
-           "closed_loop)" in report
+    assert "The POMDP methods' and the learned baseline's declared confidence, fitted at " \
+           "their own held-out closed-loop stops (evaluate.declared_fit: closed_loop)" in report
     assert "the others' where their own held-out closed loop stops" in report
     assert rows[0][1] in report

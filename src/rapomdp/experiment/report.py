@@ -73,7 +73,7 @@ from rapomdp.experiment.metrics import (
     table1_cells,
     table1_story,
 )
-from rapomdp.experiment.sections import REPORT_INPUTS
+from rapomdp.experiment.sections import LEARNED, REPORT_INPUTS
 from rapomdp.io import (
     ArtefactError,
     atomic_path,
@@ -583,8 +583,10 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
     if record is not None and record["methods"]:
         plans = ("the solve stage's plan" if record["plans"] == "solve stage"
                  else "each fold's own plan")
+        whose = ("The POMDP methods' and the learned baseline's" if LEARNED in record["methods"]
+                 else "The POMDP methods'")
         b.add(Paragraph(
-            "The POMDP methods' and the learned baseline's declared confidence, fitted at "
+            f"{whose} declared confidence, fitted at "
             f"their own held-out closed-loop stops (evaluate.declared_fit: {ran.declared_fit}): "
             f"each volume group's models run from {record['starts_per_model']} starts, the "
             "belief (and a POMDP's lookahead) by the model fitted without the group, a POMDP "
