@@ -131,7 +131,8 @@ def closed_loop_skipped(config: Config, name: str) -> str:
     if name != "vptree" and config.observe.belief != "naive":
         return (f"observe.belief {config.observe.belief}: the held-out folds are refitted for "
                 "a naive belief only")
-    return "fewer than two held-out groups of volume models (dataset.split.volume)"
+    return ("fewer than two held-out groups of volume models the trained classifier labelled "
+            "(dataset.split.volume; observe.evidence crossfit has none)")
 
 
 def held_out_policy(config: Config, policy: ActiveRecognitionPolicy, fold: HeldOutFold,
