@@ -30,9 +30,9 @@ from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.held_out import (
     HeldOutFold,
     closed_loop_declared,
-    held_out_policy,
     held_out_stops,
 )
+from rapomdp.experiment.methods import POMDPPolicy
 from rapomdp.pipeline import get_stage
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
@@ -67,7 +67,9 @@ def one_group_a(ws: Workspace, name: str) -> tuple[float, int]:
             fold = HeldOutFold(int(g), evidence.labels[rows], evidence.predicted[rows],
                                model, model)
             log_b, truth, _, _ = held_out_stops(
-                config, held_out_policy(config, plan, fold, name, motion), fold, motion)
+                config, POMDPPolicy.configured(config.evaluate, plan, model, name,
+                                               motion.reachable, first_view_model=model),
+                fold, motion)
             finals.append(log_b)
             truths.append(truth)
             run_groups.append(np.full(len(truth), k))

@@ -195,15 +195,11 @@ class ClosedLoop:
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
                                  f"add '{key}' to solve.models")
-            return POMDPPolicy(ActiveRecognitionPolicy.load(path), observation[key],
-                               METHOD_NAMES[key], recogniser, cfg.revisit,
-                               first_view_model=first_view[key],
-                               lookahead_over=motion.reachable if cfg.lookahead else None,
-                               prior=priors[key], discount=discounts.get(key),
-                               similarity=discount_kernel,
-                               lookahead_depth=cfg.lookahead_depth,
-                               lookahead_width=cfg.lookahead_width,
-                               declared_temperature=declared(key))
+            return POMDPPolicy.configured(
+                cfg, ActiveRecognitionPolicy.load(path), observation[key], METHOD_NAMES[key],
+                motion.reachable, recogniser, first_view_model=first_view[key],
+                prior=priors[key], discount=discounts.get(key), similarity=discount_kernel,
+                declared_temperature=declared(key))
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}

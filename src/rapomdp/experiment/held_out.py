@@ -120,9 +120,10 @@ def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
         groups, t = vptree["volume_groups"], float(vptree["temperature"])
         folds_v = vptree_folds(labels, predicted, groups, len(vptree["classes"]),
                                config.vptree.pseudo_count)
+        tempered = [(held, temper(m, t)) for held, m in folds_v]
         out["vptree"] = [] if len(folds_v) < 2 else [
-            HeldOutFold(int(groups[held][0]), labels[held], predicted[held], temper(m, t),
-                        temper(m, t)) for held, m in folds_v]
+            HeldOutFold(int(groups[held][0]), labels[held], predicted[held], m, m)
+            for held, m in tempered]
     return out
 
 
@@ -133,18 +134,6 @@ def closed_loop_skipped(config: Config, name: str) -> str:
                 "a naive belief only")
     return ("fewer than two held-out groups of volume models the trained classifier labelled "
             "(dataset.split.volume; observe.evidence crossfit has none)")
-
-
-def held_out_policy(config: Config, policy: ActiveRecognitionPolicy, fold: HeldOutFold,
-                    name: str, motion: Motion) -> POMDPPolicy:
-    """The evaluate stage's POMDP method (lookahead, revisit) on a held-out fold's model; it
-    reports its belief as it is (its stops are what the declared confidence is fitted on)."""
-    cfg = config.evaluate
-    return POMDPPolicy(policy, fold.model, name, revisit=cfg.revisit,
-                       first_view_model=fold.first_view,
-                       lookahead_over=motion.reachable if cfg.lookahead else None,
-                       lookahead_depth=cfg.lookahead_depth,
-                       lookahead_width=cfg.lookahead_width)
 
 
 def held_out_stops(config: Config, policy: Policy, fold: HeldOutFold, motion: Motion,
@@ -229,8 +218,9 @@ def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldO
         policy = LearnedPolicy(network, spec, fold.model, motion.reachable, name,
                                first_view_model=fold.first_view)
     else:
-        policy = held_out_policy(config, ActiveRecognitionPolicy.load(plans), fold, name,
-                                 motion)
+        policy = POMDPPolicy.configured(config.evaluate, ActiveRecognitionPolicy.load(plans),
+                                        fold.model, name, motion.reachable,
+                                        first_view_model=fold.first_view)
     return held_out_stops(config, policy, fold, motion)
 
 

@@ -12,8 +12,11 @@ A user's own method is any object with the same five members (``name``, ``recogn
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from rapomdp.config import EvaluateConfig
 from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import LOOKAHEAD_WIDTH, ActiveRecognitionPolicy, ARAction
@@ -243,6 +246,19 @@ class POMDPPolicy:
         self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
                                   similarity, declared_temperature)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
+
+    @classmethod
+    def configured(cls, cfg: EvaluateConfig, policy: ActiveRecognitionPolicy,
+                   observation_model: np.ndarray, name: str, reachable: np.ndarray,
+                   recogniser: str = "cnn", **belief: Any) -> POMDPPolicy:
+        """The method as the evaluate stage configures it (``cfg``: its revisit rule, the
+        lookahead over the ``reachable`` viewpoints, its depth and width); ``belief``: the
+        belief's keyword arguments (``first_view_model``, ``prior``, ``discount``,
+        ``similarity``, ``declared_temperature``)."""
+        return cls(policy, observation_model, name, recogniser, cfg.revisit,
+                   lookahead_over=reachable if cfg.lookahead else None,
+                   lookahead_depth=cfg.lookahead_depth, lookahead_width=cfg.lookahead_width,
+                   **belief)
 
     def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
         self._bayes.reset()
