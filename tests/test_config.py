@@ -58,11 +58,16 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
     """``train.ensemble`` 1 is what every workspace before the option trained: left out of the
     section (so of every stage key); any other value is in it, and in the YAML either way."""
     assert "ensemble" not in Config().section("train")
-    assert Config().section("train") == {k: v for k, v in
-                                         Config().train.model_dump(mode="json").items()
-                                         if k != "ensemble"}
+    assert {k: v for k, v in Config().section("train").items() if k != "augment"} == {
+        k: v for k, v in Config().train.model_dump(mode="json").items()
+        if k not in ("ensemble", "augment")}
     assert config_from_dict({"train": {"ensemble": 3}}).section("train")["ensemble"] == 3
     assert yaml.safe_load(Config().to_yaml())["train"]["ensemble"] == 1
+    # nested: train.augment's options added later, out of the key at their default
+    assert Config().section("train")["augment"] == {"shift": 0.05, "scale": 0.1, "noise": False}
+    on = config_from_dict({"train": {"augment": {"flip": True, "aspect": 0.15}}})
+    assert on.section("train")["augment"] == {"shift": 0.05, "scale": 0.1, "noise": False,
+                                             "flip": True, "aspect": 0.15}
 
 
 def test_yaml_round_trip(tmp_path: Path) -> None:

@@ -57,6 +57,20 @@ class SplitConfig(Section):
         return self.train + self.volume + self.test
 
 
+def _keyed(value: BaseModel) -> dict[str, Any]:
+    """``value``'s JSON data less the fields its (and its nested sections')
+    ``hash_omits_default`` names while at their default."""
+    data = value.model_dump(mode="json")
+    for key in value.model_fields:
+        nested = getattr(value, key)
+        if isinstance(nested, BaseModel):
+            data[key] = _keyed(nested)
+    for key in value.hash_omits_default if isinstance(value, Section) else ():
+        if getattr(value, key) == type(value).model_fields[key].default:
+            data.pop(key)
+    return data
+
+
 def _split_kind(value: Any) -> str:
     """``dataset.split``'s form: the word ``auto`` or a mapping of counts (a tag in errors'
     locations only, which :func:`_describe` leaves out)."""
@@ -165,11 +179,19 @@ class PreprocessConfig(Section):
 
 
 class AugmentConfig(Section):
-    """Training augmentation: random crop shifts and scales, optional Xtion depth noise."""
+    """Training augmentation: random crop shifts and scales, optional mirroring, aspect
+    changes and Xtion depth noise."""
 
     shift: float = Field(0.05, ge=0, le=0.5, description="max crop shift, fraction of its side")
     scale: float = Field(0.1, ge=0, lt=1, description="max relative change of the crop size")
     noise: bool = Field(False, description="add axial + quantisation noise (render.noise model)")
+    flip: bool = Field(False, description="mirror half the inputs left-right (a mirrored view "
+                       "is a view of the mirrored object)")
+    aspect: float = Field(0.0, ge=0, lt=1, description="max relative change of the crop's "
+                          "width against its height (an instance a little wider or taller)")
+
+    #: Off, what every workspace before the options trained: out of the stage keys.
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("flip", "aspect")
 
 
 class TrainConfig(Section):
@@ -629,11 +651,7 @@ class Config(Section):
         value = getattr(self, name)
         if not isinstance(value, BaseModel):
             return value
-        data = value.model_dump(mode="json")
-        for key in value.hash_omits_default if isinstance(value, Section) else ():
-            if getattr(value, key) == type(value).model_fields[key].default:
-                data.pop(key)
-        return data
+        return _keyed(value)
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)

@@ -109,13 +109,55 @@ def test_noise_augmentation_perturbs_only_the_object():
     from rapomdp.recognition.training import augment_batch
 
     depth = toy_views(4, seed=4).depth
-    noisy, shift, scale = augment_batch(depth, AugmentConfig(noise=True, shift=0.05, scale=0.1),
-                                        NoiseConfig(), np.random.default_rng(0))
+    noisy, shift, scale, mirrored = augment_batch(
+        depth, AugmentConfig(noise=True, shift=0.05, scale=0.1), NoiseConfig(),
+        np.random.default_rng(0))
+    assert not mirrored.any()  # flip off
     object_px = depth > 0
     np.testing.assert_array_equal(noisy > 0, object_px)  # no holes: surface angles unknown
     error = np.abs(noisy - depth)[object_px]
     assert 0.0005 < error.mean() < 0.01  # millimetres: axial noise and disparity steps
     assert np.all(np.abs(shift) <= 0.05) and np.all((scale >= 0.9 - 1e-9) & (scale <= 1.1))
+
+
+def test_flip_and_aspect_augment_apart_and_leave_the_default_stream_alone():
+    from rapomdp.config import AugmentConfig, NoiseConfig
+    from rapomdp.recognition.training import augment_batch
+
+    depth = np.zeros((4000, 2, 2), np.float32)
+    # off (the default): the draws of the augmentation before the options, nothing more
+    rng, reference = np.random.default_rng(7), np.random.default_rng(7)
+    plain = augment_batch(depth, AugmentConfig(), NoiseConfig(), rng)
+    np.testing.assert_array_equal(plain.shift, reference.uniform(-0.05, 0.05, size=(4000, 2)))
+    np.testing.assert_array_equal(
+        plain.scale, np.exp(reference.uniform(np.log1p(-0.1), np.log1p(0.1), size=4000)))
+    assert rng.random() == reference.random()  # the stream goes on where it did
+    # on: about half mirrored; width / height within ±aspect, the area the isotropic scale's
+    on = augment_batch(depth, AugmentConfig(flip=True, aspect=0.15), NoiseConfig(),
+                       np.random.default_rng(7))
+    assert abs(on.mirrored.mean() - 0.5) < 0.03
+    ratio = on.scale[:, 0] / on.scale[:, 1]
+    assert ratio.min() >= 0.85 - 1e-9 and ratio.max() <= 1.15 + 1e-9
+    assert ratio.min() < 0.87 and ratio.max() > 1.13
+    np.testing.assert_allclose(on.scale.prod(axis=1), plain.scale ** 2)  # same isotropic draw
+
+
+def test_a_mirrored_training_input_is_the_input_mirrored():
+    from rapomdp.config import AugmentConfig, NoiseConfig
+    from rapomdp.recognition.preprocess import preprocess
+    from rapomdp.recognition.training import augment_batch, augmented_inputs, preprocess_params
+
+    depth = toy_views(8, seed=3).depth
+    augment = AugmentConfig(flip=True, aspect=0.15)
+    params = preprocess_params(PreprocessConfig(input_size_px=32))
+    inputs = augmented_inputs(depth, augment, NoiseConfig(), np.random.default_rng(1), 144.3,
+                              144.3, params)
+    draw = augment_batch(depth, augment, NoiseConfig(), np.random.default_rng(1))
+    plain = preprocess(depth, 144.3, 144.3, params, draw.shift, draw.scale).images
+    assert 0 < draw.mirrored.sum() < len(depth)
+    np.testing.assert_array_equal(inputs[~draw.mirrored], plain[~draw.mirrored])
+    np.testing.assert_array_equal(inputs[draw.mirrored], plain[draw.mirrored][..., ::-1])
+    assert not np.array_equal(inputs[draw.mirrored], plain[draw.mirrored])
 
 
 def test_an_ensemble_is_its_members_trained_from_their_own_seeds():

@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -98,20 +99,50 @@ def validation_mask(data: LabelledViews, fraction: float, rng: np.random.Generat
     return held
 
 
+class BatchAugmentation(NamedTuple):
+    """One batch's augmentation: its (noisy) ``depth`` (n, H, W), crop ``shift`` (n, 2), crop
+    ``scale`` ((n,) isotropic, or (n, 2) width and height apart with ``augment.aspect``) and
+    which inputs are ``mirrored`` (n,) left-right."""
+
+    depth: np.ndarray
+    shift: np.ndarray
+    scale: np.ndarray
+    mirrored: np.ndarray
+
+
 def augment_batch(
     depth: np.ndarray,
     augment: AugmentConfig,
     noise: NoiseConfig,
     rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Noisy depth (if asked) and random crop shifts (n, 2) and scales (n,) for a batch."""
+) -> BatchAugmentation:
+    """A batch's random augmentation. The generator draws for ``aspect`` and ``flip`` only
+    when they are on, so a run without them trains exactly as before they existed."""
     n = depth.shape[0]
     if augment.noise:
         # surface angles are unknown after rendering; 0 keeps axial + quantisation noise only
         depth = apply_sensor_noise(depth, np.zeros_like(depth), noise, rng)
     shift = rng.uniform(-augment.shift, augment.shift, size=(n, 2))
     scale = np.exp(rng.uniform(np.log1p(-augment.scale), np.log1p(augment.scale), size=n))
-    return depth, shift, scale
+    if augment.aspect > 0:
+        # width / height = aspect_ratio, the box's area kept: sqrt on each side
+        half = 0.5 * rng.uniform(np.log1p(-augment.aspect), np.log1p(augment.aspect), size=n)
+        scale = scale[:, None] * np.exp(np.stack([half, -half], axis=1))
+    mirrored = rng.random(n) < 0.5 if augment.flip else np.zeros(n, dtype=bool)
+    return BatchAugmentation(depth, shift, scale, mirrored)
+
+
+def augmented_inputs(depth: np.ndarray, augment: AugmentConfig, noise: NoiseConfig,
+                     rng: np.random.Generator, fx_px: float, fy_px: float,
+                     params: PreprocessParams, extents: ObjectExtents | None = None
+                     ) -> np.ndarray:
+    """A training batch's network inputs (n, 1, S, S): :func:`augment_batch`'s draw, then the
+    one :func:`preprocess`, then the mirrored inputs flipped left-right."""
+    batch = augment_batch(depth, augment, noise, rng)
+    inputs = preprocess(batch.depth, fx_px, fy_px, params, batch.shift, batch.scale,
+                        extents).images
+    inputs[batch.mirrored] = inputs[batch.mirrored, ..., ::-1]
+    return inputs
 
 
 def evaluate_inputs(
@@ -238,9 +269,9 @@ def _train_network(
         loss_sum, correct = 0.0, 0
         for b in range(batches):
             idx = np.sort(order[b * cfg.batch_size : (b + 1) * cfg.batch_size])
-            depth, shift, scale = augment_batch(train.depth[idx], cfg.augment, noise, rng)
-            x = torch.from_numpy(preprocess(depth, fx_px, fy_px, params, shift, scale,
-                                            None if extents is None else extents[idx]).images)
+            x = torch.from_numpy(augmented_inputs(
+                train.depth[idx], cfg.augment, noise, rng, fx_px, fy_px, params,
+                None if extents is None else extents[idx]))
             y = torch.from_numpy(train.labels[idx])
             x, y = x.to(device), y.to(device)
             logits = network(x)
