@@ -205,9 +205,15 @@ class TrainConfig(Section):
     learning_rate: float = Field(
         1e-3, gt=0, description="Adam's; chosen on validation accuracy (docs/recognition.md)")
     weight_decay: float = Field(5e-4, ge=0)
+    lr_schedule: Literal["constant", "cosine"] = Field(
+        "constant", description="the learning rate over the run: constant, or decayed to 0 "
+        "along a half cosine over every step (the last epochs settle; docs/recognition.md)")
     validation_fraction: float = Field(
         0.1, ge=0, lt=1, description="training views held out per model for validation"
     )
+    keep: Literal["last", "best_validation"] = Field(
+        "last", description="which epoch's weights a network keeps: the last, or the one of "
+        "best validation accuracy (ties: the later; needs validation_fraction > 0)")
     device: Literal["auto", "cpu", "cuda"] = "auto"
     seed: int | None = Field(
         None, ge=0, lt=2**32, description="the classifier's own seed (weights, batch order, "
@@ -220,8 +226,15 @@ class TrainConfig(Section):
     preprocess: PreprocessConfig = PreprocessConfig()
     augment: AugmentConfig = AugmentConfig()
 
-    #: At 1, what every workspace before the option trained: out of the stage keys.
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble",)
+    #: At their defaults, what every workspace before the options trained: out of the keys.
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "lr_schedule", "keep")
+
+    @model_validator(mode="after")
+    def _keep_needs_validation(self) -> TrainConfig:
+        if self.keep == "best_validation" and self.validation_fraction == 0:
+            raise ValueError("train.keep best_validation needs training views to validate "
+                             "on: set train.validation_fraction above 0, or keep 'last'")
+        return self
 
 
 class SaliencyConfig(Section):

@@ -4,10 +4,12 @@ ensemble's members are trained from their own seeds."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from rapomdp.config import PreprocessConfig, TrainConfig
 from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
+from rapomdp.recognition.preprocess import preprocess
 from rapomdp.recognition.training import (
     LabelledViews,
     member_seed,
@@ -144,7 +146,6 @@ def test_flip_and_aspect_augment_apart_and_leave_the_default_stream_alone():
 
 def test_a_mirrored_training_input_is_the_input_mirrored():
     from rapomdp.config import AugmentConfig, NoiseConfig
-    from rapomdp.recognition.preprocess import preprocess
     from rapomdp.recognition.training import augment_batch, augmented_inputs, preprocess_params
 
     depth = toy_views(8, seed=3).depth
@@ -158,6 +159,52 @@ def test_a_mirrored_training_input_is_the_input_mirrored():
     np.testing.assert_array_equal(inputs[~draw.mirrored], plain[~draw.mirrored])
     np.testing.assert_array_equal(inputs[draw.mirrored], plain[draw.mirrored][..., ::-1])
     assert not np.array_equal(inputs[draw.mirrored], plain[draw.mirrored])
+
+
+def test_the_cosine_schedule_settles_the_learning_rate_to_zero_by_the_last_step():
+    from rapomdp.recognition.training import learning_rate_schedule
+
+    weights = torch.nn.Parameter(torch.zeros(2))
+    optimiser = torch.optim.Adam([weights], lr=1e-3)
+    assert learning_rate_schedule(optimiser, TrainConfig(), batches=10) is None  # constant
+    schedule = learning_rate_schedule(optimiser, TrainConfig(epochs=4, lr_schedule="cosine"),
+                                      batches=10)
+    rates = []
+    for _ in range(40):  # epochs x batches
+        rates.append(optimiser.param_groups[0]["lr"])
+        optimiser.step()
+        schedule.step()
+    assert rates[0] == 1e-3
+    np.testing.assert_allclose(rates[20], 0.5e-3, rtol=1e-6)  # half way: half the rate
+    assert rates[-1] < 2e-6 and optimiser.param_groups[0]["lr"] < 1e-12
+    assert all(a >= b for a, b in zip(rates, rates[1:], strict=False))
+
+
+def test_best_validation_keeps_the_weights_of_the_best_epoch_and_last_the_last():
+    from rapomdp.recognition.training import evaluate_inputs, preprocess_params
+
+    train, val = toy_views(12, seed=1), toy_views(8, seed=2)
+    # a rate large enough that validation accuracy moves from epoch to epoch (on this draw,
+    # here, the best epoch is the fourth of six)
+    cfg = TrainConfig(width=0.125, epochs=6, batch_size=16, learning_rate=3e-3,
+                      preprocess=PreprocessConfig(input_size_px=32))
+    inputs = preprocess(val.depth, 144.3, 144.3, preprocess_params(cfg.preprocess)).images
+    for keep in ("last", "best_validation"):
+        classifier, history = train_classifier(
+            train, val, TOY_CLASSES, cfg.model_copy(update={"keep": keep}), 144.3, 144.3,
+            seed=3, device=torch.device("cpu"), progress=False)
+        accuracy = np.array(history.val_accuracy)
+        expected = (len(accuracy) - 1 if keep == "last"
+                    else len(accuracy) - 1 - int(np.argmax(accuracy[::-1])))  # ties: later
+        assert history.kept == [int(i == expected) for i in range(len(accuracy))]
+        _, kept_accuracy = evaluate_inputs(classifier.network, inputs, val.labels,
+                                           torch.device("cpu"))
+        assert kept_accuracy == pytest.approx(accuracy[expected])
+
+
+def test_best_validation_needs_validation_views():
+    with pytest.raises(ValueError, match="validation_fraction above 0"):
+        TrainConfig(keep="best_validation", validation_fraction=0.0)
 
 
 def test_an_ensemble_is_its_members_trained_from_their_own_seeds():

@@ -170,9 +170,8 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
         )
     wall_s = time.perf_counter() - start
     train_images = int((~held).sum()) * config.train.epochs * members
-    last = [i for i, m in enumerate(history.member) if i + 1 == len(history.member)
-            or history.member[i + 1] != m]  # each member's last epoch
-    val_accuracy = (history.val_accuracy[-1] if members == 1 or not len(val) else
+    last = [i for i, k in enumerate(history.kept) if k]  # each member's kept epoch
+    val_accuracy = (history.val_accuracy[last[0]] if members == 1 or not len(val) else
                     float((classifier.predict(val.depth).argmax(1) == val.labels).mean()))
     metrics = {
         "classes": classes,
@@ -183,6 +182,8 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
         "final_train_accuracy": float(np.mean([history.train_accuracy[i] for i in last])),
         "final_validation_accuracy": _finite(val_accuracy),
         "member_validation_accuracy": [_finite(history.val_accuracy[i]) for i in last],
+        "keep": config.train.keep,
+        "kept_epochs": [history.epoch[i] for i in last],
         "wall_s": wall_s,
         "train_images_per_s": train_images / sum(history.seconds),
         "device": str(device),

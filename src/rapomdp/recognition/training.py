@@ -60,10 +60,11 @@ class History:
     val_loss: list[float] = field(default_factory=list)
     val_accuracy: list[float] = field(default_factory=list)
     seconds: list[float] = field(default_factory=list)
+    kept: list[int] = field(default_factory=list)  # 1: the epoch whose weights were kept
 
     def rows(self) -> list[dict[str, float]]:
         keys = ("member", "epoch", "train_loss", "train_accuracy", "val_loss", "val_accuracy",
-                "seconds")
+                "seconds", "kept")
         return [{k: getattr(self, k)[i] for k in keys} for i in range(len(self.epoch))]
 
 
@@ -249,6 +250,16 @@ def merge_histories(histories: Sequence[History]) -> History:
     return merged
 
 
+def learning_rate_schedule(optimiser: torch.optim.Optimizer, cfg: TrainConfig,
+                           batches: int) -> torch.optim.lr_scheduler.LRScheduler | None:
+    """``train.lr_schedule``'s scheduler, stepped once per batch: None for ``constant``; for
+    ``cosine``, the learning rate decays to 0 along a half cosine over the run's
+    ``cfg.epochs * batches`` steps, so the network saved is one the last steps barely moved."""
+    if cfg.lr_schedule == "constant":
+        return None
+    return torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, cfg.epochs * batches)
+
+
 def _train_network(
     spec: NetworkSpec, train: LabelledViews, val: LabelledViews, val_inputs: np.ndarray | None,
     extents: ObjectExtents | None, cfg: TrainConfig, params: PreprocessParams, fx_px: float,
@@ -262,6 +273,8 @@ def _train_network(
     optimiser = torch.optim.Adam(network.parameters(), lr=cfg.learning_rate,
                                  weight_decay=cfg.weight_decay)
     batches = -(-len(train) // cfg.batch_size)
+    schedule = learning_rate_schedule(optimiser, cfg, batches)
+    best_accuracy, best_weights, kept_row = -1.0, None, -1
     for epoch in range(1, cfg.epochs + 1):
         start_s = time.perf_counter()
         network.train()
@@ -279,6 +292,8 @@ def _train_network(
             optimiser.zero_grad(set_to_none=True)
             loss.backward()
             optimiser.step()
+            if schedule is not None:
+                schedule.step()
             loss_sum += float(loss.detach()) * len(idx)
             correct += int((logits.argmax(1) == y).sum())
             seen = min((b + 1) * cfg.batch_size, len(train))
@@ -295,7 +310,16 @@ def _train_network(
         history.val_loss.append(val_loss)
         history.val_accuracy.append(val_acc)
         history.seconds.append(time.perf_counter() - start_s)
+        history.kept.append(0)
         report(0, None, f"loss {loss_sum / len(train):.3f} acc {correct / len(train):.1%} "
                f"val {val_acc:.1%}")
+        if cfg.keep == "last":
+            kept_row = len(history.kept) - 1
+        elif val_acc >= best_accuracy:  # best_validation (ties: the later epoch)
+            best_accuracy, kept_row = val_acc, len(history.kept) - 1
+            best_weights = {k: v.detach().clone() for k, v in network.state_dict().items()}
+    history.kept[kept_row] = 1
+    if best_weights is not None:
+        network.load_state_dict(best_weights)
     network.eval()
     return network
