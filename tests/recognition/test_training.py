@@ -207,6 +207,33 @@ def test_best_validation_needs_validation_views():
         TrainConfig(keep="best_validation", validation_fraction=0.0)
 
 
+def test_a_kept_epoch_far_below_the_best_gets_a_note_naming_both():
+    from rapomdp.recognition.training import History, validation_drop_note
+
+    def history(curves: list[list[float]], kept: list[int]) -> History:
+        h = History()
+        for member, (curve, k) in enumerate(zip(curves, kept, strict=True)):
+            for epoch, accuracy in enumerate(curve, start=1):
+                h.member.append(member)
+                h.epoch.append(epoch)
+                h.val_accuracy.append(accuracy)
+                h.kept.append(int(epoch == k))
+        return h
+
+    collapsed = [0.60, 0.708, 0.60, 0.706, 0.589, 0.405]  # the study's default seed 1, late
+    note = validation_drop_note(history([collapsed], kept=[6]))
+    assert note is not None and "kept epoch 6 validates 0.405, epoch 2 0.708" in note
+    assert "train.keep: best_validation" in note
+    # the best epoch kept, or a last epoch within 0.05 of the best: nothing to say
+    assert validation_drop_note(history([collapsed], kept=[2])) is None
+    assert validation_drop_note(history([[0.60, 0.70, 0.66]], kept=[3])) is None
+    # an ensemble names the member; no validation views (NaN) says nothing
+    two = validation_drop_note(history([[0.7, 0.7], [0.7, 0.6]], kept=[2, 2]))
+    assert two is not None and "member 2: the kept epoch 2 validates 0.600" in two
+    assert "member 1" not in two
+    assert validation_drop_note(history([[float("nan")] * 3], kept=[3])) is None
+
+
 def test_an_ensemble_is_its_members_trained_from_their_own_seeds():
     cfg = TrainConfig(width=0.125, epochs=2, batch_size=32,
                       preprocess=PreprocessConfig(input_size_px=32))

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from rich.console import Console
 
 from rapomdp.config import Config
 from rapomdp.context import RunContext
@@ -51,6 +52,7 @@ from rapomdp.recognition.training import (
     merge_histories,
     preprocess_params,
     train_classifier,
+    validation_drop_note,
     validation_mask,
 )
 from rapomdp.workspace import StageError, StageInputs, Workspace
@@ -197,6 +199,9 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
         writer.writerows(rows)
     training_curves(rows, out / TRAINING_FIGURE)
     write_json_atomic(out / METRICS_FILE, metrics)
+    note = validation_drop_note(history)
+    if note is not None:
+        Console(stderr=True).print(note, highlight=False, soft_wrap=True)
 
 
 def _classify_models(config: Config, render_dir: Path, xrho_dir: Path, dataset_dir: Path,

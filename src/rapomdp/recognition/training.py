@@ -250,6 +250,36 @@ def merge_histories(histories: Sequence[History]) -> History:
     return merged
 
 
+VALIDATION_DROP_NOTE = 0.05
+"""A kept epoch that validates this far below the member's best epoch gets a note: on the
+study's default seed 1 the last epoch fell 0.30 below its best and its unseen objects 0.18 a
+view (docs/recognition.md, "Which epoch a network keeps")."""
+
+
+def validation_drop_note(history: History) -> str | None:
+    """A line for the user when a network's kept epoch validates at least
+    ``VALIDATION_DROP_NOTE`` below that network's best epoch, None otherwise."""
+    member = np.asarray(history.member)
+    accuracy = np.asarray(history.val_accuracy, dtype=np.float64)
+    notes = []
+    for m in np.unique(member):
+        rows = np.flatnonzero(member == m)
+        scores = accuracy[rows]
+        if not np.isfinite(scores).all():
+            continue  # no validation views
+        kept = rows[np.asarray(history.kept)[rows] == 1][0]
+        best = rows[int(np.argmax(scores))]
+        if accuracy[best] - accuracy[kept] >= VALIDATION_DROP_NOTE:
+            who = "" if len(np.unique(member)) == 1 else f"member {m + 1}: "
+            notes.append(f"{who}the kept epoch {history.epoch[kept]} validates "
+                         f"{accuracy[kept]:.3f}, epoch {history.epoch[best]} "
+                         f"{accuracy[best]:.3f}")
+    if not notes:
+        return None
+    return ("train: " + "; ".join(notes) + ". A late swing of the learning rate; another seed, "
+            "or train.keep: best_validation, keeps a settled network (docs/recognition.md).")
+
+
 def learning_rate_schedule(optimiser: torch.optim.Optimizer, cfg: TrainConfig,
                            batches: int) -> torch.optim.lr_scheduler.LRScheduler | None:
     """``train.lr_schedule``'s scheduler, stepped once per batch: None for ``constant``; for
