@@ -61,7 +61,7 @@ def _keyed(value: BaseModel) -> dict[str, Any]:
     """``value``'s JSON data less the fields its (and its nested sections')
     ``hash_omits_default`` names while at their default."""
     data = value.model_dump(mode="json")
-    for key in value.model_fields:
+    for key in type(value).model_fields:
         nested = getattr(value, key)
         if isinstance(nested, BaseModel):
             data[key] = _keyed(nested)
