@@ -14,23 +14,21 @@ single-view accuracy and the mean log-probability of the true class of each, the
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from rapomdp.io import load_npz
-
-PROBABILITIES = Path("classifier_eval") / "probabilities.npz"
+sys.path.insert(0, str(Path(__file__).parent))
+from train_recipe import volume_outputs  # noqa: E402  (reads the volume models only)
 
 
 def volume_figures(workspace: Path) -> tuple[float, float]:
     """Single-view accuracy and mean true-class log-probability over the volume models'
     views at X_rho."""
-    arrays = load_npz(workspace / PROBABILITIES)
-    probabilities = np.asarray(arrays["volume_xrho"], dtype=np.float64)  # (M, V, C)
-    labels = np.asarray(arrays["volume_labels"])
-    truth = np.take_along_axis(probabilities, labels[:, None, None], axis=2)[..., 0]
-    right = probabilities.argmax(axis=2) == labels[:, None]
+    probabilities, labels = volume_outputs(workspace)  # (N, C), (N,): one row a view
+    truth = np.take_along_axis(probabilities, labels[:, None], axis=1)[:, 0]
+    right = probabilities.argmax(axis=1) == labels
     return float(right.mean()), float(np.log(np.maximum(truth, 1e-12)).mean())
 
 

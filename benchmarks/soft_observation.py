@@ -23,16 +23,19 @@ reaches 0.9, then the mean walk accuracy per folder (a study's configuration) an
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.awareness.evidence import RecordedObservation
 from rapomdp.experiment.held_out import held_out_folds
-from rapomdp.io import load_npz
 from rapomdp.pipeline import get_stage
-from rapomdp.recognition.belief import random_walks
+from rapomdp.recognition.belief import random_walks, temper
 from rapomdp.workspace import Workspace
+
+sys.path.insert(0, str(Path(__file__).parent))
+from train_recipe import volume_outputs  # noqa: E402  (reads the volume models only)
 
 WALKS_PER_OBJECT = 16
 WALK_VIEWS = 8
@@ -40,14 +43,6 @@ NEIGHBOURS = 8
 BINS = 3
 STOP_BELIEF = 0.9
 SOFTMAX_POWERS = (0.3, 0.5, 1.0)
-
-
-def tempered_softmax(probabilities: np.ndarray, temperature: float) -> np.ndarray:
-    """The classifier's probabilities with its held-out softmax temperature applied."""
-    logits = np.log(np.maximum(probabilities, 1e-12)) / temperature
-    logits -= logits.max(axis=-1, keepdims=True)
-    p = np.exp(logits)
-    return p / p.sum(axis=-1, keepdims=True)
 
 
 def bin_log_factor(confidence: np.ndarray, correct: np.ndarray, train: np.ndarray
@@ -82,13 +77,15 @@ def workspace_figures(root: Path, rng: np.random.Generator) -> dict[str, np.ndar
     inputs = ws.inputs(get_stage("evaluate"))
     recorded = RecordedObservation.load(inputs.observe)
     evidence = recorded.evidence
-    probabilities = load_npz(ws.require("classifier_eval") / "probabilities.npz")
-    volume = probabilities["volume_xrho"].astype(np.float64)  # the volume models' outputs
+    views = len(recorded.arrays["directions"])
+    flat, _ = volume_outputs(root)  # the volume models' outputs, one row a view
+    volume = flat.reshape(-1, views, flat.shape[1])  # (M, V, C)
     if not np.array_equal(volume.argmax(axis=-1), evidence.predicted[evidence.volume_mask]):
         raise ValueError(f"{root}: the volume outputs do not match the observe evidence")
     groups = evidence.groups[evidence.volume_mask]
     labels = evidence.labels[evidence.volume_mask]
-    soft = tempered_softmax(volume, float(recorded.arrays["softmax_temperature"]))
+    # softmax at temperature T: p ** (1 / T), renormalised
+    soft = temper(volume, 1.0 / float(recorded.arrays["softmax_temperature"]))
     confidence, predicted = soft.max(axis=-1), volume.argmax(axis=-1)
     correct = predicted == labels[:, None]
     directions = recorded.arrays["directions"]

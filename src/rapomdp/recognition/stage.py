@@ -172,8 +172,8 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
         )
     wall_s = time.perf_counter() - start
     train_images = int((~held).sum()) * config.train.epochs * members
-    last = [i for i, k in enumerate(history.kept) if k]  # each member's kept epoch
-    val_accuracy = (history.val_accuracy[last[0]] if members == 1 or not len(val) else
+    kept = [i for i, k in enumerate(history.kept) if k]  # each member's kept epoch
+    val_accuracy = (history.val_accuracy[kept[0]] if members == 1 or not len(val) else
                     float((classifier.predict(val.depth).argmax(1) == val.labels).mean()))
     metrics = {
         "classes": classes,
@@ -181,11 +181,11 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
         "validation_images": int(held.sum()),
         "epochs": config.train.epochs,
         "ensemble": members,
-        "final_train_accuracy": float(np.mean([history.train_accuracy[i] for i in last])),
+        "final_train_accuracy": float(np.mean([history.train_accuracy[i] for i in kept])),
         "final_validation_accuracy": _finite(val_accuracy),
-        "member_validation_accuracy": [_finite(history.val_accuracy[i]) for i in last],
+        "member_validation_accuracy": [_finite(history.val_accuracy[i]) for i in kept],
         "keep": config.train.keep,
-        "kept_epochs": [history.epoch[i] for i in last],
+        "kept_epochs": [history.epoch[i] for i in kept],
         "wall_s": wall_s,
         "train_images_per_s": train_images / sum(history.seconds),
         "device": str(device),

@@ -348,7 +348,8 @@ def _train_network(
         elif val_acc >= best_accuracy:  # best_validation (ties: the later epoch)
             best_accuracy, kept_row = val_acc, len(history.kept) - 1
             best_weights = {k: v.detach().clone() for k, v in network.state_dict().items()}
-    history.kept[kept_row] = 1
+    # no finite validation accuracy (no validation views): the last epoch is kept
+    history.kept[kept_row if kept_row >= 0 else len(history.kept) - 1] = 1
     if best_weights is not None:
         network.load_state_dict(best_weights)
     network.eval()
