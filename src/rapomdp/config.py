@@ -471,6 +471,8 @@ class RandomWalkConfig(Section):
 class EvaluateConfig(Section):
     """The closed-loop evaluation (paper Sec. 5.2): every test model x start x method."""
 
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("declared_form",)
+
     methods: list[str] = Field(
         ["static", "random", "vptree", "classifier", "ra"],
         description="static, random, an observation model solved by the solve stage "
@@ -513,6 +515,12 @@ class EvaluateConfig(Section):
         "The closed loop fits the learned baseline's a too (1 with walks); Random keeps the "
         "walks' a. closed_loop chosen on held-out objects by a rule written "
         "first (docs/awareness.md §4.8)")
+    declared_form: Literal["scalar", "views"] = Field(
+        "scalar", description="the declared confidence's temperature with declared_fit "
+        "closed_loop: scalar (one a per method) or views (a(n) = s * n**-beta after n images, "
+        "(s, beta) fitted on the method's held-out closed-loop stops: a long episode means "
+        "the object's labels disagreed; Random's fitted on its own held-out closed loop too). "
+        "The actions are the same either way (docs/awareness.md §4.8, round five)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "
@@ -550,6 +558,16 @@ class EvaluateConfig(Section):
         if any(not 0 < v <= 1 for v in values):
             raise ValueError("every stop belief must be in (0, 1]")
         return values
+
+    @model_validator(mode="after")
+    def _views_form_on_the_closed_loop(self) -> EvaluateConfig:
+        if self.declared_form == "views" and (self.declared_fit == "walks"
+                                              or self.declared_confidence != "calibrated"):
+            raise ValueError("evaluate.declared_form 'views' is fitted on the held-out closed "
+                             "loop: it needs declared_confidence 'calibrated' and declared_fit "
+                             f"'closed_loop' or 'closed_loop_per_fold' (got "
+                             f"{self.declared_confidence!r}, {self.declared_fit!r})")
+        return self
 
 
 class LearnConfig(Section):

@@ -3,6 +3,8 @@ three-class workspace with two volume models a class (two groups to hold out).""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -189,3 +191,50 @@ def test_the_report_shows_the_closed_loop_fit_and_says_what_was_reported(workspa
            "their own held-out closed-loop stops (evaluate.declared_fit: closed_loop)" in report
     assert "the others' where their own held-out closed loop stops" in report
     assert rows[0][1] in report
+
+
+def test_the_views_form_fits_random_too_and_reports_each_step_with_its_own_a(workspace,
+                                                                              tmp_path):
+    ws, config = workspace
+    views = config.model_copy(update={"evaluate": config.evaluate.model_copy(
+        update={"declared_form": "views"})})
+    fits = closed_loop_declared(views, _inputs(ws), ["random", *FITTED], tmp_path,
+                                form="views")
+    assert set(fits) == {"random", *FITTED}
+    record = read_json(tmp_path / DECLARED_FIT_FILE)
+    assert record["form"] == "views"
+    for name, fit in fits.items():
+        d = fit.declared
+        assert d.form == "views" and len(d.held_out_views_exponents) == 2, name
+        assert record["methods"][name]["declared_confidence"]["views_exponent"] == \
+            d.views_exponent
+        # an episode takes its first image, then one a move, within the step budget
+        assert fit.images.min() >= 1 and fit.images.max() <= views.evaluate.max_moves + 1
+        assert sorted(set(fit.groups.tolist())) == [0, 1]
+    readout = {name: fit.declared.readout for name, fit in fits.items()}
+    loop = ClosedLoop.load(views, _inputs(ws), declared_fit=readout)
+    for name in ["random", *FITTED]:
+        assert loop.methods[name]._bayes.declared_readout == readout[name], name
+    # each recorded step reports the belief after n images raised to its own a(n)
+    model = loop.dataset.with_role("test")[0]
+    saved = {(r.method, r.start): r for r in loop.run_model(model)}
+    plain = ClosedLoop.load(config.model_copy(update={"evaluate": config.evaluate.model_copy(
+        update={"declared_confidence": "belief"})}), _inputs(ws))
+    for episode_record in plain.run_model(model):
+        a = readout[episode_record.method] if episode_record.method in readout else None
+        if a is None:
+            continue
+        beliefs = episode_record.episode.beliefs
+        t = a.at(np.arange(1, len(beliefs) + 1))[:, None]
+        expected = beliefs ** t / (beliefs ** t).sum(axis=1, keepdims=True)
+        np.testing.assert_allclose(
+            saved[(episode_record.method, episode_record.start)].episode.beliefs, expected,
+            atol=1e-9)
+
+
+def test_the_views_form_needs_the_closed_loop():
+    with pytest.raises(ValueError, match="evaluate.declared_form 'views' is fitted on the "
+                                         "held-out closed loop"):
+        config_from_dict({"evaluate": {"declared_form": "views", "declared_fit": "walks"}})
+    with pytest.raises(ValueError, match="form must be one of scalar, views"):
+        closed_loop_declared(Config(), StageInputs("evaluate"), ["ra"], Path("x"), form="n")

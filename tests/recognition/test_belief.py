@@ -10,11 +10,13 @@ from scipy.special import logsumexp
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.recognition.belief import (
     DECLARED_STOP_THRESHOLDS,
+    DeclaredTemperature,
     belief_log_loss,
     declared_belief,
     declared_confidence,
     expected_calibration_error,
     fit_declared_temperature,
+    fit_declared_views,
     fit_temperature,
     fold_of_rows,
     held_out_groups,
@@ -324,3 +326,62 @@ def test_a_policys_own_stops_fit_the_declared_confidence_held_out_by_group():
     assert calibrated.temperature == pytest.approx(1.0, abs=0.12)  # Bayes: left as it is
     alone = stops_declared_confidence(final, true, np.zeros(len(true), np.int64))
     assert alone.groups == () and np.isnan(alone.declared_ece)
+
+
+def _stops_overconfident_by_length(rng: np.random.Generator, factor: np.ndarray
+                                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Calibrated posteriors stopped after n ∈ 1..8 images each, then raised to
+    ``factor[n − 1]``: a belief whose overconfidence depends on how long the episode ran."""
+    log_belief, true = _posterior_walks(rng, walks=4000)
+    steps = rng.integers(0, log_belief.shape[1], len(true))
+    images = steps + 1
+    final = factor[steps][:, None] * log_belief[np.arange(len(true)), steps]
+    return final - logsumexp(final, axis=1, keepdims=True), true, images
+
+
+def test_the_declared_temperature_by_images_is_a_power_of_the_images_taken():
+    a = DeclaredTemperature(0.8, 0.5)
+    assert np.allclose(a.at(np.array([1, 4, 0])), [0.8, 0.4, 0.8])  # n < 1 counts as 1
+    assert float(DeclaredTemperature(0.7).at(9)) == 0.7  # exponent 0: one a for every n
+    with pytest.raises(ValueError, match="positive scale"):
+        DeclaredTemperature(0.0)
+
+
+def test_the_views_fit_recovers_an_overconfidence_that_grows_with_the_images_taken():
+    rng = np.random.default_rng(21)
+    n = np.arange(1, 9)
+    # planted: after n images the belief counts its evidence 1.5·√n times over, so the
+    # calibrating a(n) = (1 / 1.5) · n^(−1/2)
+    final, true, images = _stops_overconfident_by_length(rng, 1.5 * np.sqrt(n))
+    fitted = fit_declared_views(final, true, images)
+    assert fitted.scale == pytest.approx(1 / 1.5, abs=0.12)
+    assert fitted.views_exponent == pytest.approx(0.5, abs=0.12)
+    groups = np.arange(len(true)) % 3
+    views = stops_declared_confidence(final, true, groups, images=images)
+    scalar = stops_declared_confidence(final, true, groups)
+    assert views.form == "views" and views.readout == fitted
+    assert len(views.held_out_views_exponents) == 3
+    assert views.declared_ece < 0.03 and views.declared_ece < 0.6 * scalar.declared_ece
+    record = views.to_dict()
+    assert record["form"] == "views" and record["views_exponent"] == fitted.views_exponent
+    assert "form" not in scalar.to_dict()  # a scalar fit's record is as before
+    # a steeper planted growth (a(n) = 1/n: the evidence after n images is worth one image)
+    # is found too: the search leaves its start at β = 0
+    final, true, images = _stops_overconfident_by_length(rng, n.astype(float))
+    steep = fit_declared_views(final, true, images)
+    assert steep.views_exponent == pytest.approx(1.0, abs=0.15)
+    assert steep.scale == pytest.approx(1.0, abs=0.2)
+
+
+def test_the_views_fit_keeps_one_a_where_the_overconfidence_does_not_depend_on_length():
+    rng = np.random.default_rng(22)
+    final, true, images = _stops_overconfident_by_length(rng, np.full(8, 3.0))
+    fitted = fit_declared_views(final, true, images)
+    assert fitted.views_exponent == pytest.approx(0.0, abs=0.1)
+    assert fitted.scale == pytest.approx(1 / 3, abs=0.06)
+    # one length for every stop: β says nothing and stays 0, s is the scalar fit
+    same = fit_declared_views(final, true, np.full(len(true), 4))
+    assert same.views_exponent == 0.0
+    assert same.scale == pytest.approx(fit_declared_temperature(final, true), abs=2e-3)
+    with pytest.raises(ValueError, match="one image count per stop"):
+        fit_declared_views(final, true, images[:-1])

@@ -82,7 +82,7 @@ from rapomdp.recognition.artefacts import (
     XrhoProbabilities,
     load_xrho_probabilities,
 )
-from rapomdp.recognition.belief import ViewDiscount
+from rapomdp.recognition.belief import DeclaredTemperature, ViewDiscount
 from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
@@ -128,14 +128,16 @@ class ClosedLoop:
     @classmethod
     def load(cls, config: Config, inputs: StageInputs, threads: int | None = None,
              sweep_dir: Path | None = None,
-             declared_fit: Mapping[str, float] | None = None) -> ClosedLoop:
+             declared_fit: Mapping[str, DeclaredTemperature] | None = None) -> ClosedLoop:
         """The closed loop of a workspace's stage folders; the CNN uses ``threads`` threads.
 
         With ``sweep_dir`` (the evaluate stage's ``sweep/``, from :func:`solve_sweep`) the
         accuracy-energy sweep's settings run alongside Table 1's methods. ``declared_fit``:
         the declared-confidence a of POMDP methods and of the learned baseline fitted on their
         held-out closed loop (:func:`~rapomdp.experiment.held_out.closed_loop_declared`), in
-        place of the walks' (the learned baseline's: 1).
+        place of the walks' (the learned baseline's: 1); Random's there too with
+        ``evaluate.declared_form: views`` (at Table 1's threshold; the sweep's other
+        thresholds keep the walks' a).
         """
         dataset = load_dataset(inputs.dataset)
         robot = load_robot(inputs.robot)
@@ -153,11 +155,15 @@ class ClosedLoop:
         pooled = (declared_temperatures(inputs.observe, observation, inputs.vptree_dir)
                   if calibrated else {})
 
-        def declared(name: str, stop_threshold: float | None = None) -> float:
+        def declared(name: str, stop_threshold: float | None = None
+                     ) -> float | DeclaredTemperature:
             if not calibrated:
                 return 1.0
             if stop_threshold is None:
                 return (declared_fit or {}).get(name, pooled[name])
+            if "random" in (declared_fit or {}) and \
+                    np.isclose(stop_threshold, cfg.random.belief_threshold):
+                return (declared_fit or {})["random"]  # Random's own held-out closed loop
             return declared_temperatures(inputs.observe, {name: observation[name]},
                                          inputs.vptree_dir, stop_threshold)[name]
 
@@ -255,7 +261,7 @@ class ClosedLoop:
 
 
 def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | None,
-                     declared_fit: dict[str, float] | None, model_files: list[str],
+                     declared_fit: dict[str, DeclaredTemperature] | None, model_files: list[str],
                      report: Callable[[int], None] | None = None) -> list[list[EpisodeRecord]]:
     """A worker's task: load the closed loop once, run each of its test models (``report``:
     told each model's episodes as they finish)."""
@@ -272,7 +278,7 @@ def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | No
 
 def run_episodes(config: Config, inputs: StageInputs,
                  context: RunContext = RunContext(), sweep_dir: Path | None = None,
-                 declared_fit: dict[str, float] | None = None
+                 declared_fit: dict[str, DeclaredTemperature] | None = None
                  ) -> tuple[list[EpisodeRecord], Dataset]:
     """Every test model x start x method (and sweep setting, with ``sweep_dir``; the
     declared confidence of the methods in ``declared_fit`` by it: see :meth:`ClosedLoop.load`), over
@@ -439,13 +445,16 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
     fits: dict[str, ClosedLoopFit] = {}
     if cfg.declared_fit != "walks" and cfg.declared_confidence == "calibrated":
         # the POMDPs' declared confidence, fitted where they stop on held-out objects
+        # (Random's too when its a depends on the images taken: evaluate.declared_form)
+        skipped = ("static",) if cfg.declared_form == "views" else ("static", "random")
         fits = closed_loop_declared(config, inputs, [m for m in cfg.methods
-                                                     if m not in ("static", "random")],
+                                                     if m not in skipped],
                                     out / HELD_OUT_DIR, context,
-                                    per_fold=cfg.declared_fit == "closed_loop_per_fold")
+                                    per_fold=cfg.declared_fit == "closed_loop_per_fold",
+                                    form=cfg.declared_form)
     held_out_s = time.perf_counter() - began - solved_s
     records, dataset = run_episodes(config, inputs, context, sweep_dir,
-                                    {name: fit.declared.temperature for name, fit in fits.items()})
+                                    {name: fit.declared.readout for name, fit in fits.items()})
     episodes_s = time.perf_counter() - began - solved_s - held_out_s
     methods = list(config.evaluate.methods)
     sweep = [r for r in records if r.method not in methods]

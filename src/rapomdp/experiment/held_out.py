@@ -25,7 +25,7 @@ from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, Policy, run_episode
 from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
-from rapomdp.experiment.methods import POMDPPolicy
+from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
 from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import load_npz, read_json, write_json_atomic
 from rapomdp.parallel import run_tasks
@@ -44,6 +44,10 @@ from rapomdp.workspace import StageError, StageInputs
 
 HELD_OUT_STARTS = 4
 """Seeded reachable starts per held-out model (each group's models × starts are the stops)."""
+
+DECLARED_FORMS = ("scalar", "views")
+"""``evaluate.declared_form``: one declared temperature a per method, or a(n) by the images n
+an episode took (:class:`~rapomdp.recognition.belief.DeclaredTemperature`)."""
 
 HELD_OUT_DIR = "held_out"
 """The evaluate stage's folder of the held-out closed loop (its solves and record)."""
@@ -138,14 +142,14 @@ def closed_loop_skipped(config: Config, name: str) -> str:
 
 def held_out_stops(config: Config, policy: Policy, fold: HeldOutFold, motion: Motion,
                    starts: int = HELD_OUT_STARTS
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The final log beliefs (M·starts, C), the true class, whether the declaration was right
-    and the movement energy (m) of each episode of ``policy`` from ``starts`` seeded reachable
-    starts on each held-out model of ``fold`` (the starts depend on the group and model only,
-    so every method starts from the same ones)."""
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The final log beliefs (M·starts, C), the true class, whether the declaration was right,
+    the movement energy (m) and the images taken of each episode of ``policy`` from ``starts``
+    seeded reachable starts on each held-out model of ``fold`` (the starts depend on the group
+    and model only, so every method starts from the same ones)."""
     classes = fold.model.shape[2]
     reachable = np.flatnonzero(motion.reachable)
-    finals, truth, right, energy = [], [], [], []
+    finals, truth, right, energy, images = [], [], [], [], []
     for r in range(len(fold.labels)):
         rng = class_seed(config.seed, f"held-out/{fold.group}/{r}")
         for s in rng.choice(reachable, min(starts, reachable.size), replace=False):
@@ -155,7 +159,9 @@ def held_out_stops(config: Config, policy: Policy, fold: HeldOutFold, motion: Mo
             truth.append(int(fold.labels[r]))
             right.append(episode.declared == int(fold.labels[r]))
             energy.append(float(episode.move_energy.sum()))
-    return np.array(finals), np.array(truth), np.array(right), np.array(energy)
+            images.append(len(episode.viewpoints))
+    return (np.array(finals), np.array(truth), np.array(right), np.array(energy),
+            np.array(images))
 
 
 def load_declared_fit(evaluate_dir: Path) -> dict[str, Any] | None:
@@ -170,7 +176,8 @@ def load_declared_fit(evaluate_dir: Path) -> dict[str, Any] | None:
 class ClosedLoopFit:
     """One method's held-out closed loop: its ``declared`` confidence fitted at the stops,
     the loop's ``accuracy`` and mean ``energy`` (m), the ``episodes`` run, and the stops
-    themselves (``log_beliefs`` (episodes, C), ``truth`` (episodes,); not recorded)."""
+    themselves (``log_beliefs`` (episodes, C), ``truth``, ``images`` taken and held-out
+    ``groups`` (episodes,); not recorded)."""
 
     declared: DeclaredConfidence
     accuracy: float
@@ -178,6 +185,8 @@ class ClosedLoopFit:
     episodes: int
     log_beliefs: np.ndarray
     truth: np.ndarray
+    images: np.ndarray
+    groups: np.ndarray
 
     def to_dict(self) -> dict[str, object]:
         return {"declared_confidence": self.declared.to_dict(), "accuracy": self.accuracy,
@@ -207,13 +216,18 @@ def solve_held_out_folds(config: Config, folds: dict[str, list[HeldOutFold]], ro
 
 
 def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldOutFold,
-                   plans: str | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                   plans: str | None) -> tuple[np.ndarray, ...]:
     """A worker's task: one method's episodes on one held-out group (:func:`held_out_stops`);
-    ``plans``: the POMDP's policy file, None for the learned baseline."""
+    ``plans``: the POMDP's policy file, None for Random and the learned baseline."""
     config = Config.model_validate_json(config_json)
     motion = Motion.from_robot(load_robot(inputs.robot))
     policy: Policy
-    if plans is None:
+    if name == "random":  # its walk at Table 1's threshold
+        walk = config.evaluate.random
+        policy = RandomWalkPolicy(fold.model, motion.distance_m, motion.reachable,
+                                  walk.neighbours, walk.belief_threshold, walk.max_moves, name,
+                                  first_view_model=fold.first_view)
+    elif plans is None:
         network, spec = load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
         policy = LearnedPolicy(network, spec, fold.model, motion.reachable, name,
                                first_view_model=fold.first_view)
@@ -226,7 +240,8 @@ def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldO
 
 def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[str],
                          out: Path, context: RunContext = RunContext(),
-                         per_fold: bool = False) -> dict[str, ClosedLoopFit]:
+                         per_fold: bool = False, form: str = "scalar"
+                         ) -> dict[str, ClosedLoopFit]:
     """Fit each method's declared confidence on its held-out closed loop and write
     ``out/declared_fit.json``: every group's episodes update the belief by the model fitted
     without the group (a POMDP also looks ahead with it). A POMDP's plan (the value the
@@ -234,9 +249,15 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
     solved into ``out`` (:func:`solve_held_out_folds`: a solve per method and group; measured
     within 0.02 of the solve stage's a on both development sets, docs/awareness.md §4.8); the
     learned baseline (``learned``) is the learn stage's policy at Table 1's λ, its belief by its
-    observation model's folds. Methods without held-out folds are left out (they keep the
-    walks' a; the record says why)."""
+    observation model's folds; Random (``random``) walks at Table 1's threshold with its
+    observation model's folds. With ``form`` ``views`` the temperature depends on the images
+    an episode took (``evaluate.declared_form``). Methods without held-out folds are left out
+    (they keep the walks' a; the record says why)."""
+    if form not in DECLARED_FORMS:
+        raise ValueError(f"form must be one of {', '.join(DECLARED_FORMS)}, got {form!r}")
     model_of = {name: name for name in methods}
+    if "random" in methods:
+        model_of["random"] = config.evaluate.random.observation_model
     if LEARNED in methods:  # its belief's observation model
         _, spec = load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
         model_of[LEARNED] = spec.observation_model
@@ -246,14 +267,15 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
     if not folds:
         return {}
     if per_fold:
-        solve_held_out_folds(config, {n: f for n, f in folds.items() if n != LEARNED},
+        solve_held_out_folds(config, {n: f for n, f in folds.items()
+                                      if n not in (LEARNED, "random")},
                              inputs.robot, out, context)
     pairs = [(name, fold) for name, fs in folds.items() for fold in fs]
     config_json = config.model_dump_json()
     tasks = []
     for name, fold in pairs:
-        plans = None  # the learned baseline: the learn stage's policy
-        if name != LEARNED:
+        plans = None  # Random; the learned baseline: the learn stage's policy
+        if name not in (LEARNED, "random"):
             path = (out / f"group_{fold.group}" if per_fold else inputs.solve) / policy_file(name)
             if not path.is_file():
                 raise StageError(f"method '{name}' needs {path.name} from the solve stage for "
@@ -269,15 +291,17 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
         parts.setdefault(name, []).append((*part, np.full(len(part[1]), fold.group)))
     fits: dict[str, ClosedLoopFit] = {}
     for name, rows in parts.items():
-        log_b, truth, right, energy, group = (np.concatenate(a) for a in zip(*rows,
-                                                                              strict=True))
-        fits[name] = ClosedLoopFit(stops_declared_confidence(log_b, truth, group),
-                                   float(right.mean()), float(energy.mean()), int(len(truth)),
-                                   log_b, truth)
+        log_b, truth, right, energy, images, group = (
+            np.concatenate(a) for a in zip(*rows, strict=True))
+        declared = stops_declared_confidence(log_b, truth, group,
+                                             images=images if form == "views" else None)
+        fits[name] = ClosedLoopFit(declared, float(right.mean()), float(energy.mean()),
+                                   int(len(truth)), log_b, truth, images, group)
     write_json_atomic(out / DECLARED_FIT_FILE, {
         "lambda_m": config.solve.wrong_declaration_cost_m,
         "starts_per_model": HELD_OUT_STARTS,
         "plans": "per fold" if per_fold else "solve stage",
+        "form": form,
         "methods": {name: fit.to_dict() for name, fit in fits.items()},
         "walks_kept": {name: closed_loop_skipped(config, model_of[name])
                        for name in all_folds if name not in folds}})

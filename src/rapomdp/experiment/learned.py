@@ -40,7 +40,7 @@ from rapomdp.experiment.recorded_env import (
 from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import ArtefactError, read_json, write_bytes_atomic, write_json_atomic
 from rapomdp.planning.policy import ARAction
-from rapomdp.recognition.belief import ViewDiscount
+from rapomdp.recognition.belief import DeclaredTemperature, ViewDiscount
 
 FORMAT = "rapomdp.learned-policy.v1"
 #: The learn stage's summary: what was trained, for how long, its held-out scores.
@@ -187,7 +187,7 @@ class LearnedPolicy:
                  first_view_model: np.ndarray | None = None, prior: np.ndarray | None = None,
                  discount: ViewDiscount | None = None,
                  similarity: np.ndarray | None = None,
-                 declared_temperature: float = 1.0) -> None:
+                 declared_temperature: float | DeclaredTemperature = 1.0) -> None:
         shape = np.shape(observation_model)
         if len(shape) != 3 or (shape[0], shape[2]) != (spec.viewpoints, spec.classes):
             raise ValueError(f"{name}: the policy was trained on {spec.viewpoints} viewpoints "

@@ -21,7 +21,12 @@ from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import LOOKAHEAD_WIDTH, ActiveRecognitionPolicy, ARAction
 from rapomdp.planning.rules import class_marginal
-from rapomdp.recognition.belief import ViewDiscount, declared_belief, temper
+from rapomdp.recognition.belief import (
+    DeclaredTemperature,
+    ViewDiscount,
+    declared_belief,
+    temper,
+)
 
 
 class BayesBelief:
@@ -47,11 +52,14 @@ class BayesBelief:
                  first_view_model: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
                  similarity: np.ndarray | None = None,
-                 declared_temperature: float = 1.0) -> None:
-        if not declared_temperature > 0:
-            raise ValueError(f"the declared-confidence temperature must be positive, got "
-                             f"{declared_temperature}")
-        self.declared_temperature = float(declared_temperature)
+                 declared_temperature: float | DeclaredTemperature = 1.0) -> None:
+        if not isinstance(declared_temperature, DeclaredTemperature):
+            if not declared_temperature > 0:
+                raise ValueError(f"the declared-confidence temperature must be positive, got "
+                                 f"{declared_temperature}")
+            declared_temperature = DeclaredTemperature(float(declared_temperature))
+        self.declared_readout = declared_temperature
+        self.declared_temperature = declared_temperature.scale
         self.observation_model = np.asarray(observation_model, dtype=np.float64)
         self.first_view_model = (self.observation_model if first_view_model is None
                                  else np.asarray(first_view_model, dtype=np.float64))
@@ -100,9 +108,9 @@ class BayesBelief:
 
     @property
     def declared(self) -> np.ndarray:
-        """The class belief as reported: ``belief`` ** ``declared_temperature``, renormalised
-        (the same argmax)."""
-        return declared_belief(self.belief, self.declared_temperature)
+        """The class belief as reported: ``belief`` ** a(n) after n images, renormalised (the
+        same argmax; a(n) is ``declared_temperature`` itself unless it depends on n)."""
+        return declared_belief(self.belief, float(self.declared_readout.at(self.updates)))
 
     def reset(self) -> None:
         self.state = self.prior.copy()
@@ -167,7 +175,7 @@ class RandomWalkPolicy:
                  first_view_model: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
                  similarity: np.ndarray | None = None,
-                 declared_temperature: float = 1.0) -> None:
+                 declared_temperature: float | DeclaredTemperature = 1.0) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
         if max_moves < 0:
@@ -226,7 +234,7 @@ class POMDPPolicy:
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
                  similarity: np.ndarray | None = None, lookahead_depth: int = 1,
                  lookahead_width: int = LOOKAHEAD_WIDTH,
-                 declared_temperature: float = 1.0) -> None:
+                 declared_temperature: float | DeclaredTemperature = 1.0) -> None:
         if lookahead_depth > 1 and discount is not None:
             raise ValueError(f"{name}: a depth-{lookahead_depth} lookahead needs a belief "
                              "whose model does not change with the views taken (observe.belief "

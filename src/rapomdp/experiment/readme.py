@@ -105,7 +105,8 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
         ran = workspace.config(default=Config()).evaluate
         lines += ["**Calibration of the final belief** (confidence: the belief in the declared "
                   "class, which a calibrated belief's accuracy equals; ECE over 10 bins). "
-                  + reported_belief_note(ran.declared_confidence, ran.declared_fit), "",
+                  + reported_belief_note(ran.declared_confidence, ran.declared_fit,
+                                           ran.declared_form), "",
                   markdown_table(*belief_calibration_cells(episodes)).strip(), ""]
     lines += ["**Self-awareness** (observation models on the test models):", "",
               _read(workspace.require("observe") / "quality.md"), "",

@@ -593,20 +593,26 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
             f"by {plans}, λ = {record['lambda_m']:g} m; per "
             "method a, the loop's accuracy and energy, and at its stops the belief's and the "
             "declared belief's confidence and ECE (each group by the a the other groups "
-            "give). These a are the ones the methods above reported with."))
+            "give). These a are the ones the methods above reported with."
+            + (" With evaluate.declared_form views, a after n images is a · n^(−β): Random's "
+               "too, fitted on its own held-out closed loop."
+               if record.get("form", "scalar") == "views" else "")))
         b.add(Table(*closed_loop_cells(record)))
 
 
 def closed_loop_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
     """The held-out closed loop's record (``held_out/declared_fit.json``) as a table: per
     POMDP method a, the loop's accuracy and mean energy, the belief's and the declared
-    belief's (held out) confidence and ECE at its stops, and the stops."""
-    header = ["Method", "a", "Accuracy", "Energy (m)", "Belief: confidence", "ECE",
-              "Declared (held out): confidence", "ECE", "Stops"]
+    belief's (held out) confidence and ECE at its stops, and the stops; with
+    ``evaluate.declared_form`` views, β of a(n) = a · n^(−β) after a."""
+    views = record.get("form", "scalar") == "views"
+    header = ["Method", "a", *(["β"] if views else []), "Accuracy", "Energy (m)",
+              "Belief: confidence", "ECE", "Declared (held out): confidence", "ECE", "Stops"]
     rows = []
     for name, fit in record["methods"].items():
         d = fit["declared_confidence"]
         rows.append([METHOD_NAMES.get(name, name), f"{d['temperature']:.3f}",
+                     *([f"{d.get('views_exponent', 0.0):.3f}"] if views else []),
                      f"{fit['accuracy']:.3f}", f"{fit['energy']:.2f}",
                      f"{d['confidence']:.3f}", f"{d['ece']:.3f}",
                      f"{d['declared_confidence']:.3f}", f"{d['declared_ece']:.3f}",
@@ -629,7 +635,8 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path,
                     "models: the mean belief in the true class; the confidence (the belief in "
                     "the declared class), which a calibrated belief's accuracy equals; ECE of "
                     "the confidence over 10 equal-width bins. "
-                    + reported_belief_note(ran.declared_confidence, ran.declared_fit)))
+                    + reported_belief_note(ran.declared_confidence, ran.declared_fit,
+                                           ran.declared_form)))
     b.add(Table(*belief_calibration_cells(table)))
     figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
                                 xlabel="final belief in the declared class",

@@ -385,11 +385,36 @@ def stopped_log_beliefs(log_beliefs: np.ndarray,
     return np.concatenate(finals), np.tile(walks, len(thresholds))
 
 
-def declared_log_beliefs(log_beliefs: np.ndarray, temperature: float) -> np.ndarray:
+def declared_log_beliefs(log_beliefs: np.ndarray, temperature: float | np.ndarray
+                         ) -> np.ndarray:
     """log b' with b' ∝ b ** ``temperature`` over the last axis: the declared confidence's
-    form. The argmax is b's (a temperature > 0 keeps the order of the classes)."""
-    scaled = temperature * np.asarray(log_beliefs, dtype=np.float64)
+    form (an array of temperatures: one per belief). The argmax is b's (a temperature > 0 keeps
+    the order of the classes)."""
+    t = np.asarray(temperature, dtype=np.float64)
+    scaled = (t[..., None] if t.ndim else t) * np.asarray(log_beliefs, dtype=np.float64)
     return scaled - logsumexp(scaled, axis=-1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class DeclaredTemperature:
+    """The declared confidence's temperature after n images: a(n) = ``scale`` ·
+    n ** −``views_exponent`` (``evaluate.declared_form``). Exponent 0 is one a for every
+    episode (``scalar``); a positive one flattens the report of a long episode more, since an
+    object whose labels kept the policy looking is more often one the classifier gets wrong."""
+
+    scale: float = 1.0
+    views_exponent: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not self.scale > 0 or not np.isfinite(self.views_exponent):
+            raise ValueError(f"the declared-confidence temperature needs a positive scale and "
+                             f"a finite views exponent, got {self.scale}, "
+                             f"{self.views_exponent}")
+
+    def at(self, images: int | np.ndarray) -> np.ndarray:
+        """a(n) for ``images`` n (one or an array; n < 1 counts as 1)."""
+        n = np.maximum(np.asarray(images, dtype=np.float64), 1.0)
+        return self.scale * n ** -self.views_exponent
 
 
 def declared_belief(belief: np.ndarray, temperature: float) -> np.ndarray:
@@ -412,7 +437,7 @@ DECLARED_CRITERION = "confidence"
 for RA's and the Classifier's model on both development sets)."""
 
 
-def _declared_loss(temperature: float, log_beliefs: np.ndarray, true: np.ndarray,
+def _declared_loss(temperature: float | np.ndarray, log_beliefs: np.ndarray, true: np.ndarray,
                    criterion: str) -> float:
     declared = declared_log_beliefs(log_beliefs, temperature)
     if criterion == "log_loss":
@@ -440,6 +465,42 @@ def fit_declared_temperature(log_beliefs: np.ndarray, true: np.ndarray,
     return float(result.x)
 
 
+VIEWS_SCALE_BOUNDS = (0.05, 4.0)
+"""The interval the scale s of a(n) = s · n ** −β is searched in."""
+VIEWS_EXPONENT_BOUNDS = (-1.0, 2.0)
+"""The interval the views exponent β is searched in (0: one a for every episode)."""
+
+
+def fit_declared_views(log_beliefs: np.ndarray, true: np.ndarray, images: np.ndarray,
+                       criterion: str = DECLARED_CRITERION) -> DeclaredTemperature:
+    """The (s, β) of a(n) = s · n ** −β that minimise ``criterion`` of the declared beliefs
+    b' ∝ b ** a(n) over stopped beliefs ``log_beliefs`` (M, C) of true classes ``true`` (M,),
+    each after ``images`` (M,) images (bounded search from the best single a, β = 0)."""
+    from scipy.optimize import minimize
+
+    log_beliefs = np.asarray(log_beliefs, dtype=np.float64)
+    true = np.asarray(true)
+    log_n = np.log(np.maximum(np.asarray(images, dtype=np.float64), 1.0))
+    if log_n.shape != true.shape:
+        raise ValueError(f"one image count per stop: {log_n.shape} against {true.shape}")
+    start = fit_declared_temperature(log_beliefs, true, VIEWS_SCALE_BOUNDS, criterion)
+    if np.ptp(log_n) == 0:  # every stop after as many images: β says nothing
+        return DeclaredTemperature(start, 0.0)
+
+    def loss(x: np.ndarray) -> float:
+        return _declared_loss(np.exp(x[0] - x[1] * log_n), log_beliefs, true, criterion)
+
+    bounds = [tuple(np.log(VIEWS_SCALE_BOUNDS)), VIEWS_EXPONENT_BOUNDS]
+    x0 = np.array([np.log(start), 0.0])
+    # the simplex spans a fifth of each bound's width (scipy's default step from β = 0 is
+    # 0.00025, too small to leave it)
+    simplex = np.array([x0, x0 + [0.3, 0.0], x0 + [0.0, 0.3]])
+    result = minimize(loss, x0, method="Nelder-Mead", bounds=bounds,
+                      options={"xatol": 1e-4, "fatol": 1e-9, "initial_simplex": simplex})
+    best = result.x if result.fun <= loss(x0) else x0
+    return DeclaredTemperature(float(np.exp(best[0])), float(best[1]))
+
+
 @dataclass(frozen=True)
 class DeclaredConfidence:
     """The declared-confidence temperature of one model and what held out says of it:
@@ -450,7 +511,10 @@ class DeclaredConfidence:
     (``declared_confidence``, ``declared_ece``). Per threshold (``thresholds``): the a fitted on
     that threshold's stops alone (``threshold_temperatures``) and, held out, the ECE at those
     stops of the belief, of the pooled fit and of the threshold's own fit (``threshold_ece``,
-    ``threshold_declared_ece``, ``threshold_own_ece``). NaN where there are not two groups."""
+    ``threshold_declared_ece``, ``threshold_own_ece``). NaN where there are not two groups.
+    With ``form`` ``views`` the temperature depends on the images an episode took (its fit's
+    ``temperature`` is the scale s and ``views_exponent`` β of :class:`DeclaredTemperature`,
+    ``held_out_views_exponents`` the other groups' β); ``scalar`` records leave both out."""
 
     temperature: float
     criterion: str
@@ -467,10 +531,20 @@ class DeclaredConfidence:
     threshold_ece: tuple[float, ...] = ()
     threshold_declared_ece: tuple[float, ...] = ()
     threshold_own_ece: tuple[float, ...] = ()
+    form: str = "scalar"
+    views_exponent: float = 0.0
+    held_out_views_exponents: tuple[float, ...] = ()
+
+    @property
+    def readout(self) -> DeclaredTemperature:
+        """The temperature the fit reports with, after any number of images."""
+        return DeclaredTemperature(self.temperature, self.views_exponent)
 
     def to_dict(self) -> dict[str, object]:
+        views = ("form", "views_exponent", "held_out_views_exponents")
         return {name: (list(value) if isinstance(value, tuple) else value)
-                for name, value in self.__dict__.items()}
+                for name, value in self.__dict__.items()
+                if self.form != "scalar" or name not in views}
 
 
 def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
@@ -487,14 +561,42 @@ def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.nd
 
 
 def stops_declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
-                              criterion: str = DECLARED_CRITERION) -> DeclaredConfidence:
+                              criterion: str = DECLARED_CRITERION,
+                              images: np.ndarray | None = None) -> DeclaredConfidence:
     """The declared confidence fitted on stops a policy made itself (log beliefs (M, C) where
     its held-out episodes declared, true classes ``true`` (M,), each episode's held-out group
     ``groups`` (M,)) and scored leave-one-group-out, as :func:`declared_confidence` does for
-    walks; no thresholds (the policy's own stop rule made the stops)."""
+    walks; no thresholds (the policy's own stop rule made the stops). With ``images`` (M,),
+    the images each episode took, the temperature is a(n) (:func:`fit_declared_views`)."""
     log_beliefs = np.asarray(log_beliefs, dtype=np.float64)
-    return _declared_at_stops(log_beliefs, np.asarray(true), np.asarray(groups),
-                              np.zeros(len(log_beliefs), dtype=np.int64), (), criterion)
+    true, groups = np.asarray(true), np.asarray(groups)
+    if images is None:
+        return _declared_at_stops(log_beliefs, true, groups,
+                                  np.zeros(len(log_beliefs), dtype=np.int64), (), criterion)
+    images = np.asarray(images)
+    right = log_beliefs.argmax(axis=1) == true
+    confidence = np.exp(log_beliefs.max(axis=1))
+    fitted = fit_declared_views(log_beliefs, true, images, criterion)
+    names = tuple(int(g) for g in np.unique(groups))
+    held: list[DeclaredTemperature] = []
+    declared = np.full(len(true), np.nan)
+    if len(names) >= 2:
+        for g in names:
+            mine = groups == g
+            other = fit_declared_views(log_beliefs[~mine], true[~mine], images[~mine],
+                                       criterion)
+            held.append(other)
+            declared[mine] = np.exp(declared_log_beliefs(log_beliefs[mine],
+                                                         other.at(images[mine])).max(axis=1))
+    ok = len(held) > 0
+    return DeclaredConfidence(
+        fitted.scale, criterion, names if ok else (), tuple(h.scale for h in held),
+        int(len(true)), float(right.mean()), float(confidence.mean()),
+        expected_calibration_error(confidence, right),
+        float(declared.mean()) if ok else float("nan"),
+        expected_calibration_error(declared, right) if ok else float("nan"),
+        form="views", views_exponent=fitted.views_exponent,
+        held_out_views_exponents=tuple(h.views_exponent for h in held))
 
 
 def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.ndarray,

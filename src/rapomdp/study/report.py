@@ -151,15 +151,16 @@ class StudyReport:
 
 def reported_confidence(seeds: Sequence[SeedResult]) -> str:
     """What the confidence columns of a configuration's pooled table are: what its methods
-    reported (``evaluate.declared_confidence`` and ``evaluate.declared_fit`` as each seed's
-    evaluate stage ran; absent: it predates the option, and reported the belief, or fitted
-    on walks)."""
-    ran = {(str(e.get("declared_confidence", "belief")), str(e.get("declared_fit", "walks")))
+    reported (``evaluate.declared_confidence``, ``declared_fit`` and ``declared_form`` as each
+    seed's evaluate stage ran; absent: it predates the option, and reported the belief, fitted
+    on walks, or one a)."""
+    ran = {(str(e.get("declared_confidence", "belief")), str(e.get("declared_fit", "walks")),
+            str(e.get("declared_form", "scalar")))
            for e in (read_json(r.workspace / "evaluate" / "stage.json")["config"]["evaluate"]
                      for r in seeds)}
     if len(ran) > 1:
         return ("Confidence − accuracy and ECE: the seeds' evaluate stages reported differently "
-                f"(evaluate.declared_confidence, declared_fit: "
+                f"(evaluate.declared_confidence, declared_fit, declared_form: "
                 f"{'; '.join(', '.join(v) for v in sorted(ran))}).")
     return "Confidence − accuracy and ECE: " + reported_belief_note(*ran.pop())
 

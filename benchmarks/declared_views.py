@@ -1,0 +1,119 @@
+"""The declared confidence by the number of images taken, held out (round five of
+docs/awareness.md §4.8; rule: benchmarks/results/declared_views_rule.md).
+
+For each workspace it runs every moving method's held-out closed loop as the evaluate stage
+does (``experiment.held_out.closed_loop_declared``, Random included) and scores, at the stops,
+each group's declared confidence by what the *other* groups' stops fit:
+- reference (``evaluate.declared_form: scalar``): one a per method (Random: the walks' a at its
+  threshold, which the observe stage fitted on every group: in-sample, favouring it);
+- candidate (``views``): a(n) = s · n^−β after n images.
+It prints confidence − accuracy and ECE for both, by workspace, by episode length and as the
+mean over each folder's workspaces (a study configuration), then the rule's three conditions.
+Only volume models and their recorded labels are read, never the test models.
+
+    python benchmarks/declared_views.py -w W [W ...] [--methods ra classifier vptree random learned]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from rapomdp.context import RunContext
+from rapomdp.experiment.held_out import ClosedLoopFit, closed_loop_declared
+from rapomdp.pipeline import get_stage
+from rapomdp.planning.stage import declared_temperatures, offered_observation_models
+from rapomdp.recognition.belief import (
+    declared_log_beliefs,
+    expected_calibration_error,
+    stops_declared_confidence,
+)
+from rapomdp.workspace import Workspace
+
+LENGTHS = ((1, 2), (3, 4), (5, 7), (8, 10_000))
+"""Episode lengths (images taken) the calibration is also shown by."""
+PAIRS = ("ra", "classifier")
+"""The methods condition 1 of the rule names."""
+
+
+def held_out_confidence(fit: ClosedLoopFit, scalar: bool, walk_a: float | None
+                        ) -> np.ndarray:
+    """Each stop's declared confidence, its group's by the fit on the other groups (``walk_a``:
+    one a for every stop instead)."""
+    if walk_a is not None:
+        return np.exp(declared_log_beliefs(fit.log_beliefs, walk_a).max(axis=1))
+    out = np.empty(len(fit.truth))
+    for g in np.unique(fit.groups):
+        mine = fit.groups == g
+        other = stops_declared_confidence(fit.log_beliefs[~mine], fit.truth[~mine],
+                                          fit.groups[~mine],
+                                          images=None if scalar else fit.images[~mine])
+        a = other.readout.at(fit.images[mine])
+        out[mine] = np.exp(declared_log_beliefs(fit.log_beliefs[mine], a).max(axis=1))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workspace", "-w", type=Path, nargs="+", required=True)
+    parser.add_argument("--methods", nargs="+",
+                        default=["ra", "classifier", "vptree", "random", "learned"])
+    args = parser.parse_args()
+    rows: dict[tuple[str, str], list[tuple[float, float, float, float]]] = {}
+    print(f"{'workspace':44s} {'method':10s} {'stops':>5s} {'acc':>6s} "
+          f"{'scalar: c-a / ECE':>18s} {'views: c-a / ECE':>17s} {'s':>6s} {'beta':>6s}")
+    for root in args.workspace:
+        ws = Workspace(root)
+        config = ws.config()
+        inputs = ws.inputs(get_stage("evaluate"))
+        methods = [m for m in args.methods if m in config.evaluate.methods]
+        with tempfile.TemporaryDirectory() as tmp:
+            fits = closed_loop_declared(config, inputs, methods, Path(tmp),
+                                        RunContext(progress=False), form="views")
+        walk = config.evaluate.random
+        observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
+        for name, fit in fits.items():
+            right = (fit.log_beliefs.argmax(axis=1) == fit.truth).astype(float)
+            walk_a = (declared_temperatures(
+                inputs.observe, {walk.observation_model: observation[walk.observation_model]},
+                inputs.vptree_dir, walk.belief_threshold)[walk.observation_model]
+                      if name == "random" else None)
+            scalar = held_out_confidence(fit, True, walk_a)
+            views = held_out_confidence(fit, False, None)
+            gaps = (scalar.mean() - right.mean(), expected_calibration_error(scalar, right),
+                    views.mean() - right.mean(), expected_calibration_error(views, right))
+            rows.setdefault((root.parent.name, name), []).append(gaps)
+            d = fit.declared
+            print(f"{str(root):44s} {name:10s} {fit.episodes:5d} {right.mean():6.3f} "
+                  f"{gaps[0]:+8.3f} / {gaps[1]:.3f} {gaps[2]:+8.3f} / {gaps[3]:.3f} "
+                  f"{d.temperature:6.3f} {d.views_exponent:+6.3f}")
+            for low, high in LENGTHS:
+                k = (fit.images >= low) & (fit.images <= high)
+                if k.sum() >= 10:
+                    print(f"{'':44s}   {low}-{min(high, 99)} images: {int(k.sum()):4d} stops, "
+                          f"accuracy {right[k].mean():.3f}, confidence scalar "
+                          f"{scalar[k].mean():.3f} views {views[k].mean():.3f}")
+    print("\nmean over each folder's workspaces (held out): scalar c-a / ECE -> views c-a / ECE")
+    mean = {key: np.mean(np.array(v), axis=0) for key, v in rows.items()}
+    for (folder, name), m in mean.items():
+        print(f"{folder:24s} {name:10s} {m[0]:+.3f} / {m[1]:.3f} -> {m[2]:+.3f} / {m[3]:.3f}  "
+              f"({len(rows[folder, name])} workspaces)")
+    folders = sorted({folder for folder, _ in mean})
+    decisive = [f for f in folders if "mesh" not in f]
+    one = all(mean[f, n][3] < mean[f, n][1] for f in decisive for n in PAIRS
+              if (f, n) in mean)
+    moving = [key for key in mean if key[0] in decisive]
+    drop = float(np.mean([mean[k][1] - mean[k][3] for k in moving])) if moving else 0.0
+    worst = max((abs(m[2]) - abs(m[0]) for m in mean.values()), default=0.0)
+    print(f"\nrule 1 (RA and Classifier ECE fall on {', '.join(decisive)}): {one}")
+    print(f"rule 2 (mean ECE falls by >= 0.01 over the methods and those sets): {drop:+.4f} "
+          f"-> {drop >= 0.01}")
+    print(f"rule 3 (no |c-a| grows by > 0.02 on any set): largest growth {worst:+.4f} -> "
+          f"{worst <= 0.02}")
+
+
+if __name__ == "__main__":
+    main()
