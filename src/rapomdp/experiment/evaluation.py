@@ -128,7 +128,8 @@ class ClosedLoop:
     @classmethod
     def load(cls, config: Config, inputs: StageInputs, threads: int | None = None,
              sweep_dir: Path | None = None,
-             declared_fit: Mapping[str, DeclaredTemperature] | None = None) -> ClosedLoop:
+             declared_fit: Mapping[str, float | DeclaredTemperature] | None = None
+             ) -> ClosedLoop:
         """The closed loop of a workspace's stage folders; the CNN uses ``threads`` threads.
 
         With ``sweep_dir`` (the evaluate stage's ``sweep/``, from :func:`solve_sweep`) the
@@ -261,7 +262,8 @@ class ClosedLoop:
 
 
 def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | None,
-                     declared_fit: dict[str, DeclaredTemperature] | None, model_files: list[str],
+                     declared_fit: dict[str, float | DeclaredTemperature] | None,
+                     model_files: list[str],
                      report: Callable[[int], None] | None = None) -> list[list[EpisodeRecord]]:
     """A worker's task: load the closed loop once, run each of its test models (``report``:
     told each model's episodes as they finish)."""
@@ -278,7 +280,7 @@ def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | No
 
 def run_episodes(config: Config, inputs: StageInputs,
                  context: RunContext = RunContext(), sweep_dir: Path | None = None,
-                 declared_fit: dict[str, DeclaredTemperature] | None = None
+                 declared_fit: dict[str, float | DeclaredTemperature] | None = None
                  ) -> tuple[list[EpisodeRecord], Dataset]:
     """Every test model x start x method (and sweep setting, with ``sweep_dir``; the
     declared confidence of the methods in ``declared_fit`` by it: see :meth:`ClosedLoop.load`), over

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+from scipy.optimize import minimize, minimize_scalar
 from scipy.special import logsumexp
 
 TEMPERATURE_BOUNDS = (0.05, 2.0)
@@ -476,8 +476,6 @@ def fit_declared_views(log_beliefs: np.ndarray, true: np.ndarray, images: np.nda
     """The (s, β) of a(n) = s · n ** −β that minimise ``criterion`` of the declared beliefs
     b' ∝ b ** a(n) over stopped beliefs ``log_beliefs`` (M, C) of true classes ``true`` (M,),
     each after ``images`` (M,) images (bounded search from the best single a, β = 0)."""
-    from scipy.optimize import minimize
-
     log_beliefs = np.asarray(log_beliefs, dtype=np.float64)
     true = np.asarray(true)
     log_n = np.log(np.maximum(np.asarray(images, dtype=np.float64), 1.0))
@@ -492,8 +490,8 @@ def fit_declared_views(log_beliefs: np.ndarray, true: np.ndarray, images: np.nda
 
     bounds = [tuple(np.log(VIEWS_SCALE_BOUNDS)), VIEWS_EXPONENT_BOUNDS]
     x0 = np.array([np.log(start), 0.0])
-    # the simplex spans a fifth of each bound's width (scipy's default step from β = 0 is
-    # 0.00025, too small to leave it)
+    # a simplex 0.3 wide in log s and in β (scipy's default step from β = 0 is 0.00025, from
+    # which the search did not leave β = 0 on a workspace's stops)
     simplex = np.array([x0, x0 + [0.3, 0.0], x0 + [0.0, 0.3]])
     result = minimize(loss, x0, method="Nelder-Mead", bounds=bounds,
                       options={"xatol": 1e-4, "fatol": 1e-9, "initial_simplex": simplex})
