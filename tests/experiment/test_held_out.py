@@ -211,6 +211,10 @@ def test_the_views_form_fits_random_too_and_reports_each_step_with_its_own_a(wor
         # an episode takes its first image, then one a move, within the step budget
         assert fit.images.min() >= 1 and fit.images.max() <= views.evaluate.max_moves + 1
         assert sorted(set(fit.groups.tolist())) == [0, 1]
+    header, rows = closed_loop_cells(record)  # the report names β beside a
+    assert header[:3] == ["Method", "a", "β"]
+    ra_row = next(row for row in rows if row[0] == METHOD_NAMES["ra"])
+    assert ra_row[2] == f"{fits['ra'].declared.views_exponent:.3f}"
     readout = {name: fit.declared.readout for name, fit in fits.items()}
     loop = ClosedLoop.load(views, _inputs(ws), declared_fit=readout)
     for name in ["random", *FITTED]:

@@ -115,8 +115,9 @@ def test_the_confidence_line_reads_what_each_seeds_evaluate_stage_reported(
     del stage["config"]["evaluate"]["declared_confidence"]  # a seed from before the option
     record.unlink()
     write_json_atomic(record, stage)
-    assert ("reported differently (evaluate.declared_confidence, declared_fit: belief, "
-            "closed_loop; calibrated, closed_loop)") in reported_confidence(results)
+    assert ("reported differently (evaluate.declared_confidence, declared_fit, declared_form: "
+            "belief, closed_loop, scalar; calibrated, closed_loop, scalar)"
+            ) in reported_confidence(results)
     assert reported_confidence(results[1:]) == (
         "Confidence − accuracy and ECE: Every method reports the belief it acts on "
         "(evaluate.declared_confidence: belief), Static the classifier's softmax at its "
@@ -129,3 +130,8 @@ def test_the_confidence_line_reads_what_each_seeds_evaluate_stage_reported(
     record.unlink()
     write_json_atomic(record, stage)
     assert "(fitted where held-out walks stop;" in reported_confidence(results[1:])
+    stage["config"]["evaluate"].update(declared_fit="closed_loop", declared_form="views")
+    record.unlink()
+    write_json_atomic(record, stage)  # a seed whose a depends on the images taken
+    assert "a(n) = a · n^(−β), fitted where each method's own held-out closed loop stops" in \
+        reported_confidence(results[1:])
