@@ -469,33 +469,45 @@ VIEWS_SCALE_BOUNDS = (0.05, 4.0)
 """The interval the scale s of a(n) = s · n ** −β is searched in."""
 VIEWS_EXPONENT_BOUNDS = (-1.0, 2.0)
 """The interval the views exponent β is searched in (0: one a for every episode)."""
+VIEWS_EXPONENT_STARTS = (-0.5, 0.0, 0.5, 1.0, 1.5)
+"""The β the search starts from the best of (each with its best s)."""
 
 
 def fit_declared_views(log_beliefs: np.ndarray, true: np.ndarray, images: np.ndarray,
                        criterion: str = DECLARED_CRITERION) -> DeclaredTemperature:
     """The (s, β) of a(n) = s · n ** −β that minimise ``criterion`` of the declared beliefs
     b' ∝ b ** a(n) over stopped beliefs ``log_beliefs`` (M, C) of true classes ``true`` (M,),
-    each after ``images`` (M,) images (bounded search from the best single a, β = 0)."""
+    each after ``images`` (M,) images (a simplex search from the best of a few β, each with
+    its best s). The criterion is rugged at about 1e-3 (a confidently wrong stop's
+    log(1 − confidence) in floating point), so a fit is a minimum to about that."""
     log_beliefs = np.asarray(log_beliefs, dtype=np.float64)
     true = np.asarray(true)
     log_n = np.log(np.maximum(np.asarray(images, dtype=np.float64), 1.0))
     if log_n.shape != true.shape:
         raise ValueError(f"one image count per stop: {log_n.shape} against {true.shape}")
-    start = fit_declared_temperature(log_beliefs, true, VIEWS_SCALE_BOUNDS, criterion)
     if np.ptp(log_n) == 0:  # every stop after as many images: β says nothing
-        return DeclaredTemperature(start, 0.0)
+        return DeclaredTemperature(
+            fit_declared_temperature(log_beliefs, true, VIEWS_SCALE_BOUNDS, criterion), 0.0)
 
     def loss(x: np.ndarray) -> float:
         return _declared_loss(np.exp(x[0] - x[1] * log_n), log_beliefs, true, criterion)
 
-    bounds = [tuple(np.log(VIEWS_SCALE_BOUNDS)), VIEWS_EXPONENT_BOUNDS]
-    x0 = np.array([np.log(start), 0.0])
+    # each start β with its best s: a(n) · n^β is one a for every stop, so the 1-D fit on the
+    # beliefs raised to n^−β gives it (the a fitted on b^(n^−β) is s)
+    starts = []
+    for beta in VIEWS_EXPONENT_STARTS:
+        tilted = log_beliefs * np.exp(-beta * log_n)[:, None]
+        s = fit_declared_temperature(tilted, true, VIEWS_SCALE_BOUNDS, criterion)
+        x = np.array([np.log(s), beta])
+        starts.append((loss(x), x))
+    best_loss, x0 = min(starts, key=lambda pair: pair[0])
     # a simplex 0.3 wide in log s and in β (scipy's default step from β = 0 is 0.00025, from
     # which the search did not leave β = 0 on a workspace's stops)
     simplex = np.array([x0, x0 + [0.3, 0.0], x0 + [0.0, 0.3]])
-    result = minimize(loss, x0, method="Nelder-Mead", bounds=bounds,
+    result = minimize(loss, x0, method="Nelder-Mead",
+                      bounds=[tuple(np.log(VIEWS_SCALE_BOUNDS)), VIEWS_EXPONENT_BOUNDS],
                       options={"xatol": 1e-4, "fatol": 1e-9, "initial_simplex": simplex})
-    best = result.x if result.fun <= loss(x0) else x0
+    best = result.x if result.fun <= best_loss else x0
     return DeclaredTemperature(float(np.exp(best[0])), float(best[1]))
 
 
