@@ -8,10 +8,12 @@ each group's declared confidence by what the *other* groups' stops fit:
   threshold, which the observe stage fitted on every group: in-sample, favouring it);
 - candidate (``views``): a(n) = s · n^−β after n images.
 It prints confidence − accuracy and ECE for both, by workspace, by episode length and as the
-mean over each folder's workspaces (a study configuration), then the rule's three conditions.
+mean over each folder's workspaces (a study configuration), then the rule's three conditions,
+then (not part of the rule, added after its decision) the ECE of each folder's held-out stops
+pooled over its workspaces, whose sampling floor is lower (``benchmarks/ece_floor.py``).
 Only volume models and their recorded labels are read, never the test models.
 
-    python benchmarks/declared_views.py -w W [W ...] [--methods ra classifier vptree random learned]
+    python benchmarks/declared_views.py -w W [W ...] [--methods ...] [--pooled]
 """
 
 from __future__ import annotations
@@ -61,8 +63,12 @@ def main() -> None:
     parser.add_argument("--workspace", "-w", type=Path, nargs="+", required=True)
     parser.add_argument("--methods", nargs="+",
                         default=["ra", "classifier", "vptree", "random", "learned"])
+    parser.add_argument("--pooled", action="store_true",
+                        help="decide on each folder's held-out stops pooled over its "
+                             "workspaces (declared_views_rule_v2.md)")
     args = parser.parse_args()
     rows: dict[tuple[str, str], list[tuple[float, float, float, float]]] = {}
+    stops: dict[tuple[str, str], list[np.ndarray]] = {}
     print(f"{'workspace':44s} {'method':10s} {'stops':>5s} {'acc':>6s} "
           f"{'scalar: c-a / ECE':>18s} {'views: c-a / ECE':>17s} {'s':>6s} {'beta':>6s}")
     for root in args.workspace:
@@ -86,6 +92,8 @@ def main() -> None:
             gaps = (scalar.mean() - right.mean(), expected_calibration_error(scalar, right),
                     views.mean() - right.mean(), expected_calibration_error(views, right))
             rows.setdefault((root.parent.name, name), []).append(gaps)
+            stops.setdefault((root.parent.name, name), []).append(
+                np.stack([right, scalar, views]))
             d = fit.declared
             print(f"{str(root):44s} {name:10s} {fit.episodes:5d} {right.mean():6.3f} "
                   f"{gaps[0]:+8.3f} / {gaps[1]:.3f} {gaps[2]:+8.3f} / {gaps[3]:.3f} "
@@ -101,14 +109,41 @@ def main() -> None:
     for (folder, name), m in mean.items():
         print(f"{folder:24s} {name:10s} {m[0]:+.3f} / {m[1]:.3f} -> {m[2]:+.3f} / {m[3]:.3f}  "
               f"({len(rows[folder, name])} workspaces)")
-    folders = sorted({folder for folder, _ in mean})
+    pooled = {}
+    for key, parts in stops.items():
+        right, scalar, views = np.concatenate(parts, axis=1)
+        pooled[key] = np.array([scalar.mean() - right.mean(),
+                                expected_calibration_error(scalar, right),
+                                views.mean() - right.mean(),
+                                expected_calibration_error(views, right), right.size])
+    if args.pooled:  # declared_views_rule_v2.md: the conditions on the pooled stops
+        print_rule(pooled, "each folder's held-out stops pooled over its workspaces")
+        return
+    print_rule(mean, "the mean over each folder's workspaces (declared_views_rule.md)")
+    print("\nnot part of the rule: each folder's held-out stops pooled over its workspaces, "
+          "scalar c-a / ECE -> views c-a / ECE")
+    for (folder, name), m in pooled.items():
+        print(f"{folder:24s} {name:10s} {m[0]:+.3f} / {m[1]:.3f} -> {m[2]:+.3f} / {m[3]:.3f}"
+              f"  ({int(m[4])} stops)")
+
+
+def print_rule(figures: dict[tuple[str, str], np.ndarray], over: str) -> None:
+    """The rule's three conditions on ``figures`` (per (folder, method): scalar c − a, ECE,
+    views c − a, ECE); a folder named like ``mesh`` is checked by condition 3 only."""
+    if over.startswith("each"):
+        print(f"\n{over}: scalar c-a / ECE -> views c-a / ECE")
+        for (folder, name), m in figures.items():
+            print(f"{folder:24s} {name:10s} {m[0]:+.3f} / {m[1]:.3f} -> {m[2]:+.3f} / "
+                  f"{m[3]:.3f}  ({int(m[4])} stops)")
+    folders = sorted({folder for folder, _ in figures})
     decisive = [f for f in folders if "mesh" not in f]
-    one = all(mean[f, n][3] < mean[f, n][1] for f in decisive for n in PAIRS
-              if (f, n) in mean)
-    moving = [key for key in mean if key[0] in decisive]
-    drop = float(np.mean([mean[k][1] - mean[k][3] for k in moving])) if moving else 0.0
-    worst = max((abs(m[2]) - abs(m[0]) for m in mean.values()), default=0.0)
-    print(f"\nrule 1 (RA and Classifier ECE fall on {', '.join(decisive)}): {one}")
+    one = all(figures[f, n][3] < figures[f, n][1] for f in decisive for n in PAIRS
+              if (f, n) in figures)
+    moving = [key for key in figures if key[0] in decisive]
+    drop = float(np.mean([figures[k][1] - figures[k][3] for k in moving])) if moving else 0.0
+    worst = max((abs(m[2]) - abs(m[0]) for m in figures.values()), default=0.0)
+    print(f"\nthe rule on {over}")
+    print(f"rule 1 (RA and Classifier ECE fall on {', '.join(decisive)}): {one}")
     print(f"rule 2 (mean ECE falls by >= 0.01 over the methods and those sets): {drop:+.4f} "
           f"-> {drop >= 0.01}")
     print(f"rule 3 (no |c-a| grows by > 0.02 on any set): largest growth {worst:+.4f} -> "
