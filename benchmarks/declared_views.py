@@ -29,6 +29,7 @@ from rapomdp.experiment.held_out import ClosedLoopFit, closed_loop_declared
 from rapomdp.pipeline import get_stage
 from rapomdp.planning.stage import declared_temperatures, offered_observation_models
 from rapomdp.recognition.belief import (
+    DeclaredConfidence,
     declared_log_beliefs,
     expected_calibration_error,
     stops_declared_confidence,
@@ -41,20 +42,17 @@ PAIRS = ("ra", "classifier")
 """The methods condition 1 of the rule names."""
 
 
-def held_out_confidence(fit: ClosedLoopFit, scalar: bool, walk_a: float | None
-                        ) -> np.ndarray:
-    """Each stop's declared confidence, its group's by the fit on the other groups (``walk_a``:
-    one a for every stop instead)."""
-    if walk_a is not None:
+def held_out_confidence(fit: ClosedLoopFit, declared: DeclaredConfidence | None,
+                        walk_a: float | None = None) -> np.ndarray:
+    """Each stop's declared confidence, its group's by the fit on the other groups
+    (``declared``'s held-out readouts; ``walk_a``: one a for every stop instead)."""
+    if declared is None:
         return np.exp(declared_log_beliefs(fit.log_beliefs, walk_a).max(axis=1))
     out = np.empty(len(fit.truth))
-    for g in np.unique(fit.groups):
+    for g, a in declared.held_out_readouts.items():
         mine = fit.groups == g
-        other = stops_declared_confidence(fit.log_beliefs[~mine], fit.truth[~mine],
-                                          fit.groups[~mine],
-                                          images=None if scalar else fit.images[~mine])
-        a = other.readout.at(fit.images[mine])
-        out[mine] = np.exp(declared_log_beliefs(fit.log_beliefs[mine], a).max(axis=1))
+        out[mine] = np.exp(declared_log_beliefs(fit.log_beliefs[mine],
+                                                a.at(fit.images[mine])).max(axis=1))
     return out
 
 
@@ -87,8 +85,10 @@ def main() -> None:
                 inputs.observe, {walk.observation_model: observation[walk.observation_model]},
                 inputs.vptree_dir, walk.belief_threshold)[walk.observation_model]
                       if name == "random" else None)
-            scalar = held_out_confidence(fit, True, walk_a)
-            views = held_out_confidence(fit, False, None)
+            scalar = held_out_confidence(
+                fit, None if walk_a is not None else
+                stops_declared_confidence(fit.log_beliefs, fit.truth, fit.groups), walk_a)
+            views = held_out_confidence(fit, fit.declared)
             gaps = (scalar.mean() - right.mean(), expected_calibration_error(scalar, right),
                     views.mean() - right.mean(), expected_calibration_error(views, right))
             rows.setdefault((root.parent.name, name), []).append(gaps)

@@ -361,6 +361,11 @@ def test_the_views_fit_recovers_an_overconfidence_that_grows_with_the_images_tak
     scalar = stops_declared_confidence(final, true, groups)
     assert views.form == "views" and views.readout == fitted
     assert len(views.held_out_views_exponents) == 3
+    # each group's held-out readout is the fit on the other groups' stops
+    rest = groups != 0
+    assert views.held_out_readouts[0] == fit_declared_views(final[rest], true[rest],
+                                                            images[rest])
+    assert scalar.held_out_readouts[0].views_exponent == 0.0
     assert views.declared_ece < 0.03 and views.declared_ece < 0.6 * scalar.declared_ece
     record = views.to_dict()
     assert record["form"] == "views" and record["views_exponent"] == fitted.views_exponent

@@ -15,12 +15,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 
 from rapomdp.awareness.evidence import RecordedObservation
-from rapomdp.config import Config
+from rapomdp.config import Config, EvaluateConfig
 from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, Policy, run_episode
@@ -45,7 +45,7 @@ from rapomdp.workspace import StageError, StageInputs
 HELD_OUT_STARTS = 4
 """Seeded reachable starts per held-out model (each group's models × starts are the stops)."""
 
-DECLARED_FORMS = ("scalar", "views")
+DECLARED_FORMS: tuple[str, ...] = get_args(EvaluateConfig.model_fields["declared_form"].annotation)
 """``evaluate.declared_form``: one declared temperature a per method, or a(n) by the images n
 an episode took (:class:`~rapomdp.recognition.belief.DeclaredTemperature`)."""
 

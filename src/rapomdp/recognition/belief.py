@@ -550,6 +550,13 @@ class DeclaredConfidence:
         """The temperature the fit reports with, after any number of images."""
         return DeclaredTemperature(self.temperature, self.views_exponent)
 
+    @property
+    def held_out_readouts(self) -> dict[int, DeclaredTemperature]:
+        """Per held-out group, the temperature the other groups' stops fit."""
+        exponents = self.held_out_views_exponents or (0.0,) * len(self.groups)
+        return {g: DeclaredTemperature(s, b) for g, s, b in
+                zip(self.groups, self.held_out_temperatures, exponents, strict=True)}
+
     def to_dict(self) -> dict[str, object]:
         views = ("form", "views_exponent", "held_out_views_exponents")
         return {name: (list(value) if isinstance(value, tuple) else value)
