@@ -200,6 +200,9 @@ class TrainConfig(Section):
 
     width: float = Field(0.25, gt=0, le=4, description="channel multiplier of AlexNet's widths")
     dropout: float = Field(0.5, ge=0, lt=1)
+    norm: Literal["none", "batch"] = Field(
+        "none", description="normalisation after each convolution: none (AlexNet's), or batch "
+        "normalisation (docs/recognition.md)")
     epochs: int = Field(25, ge=1)
     batch_size: int = Field(128, ge=1)
     learning_rate: float = Field(
@@ -227,7 +230,7 @@ class TrainConfig(Section):
     augment: AugmentConfig = AugmentConfig()
 
     #: At their defaults, what every workspace before the options trained: out of the keys.
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "lr_schedule", "keep")
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "lr_schedule", "keep", "norm")
 
     @model_validator(mode="after")
     def _keep_needs_validation(self) -> TrainConfig:

@@ -44,12 +44,13 @@ from rapomdp.recognition.classifier import (
 )
 from rapomdp.recognition.evaluation import SingleViewResult, write_confusion_csv
 from rapomdp.recognition.figures import confusion_figure, hemisphere_figure, training_curves
-from rapomdp.recognition.network import DepthAlexNet, NetworkSpec, member_networks
+from rapomdp.recognition.network import DepthAlexNet, member_networks
 from rapomdp.recognition.training import (
     History,
     collect_views,
     ensemble_classifier,
     merge_histories,
+    network_spec,
     preprocess_params,
     train_classifier,
     validation_drop_note,
@@ -133,8 +134,7 @@ def _train_members_in_tasks(config: Config, inputs: StageInputs, views: Training
                       context.progress, context.scheduler, unit="batches",
                       sizes=[len(share) * batches for share in shares], reports=True,
                       pool=context.pool)
-    spec = NetworkSpec(len(classes), config.train.preprocess.input_size_px,
-                       config.train.width, config.train.dropout)
+    spec = network_spec(len(classes), config.train)
     networks = []
     for states, _ in parts:
         for state in states:

@@ -165,6 +165,12 @@ def evaluate_inputs(
     return loss / len(labels), correct / len(labels)
 
 
+def network_spec(classes: int, cfg: TrainConfig) -> NetworkSpec:
+    """The network a training configuration describes (one member of its ensemble)."""
+    return NetworkSpec(classes, cfg.preprocess.input_size_px, cfg.width, cfg.dropout,
+                       norm=cfg.norm)
+
+
 def member_seed(seed: int, member: int) -> int:
     """Ensemble member ``member``'s seed: ``seed`` itself for the first (an ensemble of one is
     the single classifier), then draws of ``SeedSequence([seed, member])`` (so the members of
@@ -196,7 +202,7 @@ def train_classifier(
     ``report(1)`` is called after every batch when given.
     """
     params = preprocess_params(cfg.preprocess)
-    spec = NetworkSpec(len(classes), params.input_size_px, cfg.width, cfg.dropout)
+    spec = network_spec(len(classes), cfg)
     members = list(range(cfg.ensemble) if members is None else members)
     val_inputs = preprocess(val.depth, fx_px, fy_px, params).images if len(val) else None
     # where the object is in each image does not change between epochs (unless the noise
