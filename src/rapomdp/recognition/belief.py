@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
@@ -586,51 +587,34 @@ def stops_declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups:
     walks; no thresholds (the policy's own stop rule made the stops). With ``images`` (M,),
     the images each episode took, the temperature is a(n) (:func:`fit_declared_views`)."""
     log_beliefs = np.asarray(log_beliefs, dtype=np.float64)
-    true, groups = np.asarray(true), np.asarray(groups)
-    if images is None:
-        return _declared_at_stops(log_beliefs, true, groups,
-                                  np.zeros(len(log_beliefs), dtype=np.int64), (), criterion)
-    images = np.asarray(images)
-    right = log_beliefs.argmax(axis=1) == true
-    confidence = np.exp(log_beliefs.max(axis=1))
-    fitted = fit_declared_views(log_beliefs, true, images, criterion)
-    names = tuple(int(g) for g in np.unique(groups))
-    held: list[DeclaredTemperature] = []
-    declared = np.full(len(true), np.nan)
-    if len(names) >= 2:
-        for g in names:
-            mine = groups == g
-            other = fit_declared_views(log_beliefs[~mine], true[~mine], images[~mine],
-                                       criterion)
-            held.append(other)
-            declared[mine] = np.exp(declared_log_beliefs(log_beliefs[mine],
-                                                         other.at(images[mine])).max(axis=1))
-    ok = len(held) > 0
-    return DeclaredConfidence(
-        fitted.scale, criterion, names if ok else (), tuple(h.scale for h in held),
-        int(len(true)), float(right.mean()), float(confidence.mean()),
-        expected_calibration_error(confidence, right),
-        float(declared.mean()) if ok else float("nan"),
-        expected_calibration_error(declared, right) if ok else float("nan"),
-        form="views", views_exponent=fitted.views_exponent,
-        held_out_views_exponents=tuple(h.views_exponent for h in held))
+    return _declared_at_stops(log_beliefs, np.asarray(true), np.asarray(groups),
+                              np.zeros(len(log_beliefs), dtype=np.int64), (), criterion,
+                              None if images is None else np.asarray(images))
 
 
 def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.ndarray,
-                       at: np.ndarray, thresholds: Sequence[float], criterion: str
-                       ) -> DeclaredConfidence:
+                       at: np.ndarray, thresholds: Sequence[float], criterion: str,
+                       images: np.ndarray | None = None) -> DeclaredConfidence:
     """:func:`declared_confidence` on stopped log beliefs ``final`` (S, C) of true classes
-    ``labels``, groups ``stop_group`` and thresholds' indices ``at`` (S,) each."""
+    ``labels``, groups ``stop_group`` and thresholds' indices ``at`` (S,) each; with
+    ``images`` (S,), the temperature is a(n) (``views``), else one a (a(n) with β = 0)."""
     right = final.argmax(axis=1) == labels
     confidence = np.exp(final.max(axis=1))
     names = tuple(int(g) for g in np.unique(stop_group))
+    count = np.ones(len(labels)) if images is None else images
 
-    def fit(rows: np.ndarray) -> float:
-        return fit_declared_temperature(final[rows], labels[rows], criterion=criterion)
+    def fit(rows: np.ndarray) -> DeclaredTemperature:
+        if images is None:
+            return DeclaredTemperature(
+                fit_declared_temperature(final[rows], labels[rows], criterion=criterion))
+        return fit_declared_views(final[rows], labels[rows], count[rows], criterion)
 
-    temperature = fit(np.ones(len(labels), dtype=bool))
-    own = tuple(fit(at == k) for k in range(len(thresholds)))
-    held: list[float] = []
+    def declare(rows: np.ndarray, a: DeclaredTemperature) -> np.ndarray:
+        return np.exp(declared_log_beliefs(final[rows], a.at(count[rows])).max(axis=1))
+
+    fitted = fit(np.ones(len(labels), dtype=bool))
+    own = tuple(fit(at == k).scale for k in range(len(thresholds)))
+    held: list[DeclaredTemperature] = []
     declared = np.full(len(labels), np.nan)
     declared_own = np.full(len(labels), np.nan)
     if len(names) >= 2:
@@ -638,11 +622,10 @@ def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.nda
             mine = stop_group == g
             a = fit(~mine)
             held.append(a)
-            declared[mine] = np.exp(declared_log_beliefs(final[mine], a).max(axis=1))
+            declared[mine] = declare(mine, a)
             for k in range(len(thresholds)):
                 rows = mine & (at == k)
-                a_k = fit(~mine & (at == k))
-                declared_own[rows] = np.exp(declared_log_beliefs(final[rows], a_k).max(axis=1))
+                declared_own[rows] = declare(rows, fit(~mine & (at == k)))
     ok = len(held) > 0
     nan = float("nan")
 
@@ -651,12 +634,15 @@ def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.nda
         return expected_calibration_error(values[rows], right[rows]) if ok else nan
 
     per_threshold = [at == k for k in range(len(thresholds))]
+    views: dict[str, Any] = {} if images is None else {
+        "form": "views", "views_exponent": fitted.views_exponent,
+        "held_out_views_exponents": tuple(h.views_exponent for h in held)}
     return DeclaredConfidence(
-        temperature, criterion, names if ok else (), tuple(held), int(len(labels)),
-        float(right.mean()), float(confidence.mean()),
+        fitted.scale, criterion, names if ok else (), tuple(h.scale for h in held),
+        int(len(labels)), float(right.mean()), float(confidence.mean()),
         expected_calibration_error(confidence, right),
         float(declared.mean()) if ok else nan, ece(declared),
         tuple(float(t) for t in thresholds), own,
         tuple(expected_calibration_error(confidence[r], right[r]) for r in per_threshold),
         tuple(ece(declared, r) for r in per_threshold),
-        tuple(ece(declared_own, r) for r in per_threshold))
+        tuple(ece(declared_own, r) for r in per_threshold), **views)
