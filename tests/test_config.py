@@ -60,12 +60,14 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
     assert "ensemble" not in Config().section("train")
     assert {k: v for k, v in Config().section("train").items() if k != "augment"} == {
         k: v for k, v in Config().train.model_dump(mode="json").items()
-        if k not in ("ensemble", "lr_schedule", "keep", "augment")}
+        if k not in ("ensemble", "lr_schedule", "keep", "norm", "augment")}
     assert config_from_dict({"train": {"ensemble": 3}}).section("train")["ensemble"] == 3
     assert yaml.safe_load(Config().to_yaml())["train"]["ensemble"] == 1
     assert "lr_schedule" not in Config().section("train")
     assert config_from_dict({"train": {"lr_schedule": "cosine"}}).section(
         "train")["lr_schedule"] == "cosine"
+    assert "norm" not in Config().section("train")
+    assert config_from_dict({"train": {"norm": "batch"}}).section("train")["norm"] == "batch"
     # nested: train.augment's options added later, out of the key at their default
     assert Config().section("train")["augment"] == {"shift": 0.05, "scale": 0.1, "noise": False}
     on = config_from_dict({"train": {"augment": {"flip": True, "aspect": 0.15}}})

@@ -1,5 +1,6 @@
 """DepthAlexNet's pooling: the separable inference path gives PyTorch's values bit for bit; an
-ensemble is the mean of its members' probabilities."""
+ensemble is the mean of its members' probabilities; batch normalisation sits after each
+convolution."""
 
 from __future__ import annotations
 
@@ -117,3 +118,40 @@ def test_build_network_refuses_no_members() -> None:
         build_network(NetworkSpec(classes=3, input_size_px=32, members=0))
     with pytest.raises(ValueError, match="at least 2 members"):
         DepthEnsemble(NetworkSpec(classes=3, input_size_px=32, members=1))
+
+
+def test_batch_norm_follows_every_convolution_and_the_spec_records_it() -> None:
+    plain = DepthAlexNet(NetworkSpec(classes=5))
+    normed = DepthAlexNet(NetworkSpec(classes=5, norm="batch"))
+    kinds = [type(m).__name__ for m in normed.features]
+    assert kinds.count("BatchNorm2d") == 5 == kinds.count("Conv2d")
+    for i, layer in enumerate(normed.features):
+        if isinstance(layer, nn.Conv2d):  # conv, its normalisation, then the ReLU
+            norm = normed.features[i + 1]
+            assert isinstance(norm, nn.BatchNorm2d) and norm.num_features == layer.out_channels
+            assert isinstance(normed.features[i + 2], nn.ReLU)
+    assert not any(isinstance(m, nn.BatchNorm2d) for m in plain.features)
+    # Grad-CAM's layer is the last convolution either way; the feature map keeps its shape
+    assert normed.last_conv is normed.features[14] and plain.last_conv is plain.features[10]
+    assert normed.feature_shape == plain.feature_shape == (64, 3, 3)
+    # a checkpoint's record of a network without it is what it was before the option
+    assert "norm" not in NetworkSpec(classes=5).to_dict()
+    assert NetworkSpec(**normed.spec.to_dict()) == normed.spec
+    with pytest.raises(ValueError, match="norm must be one of none, batch, got 'layer'"):
+        NetworkSpec(classes=5, norm="layer")  # type: ignore[arg-type]
+
+
+def test_a_batch_normed_network_infers_with_its_running_statistics() -> None:
+    torch.manual_seed(0)
+    network = DepthAlexNet(NetworkSpec(classes=4, norm="batch"))
+    x = torch.randn(6, 1, 64, 64, generator=torch.Generator().manual_seed(2))
+    network.train()
+    network(x)  # one training step's statistics update the running ones
+    norm = network.features[1]
+    assert isinstance(norm, nn.BatchNorm2d) and int(norm.num_batches_tracked) == 1
+    network.eval()
+    with torch.inference_mode():
+        alone = network(x[:1])
+        together = network(x)
+    # in evaluation an image's output does not depend on the batch it is in
+    torch.testing.assert_close(alone, together[:1], rtol=1e-5, atol=1e-5)

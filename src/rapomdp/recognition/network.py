@@ -113,9 +113,10 @@ class DepthAlexNet(nn.Module):
             *conv_block(nn.Conv2d(c4, c5, kernel_size=3, padding=1)),
             MaxPool2d(kernel_size=3, stride=2),
         )
-        with torch.no_grad():
+        with torch.no_grad():  # in evaluation mode: the probe leaves no batch statistics
             probe = torch.zeros(1, 1, spec.input_size_px, spec.input_size_px)
-            self.feature_shape = tuple(self.features(probe).shape[1:])
+            self.feature_shape = tuple(self.features.eval()(probe).shape[1:])
+        self.features.train()
         features = self.feature_shape[0] * self.feature_shape[1] * self.feature_shape[2]
         self.classifier = nn.Sequential(
             nn.Dropout(spec.dropout), nn.Linear(features, spec.classes)
