@@ -9,6 +9,10 @@ the study's two-stage bootstrap (seeds, and test models within them).
 
     python benchmarks/study_config_pairs.py -s runs/study-ensemble --base default \
         --variant ensemble
+
+With ``--base-study S0`` the base configuration is read from another study of the same seeds
+(e.g. a copy of the study with one training option changed: ``--base learned --variant
+learned``).
 """
 
 from __future__ import annotations
@@ -57,20 +61,31 @@ def main() -> None:
     parser.add_argument("-s", "--study", type=Path, required=True)
     parser.add_argument("--base", required=True, help="the reference configuration's name")
     parser.add_argument("--variant", required=True, help="the configuration compared with it")
+    parser.add_argument("--base-study", type=Path, default=None,
+                        help="the study holding the base configuration (default: --study)")
     parser.add_argument("--resamples", type=int, default=10_000)
     args = parser.parse_args()
-    spec = read_study(args.study)
-    if spec is None:
-        raise SystemExit(f"{args.study}: not a study folder (no study.yaml)")
-    results = load_seed_results(spec, args.study)
-    for name in (args.base, args.variant):
+
+    def configuration(study: Path, name: str) -> list[SeedResult]:
+        spec = read_study(study)
+        if spec is None:
+            raise SystemExit(f"{study}: not a study folder (no study.yaml)")
+        results = load_seed_results(spec, study)
         if name not in results:
-            raise SystemExit(f"{args.study}: no configuration '{name}' (it has "
+            raise SystemExit(f"{study}: no configuration '{name}' (it has "
                              f"{', '.join(results)})")
-    base, variant = results[args.base], results[args.variant]
+        return results[name]
+
+    base = configuration(args.base_study or args.study, args.base)
+    variant = configuration(args.study, args.variant)
+    if [r.seed for r in base] != [r.seed for r in variant]:
+        raise SystemExit(f"the seeds differ: {[r.seed for r in base]} against "
+                         f"{[r.seed for r in variant]}")
     seeds = [r.seed for r in base]
     crossed = len({r.dataset_key for r in base}) == 1
-    print(f"{args.variant} − {args.base}, seeds {seeds}, paired by (seed, test model, start); "
+    names = ((f"{args.study}/{args.variant}", f"{args.base_study}/{args.base}")
+             if args.base_study else (args.variant, args.base))
+    print(f"{names[0]} − {names[1]}, seeds {seeds}, paired by (seed, test model, start); "
           "95 % intervals resample seeds and test models\n")
     print(f"| Method | Accuracy {args.base} | Accuracy {args.variant} | Δ accuracy [95 %] | "
           "Energy (m) | Confidence − accuracy | ECE |")

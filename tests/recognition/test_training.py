@@ -71,6 +71,24 @@ def test_network_learns_a_separable_toy_set():
     assert (probabilities.argmax(axis=1) == val.labels).mean() > 0.95
 
 
+def test_a_batch_normed_network_learns_the_toy_set_and_keeps_its_statistics():
+    cfg = TrainConfig(width=0.125, epochs=8, batch_size=32, dropout=0.0, norm="batch",
+                      preprocess=PreprocessConfig(input_size_px=32))
+    train, val = toy_views(40, seed=1), toy_views(20, seed=2)
+    classifier, history = train_classifier(train, val, TOY_CLASSES, cfg, 144.3, 144.3, seed=0,
+                                           device=torch.device("cpu"))
+    network = classifier.network
+    assert isinstance(network, DepthAlexNet) and network.spec.norm == "batch"
+    assert not network.training  # inference uses the running statistics
+    norms = [m for m in network.features if isinstance(m, torch.nn.BatchNorm2d)]
+    batches = 8 * -(-len(train) // 32)
+    assert len(norms) == 5 and all(int(m.num_batches_tracked) == batches for m in norms)
+    assert history.val_accuracy[-1] > 0.9
+    # one image alone is classified as within its batch
+    np.testing.assert_allclose(classifier.predict(val.depth[:1]),
+                               classifier.predict(val.depth)[:1], atol=1e-5)
+
+
 def test_training_is_deterministic_for_a_seed():
     cfg = TrainConfig(width=0.125, epochs=1, batch_size=32,
                       preprocess=PreprocessConfig(input_size_px=32))
