@@ -17,6 +17,11 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
         [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead]
         [--lookahead-depth 1|2] [--lookahead-width N] [--save F]
         [--wrong-labels none|recorded] [--volume-labels F.npz] [--declared]
+        [--fit-groups K]
+
+``--fit-groups K``: each held-out group's models are fitted on K of the other groups only (the
+next K after it, cyclically) instead of all of them: how the held-out accuracy grows with the
+evidence the models are counted on (the temperatures stay the recorded ones).
 
 ``--declared``: the declared confidence (``evaluate.declared_confidence``, docs/awareness.md
 §4.8) at each method's held-out stops: confidence − accuracy and ECE of the belief, of the
@@ -176,6 +181,8 @@ def main() -> None:
                              "out")
     parser.add_argument("--declared", action="store_true",
                         help="the declared confidence at each method's held-out stops (above)")
+    parser.add_argument("--fit-groups", type=int, default=None, metavar="K",
+                        help="fit each group's models on K of the other groups (default: all)")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -238,9 +245,14 @@ def main() -> None:
     width = cfg.lookahead_width if args.lookahead_width is None else args.lookahead_width
     rows: dict[tuple[str, float], list[tuple[bool, float, float, float, float, float]]] = {}
     finals: dict[tuple[str, float], list[np.ndarray]] = {}  # (final belief, truth, group)
-    for g in volume_groups:
+    if args.fit_groups is not None and not 1 <= args.fit_groups < len(volume_groups):
+        raise SystemExit(f"--fit-groups must be 1 to {len(volume_groups) - 1} (the other "
+                         f"volume groups), got {args.fit_groups}")
+    for i, g in enumerate(volume_groups):
         held = evidence.groups == g
-        fitted = fit_observation_models(evidence.subset(~held), scores, classes, config.observe,
+        others = np.roll(volume_groups, -i)[1:][:args.fit_groups]  # the next K after g
+        fitted = fit_observation_models(evidence.subset(np.isin(evidence.groups, others)),
+                                        scores, classes, config.observe,
                                         observe["directions"], kernel)
         fitted["ra"] = fitted[variant]
         part = evidence.subset(held)
