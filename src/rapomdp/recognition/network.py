@@ -22,13 +22,14 @@ more accurate and better calibrated on unseen objects than any one of them (docs
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
-from typing import Literal
+from typing import Literal, get_args
 
 import torch
 from torch import nn
 
 ALEXNET_CHANNELS = (64, 192, 384, 256, 256)
-NORMS = ("none", "batch")
+Norm = Literal["none", "batch"]
+NORMS: tuple[str, ...] = get_args(Norm)
 
 
 def _pair(value: int | tuple[int, ...]) -> tuple[int, int]:
@@ -66,7 +67,7 @@ class NetworkSpec:
     width: float = 0.25
     dropout: float = 0.5
     members: int = 1
-    norm: Literal["none", "batch"] = "none"
+    norm: Norm = "none"
 
     def __post_init__(self) -> None:
         if self.norm not in NORMS:
@@ -99,6 +100,7 @@ class DepthAlexNet(nn.Module):
             if spec.input_size_px >= 128
             else nn.Conv2d(1, c1, kernel_size=5, stride=2, padding=2)
         )
+
         def conv_block(conv: nn.Conv2d) -> list[nn.Module]:
             norm = [nn.BatchNorm2d(conv.out_channels)] if spec.norm == "batch" else []
             return [conv, *norm, nn.ReLU(inplace=True)]
