@@ -116,12 +116,18 @@ def main() -> None:
                                 expected_calibration_error(scalar, right),
                                 views.mean() - right.mean(),
                                 expected_calibration_error(views, right), right.size])
+    over_pooled = "each folder's held-out stops pooled over its workspaces"
     if args.pooled:  # declared_views_rule_v2.md: the conditions on the pooled stops
-        print_rule(pooled, "each folder's held-out stops pooled over its workspaces")
+        print_pooled(pooled, f"{over_pooled}:")
+        print_rule(pooled, over_pooled)
         return
     print_rule(mean, "the mean over each folder's workspaces (declared_views_rule.md)")
-    print("\nnot part of the rule: each folder's held-out stops pooled over its workspaces, "
-          "scalar c-a / ECE -> views c-a / ECE")
+    print_pooled(pooled, f"not part of the rule: {over_pooled},")
+
+
+def print_pooled(pooled: dict[tuple[str, str], np.ndarray], title: str) -> None:
+    """Per (folder, method) the pooled stops' scalar and views c − a / ECE, and their count."""
+    print(f"\n{title} scalar c-a / ECE -> views c-a / ECE")
     for (folder, name), m in pooled.items():
         print(f"{folder:24s} {name:10s} {m[0]:+.3f} / {m[1]:.3f} -> {m[2]:+.3f} / {m[3]:.3f}"
               f"  ({int(m[4])} stops)")
@@ -130,11 +136,6 @@ def main() -> None:
 def print_rule(figures: dict[tuple[str, str], np.ndarray], over: str) -> None:
     """The rule's three conditions on ``figures`` (per (folder, method): scalar c − a, ECE,
     views c − a, ECE); a folder named like ``mesh`` is checked by condition 3 only."""
-    if over.startswith("each"):
-        print(f"\n{over}: scalar c-a / ECE -> views c-a / ECE")
-        for (folder, name), m in figures.items():
-            print(f"{folder:24s} {name:10s} {m[0]:+.3f} / {m[1]:.3f} -> {m[2]:+.3f} / "
-                  f"{m[3]:.3f}  ({int(m[4])} stops)")
     folders = sorted({folder for folder, _ in figures})
     decisive = [f for f in folders if "mesh" not in f]
     one = all(figures[f, n][3] < figures[f, n][1] for f in decisive for n in PAIRS

@@ -332,6 +332,8 @@ def main() -> None:
           f"{f' (width {width})' if lookahead and depth > 1 else ''}; "
           f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}; wrong labels: "
           f"{args.wrong_labels}"
+          + (f"; each group's models counted on {args.fit_groups} other group(s)"
+             if args.fit_groups is not None else "")
           + (f"; volume labels: {args.volume_labels} (temperatures refitted)"
              if args.volume_labels is not None else ""))
     print("belief: final belief in the true class; confidence: in the declared class; "
