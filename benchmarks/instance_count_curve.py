@@ -21,13 +21,34 @@ import time
 from pathlib import Path
 
 import numpy as np
+import torch
 
+from rapomdp.config import Config
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import load_xrho_views
-from rapomdp.data.training_views import load_training_views
-from rapomdp.recognition.classifier import configure_torch
-from rapomdp.recognition.training import collect_views, train_classifier, validation_mask
+from rapomdp.data.training_views import TrainingViews, load_training_views
+from rapomdp.recognition.classifier import Classifier, configure_torch
+from rapomdp.recognition.training import (
+    LabelledViews,
+    collect_views,
+    train_classifier,
+    validation_mask,
+)
 from rapomdp.workspace import Workspace
+
+
+def train_recipe(config: Config, views: TrainingViews, data: LabelledViews, keep: np.ndarray,
+                 device: torch.device) -> tuple[Classifier, int]:
+    """The workspace's recipe (seed, epochs, noise) trained on the views ``keep`` of ``data``,
+    and how many it trained on. The validation split is the train stage's, drawn over all of
+    ``data``, so the views kept are split as the full set splits them."""
+    held = validation_mask(data, config.train.validation_fraction,
+                           class_seed(config.train_seed, "train/validation"))
+    classifier, _ = train_classifier(
+        data.subset(keep & ~held), data.subset(keep & held), views.dataset.classes,
+        config.train, views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device,
+        config.render.noise, progress=False)
+    return classifier, int((keep & ~held).sum())
 
 
 def first_models(labels: np.ndarray, models: np.ndarray, count: int, seed: int) -> np.ndarray:
@@ -71,21 +92,16 @@ def main() -> None:
         xrho = load_xrho_views(root / "xrho", root / "dataset")
         dataset = views.dataset
         data = collect_views(views, "train")
-        held = validation_mask(data, config.train.validation_fraction,
-                               class_seed(config.train_seed, "train/validation"))
         volume = dataset.with_role("volume")
         device = configure_torch("cpu", args.threads)
         for count in args.counts:
             keep = first_models(data.labels, data.models, count, config.train_seed)
             start = time.perf_counter()
-            classifier, _ = train_classifier(
-                data.subset(keep & ~held), data.subset(keep & held), dataset.classes,
-                config.train, views.intrinsics.fx, views.intrinsics.fy, config.train_seed,
-                device, config.render.noise, progress=False)
+            classifier, trained_views = train_recipe(config, views, data, keep, device)
             seconds = time.perf_counter() - start
             probabilities = [classifier.predict(xrho.load(m).sensed) for m in volume]
             scores = volume_scores(probabilities, [dataset.label(m) for m in volume])
-            print(f"{str(root):44s} {count:3d} {int((keep & ~held).sum()):6d} "
+            print(f"{str(root):44s} {count:3d} {trained_views:6d} "
                   f"{scores['view_accuracy']:8.3f} {scores['log_p_true']:7.3f} "
                   f"{scores['majority']:8.3f} {scores['objects_under_10']:7.3f} "
                   f"{seconds:6.0f}", flush=True)

@@ -15,24 +15,22 @@ models only), ``OUT/<config>-<seed>-baseline.npz`` (``files``, ``predicted`` (M,
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from rapomdp.data.splits import class_seed
-from rapomdp.data.test_views import load_xrho_views
-from rapomdp.data.training_views import load_training_views
-from rapomdp.io import load_npz, save_npz
-from rapomdp.recognition.artefacts import load_volume_probabilities
-from rapomdp.recognition.classifier import configure_torch
-from rapomdp.recognition.training import (
-    LabelledViews,
-    collect_views,
-    train_classifier,
-    validation_mask,
-)
-from rapomdp.workspace import Workspace
+sys.path.insert(0, str(Path(__file__).parent))
+from instance_count_curve import train_recipe  # noqa: E402
+
+from rapomdp.data.test_views import load_xrho_views  # noqa: E402
+from rapomdp.data.training_views import load_training_views  # noqa: E402
+from rapomdp.io import load_npz, save_npz  # noqa: E402
+from rapomdp.recognition.artefacts import load_volume_probabilities  # noqa: E402
+from rapomdp.recognition.classifier import configure_torch  # noqa: E402
+from rapomdp.recognition.training import LabelledViews, collect_views  # noqa: E402
+from rapomdp.workspace import Workspace  # noqa: E402
 
 
 def joined(first: LabelledViews, second: LabelledViews) -> LabelledViews:
@@ -65,23 +63,20 @@ def main() -> None:
         train = collect_views(views, "train")
         held_views = collect_views(views, "volume")  # model index i = the i-th volume model
         device = configure_torch("cpu", args.threads)
-        predicted = np.zeros((len(volume), len(xrho.load(volume[0]).sensed)), dtype=np.int64)
+        labelled: dict[int, np.ndarray] = {}  # volume model index -> its labels (V,)
         for group in np.unique(groups):
-            others = held_views.subset(groups[held_views.models] != group)
-            data = joined(train, others)
-            held = validation_mask(data, config.train.validation_fraction,
-                                   class_seed(config.train_seed, "train/validation"))
+            data = joined(train, held_views.subset(groups[held_views.models] != group))
             start = time.perf_counter()
-            classifier, _ = train_classifier(
-                data.subset(~held), data.subset(held), dataset.classes, config.train,
-                views.intrinsics.fx, views.intrinsics.fy, config.train_seed, device,
-                config.render.noise, progress=False)
-            for i in np.flatnonzero(groups == group):
-                predicted[i] = classifier.predict(xrho.load(volume[i]).sensed).argmax(axis=1)
-            right = (predicted[groups == group] == truth[groups == group, None]).mean()
-            print(f"{root}: group {group} labelled by a classifier of {int((~held).sum())} "
+            classifier, trained_views = train_recipe(config, views, data,
+                                                     np.ones(len(data), dtype=bool), device)
+            members = np.flatnonzero(groups == group)
+            labelled.update({int(i): classifier.predict(xrho.load(volume[i]).sensed).argmax(1)
+                             for i in members})
+            right = np.mean([labelled[int(i)] == truth[i] for i in members])
+            print(f"{root}: group {group} labelled by a classifier of {trained_views} "
                   f"views: accuracy {right:.3f} ({time.perf_counter() - start:.0f} s)",
                   flush=True)
+        predicted = np.stack([labelled[i] for i in range(len(volume))])
         outputs = load_volume_probabilities(root / "classifier_eval")
         baseline = np.stack([outputs.of(m).argmax(axis=1) for m in volume])
         files = np.array([m.file for m in volume])
