@@ -73,6 +73,17 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
     on = config_from_dict({"train": {"augment": {"flip": True, "aspect": 0.15}}})
     assert on.section("train")["augment"] == {"shift": 0.05, "scale": 0.1, "noise": False,
                                              "flip": True, "aspect": 0.15}
+    assert "auto_volume_models" not in Config().section("dataset")
+    assert config_from_dict({"dataset": {"auto_volume_models": 6}}).section(
+        "dataset")["auto_volume_models"] == 6
+
+
+def test_auto_volume_models_needs_split_auto_and_at_least_three() -> None:
+    with pytest.raises(ConfigError, match="auto_volume_models applies to split: auto only"):
+        config_from_dict({"dataset": {"split": {"train": 4, "volume": 3, "test": 4},
+                                      "auto_volume_models": 6}})
+    with pytest.raises(ConfigError, match="greater than or equal to 3"):
+        config_from_dict({"dataset": {"auto_volume_models": 2}})
 
 
 def test_yaml_round_trip(tmp_path: Path) -> None:

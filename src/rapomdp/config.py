@@ -80,6 +80,8 @@ def _split_kind(value: Any) -> str:
 class DatasetConfig(Section):
     """Where the meshes come from and how they are normalised and split."""
 
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("auto_volume_models",)
+
     source: Literal["procedural", "folder"] = "procedural"
     path: Path | None = Field(None, description="mesh folder (source: folder)")
     layout: Literal["auto", "generic", "objectnet3d", "modelnet", "shapenet"] = "auto"
@@ -102,6 +104,10 @@ class DatasetConfig(Section):
     too_few_models: Literal["error", "drop"] = Field(
         "error", description="a class with fewer models than the split needs: an error "
         "naming it, or drop: the class left out (one warning line)")
+    auto_volume_models: int = Field(
+        3, ge=3, description="split: auto's most volume models a class: the models beyond "
+        "4 / 3 / 4 go to volume and train in turn until the volume role holds this many (3: "
+        "every one trained on; measured: docs/awareness.md §4.1)")
 
     @field_validator("classes")
     @classmethod
@@ -123,6 +129,9 @@ class DatasetConfig(Section):
                 f"models_per_class ({self.models_per_class}) is below the split's total "
                 f"({self.split.total})"
             )
+        if isinstance(self.split, SplitConfig) and self.auto_volume_models != 3:
+            raise ValueError("auto_volume_models applies to split: auto only; with fixed "
+                             "counts set split.volume")
         return self
 
 
