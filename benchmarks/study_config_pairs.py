@@ -10,9 +10,9 @@ the study's two-stage bootstrap (seeds, and test models within them).
     python benchmarks/study_config_pairs.py -s runs/study-ensemble --base default \
         --variant ensemble
 
-With ``--base-study S0`` the base configuration is read from another study of the same seeds
-(e.g. a copy of the study with one training option changed: ``--base learned --variant
-learned``).
+With ``--base-study S0`` the base configuration is read from another study (e.g. a copy of
+the study with one training option changed: ``--base learned --variant learned``), its seeds
+restricted to the variant's.
 """
 
 from __future__ import annotations
@@ -78,6 +78,9 @@ def main() -> None:
 
     base = configuration(args.base_study or args.study, args.base)
     variant = configuration(args.study, args.variant)
+    if args.base_study is not None:  # another study may hold more seeds: the shared ones
+        shared = {r.seed for r in variant}
+        base = [r for r in base if r.seed in shared]
     if [r.seed for r in base] != [r.seed for r in variant]:
         raise SystemExit(f"the seeds differ: {[r.seed for r in base]} against "
                          f"{[r.seed for r in variant]}")

@@ -16,14 +16,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.awareness.evidence import RecordedObservation
-from rapomdp.experiment.metrics import cluster_bootstrap_difference
 from rapomdp.io import load_npz
 from rapomdp.workspace import Workspace
+
+sys.path.insert(0, str(Path(__file__).parent))
+from held_out_paired import pooled_difference  # noqa: E402
 
 GROUP_STRIDE = 10_000  # held_out_closed_loop.py's object id: group * 10_000 + row
 
@@ -87,19 +90,14 @@ def main() -> None:
           f"{n} seed(s) pooled; 95 % interval over (seed, object) clusters")
     figures: dict[str, dict[str, float]] = {}
     for key in args.keys:
-        sums, pairs, xs, ys = [], [], [], []
-        for s, (v, b) in enumerate(runs):
-            x, y = common_rows(v, key, args.common), common_rows(b, key, args.common)
-            if x.shape != y.shape or np.any(x[:, 4] != y[:, 4]):
-                raise SystemExit(f"{key}, seed file {s}: not the same objects and starts")
-            _, cluster = np.unique(x[:, 4], return_inverse=True)
-            sums.append(np.bincount(cluster, weights=x[:, 0] - y[:, 0]))
-            pairs.append(np.bincount(cluster).astype(np.float64))
-            xs.append(x)
-            ys.append(y)
+        pairs = [(common_rows(v, key, args.common), common_rows(b, key, args.common))
+                 for v, b in runs]
+        try:
+            estimate, low, high = pooled_difference(pairs)
+        except ValueError as exc:
+            raise SystemExit(f"{key}: {exc}") from None
+        xs, ys = [p[0] for p in pairs], [p[1] for p in pairs]
         x, y = np.concatenate(xs), np.concatenate(ys)
-        estimate, low, high = cluster_bootstrap_difference(np.concatenate(sums),
-                                                           np.concatenate(pairs))
         per_seed = " / ".join(f"{a[:, 0].mean():.3f}→{c[:, 0].mean():.3f}"
                               for a, c in zip(ys, xs, strict=True))
         figures[key] = {"variant": float(x[:, 0].mean()), "low": low,
