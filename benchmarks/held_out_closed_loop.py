@@ -33,6 +33,7 @@ these episodes themselves, each group's by the other groups' episodes; and that 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -72,6 +73,9 @@ from rapomdp.recognition.belief import (
 from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
+
+sys.path.insert(0, str(Path(__file__).parent))
+from size_prior import workspace_size_model  # noqa: E402
 
 #: Half-width of the relative change of t between policy draws (``--draws``).
 DRAW_SPREAD = 0.02
@@ -183,6 +187,10 @@ def main() -> None:
                         help="the declared confidence at each method's held-out stops (above)")
     parser.add_argument("--fit-groups", type=int, default=None, metavar="K",
                         help="fit each group's models on K of the other groups (default: all)")
+    parser.add_argument("--size-prior", action="store_true",
+                        help="every moving method's belief starts from a class prior by the "
+                             "object's measured size (size_prior.py: fitted on the training "
+                             "models) instead of the uniform one")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -201,6 +209,7 @@ def main() -> None:
     volume_groups = np.unique(evidence.groups[evidence.volume_mask])
     if args.volume_labels is not None:
         evidence = replaced_labels(ws, evidence, args.volume_labels)
+    size_model, size_extents = workspace_size_model(ws) if args.size_prior else (None, {})
     robot = load_robot(ws.require("robot"))
     motion = Motion.from_robot(robot)
     start = start_viewpoint(motion.reachable)
@@ -303,6 +312,9 @@ def main() -> None:
                                                              else None),
                                              lookahead_depth=depth, lookahead_width=width)
                     for r in range(len(held_labels)):
+                        if size_model is not None:  # row r: the g-th volume model of its class
+                            extents = list(size_extents[classes[int(held_labels[r])]].values())
+                            method._bayes.prior = size_model.prior(extents[g])[0]
                         rng = class_seed(config.seed, f"held-out/{g}/{r}")
                         starts = rng.choice(np.flatnonzero(motion.reachable), args.starts,
                                             replace=False)
@@ -335,7 +347,8 @@ def main() -> None:
           + (f"; each group's models counted on {args.fit_groups} other group(s)"
              if args.fit_groups is not None else "")
           + (f"; volume labels: {args.volume_labels} (temperatures refitted)"
-             if args.volume_labels is not None else ""))
+             if args.volume_labels is not None else "")
+          + ("; beliefs start from the size prior" if args.size_prior else ""))
     print("belief: final belief in the true class; confidence: in the declared class; "
           "ECE over the confidence (10 bins)")
     print(f"{'method':12s} {'lambda':>6s} {'accuracy':>8s} {'energy':>7s} {'belief':>7s} "
