@@ -1,9 +1,10 @@
 import pytest
 
-from rapomdp.config import SplitConfig
+from rapomdp.config import DatasetConfig, SplitConfig
 from rapomdp.data.splits import (
     AUTO_FULL_MODELS,
     AUTO_MIN_MODELS,
+    AUTO_VOLUME_MODELS,
     TooFewModelsError,
     auto_counts,
     split_models,
@@ -111,3 +112,5 @@ def test_a_larger_auto_volume_adds_groups_without_moving_test_models_or_earlier_
             == split_models(models, fixed, seed=3).roles)
     with pytest.raises(ValueError, match="auto_volume must be at least 3, got 2"):
         split_models(models, None, seed=3, auto_volume=2)
+    # the configuration's default is the rule's: every model beyond 11 trained on
+    assert DatasetConfig().auto_volume_models == AUTO_VOLUME_MODELS == 3
