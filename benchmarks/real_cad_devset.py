@@ -4,6 +4,7 @@
 
     python benchmarks/real_cad_devset.py                  # -> runs/real-cad-dev/meshes
     python benchmarks/real_cad_devset.py --out DIR --cache DIR --max-per-class 16
+    python benchmarks/real_cad_devset.py --set second     # -> runs/real-cad-dev-2/meshes
     rapomdp dataset -w runs/real-cad-dev-ws -c configs/real-cad-dev.yaml
 
 Source: Debian bookworm package ``kicad-packages3d`` 6.0.10-1 (all; 379 MB download, 5.5 GB
@@ -100,6 +101,24 @@ CLASS_MAP: dict[str, str] = {
     "Battery": "battery",
 }
 
+#: The second set (``--set second``; rule ``results/real_cad_second_set_rule.md``): the 12
+#: largest folders not in the first, not mounting hardware, not a first-set category's SMD
+#: variant, one folder per family of variants.
+SECOND_CLASS_MAP: dict[str, str] = {
+    "Connector_PinSocket_2.54mm": "pin_socket",
+    "Connector_PinHeader_2.54mm": "pin_header",
+    "Package_DFN_QFN": "qfn",
+    "Package_SO": "soic",
+    "Connector_Phoenix_MSTB": "phoenix",
+    "Connector_JST": "jst",
+    "Button_Switch_SMD": "button",
+    "Varistor": "varistor",
+    "Diode_THT": "diode",
+    "Connector_Molex": "molex",
+    "TerminalBlock_Phoenix": "terminal_block",
+    "Package_BGA": "bga",
+}
+CLASS_MAPS = {"first": CLASS_MAP, "second": SECOND_CLASS_MAP}
 MIN_FACES = 64          # fewer triangles: a placeholder, not a model
 FLAT_RATIO = 0.01       # smallest / largest bounding-box extent below this: flat
 DUP_TOL = 0.01          # relative tolerance on normalised extents and area for a near-duplicate
@@ -283,17 +302,17 @@ def deb_field(deb: Path, name: str) -> str:
                           text=True).stdout.strip()
 
 
-def extract(deb: Path, cache: Path) -> Path:
+def extract(deb: Path, cache: Path, class_map: dict[str, str] = CLASS_MAP) -> Path:
     """The unpacked VRML files of the mapped folders and the copyright file (cached; a marker
     written last says the extraction is complete)."""
-    digest = hashlib.sha256(json.dumps(sorted(CLASS_MAP)).encode()).hexdigest()[:10]
+    digest = hashlib.sha256(json.dumps(sorted(class_map)).encode()).hexdigest()[:10]
     root = cache / f"{deb.stem}-{digest}"
     if (root / ".complete").is_file():
         return root
     partial = root.with_name(root.name + ".partial")
     shutil.rmtree(partial, ignore_errors=True)
     partial.mkdir(parents=True)
-    patterns = [f"./{MODELS_DIR}/{folder}.3dshapes/*.wrl" for folder in CLASS_MAP]
+    patterns = [f"./{MODELS_DIR}/{folder}.3dshapes/*.wrl" for folder in class_map]
     print(f"extracting {len(patterns)} folders from {deb.name} ...", flush=True)
     tar = subprocess.Popen(["tar", "-x", "-C", str(partial), "--wildcards", f"./{COPYRIGHT}",
                             *patterns], stdin=subprocess.PIPE)
@@ -427,16 +446,24 @@ def table(reports: list[ClassReport], markdown: bool = False) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("runs/real-cad-dev/meshes"),
-                        help="mesh folder to (re)build (default: %(default)s)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="mesh folder to (re)build (default: runs/real-cad-dev/meshes, "
+                             "the second set runs/real-cad-dev-2/meshes)")
+    parser.add_argument("--set", choices=sorted(CLASS_MAPS), default="first",
+                        help="which class map: the first set, or the second, disjoint one "
+                             "(default: %(default)s)")
     parser.add_argument("--cache", type=Path, default=Path("runs/real-cad-dev/cache"),
                         help="where the .deb and its extraction are kept (default: %(default)s)")
     parser.add_argument("--max-per-class", type=int, default=16,
                         help="models kept per class, 0 for all (default: %(default)s)")
     args = parser.parse_args(argv)
     start = time.perf_counter()
+    class_map = CLASS_MAPS[args.set]
+    if args.out is None:
+        args.out = Path("runs/real-cad-dev/meshes" if args.set == "first"
+                        else "runs/real-cad-dev-2/meshes")
     deb = fetch_deb(args.cache)
-    root = extract(deb, args.cache)
+    root = extract(deb, args.cache, class_map)
     stanzas = parse_copyright((root / COPYRIGHT).read_text())
     out = args.out.resolve()
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -445,7 +472,7 @@ def main(argv: list[str] | None = None) -> int:
     building = out.with_name(f".{out.name}.building-{os.getpid()}")
     building.mkdir()
     reports = []
-    for folder, name in CLASS_MAP.items():
+    for folder, name in class_map.items():
         reports.append(build_class(root / MODELS_DIR / f"{folder}.3dshapes", name, building,
                                    args.max_per_class, stanzas))
         print(f"  {name}: {len(reports[-1].kept)} of {reports[-1].files}", flush=True)
