@@ -48,10 +48,11 @@ def test_default_has_the_papers_values() -> None:
 def test_every_shipped_configuration_loads_and_the_folder_sets_name_their_mesh_folders() -> None:
     folder = Path(__file__).parents[1] / "configs"
     configs = {p.stem: load_config(p) for p in sorted(folder.glob("*.yaml"))}
-    assert {"paper", "real-cad-dev", "mesh-set"} <= configs.keys()
+    assert {"paper", "real-cad-dev", "real-cad-dev-2", "mesh-set"} <= configs.keys()
     assert str(configs["mesh-set"].dataset.path) == "runs/mesh-set/meshes"
     assert configs["mesh-set"].dataset.source == "folder"
     assert configs["real-cad-dev"].dataset.layout == "generic"
+    assert str(configs["real-cad-dev-2"].dataset.path) == "runs/real-cad-dev-2/meshes"
 
 
 def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> None:
