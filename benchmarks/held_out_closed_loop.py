@@ -77,6 +77,9 @@ from rapomdp.workspace import Workspace
 sys.path.insert(0, str(Path(__file__).parent))
 from size_prior import workspace_size_model  # noqa: E402
 
+#: A held-out object's id in ``--save``'s rows: group * HELD_OUT_ID_STRIDE + its row in the group.
+HELD_OUT_ID_STRIDE = 10_000
+
 #: Half-width of the relative change of t between policy draws (``--draws``).
 DRAW_SPREAD = 0.02
 
@@ -313,8 +316,8 @@ def main() -> None:
                                              lookahead_depth=depth, lookahead_width=width)
                     for r in range(len(held_labels)):
                         if size_model is not None:  # row r: the g-th volume model of its class
-                            extents = list(size_extents[classes[int(held_labels[r])]].values())
-                            method._bayes.prior = size_model.prior(extents[g])[0]
+                            extents = size_extents[classes[int(held_labels[r])]][g]
+                            method._bayes.prior = size_model.prior(extents)[0]
                         rng = class_seed(config.seed, f"held-out/{g}/{r}")
                         starts = rng.choice(np.flatnonzero(motion.reachable), args.starts,
                                             replace=False)
@@ -327,12 +330,13 @@ def main() -> None:
                                 (episode.declared == truth, float(episode.move_energy.sum()),
                                  float(episode.beliefs[-1, truth]),
                                  float(episode.beliefs[-1, episode.declared]),
-                                 float(g * 10_000 + r), float(d)))
+                                 float(g * HELD_OUT_ID_STRIDE + r), float(d)))
                             finals.setdefault((name, lam), []).append(
                                 np.concatenate([episode.beliefs[-1], [truth, g]]))
         static = part.predicted == part.labels[:, None]
         rows.setdefault(("static", 0.0), []).extend(
-            (bool(c), 0.0, float("nan"), float("nan"), float(g * 10_000 + r), 0.0)
+            (bool(c), 0.0, float("nan"), float("nan"), float(g * HELD_OUT_ID_STRIDE + r),
+             0.0)
             for r, row in enumerate(static[:, motion.reachable]) for c in row)
     fitted_t = ", ".join(f"{m} {temperatures[m]:.3f}" for m in args.models)
     belief = (f"t = {args.temperature:g}" if args.temperature is not None

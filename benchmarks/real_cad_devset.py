@@ -119,6 +119,9 @@ SECOND_CLASS_MAP: dict[str, str] = {
     "Package_BGA": "bga",
 }
 CLASS_MAPS = {"first": CLASS_MAP, "second": SECOND_CLASS_MAP}
+#: Where each set is written unless ``--out`` says otherwise.
+DEFAULT_OUT = {"first": Path("runs/real-cad-dev/meshes"),
+               "second": Path("runs/real-cad-dev-2/meshes")}
 MIN_FACES = 64          # fewer triangles: a placeholder, not a model
 FLAT_RATIO = 0.01       # smallest / largest bounding-box extent below this: flat
 DUP_TOL = 0.01          # relative tolerance on normalised extents and area for a near-duplicate
@@ -459,9 +462,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     start = time.perf_counter()
     class_map = CLASS_MAPS[args.set]
-    if args.out is None:
-        args.out = Path("runs/real-cad-dev/meshes" if args.set == "first"
-                        else "runs/real-cad-dev-2/meshes")
+    args.out = args.out or DEFAULT_OUT[args.set]
     deb = fetch_deb(args.cache)
     root = extract(deb, args.cache, class_map)
     stanzas = parse_copyright((root / COPYRIGHT).read_text())

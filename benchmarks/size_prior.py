@@ -62,19 +62,18 @@ class SizeModel:
         return p / p.sum(axis=1, keepdims=True)
 
 
-def workspace_size_model(ws: Workspace) -> tuple[SizeModel, dict[str, dict[str, np.ndarray]]]:
-    """The size model fitted on the workspace's training models, and every volume model's
-    extents by class and id."""
+def workspace_size_model(ws: Workspace) -> tuple[SizeModel, dict[str, list[np.ndarray]]]:
+    """The size model fitted on the workspace's training models, and each class's volume
+    models' extents in the split's order (the k-th is held-out group k)."""
     config = ws.config()
     dataset = load_dataset(ws.require("dataset"))
     classes = list(dataset.classes)
-    train = [m for m in dataset.models if m.role == "train"]
+    train = dataset.with_role("train")
     extents = np.stack([source_extents(m, config) for m in train])
     labels = np.array([classes.index(m.class_name) for m in train])
-    volume: dict[str, dict[str, np.ndarray]] = {}
-    for m in dataset.models:
-        if m.role == "volume":
-            volume.setdefault(m.class_name, {})[m.id] = source_extents(m, config)
+    volume: dict[str, list[np.ndarray]] = {}
+    for m in dataset.with_role("volume"):
+        volume.setdefault(m.class_name, []).append(source_extents(m, config))
     return SizeModel.fit(extents, labels, len(classes)), volume
 
 
@@ -87,7 +86,7 @@ def main() -> None:
         model, volume = workspace_size_model(ws)
         classes = list(load_dataset(ws.require("dataset")).classes)
         right = [np.argmax(model.prior(e)[0]) == classes.index(c)
-                 for c, ids in volume.items() for e in ids.values()]
+                 for c, extents in volume.items() for e in extents]
         print(f"{path}: the size model names {np.mean(right):.3f} of {len(right)} volume "
               f"models (chance {1 / len(classes):.3f})")
 

@@ -15,44 +15,40 @@ those groups, pooled over the seeds, and the interval resamples (seed, object) c
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.awareness.evidence import RecordedObservation
+from rapomdp.data.dataset import load_dataset
 from rapomdp.io import load_npz
 from rapomdp.workspace import Workspace
 
 sys.path.insert(0, str(Path(__file__).parent))
+from held_out_closed_loop import HELD_OUT_ID_STRIDE  # noqa: E402
 from held_out_paired import pooled_difference  # noqa: E402
 
-GROUP_STRIDE = 10_000  # held_out_closed_loop.py's object id: group * 10_000 + row
 
-
-def volume_ids(workspace: Path) -> dict[str, list[str]]:
-    """Each class's volume model ids, in the split's order (group k = the k-th), and the
-    ids of its training models under the key ``<class>/train``."""
-    models = json.loads((workspace / "dataset" / "dataset.json").read_text())["models"]
+def role_ids(workspace: Path, role: str) -> dict[str, list[str]]:
+    """Each class's model ids of one role, in the split's order (volume: group k = the k-th)."""
     out: dict[str, list[str]] = {}
-    for m in models:
-        if m["role"] in ("volume", "train"):
-            key = m["class_name"] if m["role"] == "volume" else f"{m['class_name']}/train"
-            out.setdefault(key, []).append(m["id"])
+    for m in load_dataset(Workspace(workspace).require("dataset")).with_role(role):
+        out.setdefault(m.class_name, []).append(m.id)
     return out
 
 
 def check_common(variant: Path, baseline: Path, common: int) -> None:
     """Groups 0 .. common-1 are the same objects in both, trained on by neither classifier,
     with the same labels row for row."""
-    v, b = volume_ids(variant), volume_ids(baseline)
-    for name in (k for k in b if "/" not in k):
+    v, b = role_ids(variant, "volume"), role_ids(baseline, "volume")
+    v_train, b_train = role_ids(variant, "train"), role_ids(baseline, "train")
+    for name in b:
         shared = b[name][:common]
         if v.get(name, [])[:common] != shared:
             raise SystemExit(f"{variant} / {baseline}: class {name}'s first {common} volume "
                              f"models differ ({v.get(name, [])[:common]} vs {shared})")
-        trained = set(v.get(f"{name}/train", [])) | set(b.get(f"{name}/train", []))
+        trained = set(v_train.get(name, [])) | set(b_train.get(name, []))
         if trained & set(shared):
             raise SystemExit(f"class {name}: a shared volume model was trained on: "
                              f"{sorted(trained & set(shared))}")
@@ -66,7 +62,7 @@ def check_common(variant: Path, baseline: Path, common: int) -> None:
 
 def common_rows(runs: dict[str, np.ndarray], key: str, common: int) -> np.ndarray:
     rows = runs[key]
-    return rows[rows[:, 4] < common * GROUP_STRIDE]
+    return rows[rows[:, 4] < common * HELD_OUT_ID_STRIDE]
 
 
 def main() -> None:
