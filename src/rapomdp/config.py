@@ -212,6 +212,10 @@ class TrainConfig(Section):
     norm: Literal["none", "batch"] = Field(
         "none", description="normalisation after each convolution: none (AlexNet's), or batch "
         "normalisation (docs/recognition.md)")
+    input_features: Literal["depth", "depth_normals"] = Field(
+        "depth", description="what the first convolution sees: the preprocessed depth, or "
+        "depth_normals: the depth and its unit surface normal, computed from it by a fixed "
+        "layer of the network (docs/recognition.md)")
     epochs: int = Field(25, ge=1)
     batch_size: int = Field(128, ge=1)
     learning_rate: float = Field(
@@ -239,7 +243,8 @@ class TrainConfig(Section):
     augment: AugmentConfig = AugmentConfig()
 
     #: At their defaults, what every workspace before the options trained: out of the keys.
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "lr_schedule", "keep", "norm")
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "lr_schedule", "keep", "norm",
+                                                     "input_features")
 
     @model_validator(mode="after")
     def _keep_needs_validation(self) -> TrainConfig:

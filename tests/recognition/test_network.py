@@ -1,6 +1,6 @@
 """DepthAlexNet's pooling: the separable inference path gives PyTorch's values bit for bit; an
 ensemble is the mean of its members' probabilities; batch normalisation sits after each
-convolution."""
+convolution; the surface-normal input layer gives a known surface's normal."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from rapomdp.recognition.network import (
     DepthEnsemble,
     MaxPool2d,
     NetworkSpec,
+    SurfaceNormals,
     build_network,
     member_networks,
 )
@@ -155,3 +156,56 @@ def test_a_batch_normed_network_infers_with_its_running_statistics() -> None:
         together = network(x)
     # in evaluation an image's output does not depend on the batch it is in
     torch.testing.assert_close(alone, together[:1], rtol=1e-5, atol=1e-5)
+
+
+def test_surface_normals_of_a_known_ramp_and_zero_at_the_silhouette() -> None:
+    """A ramp v = a·u (near side to the right) has the normal (−k·a, 0, 1) / √(1 + k²a²) inside;
+    the normal's channels are 0 on the background and on the pixels next to it; the depth
+    channel is the input unchanged."""
+    scale, slope = 25.6, 0.01
+    x = torch.full((1, 1, 12, 12), -1.0)
+    x[0, 0, 2:10, 3:9] = slope * torch.arange(6.0)  # an object of 8 rows × 6 columns
+    out = SurfaceNormals(scale, background=-1.0)(x)
+    assert out.shape == (1, 4, 12, 12)
+    torch.testing.assert_close(out[:, :1], x)
+    length = (1.0 + (scale * slope) ** 2) ** 0.5
+    inside = out[0, 1:, 3:9, 4:8]  # rows and columns whose four neighbours are the object
+    torch.testing.assert_close(inside[0], torch.full((6, 4), -scale * slope / length))
+    torch.testing.assert_close(inside[1], torch.zeros(6, 4))
+    torch.testing.assert_close(inside[2], torch.full((6, 4), 1.0 / length))
+    surface = torch.zeros(12, 12, dtype=torch.bool)
+    surface[3:9, 4:8] = True
+    assert (out[0, 1:, ~surface] == 0).all()  # background and silhouette
+    # a flat surface faces the camera, unit length where defined
+    flat = SurfaceNormals(scale, -1.0)(torch.zeros(1, 1, 8, 8))
+    torch.testing.assert_close(flat[0, 1:, 1:7, 1:7].norm(dim=0), torch.ones(6, 6))
+    torch.testing.assert_close(flat[0, 3, 1:7, 1:7], torch.ones(6, 6))
+    with pytest.raises(ValueError, match="the normals' scale must be positive, got 0"):
+        SurfaceNormals(0.0, -1.0)
+
+
+def test_a_normals_network_keeps_one_input_channel_and_its_gradient() -> None:
+    """The input stays the depth channel (preprocessing and saliency unchanged); the first
+    convolution sees four channels; the input gradient saliency reads exists; the spec is
+    recorded only when not the default, and a wrong value is named."""
+    spec = NetworkSpec(classes=3, input_size_px=32, width=0.125,
+                       input_features="depth_normals", normal_scale=25.6)
+    network = DepthAlexNet(spec).eval()
+    assert isinstance(network.input_layer, SurfaceNormals)
+    assert network.input_layer.scale == 25.6 and network.input_layer.background == -1.0
+    first = network.features[0]
+    assert isinstance(first, nn.Conv2d) and first.in_channels == 4
+    x = torch.full((2, 1, 32, 32), -1.0)
+    x[:, :, 8:24, 8:24] = torch.linspace(-0.5, 0.5, 16)
+    x.requires_grad_(True)
+    network(x)[:, 0].sum().backward()
+    assert x.grad is not None and x.grad.abs().sum() > 0
+    plain = DepthAlexNet(NetworkSpec(classes=3, input_size_px=32, width=0.125))
+    assert isinstance(plain.input_layer, nn.Identity) and plain.features[0].in_channels == 1
+    # no parameters or buffers: a plain network's checkpoint keys are what they were
+    assert set(plain.state_dict()) == set(network.state_dict())
+    assert "input_features" not in plain.spec.to_dict()
+    assert "normal_scale" not in plain.spec.to_dict()
+    assert NetworkSpec(**spec.to_dict()) == spec
+    with pytest.raises(ValueError, match="input_features must be one of depth, depth_normals"):
+        NetworkSpec(classes=3, input_features="rgb")  # type: ignore[arg-type]

@@ -8,11 +8,13 @@ import pytest
 import torch
 
 from rapomdp.config import PreprocessConfig, TrainConfig
+from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
 from rapomdp.recognition.preprocess import preprocess
 from rapomdp.recognition.training import (
     LabelledViews,
     member_seed,
+    network_spec,
     train_classifier,
     validation_mask,
 )
@@ -87,6 +89,29 @@ def test_a_batch_normed_network_learns_the_toy_set_and_keeps_its_statistics():
     # one image alone is classified as within its batch
     np.testing.assert_allclose(classifier.predict(val.depth[:1]),
                                classifier.predict(val.depth)[:1], atol=1e-5)
+
+
+def test_a_normals_network_learns_the_toy_set_with_the_preprocessing_scale(tmp_path):
+    """``train.input_features: depth_normals`` trains the network with the normals layer,
+    its scale the input's depth unit over its pixel side (0.2 m · 32 px / 0.5 m), and the
+    checkpoint rebuilds it."""
+    cfg = TrainConfig(width=0.125, epochs=8, batch_size=32, dropout=0.0,
+                      input_features="depth_normals",
+                      preprocess=PreprocessConfig(input_size_px=32))
+    spec = network_spec(4, cfg)
+    assert spec.input_features == "depth_normals"
+    assert spec.normal_scale == pytest.approx(0.2 * 32 / 0.5) and spec.input_background == -1.0
+    train, val = toy_views(40, seed=1), toy_views(20, seed=2)
+    classifier, history = train_classifier(train, val, TOY_CLASSES, cfg, 144.3, 144.3, seed=0,
+                                           device=torch.device("cpu"))
+    network = classifier.network
+    assert isinstance(network, DepthAlexNet) and network.spec == spec
+    assert history.train_loss[-1] < 0.5 * history.train_loss[0]
+    assert history.val_accuracy[-1] > 0.6  # chance 0.25
+    classifier.save(tmp_path, config_hash="abc123")
+    loaded = Classifier.load(tmp_path)
+    assert loaded.network.spec == spec
+    np.testing.assert_array_equal(loaded.predict(val.depth), classifier.predict(val.depth))
 
 
 def test_training_is_deterministic_for_a_seed():

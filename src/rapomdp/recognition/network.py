@@ -11,7 +11,11 @@ ImageNet network, because no pretrained weights can be used here and the input i
 
 Dropout before the linear layer stands in for the dropout of the removed layers. With
 ``norm="batch"`` every convolution is followed by batch normalisation (before its ReLU), which
-AlexNet predates: it steadies the optimisation of a small network trained from scratch.
+AlexNet predates: it steadies the optimisation of a small network trained from scratch. With
+``input_features="depth_normals"`` a fixed first layer (:class:`SurfaceNormals`) appends the
+unit surface normal computed from the depth input, so the convolutions see local shape
+explicitly; the network's input stays the one depth channel, so preprocessing and saliency
+are unchanged.
 
 :class:`DepthEnsemble` averages the class probabilities of ``members`` such networks, each
 trained from its own seed (``train.ensemble``): the mean of independently trained networks is
@@ -30,6 +34,8 @@ from torch import nn
 ALEXNET_CHANNELS = (64, 192, 384, 256, 256)
 Norm = Literal["none", "batch"]
 NORMS: tuple[str, ...] = get_args(Norm)
+InputFeatures = Literal["depth", "depth_normals"]
+INPUT_FEATURES: tuple[str, ...] = get_args(InputFeatures)
 
 
 def _pair(value: int | tuple[int, ...]) -> tuple[int, int]:
@@ -58,9 +64,42 @@ class MaxPool2d(nn.MaxPool2d):
         return out
 
 
+class SurfaceNormals(nn.Module):
+    """(n, 1, S, S) preprocessed depth -> (n, 4, S, S): the depth and its unit surface normal.
+
+    The input is ``(reference - depth) / depth_range_m`` per pixel (near positive), so with
+    ``scale`` = depth_range_m / (the input pixel's side in metres) the normal of the surface
+    is ∝ (−scale·∂v/∂u, −scale·∂v/∂v, 1), by central differences. Its three channels are 0
+    where the pixel or one of its four neighbours is ``background`` (the silhouette, where a
+    difference would measure the jump to the background, not the surface). Not learned.
+    """
+
+    def __init__(self, scale: float, background: float) -> None:
+        super().__init__()
+        if not scale > 0:
+            raise ValueError(f"the normals' scale must be positive, got {scale}")
+        self.scale = float(scale)
+        self.background = float(background)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        padded = nn.functional.pad(x, (1, 1, 1, 1), value=self.background)
+        du = (padded[..., 1:-1, 2:] - padded[..., 1:-1, :-2]) * (0.5 * self.scale)
+        dv = (padded[..., 2:, 1:-1] - padded[..., :-2, 1:-1]) * (0.5 * self.scale)
+        inverse_length = torch.rsqrt(1.0 + du * du + dv * dv)
+        empty = padded <= self.background + 1e-6
+        surface = ~(empty[..., 1:-1, 1:-1] | empty[..., 1:-1, 2:] | empty[..., 1:-1, :-2]
+                    | empty[..., 2:, 1:-1] | empty[..., :-2, 1:-1])
+        weight = inverse_length * surface
+        return torch.cat([x, -du * weight, -dv * weight, weight], dim=1)
+
+
 @dataclass(frozen=True)
 class NetworkSpec:
-    """Everything needed to rebuild the network; stored in the checkpoint."""
+    """Everything needed to rebuild the network; stored in the checkpoint.
+
+    ``normal_scale`` and ``input_background`` are read with ``input_features`` =
+    "depth_normals" only (:class:`SurfaceNormals`'s ``scale`` and ``background``).
+    """
 
     classes: int
     input_size_px: int = 64
@@ -68,18 +107,33 @@ class NetworkSpec:
     dropout: float = 0.5
     members: int = 1
     norm: Norm = "none"
+    input_features: InputFeatures = "depth"
+    normal_scale: float = 1.0
+    input_background: float = -1.0
 
     def __post_init__(self) -> None:
         if self.norm not in NORMS:
             raise ValueError(f"norm must be one of {', '.join(NORMS)}, got {self.norm!r}")
+        if self.input_features not in INPUT_FEATURES:
+            raise ValueError(f"input_features must be one of {', '.join(INPUT_FEATURES)}, "
+                             f"got {self.input_features!r}")
 
     def to_dict(self) -> dict[str, float | int | str]:
-        """The fields; ``norm`` only when not "none", so a checkpoint's record of a network
-        without normalisation is what it was before the option."""
+        """The fields; ``norm`` only when not "none" and the input's fields only when not
+        "depth", so a checkpoint's record of a network without them is what it was before
+        the options."""
         fields = asdict(self)
         if self.norm == "none":
             del fields["norm"]
+        if self.input_features == "depth":
+            for name in ("input_features", "normal_scale", "input_background"):
+                del fields[name]
         return fields
+
+    @property
+    def input_channels(self) -> int:
+        """Channels the first convolution sees: the depth, and the normal's three."""
+        return 4 if self.input_features == "depth_normals" else 1
 
     @property
     def channels(self) -> tuple[int, ...]:
@@ -95,11 +149,15 @@ class DepthAlexNet(nn.Module):
             raise ValueError(f"input_size_px must be at least 32, got {spec.input_size_px}")
         self.spec = spec
         c1, c2, c3, c4, c5 = spec.channels
+        inputs = spec.input_channels
         first = (
-            nn.Conv2d(1, c1, kernel_size=11, stride=4, padding=2)
+            nn.Conv2d(inputs, c1, kernel_size=11, stride=4, padding=2)
             if spec.input_size_px >= 128
-            else nn.Conv2d(1, c1, kernel_size=5, stride=2, padding=2)
+            else nn.Conv2d(inputs, c1, kernel_size=5, stride=2, padding=2)
         )
+        self.input_layer: nn.Module = (
+            SurfaceNormals(spec.normal_scale, spec.input_background)
+            if spec.input_features == "depth_normals" else nn.Identity())
 
         def conv_block(conv: nn.Conv2d) -> list[nn.Module]:
             norm = [nn.BatchNorm2d(conv.out_channels)] if spec.norm == "batch" else []
@@ -116,7 +174,7 @@ class DepthAlexNet(nn.Module):
             MaxPool2d(kernel_size=3, stride=2),
         )
         with torch.no_grad():  # in evaluation mode: the probe leaves no batch statistics
-            probe = torch.zeros(1, 1, spec.input_size_px, spec.input_size_px)
+            probe = torch.zeros(1, inputs, spec.input_size_px, spec.input_size_px)
             self.feature_shape = tuple(self.features.eval()(probe).shape[1:])
         self.features.train()
         features = self.feature_shape[0] * self.feature_shape[1] * self.feature_shape[2]
@@ -130,7 +188,7 @@ class DepthAlexNet(nn.Module):
         return [m for m in self.features if isinstance(m, nn.Conv2d)][-1]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.classifier(torch.flatten(self.features(x), 1))
+        return self.classifier(torch.flatten(self.features(self.input_layer(x)), 1))
 
 
 class DepthEnsemble(nn.Module):

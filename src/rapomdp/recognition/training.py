@@ -166,9 +166,14 @@ def evaluate_inputs(
 
 
 def network_spec(classes: int, cfg: TrainConfig) -> NetworkSpec:
-    """The network a training configuration describes (one member of its ensemble)."""
-    return NetworkSpec(classes, cfg.preprocess.input_size_px, cfg.width, cfg.dropout,
-                       norm=cfg.norm)
+    """The network a training configuration describes (one member of its ensemble). The
+    normals' scale is the input's depth unit over its pixel's side at the crop's nominal
+    size (docs/recognition.md)."""
+    pre = cfg.preprocess
+    return NetworkSpec(classes, pre.input_size_px, cfg.width, cfg.dropout, norm=cfg.norm,
+                       input_features=cfg.input_features,
+                       normal_scale=pre.depth_range_m * pre.input_size_px / pre.crop_size_m,
+                       input_background=pre.background)
 
 
 def member_seed(seed: int, member: int) -> int:
