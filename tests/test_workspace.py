@@ -203,6 +203,20 @@ def test_one_run_at_a_time_and_leftovers_of_dead_runs(workspace_dir: Path) -> No
         assert holder.returncode == 1
         assert f"in use by another rapomdp run (pid {__import__('os').getpid()})" in holder.stderr
         assert WorkspaceBusyError.__name__ in holder.stderr
+        # a hard-linked copy of the workspace shares the lock: named, with what to delete
+        copy = workspace_dir.parent / "copy"
+        copy.mkdir()
+        (copy / ".rapomdp-workspace").write_bytes((workspace_dir / ".rapomdp-workspace")
+                                                  .read_bytes())
+        os.link(workspace_dir / ".lock", copy / ".lock")
+        with pytest.raises(WorkspaceBusyError, match=r"\.lock is a hard link shared with "
+                           r"another folder \(a copy made with cp -al\?\), where rapomdp run "
+                           rf"pid {os.getpid()} holds it; delete .*copy/\.lock"):
+            with Workspace(copy).locked():
+                pass
+        (copy / ".lock").unlink()
+    with Workspace(copy).locked():  # its own lock file: it runs
+        assert (copy / ".lock").stat().st_nlink == 1
 
 
 def test_a_damaged_manifest_is_named(workspace_dir: Path) -> None:

@@ -432,7 +432,13 @@ class Workspace:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
+                shared = os.fstat(fd).st_nlink > 1
                 os.close(fd)
+                if shared:  # a hard-linked copy of a workspace shares the kernel's lock
+                    raise WorkspaceBusyError(
+                        f"{self.root}: its {LOCK} is a hard link shared with another folder "
+                        f"(a copy made with cp -al?), where rapomdp run pid {holder} holds it; "
+                        f"delete {self.root / LOCK} (only this link) and rerun") from None
                 raise WorkspaceBusyError(
                     f"{self.root}: in use by another rapomdp run (pid {holder}); wait for it "
                     "to finish, or use another workspace") from None
