@@ -1,10 +1,11 @@
 """A candidate study against its baseline in the evaluate stage's held-out closed loop only:
 each method's accuracy, energy and held-out declared ECE on the volume objects (each group by
 the models and policies fitted without it), read from ``evaluate/held_out/declared_fit.json``
-seed by seed; no test episode is read. Rule: ``benchmarks/results/batch_norm_rule_v2.md``.
+seed by seed; no test episode is read. Rules: ``benchmarks/results/batch_norm_rule_v2.md``
+and ``input_normals_rule_v2.md`` (the same three conditions; ``--rule`` names the one printed).
 
     python benchmarks/batch_norm_held_out.py --baseline S1 --candidate S2 [--seeds 0 1 2 3 4]
-        [--configs learned real-cad-dev-learned] [--method ra]
+        [--configs learned real-cad-dev-learned] [--method ra] [--rule input_normals_rule_v2.md]
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     parser.add_argument("--configs", nargs="+", default=["learned", "real-cad-dev-learned"])
     parser.add_argument("--methods", nargs="+", default=["ra", "classifier", "vptree"])
+    parser.add_argument("--rule", default="batch_norm_rule_v2.md",
+                        help="the rule whose conditions are printed (its file name)")
     args = parser.parse_args()
     rule_holds = True
     for config in args.configs:
@@ -60,7 +63,7 @@ def main() -> None:
                 print(f"  rule v2 on {config}: accuracy +0.02 {checks[0]}, ECE within +0.02 "
                       f"{checks[1]}, energy within +10 % {checks[2]}")
     if "ra" in args.methods:  # the rule is on RA-POMDP's figures
-        print(f"rule v2 (batch_norm_rule_v2.md): {'adopt' if rule_holds else 'do not adopt'}")
+        print(f"rule v2 ({args.rule}): {'adopt' if rule_holds else 'do not adopt'}")
 
 
 if __name__ == "__main__":
