@@ -61,7 +61,7 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
     assert "ensemble" not in Config().section("train")
     assert {k: v for k, v in Config().section("train").items() if k != "augment"} == {
         k: v for k, v in Config().train.model_dump(mode="json").items()
-        if k not in ("ensemble", "lr_schedule", "keep", "norm", "input_features", "augment")}
+        if k not in ("ensemble", "lr_schedule", "keep", "norm", "augment")}
     assert config_from_dict({"train": {"ensemble": 3}}).section("train")["ensemble"] == 3
     assert yaml.safe_load(Config().to_yaml())["train"]["ensemble"] == 1
     assert "lr_schedule" not in Config().section("train")
@@ -69,9 +69,13 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
         "train")["lr_schedule"] == "cosine"
     assert "norm" not in Config().section("train")
     assert config_from_dict({"train": {"norm": "batch"}}).section("train")["norm"] == "batch"
-    assert "input_features" not in Config().section("train")
-    assert config_from_dict({"train": {"input_features": "depth_normals"}}).section(
-        "train")["input_features"] == "depth_normals"
+    # an option whose default changed: out of the key at the value workspaces had before it
+    assert Config().train.input_features == "depth_normals"
+    assert Config().section("train")["input_features"] == "depth_normals"
+    depth = config_from_dict({"train": {"input_features": "depth"}})
+    assert "input_features" not in depth.section("train")
+    assert {k: v for k, v in depth.section("train").items()} == {
+        k: v for k, v in Config().section("train").items() if k != "input_features"}
     # nested: train.augment's options added later, out of the key at their default
     assert Config().section("train")["augment"] == {"shift": 0.05, "scale": 0.1, "noise": False}
     on = config_from_dict({"train": {"augment": {"flip": True, "aspect": 0.15}}})

@@ -59,14 +59,18 @@ class SplitConfig(Section):
 
 def _keyed(value: BaseModel) -> dict[str, Any]:
     """``value``'s JSON data less the fields its (and its nested sections')
-    ``hash_omits_default`` names while at their default."""
+    ``hash_omits_default`` names while at their default and ``hash_omits_value`` names while
+    at the value given there."""
     data = value.model_dump(mode="json")
     for key in type(value).model_fields:
         nested = getattr(value, key)
         if isinstance(nested, BaseModel):
             data[key] = _keyed(nested)
-    for key in value.hash_omits_default if isinstance(value, Section) else ():
-        if getattr(value, key) == type(value).model_fields[key].default:
+    if not isinstance(value, Section):
+        return data
+    omitted = [(key, type(value).model_fields[key].default) for key in value.hash_omits_default]
+    for key, old in [*omitted, *value.hash_omits_value]:
+        if getattr(value, key) == old:
             data.pop(key)
     return data
 
@@ -213,9 +217,10 @@ class TrainConfig(Section):
         "none", description="normalisation after each convolution: none (AlexNet's), or batch "
         "normalisation (docs/recognition.md)")
     input_features: Literal["depth", "depth_normals"] = Field(
-        "depth", description="what the first convolution sees: the preprocessed depth, or "
-        "depth_normals: the depth and its unit surface normal, computed from it by a fixed "
-        "layer of the network (docs/recognition.md)")
+        "depth_normals", description="what the first convolution sees: the preprocessed "
+        "depth and its unit surface normal, computed from it by a fixed layer of the network "
+        "(chosen on held-out objects: docs/recognition.md), or depth alone (AlexNet's one "
+        "channel, the default before 2026-12-05)")
     epochs: int = Field(25, ge=1)
     batch_size: int = Field(128, ge=1)
     learning_rate: float = Field(
@@ -243,8 +248,9 @@ class TrainConfig(Section):
     augment: AugmentConfig = AugmentConfig()
 
     #: At their defaults, what every workspace before the options trained: out of the keys.
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "lr_schedule", "keep", "norm",
-                                                     "input_features")
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "lr_schedule", "keep", "norm")
+    #: Every workspace before the option trained on depth alone: its keys stay as they were.
+    hash_omits_value: ClassVar[tuple[tuple[str, Any], ...]] = (("input_features", "depth"),)
 
     @model_validator(mode="after")
     def _keep_needs_validation(self) -> TrainConfig:
@@ -695,7 +701,9 @@ class Config(Section):
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records); the fields a
         section's ``hash_omits_default`` names are left out at their default (options added
-        after workspaces existed, whose default is what those workspaces did)."""
+        after workspaces existed, whose default is what those workspaces did), and those
+        ``hash_omits_value`` names at the value given there (an option whose default
+        changed later)."""
         value = getattr(self, name)
         if not isinstance(value, BaseModel):
             return value

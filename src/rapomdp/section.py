@@ -47,6 +47,10 @@ class Section(BaseModel):
     #: Fields added after workspaces existed, whose default is what those workspaces did:
     #: left out of ``Config.section`` (so of every stage key) while at that default.
     hash_omits_default: ClassVar[tuple[str, ...]] = ()
+    #: Fields added after workspaces existed whose default later changed: (name, value) pairs,
+    #: each left out of the keys while at ``value``, what those workspaces did, so they stay
+    #: cached and a run at the new default makes its own artefacts.
+    hash_omits_value: ClassVar[tuple[tuple[str, Any], ...]] = ()
 
     @field_validator("*", mode="before")
     @classmethod
