@@ -31,7 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from instance_count_curve import train_recipe, volume_scores  # noqa: E402
 
-from rapomdp.config import Config  # noqa: E402
+from rapomdp.config import Config, apply_overrides, config_from_dict  # noqa: E402
 from rapomdp.data.test_views import load_xrho_views  # noqa: E402
 from rapomdp.data.training_views import load_training_views  # noqa: E402
 from rapomdp.recognition.classifier import configure_torch  # noqa: E402
@@ -45,10 +45,9 @@ LEAD_BARS = {"majority": 0.02, "view_accuracy": 0.02, "log_p_true": 0.0}
 
 
 def with_input(config: Config, features: str) -> Config:
-    """``config`` with ``train.input_features`` set, validated like a configuration file."""
-    return Config.model_validate(
-        config.model_dump(mode="json")
-        | {"train": config.train.model_dump(mode="json") | {"input_features": features}})
+    """``config`` with ``train.input_features`` set, as the command line's override sets it."""
+    return config_from_dict(apply_overrides(config.model_dump(mode="json"),
+                                            [f"train.input_features={features}"]))
 
 
 def measure(root: Path, features: list[str], threads: int) -> list[dict[str, Any]]:
