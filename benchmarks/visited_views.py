@@ -1,0 +1,94 @@
+"""Where does each method look after its first view, and are those views any good?
+
+For every workspace, each method's *later* views (every view after an episode's first) on the
+test models: their single-view accuracy on the episode's own object against that object's
+average over all of X_rho (below 0: the method moves to views worse than the object's average,
+e.g. the neighbours of a wrong start, whose labels repeat it); the held-out per-viewpoint
+accuracy of those views (the volume models' accuracy at that viewpoint, pooled over classes:
+what held-out evidence says of the views chosen); how concentrated the views are (the share of
+the five most visited); and, per observation model, how much its rows vary over viewpoints
+(the standard deviation over viewpoints of each row's mutual information I(o; c | x) under a
+uniform prior: 0 for a model that thinks every view is worth the same).
+
+A diagnostic: it reads the test models' episodes and labels, so nothing here may drive a
+choice.
+
+    python benchmarks/visited_views.py -w W [W ...] [--methods random classifier ra]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from rapomdp.awareness.evidence import recorded_evidence
+from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.io import load_npz
+from rapomdp.recognition.artefacts import load_xrho_probabilities
+
+TOP_VIEWS = 5
+
+
+def viewpoint_information(model: np.ndarray) -> np.ndarray:
+    """I(o; c | x) per viewpoint (V,) of a model P(o | c, x) (V, C, O), uniform prior on c."""
+    rows = model / model.sum(axis=2, keepdims=True)
+    marginal = rows.mean(axis=1, keepdims=True)
+    ratio = np.log(np.maximum(rows, 1e-300)) - np.log(np.maximum(marginal, 1e-300))
+    return (rows * ratio).sum(axis=2).mean(axis=1)
+
+
+def later_views(table: EpisodeTable, method: str) -> tuple[np.ndarray, np.ndarray]:
+    """The episode index and viewpoint of every view after the first of ``method``'s episodes."""
+    episodes = np.flatnonzero(table.method == method)
+    starts, ends = table.offsets[episodes] + 1, table.offsets[episodes + 1]
+    lengths = np.maximum(ends - starts, 0)
+    owner = np.repeat(episodes, lengths)
+    steps = np.concatenate([np.arange(s, e) for s, e in zip(starts, ends, strict=True)]
+                           ) if lengths.sum() else np.zeros(0, dtype=np.int64)
+    return owner, table.step_viewpoints[steps]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workspace", "-w", type=Path, nargs="+", required=True)
+    parser.add_argument("--methods", nargs="+", default=["random", "vptree", "classifier", "ra"])
+    parser.add_argument("--models", nargs="+", default=["ra", "classifier"],
+                        help="observation models whose viewpoint information is printed")
+    args = parser.parse_args()
+    print("later views: views after an episode's first; own: their accuracy on the episode's "
+          "object minus that object's mean over X_rho; held-out: the volume models' accuracy "
+          f"at those viewpoints; top {TOP_VIEWS}: share of the most visited")
+    print(f"{'workspace':40s} {'method':10s} {'views':>6s} {'accuracy':>8s} {'own':>7s} "
+          f"{'held-out':>8s} {'top ' + str(TOP_VIEWS):>6s}")
+    for root in args.workspace:
+        table = EpisodeTable.load(root / "evaluate" / EPISODES_FILE)
+        probabilities = load_xrho_probabilities(root / "classifier_eval")
+        observe = load_npz(root / "observe" / "observation_models.npz")
+        evidence = recorded_evidence(observe)
+        held_out_accuracy = evidence.correct.mean(axis=0)  # (V,)
+        for method in args.methods:
+            owner, views = later_views(table, method)
+            if views.size == 0:
+                print(f"{str(root):40s} {method:10s} {0:6d}")
+                continue
+            files = table.model[owner]
+            right = np.array([
+                probabilities.by_file[f][v].argmax() == c
+                for f, v, c in zip(files, views, table.class_index[owner], strict=True)])
+            object_mean = {f: float((probabilities.by_file[f].argmax(axis=1) == c).mean())
+                           for f, c in zip(table.model, table.class_index, strict=True)}
+            own = right.mean() - np.mean([object_mean[f] for f in files])
+            counts = np.bincount(views, minlength=held_out_accuracy.size)
+            top = np.sort(counts)[::-1][:TOP_VIEWS].sum() / counts.sum()
+            print(f"{str(root):40s} {method:10s} {views.size:6d} {right.mean():8.3f} "
+                  f"{own:+7.3f} {held_out_accuracy[views].mean():8.3f} {top:6.2f}")
+        info = {name: viewpoint_information(observe[name]) for name in args.models
+                if name in observe}
+        print(f"{str(root):40s} viewpoint information, sd over viewpoints: " + ", ".join(
+            f"{name} {values.std():.4f}" for name, values in info.items()))
+
+
+if __name__ == "__main__":
+    main()
