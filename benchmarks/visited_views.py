@@ -8,7 +8,11 @@ accuracy of those views (the volume models' accuracy at that viewpoint, pooled o
 what held-out evidence says of the views chosen); how concentrated the views are (the share of
 the five most visited); and, per observation model, how much its rows vary over viewpoints
 (the standard deviation over viewpoints of each row's mutual information I(o; c | x) under a
-uniform prior: 0 for a model that thinks every view is worth the same).
+uniform prior: 0 for a model that thinks every view is worth the same); and whether the
+per-viewpoint accuracy pooled over classes carries between held-out objects at all: for each
+volume group, the correlation over viewpoints of its objects' accuracy with the other groups'
+(smoothed by a Gaussian of ``--bandwidth-deg`` over the angle between viewpoints), averaged
+over the groups.
 
 A diagnostic: it reads the test models' episodes and labels, so nothing here may drive a
 choice.
@@ -29,6 +33,21 @@ from rapomdp.io import load_npz
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 
 TOP_VIEWS = 5
+
+
+def held_out_view_accuracy_transfer(correct: np.ndarray, groups: np.ndarray,
+                                    directions: np.ndarray, bandwidth_deg: float) -> float:
+    """Mean over volume groups of the correlation, over viewpoints, between a group's accuracy
+    and the other groups' accuracy smoothed over neighbouring viewpoints; ``correct`` (M, V)."""
+    angle = np.degrees(np.arccos(np.clip(directions @ directions.T, -1.0, 1.0)))
+    kernel = np.exp(-0.5 * (angle / bandwidth_deg) ** 2)
+    kernel /= kernel.sum(axis=1, keepdims=True)
+    names = np.unique(groups)
+    if names.size < 2:
+        return float("nan")
+    return float(np.mean([
+        np.corrcoef(kernel @ correct[groups != g].mean(axis=0),
+                    correct[groups == g].mean(axis=0))[0, 1] for g in names]))
 
 
 def viewpoint_information(model: np.ndarray) -> np.ndarray:
@@ -56,6 +75,8 @@ def main() -> None:
     parser.add_argument("--methods", nargs="+", default=["random", "vptree", "classifier", "ra"])
     parser.add_argument("--models", nargs="+", default=["ra", "classifier"],
                         help="observation models whose viewpoint information is printed")
+    parser.add_argument("--bandwidth-deg", type=float, default=20.0,
+                        help="smoothing of the held-out groups' per-viewpoint accuracy")
     args = parser.parse_args()
     print("later views: views after an episode's first; own: their accuracy on the episode's "
           "object minus that object's mean over X_rho; held-out: the volume models' accuracy "
@@ -86,8 +107,12 @@ def main() -> None:
                   f"{own:+7.3f} {held_out_accuracy[views].mean():8.3f} {top:6.2f}")
         info = {name: viewpoint_information(observe[name]) for name in args.models
                 if name in observe}
+        transfer = held_out_view_accuracy_transfer(
+            evidence.correct.astype(np.float64), evidence.groups, observe["directions"],
+            args.bandwidth_deg)
         print(f"{str(root):40s} viewpoint information, sd over viewpoints: " + ", ".join(
-            f"{name} {values.std():.4f}" for name, values in info.items()))
+            f"{name} {values.std():.4f}" for name, values in info.items())
+            + f"; held-out per-viewpoint accuracy, group against the others: r = {transfer:+.2f}")
 
 
 if __name__ == "__main__":
