@@ -16,7 +16,8 @@ the observe stage's held-out walks, and two things are measured:
   interval over held-out models.
 
     python benchmarks/held_out_belief_models.py -w W [--variants naive:temperature
-        nuisance:none similarity:fit ...] [--lambda 8] [--starts 4] [--no-loop] [--save F]
+        nuisance:none similarity:fit similarity:mixed ...] [--lambda 8] [--starts 4]
+        [--no-loop] [--save F]
     python benchmarks/held_out_belief_models.py --load A.npz B.npz   # the saved loops, paired
 """
 
@@ -47,6 +48,7 @@ from rapomdp.planning.ar_solver import solve_active_recognition
 from rapomdp.planning.momdp import build_active_recognition_problem
 from rapomdp.planning.stage import start_viewpoint
 from rapomdp.recognition.belief import (
+    DISCOUNT_JUMP,
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
     TEMPERATURE_WALKS_PER_ROW,
@@ -170,7 +172,8 @@ def main() -> None:
                                  "nuisance:temperature"],
                         help="BELIEF:CORRECTION pairs (belief naive|nuisance|similarity, "
                              "correction none|temperature; similarity:fit fits its view "
-                             "discount instead); the first is the paired reference")
+                             "discount instead, on neighbour walks, similarity:mixed on walks "
+                             "that also jump); the first is the paired reference")
     parser.add_argument("--lambda", dest="lam", type=float, default=8.0)
     parser.add_argument("--starts", type=int, default=4)
     parser.add_argument("--seconds", type=float, default=120.0, help="solver CPU budget each")
@@ -233,10 +236,12 @@ def main() -> None:
         paired = [(mask, f) for mask, f in zip(masks, folds, strict=True)]
         discounts: dict = {}
         if belief == "similarity":  # the observe stage's fit: discount and stand-in
+            # similarity:mixed fits it on walks that also jump (observe.discount_walks)
             discounts, temperatures = held_out_view_discounts(
                 evidence, paired, directions, kernel, TEMPERATURE_WALK_LENGTH,
                 TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
-                class_seed(config.seed, "observe/temperature"))
+                class_seed(config.seed, "observe/temperature"),
+                DISCOUNT_JUMP if correction == "mixed" else 0.0)
         elif correction == "none":
             temperatures = dict.fromkeys(names, 1.0)
         else:

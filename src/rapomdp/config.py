@@ -299,6 +299,8 @@ class VolumeConfig(Section):
 class ObserveConfig(Section):
     """Observation models P(o | class, viewpoint) (see docs/awareness.md)."""
 
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("discount_walks",)
+
     calibration: Literal["logistic", "isotonic"] = "logistic"
     classifier_pseudo_count: float = Field(
         0.1, gt=0, description="Classifier model: pseudo-count per (viewpoint, class, label)")
@@ -333,6 +335,11 @@ class ObserveConfig(Section):
         "same model and a declaration names a class); similarity (a later view's evidence "
         "discounted by how alike it is to the views taken, fitted on held-out walks; "
         "replaces belief_correction) (docs/awareness.md §4.6)")
+    discount_walks: Literal["neighbours", "mixed"] = Field(
+        "neighbours", description="the held-out walks the similarity belief's discount is "
+        "fitted on: neighbours (each step to a near viewpoint, as the temperature's walks) or "
+        "mixed (half the steps jump to any viewpoint, so a far view's worth and a "
+        "neighbour's repetition are told apart; docs/awareness.md §4.6)")
     wrong_labels: Literal["auto", "none"] = Field(
         "auto", description="where each model's wrong labels go: none (as counted on the "
         "held-out objects); auto (per model, mixed toward uniform by the amount of 0-1 of "

@@ -96,6 +96,26 @@ def test_random_walks_move_to_near_unvisited_viewpoints():
     assert np.degrees(np.arccos(np.clip(step, -1, 1))).max() < 35
 
 
+def test_walks_that_jump_see_far_views_and_no_jump_draws_the_neighbour_walks():
+    directions = fibonacci_directions(64, hemisphere=True)
+    starts = np.arange(64).repeat(4)
+    near = random_walks(directions, starts, 6, 6, np.random.default_rng(5))
+    assert np.array_equal(near, random_walks(directions, starts, 6, 6,
+                                             np.random.default_rng(5), jump=0.0))
+    mixed = random_walks(directions, starts, 6, 6, np.random.default_rng(5), jump=0.5)
+    assert np.array_equal(mixed[:, 0], starts)
+    assert all(len(set(w)) == 6 for w in mixed.tolist())  # every view new
+    step = np.einsum("ij,ij->i", directions[mixed[:, :-1]].reshape(-1, 3),
+                     directions[mixed[:, 1:]].reshape(-1, 3))
+    angle = np.degrees(np.arccos(np.clip(step, -1, 1)))
+    assert 0.3 < np.mean(angle > 35) < 0.6  # about half the steps jump, most of them far
+    assert np.mean(angle < 35) > 0.4
+    always = random_walks(directions, starts, 6, 6, np.random.default_rng(5), jump=1.0)
+    far = np.einsum("ij,ij->i", directions[always[:, :-1]].reshape(-1, 3),
+                    directions[always[:, 1:]].reshape(-1, 3))
+    assert np.mean(np.degrees(np.arccos(np.clip(far, -1, 1))) > 35) > 0.8
+
+
 def test_after_first_leaves_independent_evidence_alone_and_discounts_only_later_views():
     rng = np.random.default_rng(13)
     views, rows, p, labels, predicted, walk_row, walks = _planted_walks(rng)

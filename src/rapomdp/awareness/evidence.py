@@ -806,15 +806,17 @@ def view_similarity_kernel(similarity: np.ndarray, directions: np.ndarray,
 def held_out_view_discounts(evidence: Evidence,
                             folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
                             directions: np.ndarray, similarity: np.ndarray, length: int,
-                            starts_per_row: int, neighbours: int, rng: np.random.Generator
+                            starts_per_row: int, neighbours: int, rng: np.random.Generator,
+                            jump: float = 0.0
                             ) -> tuple[dict[str, ViewDiscount], dict[str, float]]:
     """Per model, the view discount fitted on random walks over the held-out groups' outcomes
-    (the walks :func:`held_out_temperatures` draws with the same ``rng``), each group's beliefs
+    (with ``jump`` 0 the walks :func:`held_out_temperatures` draws with the same ``rng``; with
+    ``jump`` > 0 some steps go anywhere, so far views are seen too), each group's beliefs
     updated by the models fitted without it, and the planner's stand-in temperature: the mean
     weight of the views after the first on those walks."""
     row_model = fold_of_rows([held for held, _ in folds], len(evidence.labels))
     walks, walk_row = held_out_walks(row_model, directions, rng, length, starts_per_row,
-                                     neighbours)
+                                     neighbours, jump)
     discounts, stand_ins = {}, {}
     for name in (n for n in folds[0][1] if all(n in m for _, m in folds)):
         models = [m[name].probabilities for _, m in folds]

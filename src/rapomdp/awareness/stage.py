@@ -117,6 +117,7 @@ from rapomdp.progress import track
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 from rapomdp.recognition.belief import (
     DECLARED_STOP_THRESHOLDS,
+    DISCOUNT_JUMP,
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
     TEMPERATURE_WALKS_PER_ROW,
@@ -504,7 +505,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         discounts, stand_ins = held_out_view_discounts(
             evidence, folds, directions, discount_kernel, TEMPERATURE_WALK_LENGTH,
             TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
-            class_seed(config.seed, "observe/temperature"))
+            class_seed(config.seed, "observe/temperature"),
+            DISCOUNT_JUMP if config.observe.discount_walks == "mixed" else 0.0)
         for name, t in stand_ins.items():
             corrections[name], temperatures[name] = "similarity", t
     corrections["ra"] = corrections.get(f"ra_{variant}", "none")

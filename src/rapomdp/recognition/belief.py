@@ -31,6 +31,9 @@ TEMPERATURE_WALKS_PER_ROW = 16
 """Walks started (at random viewpoints) per held-out outcome row."""
 TEMPERATURE_NEIGHBOURS = 8
 """A walk moves to one of this many nearest viewpoints not yet visited."""
+DISCOUNT_JUMP = 0.5
+"""With ``observe.discount_walks: mixed``, the share of the view discount's walk steps that
+jump to any unvisited viewpoint instead of a neighbour, so that far views are seen too."""
 
 
 # -- the calibration of a confidence ---------------------------------------------------------
@@ -117,9 +120,11 @@ class ViewDiscount:
 
 
 def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighbours: int,
-                 rng: np.random.Generator) -> np.ndarray:
+                 rng: np.random.Generator, jump: float = 0.0) -> np.ndarray:
     """Viewpoint sequences (E, length): from each start, moves to a random one of the
-    ``neighbours`` nearest viewpoints not yet visited (the shape of an active episode)."""
+    ``neighbours`` nearest viewpoints not yet visited (the shape of an active episode); with
+    ``jump`` > 0 each step instead goes, with that probability, to a uniformly drawn unvisited
+    viewpoint, near or far (``jump`` = 0 draws exactly the neighbour walks)."""
     d = np.asarray(directions, dtype=np.float64)
     angle = np.arccos(np.clip(d @ d.T, -1.0, 1.0))
     np.fill_diagonal(angle, np.inf)
@@ -136,7 +141,11 @@ def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighb
         pick = candidates[rows, keys.argmax(axis=1)]
         # a walk boxed in by visited neighbours stays where it is (no new evidence)
         stuck = ~fresh.any(axis=1)
-        walks[:, t] = np.where(stuck, walks[:, t - 1], pick)
+        step = np.where(stuck, walks[:, t - 1], pick)
+        if jump > 0.0:
+            anywhere = np.where(visited, -1.0, rng.random(visited.shape)).argmax(axis=1)
+            step = np.where(rng.random(len(starts)) < jump, anywhere, step)
+        walks[:, t] = step
         visited[rows, walks[:, t]] = True
     return walks
 
@@ -323,13 +332,14 @@ def fold_of_rows(held: Sequence[np.ndarray], rows: int) -> np.ndarray:
 def held_out_walks(row_model: np.ndarray, directions: np.ndarray, rng: np.random.Generator,
                    length: int = TEMPERATURE_WALK_LENGTH,
                    starts_per_row: int = TEMPERATURE_WALKS_PER_ROW,
-                   neighbours: int = TEMPERATURE_NEIGHBOURS
+                   neighbours: int = TEMPERATURE_NEIGHBOURS, jump: float = 0.0
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Random walks (E, length) over ``directions`` (V, 3), ``starts_per_row`` from random
-    viewpoints per held-out row (``row_model`` >= 0), and each walk's row (E,)."""
+    viewpoints per held-out row (``row_model`` >= 0), and each walk's row (E,); ``jump``: as
+    :func:`random_walks`."""
     walk_row = np.repeat(np.flatnonzero(row_model >= 0), starts_per_row)
     starts = rng.integers(0, len(directions), size=walk_row.size)
-    return random_walks(directions, starts, length, neighbours, rng), walk_row
+    return random_walks(directions, starts, length, neighbours, rng, jump), walk_row
 
 
 def walk_calibration(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
