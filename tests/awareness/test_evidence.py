@@ -528,3 +528,39 @@ def test_shrunk_folds_shrink_the_named_models_wrong_labels_and_keep_the_rest():
     assert models["b"] is folds[0][1]["b"]
     idx = np.arange(3)
     assert np.allclose(models["a"].probabilities[:, idx, idx], p[:, idx, idx])
+
+
+def _patch_evidence(rng: np.random.Generator) -> tuple[Evidence, list, np.ndarray, np.ndarray]:
+    """Planted evidence whose labels repeat within a patch of neighbouring viewpoints and are
+    independent between patches (12 patches of 96 viewpoints, 3 classes, right 0.7 a patch),
+    3 groups, one right-0.7 model per fold, and the similarity 'same patch'."""
+    from rapomdp.awareness.observation import ObservationModel
+
+    directions = fibonacci_directions(96, hemisphere=True)
+    patch = np.argmax(directions @ fibonacci_directions(12, hemisphere=True).T, axis=1)
+    rows, classes = 300, 3
+    labels = rng.integers(0, classes, rows)
+    right = rng.random((rows, 12)) < 0.7
+    wrong = (labels[:, None] + rng.integers(1, classes, (rows, 12))) % classes
+    predicted = np.where(right, labels[:, None], wrong)[:, patch]
+    groups = np.arange(rows) % 3
+    model = np.full((96, classes, classes), 0.15)
+    model[:, np.arange(classes), np.arange(classes)] = 0.7
+    folds = [(groups == g, {"m": ObservationModel(model, ["a", "b", "c"])}) for g in range(3)]
+    same = (patch[:, None] == patch[None, :]).astype(np.float64)
+    return Evidence(labels, predicted, groups), folds, directions, same
+
+
+def test_the_view_discount_on_walks_that_jump_sees_more_new_views():
+    """A repeat within a patch counts ~nothing and a view of a new patch in full, fitted on
+    neighbour walks or on walks that also jump; the jumping walks take more new views, so the
+    planner's stand-in (the mean later weight) is larger."""
+    from rapomdp.awareness.evidence import held_out_view_discounts
+
+    evidence, folds, directions, same = _patch_evidence(np.random.default_rng(3))
+    fits = {jump: held_out_view_discounts(evidence, folds, directions, same, 6, 16, 8,
+                                          np.random.default_rng(1), jump)
+            for jump in (0.0, 0.5)}
+    for discounts, _ in fits.values():
+        assert discounts["m"].scale > 0.85 and discounts["m"].redundancy > 0.9
+    assert fits[0.5][1]["m"] > fits[0.0][1]["m"] + 0.1
