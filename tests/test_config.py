@@ -85,10 +85,12 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
     assert config_from_dict({"dataset": {"auto_volume_models": 6}}).section(
         "dataset")["auto_volume_models"] == 6
     assert "discount_walks" not in Config().section("observe")
-    assert config_from_dict({"observe": {"discount_walks": "mixed"}}).section(
-        "observe")["discount_walks"] == "mixed"
+    mixed = {"belief": "similarity", "discount_walks": "mixed"}
+    assert config_from_dict({"observe": mixed}).section("observe")["discount_walks"] == "mixed"
     with pytest.raises(ConfigError, match="discount_walks"):
-        config_from_dict({"observe": {"discount_walks": "far"}})
+        config_from_dict({"observe": {"belief": "similarity", "discount_walks": "far"}})
+    with pytest.raises(ConfigError, match="discount_walks applies to belief: similarity only"):
+        config_from_dict({"observe": {"discount_walks": "mixed"}})
 
 
 def test_auto_volume_models_needs_split_auto_and_at_least_three() -> None:

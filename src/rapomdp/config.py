@@ -355,6 +355,13 @@ class ObserveConfig(Section):
         "first view in full, the later ones tempered; auto: per model, the one of least "
         "held-out belief log loss")
 
+    @model_validator(mode="after")
+    def _discount_walks_need_similarity(self) -> ObserveConfig:
+        if self.discount_walks != "neighbours" and self.belief != "similarity":
+            raise ValueError("discount_walks applies to belief: similarity only (the view "
+                             f"discount it fits); belief is {self.belief!r}")
+        return self
+
 
 Vector3 = tuple[float, float, float]
 
