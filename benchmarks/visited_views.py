@@ -89,18 +89,18 @@ def main() -> None:
         observe = load_npz(root / "observe" / "observation_models.npz")
         evidence = recorded_evidence(observe)
         held_out_accuracy = evidence.correct.mean(axis=0)  # (V,)
+        files = sorted(set(str(f) for f in table.model))
+        predicted = np.stack([probabilities.by_file[f].argmax(axis=1) for f in files])  # (M, V)
+        index = {f: i for i, f in enumerate(files)}
+        episode_object = np.array([index[str(f)] for f in table.model])
+        right_at = predicted[episode_object] == table.class_index[:, None]  # (E, V)
         for method in args.methods:
             owner, views = later_views(table, method)
             if views.size == 0:
                 print(f"{str(root):40s} {method:10s} {0:6d}")
                 continue
-            files = table.model[owner]
-            right = np.array([
-                probabilities.by_file[f][v].argmax() == c
-                for f, v, c in zip(files, views, table.class_index[owner], strict=True)])
-            object_mean = {f: float((probabilities.by_file[f].argmax(axis=1) == c).mean())
-                           for f, c in zip(table.model, table.class_index, strict=True)}
-            own = right.mean() - np.mean([object_mean[f] for f in files])
+            right = right_at[owner, views]
+            own = right.mean() - right_at[owner].mean(axis=1).mean()
             counts = np.bincount(views, minlength=held_out_accuracy.size)
             top = np.sort(counts)[::-1][:TOP_VIEWS].sum() / counts.sum()
             print(f"{str(root):40s} {method:10s} {views.size:6d} {right.mean():8.3f} "
