@@ -29,6 +29,7 @@ import numpy as np
 
 from rapomdp.awareness.evidence import recorded_evidence
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.geometry.viewsphere import geodesic_distance_matrix
 from rapomdp.io import load_npz
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 
@@ -39,7 +40,7 @@ def held_out_view_accuracy_transfer(correct: np.ndarray, groups: np.ndarray,
                                     directions: np.ndarray, bandwidth_deg: float) -> float:
     """Mean over volume groups of the correlation, over viewpoints, between a group's accuracy
     and the other groups' accuracy smoothed over neighbouring viewpoints; ``correct`` (M, V)."""
-    angle = np.degrees(np.arccos(np.clip(directions @ directions.T, -1.0, 1.0)))
+    angle = np.degrees(geodesic_distance_matrix(directions, radius_m=1.0))
     kernel = np.exp(-0.5 * (angle / bandwidth_deg) ** 2)
     kernel /= kernel.sum(axis=1, keepdims=True)
     names = np.unique(groups)
@@ -64,9 +65,9 @@ def later_views(table: EpisodeTable, method: str) -> tuple[np.ndarray, np.ndarra
     starts, ends = table.offsets[episodes] + 1, table.offsets[episodes + 1]
     lengths = np.maximum(ends - starts, 0)
     owner = np.repeat(episodes, lengths)
-    steps = np.concatenate([np.arange(s, e) for s, e in zip(starts, ends, strict=True)]
-                           ) if lengths.sum() else np.zeros(0, dtype=np.int64)
-    return owner, table.step_viewpoints[steps]
+    # each step's index: its episode's first later step plus its rank within the episode
+    rank = np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    return owner, table.step_viewpoints[np.repeat(starts, lengths) + rank]
 
 
 def main() -> None:
