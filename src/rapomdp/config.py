@@ -319,7 +319,7 @@ class ObserveConfig(Section):
         False, description="also fit ra_contrastive: each class's saliency volume against its "
         "most confused class (one more mask per volume-model view)")
     ra_model: Literal["auto", "paper", "class", "area", "class_area", "contrastive",
-                      "viewpoint", "transfer"] = Field(
+                      "viewpoint", "region", "transfer"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")
     transfer_shrinkage: bool = Field(

@@ -60,6 +60,7 @@ RA_VARIANTS = {
     "class_area": ("area", True),  # the salient area seen + per-class intercepts
     "contrastive": ("contrastive", True),  # a class against its most confused (observe.contrastive)
     "viewpoint": ("area", True),  # + the held-out per-viewpoint evidence, stacked
+    "region": ("area", True),  # + the held-out accuracy per viewpoint pooled over classes
     "transfer": ("similarity", False),  # whole rows shared by views that see the same saliency
 }
 """RA variant -> (viewpoint score it calibrates, per-class intercepts?)."""
@@ -133,30 +134,47 @@ def _angle_deg(directions: np.ndarray) -> np.ndarray:
 
 
 def viewpoint_logit(labels: np.ndarray, predicted: np.ndarray, classes: int,
-                    directions: np.ndarray) -> np.ndarray:
+                    directions: np.ndarray, pooled: bool = False) -> np.ndarray:
     """Logit (C, V) of the classifier's accuracy at each (class, viewpoint) on the evidence,
     kernel-smoothed over neighbouring viewpoints (Gaussian in the angle) and shrunk to the
-    class's accuracy by :data:`VIEWPOINT_PRIOR` pseudo-observations."""
+    class's accuracy by :data:`VIEWPOINT_PRIOR` pseudo-observations. ``pooled``: the accuracy
+    at each viewpoint over every class together (the same row for each class) — a region of
+    viewpoints bad for all classes (e.g. looking straight down) is seen on every object, where
+    one class's own viewpoints rest on its two or three — centred over the viewpoints: it says
+    which views are harder, the classes' intercepts say how hard. (Uncentred, its level would
+    be the other groups' accuracy, which in leave-one-group-out stacking falls as the held-out
+    group's rises: the fit read that as a falling weight.)"""
     kernel = np.exp(-0.5 * (_angle_deg(directions) / VIEWPOINT_BANDWIDTH_DEG) ** 2)  # (V, V)
     onehot = np.eye(classes)[labels]  # (N, C)
-    right = onehot.T @ (predicted == labels[:, None]).astype(np.float64)  # (C, V)
+    if pooled:
+        onehot = np.ones((labels.size, 1))
+    right = onehot.T @ (predicted == labels[:, None]).astype(np.float64)  # (C or 1, V)
     seen = np.broadcast_to(onehot.sum(axis=0)[:, None], right.shape)
     accuracy = (right.sum(axis=1) + 0.5) / (seen.sum(axis=1) + 1.0)  # (C,)
     q = (right @ kernel.T + VIEWPOINT_PRIOR * accuracy[:, None]) / (
         seen @ kernel.T + VIEWPOINT_PRIOR)
     q = np.clip(q, 1e-3, 1 - 1e-3)
-    return np.log(q / (1 - q))
+    logit = np.log(q / (1 - q))
+    if pooled:
+        logit -= logit.mean()
+    return np.broadcast_to(logit, (classes, directions.shape[0])).copy()
+
+
+VIEWPOINT_METHOD = "logistic_score_and_viewpoint_evidence"
+"""calibration.json ``method`` of ``ra_viewpoint``'s fit."""
+REGION_METHOD = "logistic_score_and_region_evidence"
+"""calibration.json ``method`` of ``ra_region``'s fit."""
 
 
 @dataclass
 class FixedCorrectness:
     """P(correct) (C, V) fitted beforehand (a calibration whose input is already used):
-    ``sigmoid(a_c + b * score + e * viewpoint logit)`` for ``ra_viewpoint``."""
+    ``sigmoid(a_c + b * score + e * viewpoint logit)`` for ``ra_viewpoint`` and ``ra_region``."""
 
     correct: np.ndarray
     intercepts: np.ndarray
     weights: np.ndarray
-    method: str = "logistic_score_and_viewpoint_evidence"
+    method: str = VIEWPOINT_METHOD
 
     def __call__(self, scores: np.ndarray) -> np.ndarray:
         return np.clip(self.correct, 1e-3, 1 - 1e-3)
@@ -168,8 +186,10 @@ class FixedCorrectness:
 
 
 def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: int,
-                              directions: np.ndarray) -> FixedCorrectness | None:
-    """``ra_viewpoint``: the saliency score and the held-out per-viewpoint evidence together.
+                              directions: np.ndarray, pooled: bool = False
+                              ) -> FixedCorrectness | None:
+    """``ra_viewpoint`` (``ra_region`` when ``pooled``: the accuracy per viewpoint over every
+    class): the saliency score and the held-out per-viewpoint evidence together.
     The weights are fitted by stacking — each group's rows see the viewpoint logit computed
     from the *other* groups only — so the evidence is never scored on itself; the final
     logit uses every group. None with a single group (nothing to stack on)."""
@@ -179,7 +199,7 @@ def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: in
     features, targets, class_of = [], [], []
     for g in groups:
         held, rest = evidence.subset(evidence.groups == g), evidence.subset(evidence.groups != g)
-        logit = viewpoint_logit(rest.labels, rest.predicted, classes, directions)
+        logit = viewpoint_logit(rest.labels, rest.predicted, classes, directions, pooled)
         rows = np.broadcast_to(held.labels[:, None], held.predicted.shape)
         features.append(np.stack([score[rows, np.arange(score.shape[1])],
                                   logit[rows, np.arange(score.shape[1])]], -1).reshape(-1, 2))
@@ -193,9 +213,10 @@ def fit_viewpoint_correctness(evidence: Evidence, score: np.ndarray, classes: in
     while np.any(w[classes:] < 0):  # monotone in both: drop a falling feature, refit
         x[:, classes + int(np.argmin(w[classes:]))] = 0.0
         w = ridge_logistic(x, y.astype(np.float64), 1e-2)
-    final = viewpoint_logit(evidence.labels, evidence.predicted, classes, directions)
+    final = viewpoint_logit(evidence.labels, evidence.predicted, classes, directions, pooled)
     z = w[:classes, None] + w[classes] * score + w[classes + 1] * final
-    return FixedCorrectness(1.0 / (1.0 + np.exp(-z)), w[:classes].copy(), w[classes:].copy())
+    return FixedCorrectness(1.0 / (1.0 + np.exp(-z)), w[:classes].copy(), w[classes:].copy(),
+                            REGION_METHOD if pooled else VIEWPOINT_METHOD)
 
 
 SALIENT_VIEW_POWER = 4.0
@@ -428,8 +449,8 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
     ``evidence`` (only those in ``names`` when given); ``scores`` holds the per-class
     normalised viewpoint scores (C, V) by kind (``mean``, ``area``) and, under
     ``similarity``, the (C, V, V) saliency similarity of the viewpoints
-    (:func:`salient_view_similarity`). ``ra_viewpoint`` needs the viewpoints' ``directions``
-    and two groups of evidence, ``ra_transfer`` the directions and the similarity (its kernel:
+    (:func:`salient_view_similarity`). ``ra_viewpoint`` and ``ra_region`` need the
+    viewpoints' ``directions`` and two groups of evidence, ``ra_transfer`` the directions and the similarity (its kernel:
     ``transfer_kernel``)."""
     labels, predicted = evidence.labels, evidence.predicted
     rows = np.broadcast_to(labels[:, None], predicted.shape)
@@ -441,7 +462,7 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
         return names is None or name in names
 
     for variant, (kind, per_class) in RA_VARIANTS.items():
-        if kind not in scores or variant in ("viewpoint", "transfer") or \
+        if kind not in scores or variant in ("viewpoint", "region", "transfer") or \
                 not wanted(f"ra_{variant}"):
             continue
         s = scores[kind]
@@ -449,11 +470,13 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
                        else calibrate_correctness(s[labels], correct, cfg.calibration))
         models[f"ra_{variant}"] = RAObservationModel(s, calibration, wrong, classes)
     if directions is not None:
-        kind = RA_VARIANTS["viewpoint"][0]
-        fused = (fit_viewpoint_correctness(evidence, scores[kind], len(classes), directions)
-                 if wanted("ra_viewpoint") else None)
-        if fused is not None:
-            models["ra_viewpoint"] = RAObservationModel(scores[kind], fused, wrong, classes)
+        for variant in ("viewpoint", "region"):
+            kind = RA_VARIANTS[variant][0]
+            fused = (fit_viewpoint_correctness(evidence, scores[kind], len(classes), directions,
+                                               pooled=variant == "region")
+                     if wanted(f"ra_{variant}") else None)
+            if fused is not None:
+                models[f"ra_{variant}"] = RAObservationModel(scores[kind], fused, wrong, classes)
         if "similarity" in scores and wanted("ra_transfer"):  # (C, V, V): ra_transfer's
             models["ra_transfer"] = TransferObservationModel(
                 transfer_confusion(evidence, scores["similarity"], directions,

@@ -38,6 +38,8 @@ NO_SCORE_MAP = {
                              "saliency",
     "logistic_score_and_viewpoint_evidence": "its P(correct) also reads the held-out "
                                              "per-viewpoint evidence",
+    "logistic_score_and_region_evidence": "its P(correct) also reads the held-out accuracy "
+                                          "per viewpoint pooled over the classes",
 }
 #: The x axis of calibration.png per viewpoint score.
 SCORE_AXES = {"mean": "normalised mean saliency seen (Eq. 6)",

@@ -430,8 +430,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     variant = choice.variant
     if variant == "contrastive" and not cfg.contrastive:
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
-    if variant == "viewpoint" and len(np.unique(evidence.groups)) < 2:
-        raise StageError("observe.ra_model 'viewpoint' stacks over groups of held-out "
+    if variant in ("viewpoint", "region") and len(np.unique(evidence.groups)) < 2:
+        raise StageError(f"observe.ra_model '{variant}' stacks over groups of held-out "
                          "evidence: use two or more volume models per class "
                          "(dataset.split.volume) or set observe.evidence to crossfit or both")
     fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
