@@ -450,8 +450,8 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
     normalised viewpoint scores (C, V) by kind (``mean``, ``area``) and, under
     ``similarity``, the (C, V, V) saliency similarity of the viewpoints
     (:func:`salient_view_similarity`). ``ra_viewpoint`` and ``ra_region`` need the
-    viewpoints' ``directions`` and two groups of evidence, ``ra_transfer`` the directions and the similarity (its kernel:
-    ``transfer_kernel``)."""
+    viewpoints' ``directions`` and two groups of evidence, ``ra_transfer`` the directions and
+    the similarity (its kernel: ``transfer_kernel``)."""
     labels, predicted = evidence.labels, evidence.predicted
     rows = np.broadcast_to(labels[:, None], predicted.shape)
     correct = predicted == rows
