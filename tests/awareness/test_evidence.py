@@ -174,7 +174,9 @@ def test_viewpoint_evidence_is_stacked_on_other_groups_and_finds_a_bad_patch():
     right = rng.random(p_right.shape) < p_right
     predicted = np.where(right, labels[:, None], 1 - labels[:, None])
     logit = viewpoint_logit(labels, predicted, 2, directions)
-    assert logit[0, bad].mean() < 0.0 < logit[0, ~bad].mean() - 1.2  # smoothed, still apart
+    assert logit[0, bad].mean() < 0.0 < logit[0, ~bad].mean()  # centred over the viewpoints
+    assert logit[0, ~bad].mean() - logit[0, bad].mean() > 1.2  # smoothed, still apart
+    assert np.allclose(logit.mean(axis=1), 0.0)
     assert abs(logit[1, bad].mean() - logit[1, ~bad].mean()) < 0.6
     evidence = Evidence(labels, predicted, np.tile(np.arange(4), 2))
     flat = np.full((2, 64), 0.5)  # a score that says nothing
@@ -247,6 +249,30 @@ def test_region_weight_is_not_misled_by_the_held_out_groups_levels():
                                       pooled=True)
     assert fused is not None and fused.weights[1] > 0.3
     assert fused.correct[:, bad].mean() < fused.correct[:, ~bad].mean() - 0.08
+
+
+def test_auto_never_chooses_a_configured_only_variant_but_a_configuration_may():
+    """A region bad for every class is ra_region's best case; it is still left out of auto's
+    comparison (its closed-loop rule failed), and chosen when named."""
+    from rapomdp.awareness.evidence import CONFIGURED_ONLY
+
+    rng = np.random.default_rng(3)
+    directions = fibonacci_directions(64, hemisphere=True)
+    bad = directions[:, 2] > 0.7
+    classes = 4
+    labels = np.repeat(np.arange(classes), 4)
+    right = rng.random((labels.size, 64)) < np.where(bad, 0.1, 0.9)[None]
+    predicted = np.where(right, labels[:, None], (labels[:, None] + 1) % classes)
+    evidence = Evidence(labels, predicted, np.tile(np.arange(4), classes))
+    flat = np.full((classes, 64), 0.5)
+    names = [str(c) for c in range(classes)]
+    folds = leave_one_group_out(evidence, {"mean": flat, "area": flat}, names, ObserveConfig(),
+                                directions)
+    assert "region" in CONFIGURED_ONLY and all("ra_region" in m for _, m in folds)
+    choice = choose_ra_variant(evidence, folds, "auto", names)
+    assert choice.variant != "region" and "region" not in choice.held_out
+    assert choice.variant == "viewpoint"  # the per-class region term finds it too
+    assert choose_ra_variant(evidence, folds, "region", names).variant == "region"
 
 
 def test_salient_view_similarity_is_one_for_the_same_parts_and_zero_for_disjoint_ones():

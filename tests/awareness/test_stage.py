@@ -24,7 +24,7 @@ TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"], "split": 
         # the cross-fitted evidence too (the default is the volume models alone)
         "observe": {**TINY_PIPELINE["observe"], "evidence": "both"}}
 MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint",
-          "ra_transfer", "classifier", "blackbox")
+          "ra_region", "ra_transfer", "classifier", "blackbox")
 
 
 @pytest.fixture(scope="module")

@@ -136,14 +136,15 @@ def _angle_deg(directions: np.ndarray) -> np.ndarray:
 def viewpoint_logit(labels: np.ndarray, predicted: np.ndarray, classes: int,
                     directions: np.ndarray, pooled: bool = False) -> np.ndarray:
     """Logit (C, V) of the classifier's accuracy at each (class, viewpoint) on the evidence,
-    kernel-smoothed over neighbouring viewpoints (Gaussian in the angle) and shrunk to the
-    class's accuracy by :data:`VIEWPOINT_PRIOR` pseudo-observations. ``pooled``: the accuracy
-    at each viewpoint over every class together (the same row for each class) — a region of
-    viewpoints bad for all classes (e.g. looking straight down) is seen on every object, where
-    one class's own viewpoints rest on its two or three — centred over the viewpoints: it says
-    which views are harder, the classes' intercepts say how hard. (Uncentred, its level would
-    be the other groups' accuracy, which in leave-one-group-out stacking falls as the held-out
-    group's rises: the fit read that as a falling weight.)"""
+    kernel-smoothed over neighbouring viewpoints (Gaussian in the angle), shrunk to the
+    class's accuracy by :data:`VIEWPOINT_PRIOR` pseudo-observations, and centred over the
+    viewpoints: it says which views are harder, the class intercepts of the models that read
+    it say how hard. (Uncentred, its level would be the other groups' accuracy, which in
+    leave-one-group-out stacking falls as the held-out group's rises: the fit read that as a
+    falling weight, docs/awareness.md §4.2.) ``pooled``: the accuracy at each viewpoint over
+    every class together (the same row for each class) — a region of viewpoints bad for all
+    classes (e.g. looking straight down) is seen on every object, where one class's own
+    viewpoints rest on its two or three."""
     kernel = np.exp(-0.5 * (_angle_deg(directions) / VIEWPOINT_BANDWIDTH_DEG) ** 2)  # (V, V)
     onehot = np.eye(classes)[labels]  # (N, C)
     if pooled:
@@ -155,8 +156,7 @@ def viewpoint_logit(labels: np.ndarray, predicted: np.ndarray, classes: int,
         seen @ kernel.T + VIEWPOINT_PRIOR)
     q = np.clip(q, 1e-3, 1 - 1e-3)
     logit = np.log(q / (1 - q))
-    if pooled:
-        logit -= logit.mean()
+    logit -= logit.mean(axis=1, keepdims=True)
     return np.broadcast_to(logit, (classes, directions.shape[0])).copy()
 
 
@@ -538,6 +538,10 @@ keeps while the best variant is not better by more than one standard error: per-
 intercepts (each class's held-out accuracy, the effect that dominates and is always estimable)
 and one shared saliency slope b ≥ 0 (b = 0 is the black box's diagonal). Chosen a priori, on
 its number of free parameters, not on any measurement."""
+CONFIGURED_ONLY = frozenset({"region"})
+"""RA variants fitted and reported but used only when configured by name, never by ``auto``:
+``region`` joined ``auto`` (as its robust default) only if the held-out closed loop supported it,
+and it did not (benchmarks/results/region_model_rule.md)."""
 MIN_HELD_OUT_OBJECTS = 2
 """Held-out objects every class needs for ``auto`` to choose: with fewer, some class's variants
 would be compared on one object or none (docs/awareness.md §4.4)."""
@@ -607,7 +611,7 @@ def choose_ra_variant(evidence: Evidence,
     counts = np.bincount(evidence.labels[covered], minlength=len(classes))
     objects = {name: int(n) for name, n in zip(classes, counts, strict=True)}
     ra = {name.removeprefix("ra_"): ll for name, ll in per_object.items()
-          if name.startswith("ra_")}
+          if name.startswith("ra_") and name.removeprefix("ra_") not in CONFIGURED_ONLY}
     if counts.min() < MIN_HELD_OUT_OBJECTS or ROBUST_RA_VARIANT not in ra:
         short = [f"'{name}' ({n})" for name, n in objects.items() if n < MIN_HELD_OUT_OBJECTS]
         reason = (f"too little held-out evidence to choose: class {', '.join(short[:5])}"
