@@ -12,7 +12,10 @@ uniform prior: 0 for a model that thinks every view is worth the same); and whet
 per-viewpoint accuracy pooled over classes carries between held-out objects at all: for each
 volume group, the correlation over viewpoints of its objects' accuracy with the other groups'
 (smoothed by a Gaussian of ``--bandwidth-deg`` over the angle between viewpoints), averaged
-over the groups.
+over the groups. Where the views are: the mean elevation of each method's later views (90° is
+straight down on the object) and, per workspace, the held-out accuracy in elevation bands of
+``--band-deg`` pooled over classes, per volume group, with the count of groups whose top band is
+their worst.
 
 A diagnostic: it reads the test models' episodes and labels, so nothing here may drive a
 choice.
@@ -29,7 +32,7 @@ import numpy as np
 
 from rapomdp.awareness.evidence import recorded_evidence
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
-from rapomdp.geometry.viewsphere import geodesic_distance_matrix
+from rapomdp.geometry.viewsphere import azimuth_zenith, geodesic_distance_matrix
 from rapomdp.io import load_npz
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 
@@ -49,6 +52,17 @@ def held_out_view_accuracy_transfer(correct: np.ndarray, groups: np.ndarray,
     return float(np.mean([
         np.corrcoef(kernel @ correct[groups != g].mean(axis=0),
                     correct[groups == g].mean(axis=0))[0, 1] for g in names]))
+
+
+def band_accuracy(correct: np.ndarray, groups: np.ndarray, elevation_deg: np.ndarray,
+                  band_deg: float) -> np.ndarray:
+    """Accuracy (G, B) of each volume group's objects in each elevation band of ``band_deg``
+    (from 0° to 90°), pooled over classes; ``correct`` (M, V)."""
+    band = np.minimum((elevation_deg // band_deg).astype(np.int64), int(np.ceil(90 / band_deg)) - 1)
+    count = np.bincount(band, minlength=band.max() + 1)
+    return np.stack([np.bincount(band, weights=correct[groups == g].mean(axis=0),
+                                 minlength=count.size) / np.maximum(count, 1)
+                     for g in np.unique(groups)])
 
 
 def viewpoint_information(model: np.ndarray) -> np.ndarray:
@@ -78,18 +92,23 @@ def main() -> None:
                         help="observation models whose viewpoint information is printed")
     parser.add_argument("--bandwidth-deg", type=float, default=20.0,
                         help="smoothing of the held-out groups' per-viewpoint accuracy")
+    parser.add_argument("--band-deg", type=float, default=15.0,
+                        help="width of the elevation bands of the held-out accuracy")
     args = parser.parse_args()
     print("later views: views after an episode's first; own: their accuracy on the episode's "
           "object minus that object's mean over X_rho; held-out: the volume models' accuracy "
-          f"at those viewpoints; top {TOP_VIEWS}: share of the most visited")
+          f"at those viewpoints; top {TOP_VIEWS}: share of the most visited; elev.: their mean "
+          "elevation (degrees)")
     print(f"{'workspace':40s} {'method':10s} {'views':>6s} {'accuracy':>8s} {'own':>7s} "
-          f"{'held-out':>8s} {'top ' + str(TOP_VIEWS):>6s}")
+          f"{'held-out':>8s} {'top ' + str(TOP_VIEWS):>6s} {'elev.':>6s}")
+    top_worst, cells = 0, 0
     for root in args.workspace:
         table = EpisodeTable.load(root / "evaluate" / EPISODES_FILE)
         probabilities = load_xrho_probabilities(root / "classifier_eval")
         observe = load_npz(root / "observe" / "observation_models.npz")
         evidence = recorded_evidence(observe)
         held_out_accuracy = evidence.correct.mean(axis=0)  # (V,)
+        elevation = 90.0 - np.degrees(azimuth_zenith(observe["directions"])[1])
         files = sorted(set(str(f) for f in table.model))
         predicted = np.stack([probabilities.by_file[f].argmax(axis=1) for f in files])  # (M, V)
         index = {f: i for i, f in enumerate(files)}
@@ -105,7 +124,8 @@ def main() -> None:
             counts = np.bincount(views, minlength=held_out_accuracy.size)
             top = np.sort(counts)[::-1][:TOP_VIEWS].sum() / counts.sum()
             print(f"{str(root):40s} {method:10s} {views.size:6d} {right.mean():8.3f} "
-                  f"{own:+7.3f} {held_out_accuracy[views].mean():8.3f} {top:6.2f}")
+                  f"{own:+7.3f} {held_out_accuracy[views].mean():8.3f} {top:6.2f} "
+                  f"{elevation[views].mean():6.1f}")
         info = {name: viewpoint_information(observe[name]) for name in args.models
                 if name in observe}
         transfer = held_out_view_accuracy_transfer(
@@ -114,6 +134,14 @@ def main() -> None:
         print(f"{str(root):40s} viewpoint information, sd over viewpoints: " + ", ".join(
             f"{name} {values.std():.4f}" for name, values in info.items())
             + f"; held-out per-viewpoint accuracy, group against the others: r = {transfer:+.2f}")
+        bands = band_accuracy(evidence.correct.astype(np.float64), evidence.groups, elevation,
+                              args.band_deg)
+        top_worst += int((bands.argmin(axis=1) == bands.shape[1] - 1).sum())
+        cells += bands.shape[0]
+        print(f"{str(root):40s} held-out accuracy per {args.band_deg:g}° elevation band "
+              "(low to high), per volume group: "
+              + "; ".join(" ".join(f"{a:.2f}" for a in row) for row in bands))
+    print(f"the top elevation band is a volume group's worst in {top_worst} of {cells}")
 
 
 if __name__ == "__main__":
