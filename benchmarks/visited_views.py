@@ -15,7 +15,8 @@ volume group, the correlation over viewpoints of its objects' accuracy with the 
 over the groups. Where the views are: the mean elevation of each method's later views (90° is
 straight down on the object) and, per workspace, the held-out accuracy in elevation bands of
 ``--band-deg`` pooled over classes, per volume group, with the count of groups whose top band is
-their worst.
+their worst, and the mean movement energy from every reachable viewpoint to the reachable
+viewpoints of each band (the top of a hemisphere is its hub: near everything).
 
 A diagnostic: it reads the test models' episodes and labels, so nothing here may drive a
 choice.
@@ -31,10 +32,12 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.evidence import recorded_evidence
+from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.geometry.viewsphere import azimuth_zenith, geodesic_distance_matrix
 from rapomdp.io import load_npz
 from rapomdp.recognition.artefacts import load_xrho_probabilities
+from rapomdp.robot.artefacts import load_robot
 
 TOP_VIEWS = 5
 
@@ -63,6 +66,18 @@ def band_accuracy(correct: np.ndarray, groups: np.ndarray, elevation_deg: np.nda
     return np.stack([np.bincount(band, weights=correct[groups == g].mean(axis=0),
                                  minlength=count.size) / np.maximum(count, 1)
                      for g in np.unique(groups)])
+
+
+def band_energy(energy: np.ndarray, reachable: np.ndarray, elevation_deg: np.ndarray,
+                band_deg: float) -> np.ndarray:
+    """Mean movement energy (B,) from every reachable viewpoint to the other reachable
+    viewpoints of each elevation band (NaN for a band with none)."""
+    band = np.minimum((elevation_deg // band_deg).astype(np.int64), int(np.ceil(90 / band_deg)) - 1)
+    moves = reachable[:, None] & reachable[None, :] & ~np.eye(reachable.size, dtype=bool)
+    total = np.bincount(band, weights=np.where(moves, energy, 0.0).sum(axis=0),
+                        minlength=band.max() + 1)
+    count = np.bincount(band, weights=moves.sum(axis=0), minlength=band.max() + 1)
+    return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
 def viewpoint_information(model: np.ndarray) -> np.ndarray:
@@ -141,6 +156,10 @@ def main() -> None:
         print(f"{str(root):40s} held-out accuracy per {args.band_deg:g}° elevation band "
               "(low to high), per volume group: "
               + "; ".join(" ".join(f"{a:.2f}" for a in row) for row in bands))
+        motion = Motion.from_robot(load_robot(root / "robot"))
+        to_band = band_energy(motion.energy, motion.reachable, elevation, args.band_deg)
+        print(f"{str(root):40s} mean energy (m) from the reachable viewpoints to each band: "
+              + " ".join(f"{e:.3f}" for e in to_band))
     print(f"the top elevation band is a volume group's worst in {top_worst} of {cells}")
 
 
