@@ -321,7 +321,8 @@ class ObserveConfig(Section):
     ra_model: Literal["auto", "paper", "class", "area", "class_area", "contrastive",
                       "viewpoint", "region", "transfer"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
-        "variant with the best held-out log-likelihood (leave-one-group-out over the evidence)")
+        "variant with the best held-out log-likelihood (leave-one-group-out over the evidence; "
+        "'region', the accuracy per viewpoint pooled over classes, only when named)")
     transfer_shrinkage: bool = Field(
         False, description="ra_transfer's kernel choice also scores shrinking each class row's "
         "accuracy toward the accuracy pooled over every class (by 0-64 objects' worth, chosen "
