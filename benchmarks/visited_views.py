@@ -16,7 +16,9 @@ over the groups. Where the views are: the mean elevation of each method's later 
 straight down on the object) and, per workspace, the held-out accuracy in elevation bands of
 ``--band-deg`` pooled over classes, per volume group, with the count of groups whose top band is
 their worst, and the mean movement energy from every reachable viewpoint to the reachable
-viewpoints of each band (the top of a hemisphere is its hub: near everything).
+viewpoints of each band (the top of a hemisphere is its hub: near everything), and what the
+chosen RA model believes of each band held out: its mean P(correct) there, each volume group
+scored by the models fitted without it, beside that band's held-out accuracy.
 
 A diagnostic: it reads the test models' episodes and labels, so nothing here may drive a
 choice.
@@ -31,13 +33,19 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import recorded_evidence
+from rapomdp.awareness.evidence import (
+    RecordedObservation,
+    leave_one_group_out,
+    observed_probabilities,
+    recorded_evidence,
+)
 from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.geometry.viewsphere import azimuth_zenith, geodesic_distance_matrix
 from rapomdp.io import load_npz
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 from rapomdp.robot.artefacts import load_robot
+from rapomdp.workspace import Workspace
 
 TOP_VIEWS = 5
 
@@ -78,6 +86,28 @@ def band_energy(energy: np.ndarray, reachable: np.ndarray, elevation_deg: np.nda
                         minlength=band.max() + 1)
     count = np.bincount(band, weights=moves.sum(axis=0), minlength=band.max() + 1)
     return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+def held_out_band_belief(root: Path, elevation_deg: np.ndarray, band_deg: float
+                         ) -> tuple[str, np.ndarray]:
+    """The chosen RA model's name and its mean held-out P(correct) (B,) per elevation band: each
+    volume group scored by the models fitted on the other groups, as the observe stage fits
+    them."""
+    recorded = RecordedObservation.load(root / "observe")
+    evidence = recorded.evidence
+    folds = leave_one_group_out(evidence, recorded.scores, recorded.classes,
+                                Workspace(root).config().observe,
+                                recorded.arrays["directions"], recorded.transfer_kernel)
+    p_correct = np.full(evidence.predicted.shape, np.nan)
+    for held, models in folds:
+        part = evidence.subset(held)
+        p_correct[held] = observed_probabilities(models[recorded.variant].probabilities,
+                                                 part.labels, part.predicted)[1]
+    band = np.minimum((elevation_deg // band_deg).astype(np.int64), int(np.ceil(90 / band_deg)) - 1)
+    per_view = np.nanmean(p_correct, axis=0)
+    count = np.bincount(band, minlength=band.max() + 1)
+    return recorded.variant, np.bincount(band, weights=per_view,
+                                         minlength=count.size) / np.maximum(count, 1)
 
 
 def viewpoint_information(model: np.ndarray) -> np.ndarray:
@@ -160,6 +190,12 @@ def main() -> None:
         to_band = band_energy(motion.energy, motion.reachable, elevation, args.band_deg)
         print(f"{str(root):40s} mean energy (m) from the reachable viewpoints to each band: "
               + " ".join(f"{e:.3f}" for e in to_band))
+        variant, believed = held_out_band_belief(root, elevation, args.band_deg)
+        actual = band_accuracy(evidence.correct.astype(np.float64),
+                               np.zeros(len(evidence.labels), dtype=np.int64), elevation,
+                               args.band_deg)[0]
+        print(f"{str(root):40s} {variant} held out, P(correct) / accuracy per band: "
+              + " ".join(f"{p:.2f}/{a:.2f}" for p, a in zip(believed, actual, strict=True)))
     print(f"the top elevation band is a volume group's worst in {top_worst} of {cells}")
 
 
