@@ -17,11 +17,16 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
         [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead]
         [--lookahead-depth 1|2] [--lookahead-width N] [--save F]
         [--wrong-labels none|recorded] [--volume-labels F.npz] [--declared]
-        [--fit-groups K]
+        [--fit-groups K] [--region-weight W]
 
 ``--fit-groups K``: each held-out group's models are fitted on K of the other groups only (the
 next K after it, cyclically) instead of all of them: how the held-out accuracy grows with the
 evidence the models are counted on (the temperatures stay the recorded ones).
+
+``--region-weight W``: RA-POMDP's model (``ra``) made region-aware, an experiment: each
+held-out group's P(correct | c, x) moved on the logit scale by W times the other groups'
+accuracy per viewpoint pooled over classes (centred, ``viewpoint_logit(pooled=True)``), the
+wrong labels rescaled to keep their proportions; the temperature stays the recorded one.
 
 ``--declared``: the declared confidence (``evaluate.declared_confidence``, docs/awareness.md
 §4.8) at each method's held-out stops: confidence − accuracy and ECE of the belief, of the
@@ -46,6 +51,7 @@ from rapomdp.awareness.evidence import (
     held_out_temperatures,
     leave_one_group_out,
     shrink_wrong_labels,
+    viewpoint_logit,
 )
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
@@ -136,6 +142,18 @@ def _gap(confidence: np.ndarray, right: np.ndarray) -> str:
             f"{expected_calibration_error(confidence, right):.3f}")
 
 
+def region_shifted(model: np.ndarray, region_logit: np.ndarray, weight: float) -> np.ndarray:
+    """``model`` (V, C, C) with P(correct | c, x) moved by ``weight`` × ``region_logit`` (V,)
+    on the logit scale, each row's wrong labels rescaled to the rest of the mass."""
+    c = model.shape[1]
+    idx = np.arange(c)
+    right = np.clip(model[:, idx, idx], 1e-6, 1 - 1e-6)  # (V, C)
+    moved = 1.0 / (1.0 + np.exp(-(np.log(right / (1 - right)) + weight * region_logit[:, None])))
+    out = model * ((1.0 - moved) / (1.0 - right))[:, :, None]
+    out[:, idx, idx] = moved
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workspace", "-w", type=Path, required=True)
@@ -194,6 +212,8 @@ def main() -> None:
                         help="every moving method's belief starts from a class prior by the "
                              "object's measured size (size_prior.py: fitted on the training "
                              "models) instead of the uniform one")
+    parser.add_argument("--region-weight", type=float, default=0.0, metavar="W",
+                        help="RA-POMDP's model made region-aware by W (above); 0: as fitted")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -267,6 +287,9 @@ def main() -> None:
                                         scores, classes, config.observe,
                                         observe["directions"], kernel)
         fitted["ra"] = fitted[variant]
+        rest = evidence.subset(np.isin(evidence.groups, others))
+        region = viewpoint_logit(rest.labels, rest.predicted, len(classes),
+                                 observe["directions"], pooled=True)[0]
         part = evidence.subset(held)
         for name in ("random", *args.models):
             held_labels, held_predicted = part.labels, part.predicted
@@ -285,6 +308,8 @@ def main() -> None:
                 if args.wrong_labels == "recorded":
                     single = shrink_wrong_labels(single, calibration.get(
                         "wrong_labels", {}).get(key, {}).get("amount", 0.0))
+                if name == "ra" and args.region_weight:
+                    single = region_shifted(single, region, args.region_weight)
                 if args.temperature is not None:
                     planner = first = temper(single, args.temperature)
                 else:
