@@ -65,11 +65,17 @@ def held_out_view_accuracy_transfer(correct: np.ndarray, groups: np.ndarray,
                     correct[groups == g].mean(axis=0))[0, 1] for g in names]))
 
 
+def elevation_band(elevation_deg: np.ndarray, band_deg: float) -> np.ndarray:
+    """Each viewpoint's elevation band (V,): 0 for [0, band_deg), the last one ending at 90°."""
+    return np.minimum((elevation_deg // band_deg).astype(np.int64),
+                      int(np.ceil(90 / band_deg)) - 1)
+
+
 def band_accuracy(correct: np.ndarray, groups: np.ndarray, elevation_deg: np.ndarray,
                   band_deg: float) -> np.ndarray:
     """Accuracy (G, B) of each volume group's objects in each elevation band of ``band_deg``
     (from 0° to 90°), pooled over classes; ``correct`` (M, V)."""
-    band = np.minimum((elevation_deg // band_deg).astype(np.int64), int(np.ceil(90 / band_deg)) - 1)
+    band = elevation_band(elevation_deg, band_deg)
     count = np.bincount(band, minlength=band.max() + 1)
     return np.stack([np.bincount(band, weights=correct[groups == g].mean(axis=0),
                                  minlength=count.size) / np.maximum(count, 1)
@@ -80,7 +86,7 @@ def band_energy(energy: np.ndarray, reachable: np.ndarray, elevation_deg: np.nda
                 band_deg: float) -> np.ndarray:
     """Mean movement energy (B,) from every reachable viewpoint to the other reachable
     viewpoints of each elevation band (NaN for a band with none)."""
-    band = np.minimum((elevation_deg // band_deg).astype(np.int64), int(np.ceil(90 / band_deg)) - 1)
+    band = elevation_band(elevation_deg, band_deg)
     moves = reachable[:, None] & reachable[None, :] & ~np.eye(reachable.size, dtype=bool)
     total = np.bincount(band, weights=np.where(moves, energy, 0.0).sum(axis=0),
                         minlength=band.max() + 1)
@@ -103,7 +109,7 @@ def held_out_band_belief(root: Path, elevation_deg: np.ndarray, band_deg: float
         part = evidence.subset(held)
         p_correct[held] = observed_probabilities(models[recorded.variant].probabilities,
                                                  part.labels, part.predicted)[1]
-    band = np.minimum((elevation_deg // band_deg).astype(np.int64), int(np.ceil(90 / band_deg)) - 1)
+    band = elevation_band(elevation_deg, band_deg)
     per_view = np.nanmean(p_correct, axis=0)
     count = np.bincount(band, minlength=band.max() + 1)
     return recorded.variant, np.bincount(band, weights=per_view,
