@@ -288,8 +288,9 @@ def main() -> None:
                                         observe["directions"], kernel)
         fitted["ra"] = fitted[variant]
         rest = evidence.subset(np.isin(evidence.groups, others))
-        region = viewpoint_logit(rest.labels, rest.predicted, len(classes),
-                                 observe["directions"], pooled=True)[0]
+        region = (viewpoint_logit(rest.labels, rest.predicted, len(classes),
+                                  observe["directions"], pooled=True)[0]
+                  if args.region_weight else None)
         part = evidence.subset(held)
         for name in ("random", *args.models):
             held_labels, held_predicted = part.labels, part.predicted
@@ -308,7 +309,7 @@ def main() -> None:
                 if args.wrong_labels == "recorded":
                     single = shrink_wrong_labels(single, calibration.get(
                         "wrong_labels", {}).get(key, {}).get("amount", 0.0))
-                if name == "ra" and args.region_weight:
+                if name == "ra" and region is not None:
                     single = region_shifted(single, region, args.region_weight)
                 if args.temperature is not None:
                     planner = first = temper(single, args.temperature)
