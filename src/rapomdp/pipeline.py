@@ -155,9 +155,10 @@ STAGES: list[Stage] = [
         run=_deferred("observe"),
         sections=OBSERVE_SECTIONS,
         inputs=("dataset", "render", "train", "xrho", "classifier_eval", "volume", "crossfit"),
-        version="4",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence; 3: the
+        version="5",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence; 3: the
         # declared confidence fitted where held-out walks stop; 4: by the confidence's
-        # cross-entropy, and at each stop threshold
+        # cross-entropy, and at each stop threshold; 5: ra_viewpoint's stacked term centred,
+        # ra_region fitted
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
     Stage(

@@ -64,6 +64,9 @@ RA_VARIANTS = {
     "transfer": ("similarity", False),  # whole rows shared by views that see the same saliency
 }
 """RA variant -> (viewpoint score it calibrates, per-class intercepts?)."""
+STACKED_VARIANTS = ("viewpoint", "region")
+"""The RA variants whose per-viewpoint term is stacked over groups of held-out evidence (they
+need two groups or more)."""
 
 @dataclass
 class Evidence:
@@ -462,7 +465,7 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
         return names is None or name in names
 
     for variant, (kind, per_class) in RA_VARIANTS.items():
-        if kind not in scores or variant in ("viewpoint", "region", "transfer") or \
+        if kind not in scores or variant in (*STACKED_VARIANTS, "transfer") or \
                 not wanted(f"ra_{variant}"):
             continue
         s = scores[kind]
@@ -470,7 +473,7 @@ def fit_observation_models(evidence: Evidence, scores: dict[str, np.ndarray],
                        else calibrate_correctness(s[labels], correct, cfg.calibration))
         models[f"ra_{variant}"] = RAObservationModel(s, calibration, wrong, classes)
     if directions is not None:
-        for variant in ("viewpoint", "region"):
+        for variant in STACKED_VARIANTS:
             kind = RA_VARIANTS[variant][0]
             fused = (fit_viewpoint_correctness(evidence, scores[kind], len(classes), directions,
                                                pooled=variant == "region")

@@ -61,6 +61,7 @@ from rapomdp.awareness.artefacts import (
 from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit_outcomes
 from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
+    STACKED_VARIANTS,
     Evidence,
     ShrinkageChoice,
     TransferKernel,
@@ -430,7 +431,7 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     variant = choice.variant
     if variant == "contrastive" and not cfg.contrastive:
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
-    if variant in ("viewpoint", "region") and len(np.unique(evidence.groups)) < 2:
+    if variant in STACKED_VARIANTS and len(np.unique(evidence.groups)) < 2:
         raise StageError(f"observe.ra_model '{variant}' stacks over groups of held-out "
                          "evidence: use two or more volume models per class "
                          "(dataset.split.volume) or set observe.evidence to crossfit or both")
