@@ -50,6 +50,7 @@ from rapomdp.awareness.evidence import (
     fit_observation_models,
     held_out_temperatures,
     leave_one_group_out,
+    shift_level,
     shrink_wrong_labels,
     viewpoint_logit,
 )
@@ -140,18 +141,6 @@ def _gap(confidence: np.ndarray, right: np.ndarray) -> str:
     """'confidence − accuracy / ECE'."""
     return (f"{confidence.mean() - right.mean():+.3f} / "
             f"{expected_calibration_error(confidence, right):.3f}")
-
-
-def region_shifted(model: np.ndarray, region_logit: np.ndarray, weight: float) -> np.ndarray:
-    """``model`` (V, C, C) with P(correct | c, x) moved by ``weight`` × ``region_logit`` (V,)
-    on the logit scale, each row's wrong labels rescaled to the rest of the mass."""
-    c = model.shape[1]
-    idx = np.arange(c)
-    right = np.clip(model[:, idx, idx], 1e-6, 1 - 1e-6)  # (V, C)
-    moved = 1.0 / (1.0 + np.exp(-(np.log(right / (1 - right)) + weight * region_logit[:, None])))
-    out = model * ((1.0 - moved) / (1.0 - right))[:, :, None]
-    out[:, idx, idx] = moved
-    return out
 
 
 def main() -> None:
@@ -310,7 +299,7 @@ def main() -> None:
                     single = shrink_wrong_labels(single, calibration.get(
                         "wrong_labels", {}).get(key, {}).get("amount", 0.0))
                 if name == "ra" and region is not None:
-                    single = region_shifted(single, region, args.region_weight)
+                    single = shift_level(single, args.region_weight * region)
                 if args.temperature is not None:
                     planner = first = temper(single, args.temperature)
                 else:

@@ -654,3 +654,24 @@ def test_the_view_discount_on_walks_that_jump_sees_more_new_views():
     for discounts, _ in fits.values():
         assert discounts["m"].scale > 0.85 and discounts["m"].redundancy > 0.9
     assert fits[0.5][1]["m"] > fits[0.0][1]["m"] + 0.1
+
+
+def test_shift_level_moves_p_correct_by_one_shift_or_one_per_viewpoint():
+    from rapomdp.awareness.evidence import shift_level
+
+    rng = np.random.default_rng(2)
+    p = rng.dirichlet(np.ones(4), size=(5, 4))  # (V, C, C)
+    idx = np.arange(4)
+
+    def logit(q: np.ndarray) -> np.ndarray:
+        return np.log(q / (1 - q))
+
+    for shift in (0.7, np.array([-1.0, 0.0, 0.5, 2.0, -0.3])):
+        out = shift_level(p, shift)
+        assert np.allclose(out.sum(axis=2), 1.0)
+        moved = logit(out[:, idx, idx]) - logit(p[:, idx, idx])
+        assert np.allclose(moved, np.broadcast_to(np.reshape(shift, (-1, 1)), moved.shape))
+        wrong = ~np.eye(4, dtype=bool)
+        ratio = out[:, wrong].reshape(5, 4, 3) / p[:, wrong].reshape(5, 4, 3)
+        assert np.allclose(ratio, ratio[:, :, :1])  # the wrong labels keep their proportions
+    assert np.array_equal(shift_level(p, 0.0), p) and shift_level(p, np.zeros(5)) is not p

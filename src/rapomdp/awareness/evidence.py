@@ -787,15 +787,17 @@ def fit_softmax_temperature(probabilities: np.ndarray, labels: np.ndarray,
 
 # -- the classifier's level ----------------------------------------------------------------
 
-def shift_level(probabilities: np.ndarray, shift: float) -> np.ndarray:
-    """The model with P(correct | c, x) moved by ``shift`` on the logit scale and the wrong
-    labels rescaled to the rest (their proportions kept). 0 returns the model."""
+def shift_level(probabilities: np.ndarray, shift: float | np.ndarray) -> np.ndarray:
+    """The model with P(correct | c, x) moved by ``shift`` on the logit scale — one number, or
+    one per viewpoint (V,) — and the wrong labels rescaled to the rest (their proportions
+    kept). 0 returns the model."""
     p = np.asarray(probabilities, dtype=np.float64)
-    if shift == 0.0:
+    by_view = np.asarray(shift, dtype=np.float64)
+    if not np.any(by_view):
         return p.copy()
     idx = np.arange(p.shape[1])
     right = np.clip(p[:, idx, idx], 1e-12, 1 - 1e-12)  # (V, C)
-    moved = 1.0 / (1.0 + np.exp(-(np.log(right / (1 - right)) + shift)))
+    moved = 1.0 / (1.0 + np.exp(-(np.log(right / (1 - right)) + by_view.reshape(-1, 1))))
     out = p * ((1.0 - moved) / (1.0 - right))[:, :, None]
     out[:, idx, idx] = moved
     return out
