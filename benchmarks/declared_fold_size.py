@@ -66,7 +66,7 @@ def one_group_a(ws: Workspace, name: str) -> tuple[float, int]:
             rows = (evidence.groups == g) & evidence.volume_mask
             fold = HeldOutFold(int(g), evidence.labels[rows], evidence.predicted[rows],
                                model, model)
-            log_b, truth, _, _, _ = held_out_stops(
+            log_b, truth, *_ = held_out_stops(
                 config, POMDPPolicy.configured(config.evaluate, plan, model, name,
                                                motion.reachable, first_view_model=model),
                 fold, motion)

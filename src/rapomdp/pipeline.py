@@ -189,7 +189,8 @@ STAGES: list[Stage] = [
     Stage(
         name="evaluate",
         run=_deferred("evaluate"),
-        version="2",  # 2: the learned baseline reports with its held-out closed-loop a
+        version="3",  # 2: the learned baseline reports with its held-out closed-loop a;
+        # 3: every method's held-out closed loop compared (held_out/comparison.json)
         sections=EVALUATE_SECTIONS,
         inputs=("dataset", "train", "classifier_eval", "observe", "vptree", "robot", "solve",
                 "learn"),

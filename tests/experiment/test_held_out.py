@@ -16,12 +16,21 @@ from rapomdp.experiment.held_out import (
     DECLARED_FIT_FILE,
     HELD_OUT_DIR,
     HELD_OUT_STARTS,
+    HeldOutRun,
+    HeldOutStops,
     closed_loop_declared,
     closed_loop_skipped,
+    held_out_comparison,
     held_out_folds,
+    held_out_runs,
     load_declared_fit,
+    load_held_out_comparison,
 )
-from rapomdp.experiment.report import closed_loop_cells
+from rapomdp.experiment.report import (
+    closed_loop_cells,
+    held_out_comparison_cells,
+    held_out_comparison_story,
+)
 from rapomdp.io import read_json
 from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.planning.stage import declared_temperatures
@@ -242,3 +251,88 @@ def test_the_views_form_needs_the_closed_loop():
         config_from_dict({"evaluate": {"declared_form": "views", "declared_fit": "walks"}})
     with pytest.raises(ValueError, match="form must be one of scalar, views"):
         closed_loop_declared(Config(), StageInputs("evaluate"), ["ra"], Path("x"), form="n")
+
+
+def test_every_method_runs_on_the_held_out_objects_paired_with_ra(workspace):
+    ws, config = workspace
+    record = load_held_out_comparison(ws.require("evaluate"))
+    reachable = int(load_robot(ws.require("robot"))["reachable"].sum())
+    episodes = 2 * 3 * min(HELD_OUT_STARTS, reachable)  # groups x classes x starts
+    assert record["reference"] == "ra" and record["unpaired"] == []
+    assert set(record["methods"]) == set(config.evaluate.methods)
+    for row in record["methods"].values():
+        assert row["episodes"] == episodes and row["objects"] == 2 * 3
+    # the declared confidence is fitted on these same episodes
+    fits = read_json(ws.require("evaluate") / HELD_OUT_DIR / DECLARED_FIT_FILE)["methods"]
+    for name in FITTED:
+        assert record["methods"][name]["accuracy"] == fits[name]["accuracy"], name
+    assert set(record["paired"]) == set(config.evaluate.methods) - {"ra"}
+    for name, paired in record["paired"].items():  # the same pairs: a difference of means
+        assert paired["difference"] == pytest.approx(
+            record["methods"][name]["accuracy"] - record["methods"]["ra"]["accuracy"])
+        assert paired["low"] <= paired["difference"] <= paired["high"]
+        assert paired["pairs"] == episodes and paired["objects"] == 2 * 3
+    report = (ws.require("report") / "report.md").read_text()
+    assert held_out_comparison_story(record) in report
+    assert "What held-out objects say, before any test model is read" in report
+
+
+def test_static_declares_its_start_views_label_on_the_held_out_objects(workspace, tmp_path):
+    ws, config = workspace
+    runs, skipped = held_out_runs(config, _inputs(ws), ["static", "ra"], tmp_path)
+    assert skipped == {}
+    static, ra = runs["static"], runs["ra"]
+    label_at = {(f.group, int(c)): f.predicted[r]
+                for f in held_out_folds(config, _inputs(ws), ["ra"])["ra"]
+                for r, c in enumerate(f.labels)}
+    expected = [label_at[(int(g), int(c))][s] == c for g, c, s in
+                zip(static.groups, static.stops.truth, static.stops.starts, strict=True)]
+    np.testing.assert_array_equal(static.stops.correct, expected)
+    assert np.all(static.stops.energy == 0) and np.all(static.stops.images == 1)
+    np.testing.assert_array_equal(static.pairs(), ra.pairs())  # the same starts
+
+
+def _run(groups: list[int], truth: list[int], starts: list[int], correct: list[int]
+         ) -> HeldOutRun:
+    n = len(truth)
+    return HeldOutRun(HeldOutStops(np.zeros((n, 2)), np.array(truth), np.array(correct, bool),
+                                   np.ones(n), np.ones(n, dtype=int), np.array(starts)),
+                      np.array(groups))
+
+
+def test_the_comparison_pairs_by_object_and_start_whatever_the_order():
+    ra = _run([0, 0, 1, 1], [0, 1, 0, 1], [5, 6, 5, 6], [1, 1, 0, 1])
+    reordered = _run([1, 1, 0, 0], [1, 0, 1, 0], [6, 5, 6, 5], [1, 1, 1, 1])
+    other_start = _run([0, 0, 1, 1], [0, 1, 0, 1], [7, 6, 5, 6], [1, 1, 1, 1])
+    record = held_out_comparison({"ra": ra, "random": reordered, "vptree": other_start})
+    assert record["methods"]["ra"] == {"accuracy": 0.75, "energy_m": 1.0, "episodes": 4,
+                                       "objects": 4}
+    assert record["unpaired"] == ["vptree"]
+    paired = record["paired"]["random"]
+    assert paired["difference"] == pytest.approx(0.25)
+    assert (paired["pairs"], paired["objects"]) == (4, 4)
+    # resampling the 4 objects: the one RA got wrong is drawn 0 times with p = 0.32 and 4 times
+    # with p = 0.004 < 0.025 < p(3 or more) = 0.051
+    assert paired["low"] == 0.0 and paired["high"] == pytest.approx(0.75)
+    assert paired["per_object"] == {"objects": ["0/0", "0/1", "1/0", "1/1"],
+                                    "sums": [0.0, 0.0, 1.0, 0.0], "pairs": [1, 1, 1, 1]}
+    assert record["order"] == ["ra", "random", "vptree"]
+
+
+def test_the_comparison_story_says_where_the_intervals_leave_zero():
+    record = {"reference": "ra", "methods": {},
+              "paired": {"static": {"difference": -0.1, "low": -0.15, "high": -0.05,
+                                    "pairs": 48, "objects": 12},
+                         "random": {"difference": 0.02, "low": -0.03, "high": 0.07,
+                                    "pairs": 48, "objects": 12}}, "unpaired": []}
+    assert held_out_comparison_story(record) == (
+        "On the 12 held-out objects, with 95 % intervals that resample them, RA-POMDP is more "
+        "accurate than Static (by 0.100); not distinguishable from Random.")
+    record["methods"] = {"ra": {"accuracy": 0.5, "energy_m": 1.25, "episodes": 48},
+                         "static": {"accuracy": 0.4, "energy_m": 0.0, "episodes": 48},
+                         "vptree": {"accuracy": 0.3, "energy_m": 2.0, "episodes": 40}}
+    header, rows = held_out_comparison_cells(record)
+    assert header[3] == "Δ accuracy vs RA-POMDP [95 %, held-out objects]"
+    assert rows == [["RA-POMDP", "0.500", "1.25", "—", "48"],
+                    ["Static", "0.400", "0.00", "-0.100 [-0.150, -0.050]", "48"],
+                    ["VP-tree", "0.300", "2.00", "not paired", "40"]]

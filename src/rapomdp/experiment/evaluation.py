@@ -17,6 +17,10 @@ number of workers). Writes into the stage folder:
   method solved (``sweep/lambda_<λ>/``) and run at each ``evaluate.lambdas``, Random at each
   ``evaluate.random_thresholds``, the learned baseline (``learned``) at each λ the learn stage
   trained it at, Static one point; Table 1's settings are points of it;
+- ``held_out/comparison.json``: every method run on the held-out volume models (the
+  classifier's recorded labels, each observation model fitted without the object's group):
+  accuracy, energy and the paired difference to RA-POMDP resampling held-out objects, what
+  held-out objects say about the methods on this dataset before any test model is read;
 - ``held_out/declared_fit.json`` (``evaluate.declared_fit`` closed_loop): where the POMDP
   methods and the learned baseline stop in their held-out closed loop and the a fitted there
   (:mod:`rapomdp.experiment.held_out`);
@@ -64,7 +68,14 @@ from rapomdp.experiment.episode_table import (
     EpisodeTable,
     episodes_csv,
 )
-from rapomdp.experiment.held_out import HELD_OUT_DIR, ClosedLoopFit, closed_loop_declared
+from rapomdp.experiment.held_out import (
+    COMPARISON_FILE,
+    HELD_OUT_DIR,
+    ClosedLoopFit,
+    closed_loop_declared,
+    held_out_comparison,
+    held_out_runs,
+)
 from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
 from rapomdp.experiment.sections import LEARNED
@@ -444,6 +455,12 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
         solve_sweep(config, inputs, sweep_dir, context)
     solved_s = time.perf_counter() - began
     cfg = config.evaluate
+    # every method on the held-out volume models, compared before any test model is read
+    runs = held_out_runs(config, inputs, cfg.methods, out / HELD_OUT_DIR, context,
+                         per_fold=cfg.declared_fit == "closed_loop_per_fold")
+    if runs[0]:
+        write_json_atomic(out / HELD_OUT_DIR / COMPARISON_FILE,
+                          held_out_comparison(runs[0], PAIRED_REFERENCE, seed=config.seed))
     fits: dict[str, ClosedLoopFit] = {}
     if cfg.declared_fit != "walks" and cfg.declared_confidence == "calibrated":
         # the POMDPs' declared confidence, fitted where they stop on held-out objects
@@ -453,7 +470,7 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
                                                      if m not in skipped],
                                     out / HELD_OUT_DIR, context,
                                     per_fold=cfg.declared_fit == "closed_loop_per_fold",
-                                    form=cfg.declared_form)
+                                    form=cfg.declared_form, runs=runs)
     held_out_s = time.perf_counter() - began - solved_s
     records, dataset = run_episodes(config, inputs, context, sweep_dir,
                                     {name: fit.declared.readout for name, fit in fits.items()})

@@ -12,10 +12,10 @@ recorded labels are read, never the test models.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, get_args
+from typing import Any, NamedTuple, get_args
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, Policy, run_episode
 from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
-from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy
+from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
 from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import load_npz, read_json, write_json_atomic
 from rapomdp.parallel import run_tasks
@@ -140,16 +140,27 @@ def closed_loop_skipped(config: Config, name: str) -> str:
             "(dataset.split.volume; observe.evidence crossfit has none)")
 
 
+class HeldOutStops(NamedTuple):
+    """One method's episodes on held-out models: the final log beliefs (episodes, C), the true
+    class, whether the declaration was right, the movement energy (m), the images taken and
+    the start viewpoint of each."""
+
+    log_beliefs: np.ndarray
+    truth: np.ndarray
+    correct: np.ndarray
+    energy: np.ndarray
+    images: np.ndarray
+    starts: np.ndarray
+
+
 def held_out_stops(config: Config, policy: Policy, fold: HeldOutFold, motion: Motion,
-                   starts: int = HELD_OUT_STARTS
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The final log beliefs (M·starts, C), the true class, whether the declaration was right,
-    the movement energy (m) and the images taken of each episode of ``policy`` from ``starts``
-    seeded reachable starts on each held-out model of ``fold`` (the starts depend on the group
-    and model only, so every method starts from the same ones)."""
+                   starts: int = HELD_OUT_STARTS) -> HeldOutStops:
+    """Each episode of ``policy`` from ``starts`` seeded reachable starts on each held-out model
+    of ``fold`` (the starts depend on the group and model only, so every method starts from
+    the same ones)."""
     classes = fold.model.shape[2]
     reachable = np.flatnonzero(motion.reachable)
-    finals, truth, right, energy, images = [], [], [], [], []
+    finals, truth, right, energy, images, first = [], [], [], [], [], []
     for r in range(len(fold.labels)):
         rng = class_seed(config.seed, f"held-out/{fold.group}/{r}")
         for s in rng.choice(reachable, min(starts, reachable.size), replace=False):
@@ -160,8 +171,10 @@ def held_out_stops(config: Config, policy: Policy, fold: HeldOutFold, motion: Mo
             right.append(episode.declared == int(fold.labels[r]))
             energy.append(float(episode.move_energy.sum()))
             images.append(len(episode.viewpoints))
-    return (np.array(finals), np.array(truth), np.array(right), np.array(energy),
-            np.array(images))
+            first.append(int(s))
+    return HeldOutStops(np.array(finals), np.array(truth, dtype=np.int64),
+                        np.array(right, dtype=bool), np.array(energy), np.array(images),
+                        np.array(first, dtype=np.int64))
 
 
 def load_declared_fit(evaluate_dir: Path) -> dict[str, Any] | None:
@@ -216,13 +229,15 @@ def solve_held_out_folds(config: Config, folds: dict[str, list[HeldOutFold]], ro
 
 
 def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldOutFold,
-                   plans: str | None) -> tuple[np.ndarray, ...]:
+                   plans: str | None) -> HeldOutStops:
     """A worker's task: one method's episodes on one held-out group (:func:`held_out_stops`);
-    ``plans``: the POMDP's policy file, None for Random and the learned baseline."""
+    ``plans``: the POMDP's policy file, None for Static, Random and the learned baseline."""
     config = Config.model_validate_json(config_json)
     motion = Motion.from_robot(load_robot(inputs.robot))
     policy: Policy
-    if name == "random":  # its walk at Table 1's threshold
+    if name == "static":  # the start view's label, declared
+        policy = StaticPolicy("static")
+    elif name == "random":  # its walk at Table 1's threshold
         walk = config.evaluate.random
         policy = RandomWalkPolicy(fold.model, motion.distance_m, motion.reachable,
                                   walk.neighbours, walk.belief_threshold, walk.max_moves, name,
@@ -238,44 +253,76 @@ def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldO
     return held_out_stops(config, policy, fold, motion)
 
 
-def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[str],
-                         out: Path, context: RunContext = RunContext(),
-                         per_fold: bool = False, form: str = "scalar"
-                         ) -> dict[str, ClosedLoopFit]:
-    """Fit each method's declared confidence on its held-out closed loop and write
-    ``out/declared_fit.json``: every group's episodes update the belief by the model fitted
-    without the group (a POMDP also looks ahead with it). A POMDP's plan (the value the
-    lookahead reads) is the solve stage's policy, or with ``per_fold`` the fold model's own,
-    solved into ``out`` (:func:`solve_held_out_folds`: a solve per method and group; measured
-    within 0.02 of the solve stage's a on both development sets, docs/awareness.md §4.8); the
-    learned baseline (``learned``) is the learn stage's policy at Table 1's λ, its belief by its
-    observation model's folds; Random (``random``) walks at Table 1's threshold with its
-    observation model's folds. With ``form`` ``views`` the temperature depends on the images
-    an episode took (``evaluate.declared_form``). Methods without held-out folds are left out
-    (they keep the walks' a; the record says why)."""
-    if form not in DECLARED_FORMS:
-        raise ValueError(f"form must be one of {', '.join(DECLARED_FORMS)}, got {form!r}")
+NOT_SOLVED = ("static", "random", LEARNED)
+"""The methods of the held-out closed loop that act without a solved plan."""
+
+
+@dataclass(frozen=True)
+class HeldOutRun:
+    """One method's held-out closed loop: its ``stops`` and each episode's held-out volume
+    ``groups``."""
+
+    stops: HeldOutStops
+    groups: np.ndarray
+
+    @property
+    def accuracy(self) -> float:
+        return float(self.stops.correct.mean())
+
+    @property
+    def energy_m(self) -> float:
+        return float(self.stops.energy.mean())
+
+    @property
+    def episodes(self) -> int:
+        return int(self.stops.truth.size)
+
+    def objects(self) -> np.ndarray:
+        """Each episode's held-out object, ``group/class`` (group g holds the g-th volume model
+        of every class, so the pair names one model whichever stage labelled it)."""
+        return np.char.add(np.char.add(self.groups.astype(str), "/"),
+                           self.stops.truth.astype(str))
+
+    def pairs(self) -> np.ndarray:
+        """Each episode's (object, start) key, ``group/class#start``: what pairs two methods."""
+        return np.char.add(np.char.add(self.objects(), "#"), self.stops.starts.astype(str))
+
+
+def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str], out: Path,
+                  context: RunContext = RunContext(), per_fold: bool = False
+                  ) -> tuple[dict[str, HeldOutRun], dict[str, str]]:
+    """Every method of ``methods`` run on each held-out volume group: the belief (and a
+    POMDP's lookahead) by its observation model fitted without the group, a POMDP by the solve
+    stage's plan or, with ``per_fold``, the fold model's own (solved into ``out``,
+    :func:`solve_held_out_folds`); the learned baseline by the learn stage's policy at Table
+    1's λ; Random walking at Table 1's threshold on its observation model's folds; Static
+    declaring its start view's label (on RA-POMDP's folds, or the first model's). Returns the
+    runs and, for each method without held-out folds, why (:func:`closed_loop_skipped`)."""
     model_of = {name: name for name in methods}
     if "random" in methods:
         model_of["random"] = config.evaluate.random.observation_model
     if LEARNED in methods:  # its belief's observation model
         _, spec = load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
         model_of[LEARNED] = spec.observation_model
+    if "static" in methods:  # it reads labels only: any CNN model's folds hold them
+        others = [model_of[m] for m in methods if m != "static" and model_of[m] != "vptree"]
+        model_of["static"] = "ra" if "ra" in others or not others else others[0]
     by_model = held_out_folds(config, inputs, sorted(set(model_of.values())))
     all_folds = {name: by_model[model] for name, model in model_of.items()}
     folds = {name: f for name, f in all_folds.items() if f}
+    skipped = {name: closed_loop_skipped(config, model_of[name])
+               for name in all_folds if name not in folds}
     if not folds:
-        return {}
+        return {}, skipped
     if per_fold:
-        solve_held_out_folds(config, {n: f for n, f in folds.items()
-                                      if n not in (LEARNED, "random")},
+        solve_held_out_folds(config, {n: f for n, f in folds.items() if n not in NOT_SOLVED},
                              inputs.robot, out, context)
     pairs = [(name, fold) for name, fs in folds.items() for fold in fs]
     config_json = config.model_dump_json()
     tasks = []
     for name, fold in pairs:
-        plans = None  # Random; the learned baseline: the learn stage's policy
-        if name not in (LEARNED, "random"):
+        plans = None  # Static, Random; the learned baseline: the learn stage's policy
+        if name not in NOT_SOLVED:
             path = (out / f"group_{fold.group}" if per_fold else inputs.solve) / policy_file(name)
             if not path.is_file():
                 raise StageError(f"method '{name}' needs {path.name} from the solve stage for "
@@ -286,23 +333,104 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
                       "evaluate: held-out closed loop", context.progress, context.scheduler,
                       unit="episodes", sizes=[len(fold.labels) * HELD_OUT_STARTS
                                               for _, fold in pairs], pool=context.pool)
-    parts: dict[str, list[tuple[np.ndarray, ...]]] = {}
+    parts: dict[str, list[tuple[HeldOutStops, np.ndarray]]] = {}
     for (name, fold), part in zip(pairs, stops, strict=True):
-        parts.setdefault(name, []).append((*part, np.full(len(part[1]), fold.group)))
+        parts.setdefault(name, []).append((part, np.full(part.truth.size, fold.group)))
+    runs = {name: HeldOutRun(HeldOutStops(*(np.concatenate(a) for a in
+                                             zip(*(p for p, _ in rows), strict=True))),
+                             np.concatenate([g for _, g in rows]))
+            for name, rows in parts.items()}
+    return runs, skipped
+
+
+def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[str],
+                         out: Path, context: RunContext = RunContext(),
+                         per_fold: bool = False, form: str = "scalar",
+                         runs: tuple[dict[str, HeldOutRun], dict[str, str]] | None = None
+                         ) -> dict[str, ClosedLoopFit]:
+    """Fit each method's declared confidence on its held-out closed loop
+    (:func:`held_out_runs`, or ``runs`` already run for at least ``methods``) and write
+    ``out/declared_fit.json``. With ``form`` ``views`` the temperature depends on the images
+    an episode took (``evaluate.declared_form``). Methods without held-out folds are left out
+    (they keep the walks' a; the record says why)."""
+    if form not in DECLARED_FORMS:
+        raise ValueError(f"form must be one of {', '.join(DECLARED_FORMS)}, got {form!r}")
+    if runs is None:
+        runs = held_out_runs(config, inputs, methods, out, context, per_fold)
+    ran, skipped = runs
+    if not any(name in ran for name in methods):
+        return {}
     fits: dict[str, ClosedLoopFit] = {}
-    for name, rows in parts.items():
-        log_b, truth, right, energy, images, group = (
-            np.concatenate(a) for a in zip(*rows, strict=True))
-        declared = stops_declared_confidence(log_b, truth, group,
-                                             images=images if form == "views" else None)
-        fits[name] = ClosedLoopFit(declared, float(right.mean()), float(energy.mean()),
-                                   int(len(truth)), log_b, truth, images, group)
+    for name in methods:
+        if name not in ran:
+            continue
+        stops, group = ran[name].stops, ran[name].groups
+        declared = stops_declared_confidence(stops.log_beliefs, stops.truth, group,
+                                             images=stops.images if form == "views" else None)
+        fits[name] = ClosedLoopFit(declared, float(stops.correct.mean()),
+                                   float(stops.energy.mean()), int(stops.truth.size),
+                                   stops.log_beliefs, stops.truth, stops.images, group)
     write_json_atomic(out / DECLARED_FIT_FILE, {
         "lambda_m": config.solve.wrong_declaration_cost_m,
         "starts_per_model": HELD_OUT_STARTS,
         "plans": "per fold" if per_fold else "solve stage",
         "form": form,
         "methods": {name: fit.to_dict() for name, fit in fits.items()},
-        "walks_kept": {name: closed_loop_skipped(config, model_of[name])
-                       for name in all_folds if name not in folds}})
+        "walks_kept": {name: why for name, why in skipped.items() if name in methods}})
     return fits
+
+
+COMPARISON_FILE = "comparison.json"
+"""The record of :func:`held_out_comparison` in :data:`HELD_OUT_DIR`."""
+
+
+def held_out_comparison(runs: Mapping[str, HeldOutRun], reference: str = "ra",
+                        resamples: int = 10_000, seed: int = 0) -> dict[str, Any]:
+    """Every method's held-out accuracy and mean energy and, where it ran from the same
+    (object, start) pairs as ``reference``, its paired accuracy difference to it with a 95 %
+    cluster-bootstrap interval that resamples held-out objects: what objects the classifier
+    and the observation models never saw say about the methods on this dataset, before any
+    test model is read; each paired method's per-object sums and pair counts too (what a study
+    pools over seeds). ``order``: the methods as run. A method whose pairs differ is listed
+    under ``unpaired``."""
+    from rapomdp.experiment.metrics import cluster_bootstrap_difference
+
+    record: dict[str, Any] = {
+        "reference": reference, "order": list(runs),
+        "methods": {name: {"accuracy": run.accuracy, "energy_m": run.energy_m,
+                           "episodes": run.episodes, "objects": int(np.unique(
+                               run.objects()).size)} for name, run in runs.items()},
+        "paired": {}, "unpaired": []}
+    if reference not in runs:
+        return record
+    base = runs[reference]
+    base_pairs = base.pairs()
+    base_order = np.argsort(base_pairs, kind="stable")
+    for name, run in runs.items():
+        if name == reference:
+            continue
+        pairs = run.pairs()
+        order = np.argsort(pairs, kind="stable")
+        if pairs.shape != base_pairs.shape or np.any(pairs[order] != base_pairs[base_order]) \
+                or np.unique(pairs).size != pairs.size:
+            record["unpaired"].append(name)
+            continue
+        difference = (run.stops.correct[order].astype(np.float64)
+                      - base.stops.correct[base_order].astype(np.float64))
+        objects, cluster = np.unique(run.objects()[order], return_inverse=True)
+        sums = np.bincount(cluster, weights=difference, minlength=objects.size)
+        sizes = np.bincount(cluster, minlength=objects.size).astype(np.float64)
+        estimate, low, high = cluster_bootstrap_difference(sums, sizes, resamples, seed)
+        record["paired"][name] = {"difference": estimate, "low": low, "high": high,
+                                  "pairs": int(sizes.sum()), "objects": int(objects.size),
+                                  "per_object": {"objects": objects.tolist(),
+                                                 "sums": sums.tolist(),
+                                                 "pairs": sizes.astype(int).tolist()}}
+    return record
+
+
+def load_held_out_comparison(evaluate_dir: Path) -> dict[str, Any] | None:
+    """An evaluate stage's :func:`held_out_comparison` record, None where it has none (fewer
+    than two held-out groups, or a stage from before it)."""
+    path = Path(evaluate_dir) / HELD_OUT_DIR / COMPARISON_FILE
+    return read_json(path) if path.is_file() else None

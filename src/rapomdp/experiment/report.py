@@ -55,7 +55,7 @@ from rapomdp.experiment.episode_table import (
 )
 from rapomdp.experiment.evaluation import PAIRED_REFERENCE
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
-from rapomdp.experiment.held_out import load_declared_fit
+from rapomdp.experiment.held_out import load_declared_fit, load_held_out_comparison
 from rapomdp.experiment.learned import CURVES_FIGURE, LEARN_SUMMARY
 from rapomdp.experiment.metrics import (
     PER_CLASS_NOTE,
@@ -69,6 +69,7 @@ from rapomdp.experiment.metrics import (
     per_class_cells,
     read_tradeoff_csv,
     reported_belief_note,
+    standing_phrases,
     table1,
     table1_cells,
     table1_story,
@@ -408,6 +409,7 @@ def _evaluation(b: _Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any
         if paired:
             b.add(Paragraph(paired_note(paired)))
         b.add(Paragraph(TABLE1_COLUMNS))
+        _held_out_comparison(b, folder)
         b.add(Paragraph("Per class:"), Paragraph(PER_CLASS_NOTE),
               Table(*per_class_cells(per_class(table, table.methods), table.methods)))
     figure = (data or {}).get("figure_class", "the figure class")
@@ -427,6 +429,57 @@ def _evaluation(b: _Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any
                  "model, start) pairs as Table 1 (the points: evaluate/tradeoff.md and .csv).",
                  how)
     return data
+
+
+HELD_OUT_COMPARISON_NOTE = (
+    "What held-out objects say, before any test model is read: every method run on the volume "
+    "models, which the classifier never trained on, from the same seeded starts; each group's "
+    "views are the labels the classifier gave them, its beliefs (and a POMDP's lookahead) use "
+    "the observation models fitted without the group, and a POMDP's plan is the solve "
+    "stage's (each fold's own with evaluate.declared_fit: closed_loop_per_fold). A forecast "
+    "of Table 1's direction, with intervals as wide as the held-out objects are few (how "
+    "often it has forecast it on the development sets: docs/experiment.md, \"The held-out "
+    "comparison\").")
+
+
+def held_out_comparison_story(record: dict[str, Any]) -> str:
+    """One sentence of how the reference method stands against the others held out."""
+    reference = record["reference"]
+    name = METHOD_NAMES.get(reference, reference)
+    paired = record["paired"]
+    said = standing_phrases([(METHOD_NAMES.get(m, m), p["difference"], p["low"], p["high"])
+                             for m, p in paired.items()])
+    if not said:
+        return f"{name} did not run on the held-out objects."
+    objects = max(p["objects"] for p in paired.values())
+    return (f"On the {objects} held-out objects, with 95 % intervals that resample them, "
+            f"{name} is {'; '.join(said)}.")
+
+
+def held_out_comparison_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """The held-out comparison (``held_out/comparison.json``) as a table: per method accuracy,
+    mean energy, episodes and the paired difference to the reference."""
+    reference = record["reference"]
+    header = ["Method", "Held-out accuracy", "Energy (m)",
+              f"Δ accuracy vs {METHOD_NAMES.get(reference, reference)} [95 %, held-out objects]",
+              "Episodes"]
+    rows = []
+    for name in record.get("order", record["methods"]):
+        row, p = record["methods"][name], record["paired"].get(name)
+        delta = ("—" if name == reference else "not paired" if p is None else
+                 f"{p['difference']:+.3f} [{p['low']:+.3f}, {p['high']:+.3f}]")
+        rows.append([METHOD_NAMES.get(name, name), f"{row['accuracy']:.3f}",
+                     f"{row['energy_m']:.2f}", delta, str(row["episodes"])])
+    return header, rows
+
+
+def _held_out_comparison(b: _Builder, folder: Path) -> None:
+    """Table 1's methods on the held-out objects (the evaluate stage's comparison)."""
+    record = load_held_out_comparison(folder)
+    if record is None or not record["methods"]:
+        return
+    b.add(Paragraph(held_out_comparison_story(record) + " " + HELD_OUT_COMPARISON_NOTE))
+    b.add(Table(*held_out_comparison_cells(record)))
 
 
 def _awareness(b: _Builder, config: Config, inputs: StageInputs, class_name: str,
