@@ -135,3 +135,55 @@ def test_the_confidence_line_reads_what_each_seeds_evaluate_stage_reported(
     write_json_atomic(record, stage)  # a seed whose a depends on the images taken
     assert "a(n) = a · n^(−β), fitted where each method's own held-out closed loop stops" in \
         reported_confidence(results[1:])
+
+
+def _comparison(ra: float, random: float, sums: list[float]) -> dict:
+    """A held-out comparison of two methods on four objects, four starts each."""
+    return {"reference": "ra", "order": ["random", "ra"], "unpaired": [],
+            "methods": {"ra": {"accuracy": ra, "energy_m": 1.0, "episodes": 16, "objects": 4},
+                        "random": {"accuracy": random, "energy_m": 2.0, "episodes": 16,
+                                   "objects": 4}},
+            "paired": {"random": {"difference": sum(sums) / 16, "low": -1, "high": 1,
+                                  "pairs": 16, "objects": 4,
+                                  "per_object": {"objects": ["0/0", "0/1", "1/0", "1/1"],
+                                                 "sums": sums, "pairs": [4, 4, 4, 4]}}}}
+
+
+def test_the_held_out_comparisons_pool_over_seeds_with_objects_as_clusters() -> None:
+    from rapomdp.study.pooled import pool_held_out
+
+    records = [_comparison(0.75, 0.5, [-2.0, -1.0, -1.0, 0.0]),
+               _comparison(0.5, 0.5, [1.0, -1.0, 0.0, 0.0])]
+    rows = pool_held_out(records, crossed=False, resamples=2000)
+    assert [r.method for r in rows] == ["random", "ra"]  # the order the stages ran them in
+    random, ra = rows
+    assert (random.accuracy, random.energy_m, ra.accuracy) == (0.5, 2.0, 0.625)
+    assert ra.difference is None
+    d = random.difference
+    assert d.estimate == pytest.approx((-4 / 16 + 0 / 16) / 2)  # the mean of the seeds' ratios
+    assert d.seeds == 2 and not d.crossed and d.low <= d.estimate <= d.high
+    # a seed without RA-POMDP, or without per-object sums, pools nothing / pairs nothing
+    no_ra = _comparison(0.5, 0.5, [0.0] * 4)
+    del no_ra["methods"]["ra"]
+    assert pool_held_out([records[0], no_ra], crossed=False) == []
+    unpaired = _comparison(0.5, 0.5, [0.0] * 4)
+    del unpaired["paired"]["random"]["per_object"]
+    assert pool_held_out([records[0], unpaired], crossed=False)[0].difference is None
+
+
+def test_the_report_shows_the_held_out_forecast_beside_table_1(tiny_study: TinyStudy,
+                                                                 tmp_path: Path) -> None:
+    from rapomdp.io import write_json_atomic
+
+    root = tmp_path / "study"
+    shutil.copytree(tiny_study.root, root)
+    plain = write_study_report(tiny_study.spec, root, resamples=200).markdown.read_text()
+    assert "held-out objects" not in plain  # one volume model a class: nothing held out
+    for seed, sums in ((0, [-2.0, -1.0, -1.0, 0.0]), (1, [1.0, -1.0, 0.0, 0.0])):
+        write_json_atomic(root / "tiny" / f"seed-{seed}" / "evaluate" / "held_out" /
+                          "comparison.json", _comparison(0.7, 0.5, sums))
+    text = write_study_report(tiny_study.spec, root, resamples=200).markdown.read_text()
+    assert "On the held-out objects (the volume models, run by the evaluate stages before " \
+        "any test model was read; 2 seeds" in text
+    assert "| Random | 0.500 | 2.000 | -0.125 [" in text
+    assert "Test Δ vs RA-POMDP [95 %, seeds × test models]" in text

@@ -1,17 +1,20 @@
 """A study's results gathered from its seed workspaces and pooled: Table 1 as the mean over
 seeds, each method's paired difference to RA-POMDP with a seeds × test-models interval, the
-per-seed spread and the accuracy–energy points averaged over seeds."""
+per-seed spread, the accuracy–energy points averaged over seeds, and the same comparison on
+the held-out objects (the evaluate stages' held-out closed loop, seeds × held-out objects)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from rapomdp.config import METHOD_NAMES
 from rapomdp.experiment.episode_table import EPISODES_FILE, TRADEOFF_CSV, EpisodeTable
+from rapomdp.experiment.held_out import load_held_out_comparison
 from rapomdp.experiment.metrics import (
     MethodSummary,
     TradeoffPoint,
@@ -181,3 +184,59 @@ def as_tradeoff_points(points: Sequence[PooledPoint]) -> list[TradeoffPoint]:
                           MethodSummary(p.method, p.seeds, p.accuracy, p.accuracy_min,
                                         p.accuracy_max, {"energy": p.energy_m}, {}, 0))
             for p in points]
+
+
+@dataclass(frozen=True)
+class HeldOutRow:
+    """One method on the held-out objects, pooled over seeds: its held-out accuracy and
+    energy (means of seeds) and its paired difference to RA-POMDP there (None for RA-POMDP,
+    or where a seed could not pair it)."""
+
+    method: str
+    accuracy: float
+    energy_m: float
+    difference: PooledInterval | None
+
+    @property
+    def name(self) -> str:
+        return METHOD_NAMES.get(self.method, self.method)
+
+
+def held_out_table(results: Sequence[SeedResult], resamples: int = 10_000,
+                   seed: int = 0) -> list[HeldOutRow]:
+    """Table 1's methods on each seed's held-out objects (``evaluate/held_out/
+    comparison.json``), pooled by :func:`pool_held_out`. Empty where a seed has no comparison
+    (one held-out group, or an evaluate stage from before it)."""
+    records = [load_held_out_comparison(r.workspace / "evaluate") for r in results]
+    present = [rec for rec in records if rec is not None]
+    if not present or len(present) < len(records):
+        return []
+    return pool_held_out(present, len({r.dataset_key for r in results}) == 1, resamples, seed)
+
+
+def pool_held_out(records: Sequence[dict[str, Any]], crossed: bool, resamples: int = 10_000,
+                  seed: int = 0) -> list[HeldOutRow]:
+    """The seeds' held-out comparisons pooled as :func:`pooled_table` pools the test models,
+    the held-out objects being the clusters: means of seeds and each method's paired
+    difference to RA-POMDP over seeds × held-out objects. ``crossed``: every seed held out the
+    same objects (the dataset stage is shared). Empty where a seed did not run RA-POMDP."""
+    if not records or any(REFERENCE not in rec["methods"] for rec in records):
+        return []
+    order = records[0].get("order", list(records[0]["methods"]))
+    methods = [m for m in order if all(m in rec["methods"] for rec in records)]
+    rows = []
+    for method in methods:
+        difference = None
+        per_object = [rec["paired"].get(method, {}).get("per_object") for rec in records]
+        if method != REFERENCE and all(p is not None for p in per_object):
+            clusters = [SeedClusters(np.asarray(p["objects"]),
+                                     np.asarray(p["sums"], dtype=np.float64),
+                                     np.asarray(p["pairs"], dtype=np.float64))
+                        for p in per_object if p is not None]
+            difference = hierarchical_bootstrap(clusters, resamples, seed,
+                                                crossed=None if crossed else False)
+        rows.append(HeldOutRow(
+            method, float(np.mean([rec["methods"][method]["accuracy"] for rec in records])),
+            float(np.mean([rec["methods"][method]["energy_m"] for rec in records])),
+            difference))
+    return rows

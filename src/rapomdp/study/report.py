@@ -16,10 +16,12 @@ from rapomdp.experiment.report import Block, Heading, Image, Paragraph, Table, t
 from rapomdp.io import markdown_table, read_json, read_text, write_text_atomic
 from rapomdp.study.pooled import (
     REFERENCE,
+    HeldOutRow,
     PooledPoint,
     PooledRow,
     SeedResult,
     as_tradeoff_points,
+    held_out_table,
     load_seed_results,
     pooled_points,
     pooled_table,
@@ -74,6 +76,37 @@ def study_story(dataset: str, rows: Sequence[PooledRow], seeds: Sequence[int],
             parts.append("Mean energy: " + ", ".join(f"{r.name} {r.energy_m:.2f} m"
                                                      for r in movers) + ".")
     return " ".join(parts)
+
+
+def held_out_story(held: Sequence[HeldOutRow], seeds: int) -> str:
+    """How RA-POMDP stood against the others on the held-out objects, pooled over seeds."""
+    said = standing_phrases([(r.name, r.difference.estimate, r.difference.low,
+                              r.difference.high) for r in held if r.difference is not None])
+    if not said:
+        return ""
+    return (f"On the held-out objects (the volume models, run by the evaluate stages before "
+            f"any test model was read; {seeds} seeds, intervals resampling seeds and, within "
+            f"them, held-out objects) {METHOD_NAMES.get(REFERENCE, REFERENCE)} was "
+            f"{'; '.join(said)}: the forecast that Table 1 above can be read against.")
+
+
+def held_out_cells(held: Sequence[HeldOutRow], rows: Sequence[PooledRow]
+                   ) -> tuple[list[str], list[list[str]]]:
+    """Each method's held-out accuracy and energy (means of seeds), its held-out paired
+    difference to RA-POMDP and, beside it, the test models' (the pooled Table 1's)."""
+    ref = METHOD_NAMES.get(REFERENCE, REFERENCE)
+    tested = {r.method: r for r in rows}
+    header = ["Method", "Held-out accuracy (mean of seeds)", "Energy (m)",
+              f"Held-out Δ vs {ref} [95 %, seeds × held-out objects]",
+              f"Test Δ vs {ref} [95 %, seeds × test models]"]
+    cells = []
+    for r in held:
+        d = r.difference
+        test = tested.get(r.method)
+        cells.append([r.name, f"{r.accuracy:.3f}", f"{r.energy_m:.3f}",
+                      "—" if d is None else f"{d.estimate:+.3f} [{d.low:+.3f}, {d.high:+.3f}]",
+                      "—" if test is None else _interval(test)])
+    return header, cells
 
 
 def rows_csv(dataset: str, rows: Sequence[PooledRow]) -> str:
@@ -198,8 +231,12 @@ def write_study_report(spec: StudySpec, root: str | Path,
         blocks += [Heading(f"Configuration '{name}'"),
                    Paragraph(stories[name]),
                    Table(header, cells),
-                   Paragraph(reported_confidence(seeds)),
-                   Paragraph(f"Stage time of the study's {len(seeds)} seeds: {spent:.0f} s "
+                   Paragraph(reported_confidence(seeds))]
+        held = held_out_table(seeds, resamples)
+        if held:
+            blocks += [Paragraph(held_out_story(held, len(seeds))),
+                       Table(*held_out_cells(held, rows))]
+        blocks += [Paragraph(f"Stage time of the study's {len(seeds)} seeds: {spent:.0f} s "
                              f"(shared stages counted once; sharing saved {shared:.0f} s).")]
         if points:
             blocks.append(Image(figure, f"Accuracy against energy on '{name}', the mean of "
