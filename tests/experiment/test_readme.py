@@ -3,6 +3,7 @@ without its markers or its stages."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -20,11 +21,19 @@ TRADEOFF = "| Method | λ | Accuracy |\n|---|---|---|\n| RA-POMDP | 2 | 0.612 |\
 QUALITY = "| model | AUC |\n|---|---|\n| ra | 0.733 |\n"
 PNG = b"\x89PNG\r\n\x1a\n-not-a-real-image-"
 FIG1 = b"\x89PNG\r\n\x1a\n-the-report's-fig-1-"
+#: The evaluate stage's held-out comparison: RA-POMDP against Random on 6 held-out objects.
+HELD_OUT = json.dumps({
+    "reference": "ra", "order": ["random", "ra"], "unpaired": [],
+    "methods": {"random": {"accuracy": 0.5, "energy_m": 1.5, "episodes": 24, "objects": 6},
+                "ra": {"accuracy": 0.75, "energy_m": 1.25, "episodes": 24, "objects": 6}},
+    "paired": {"random": {"difference": -0.25, "low": -0.4, "high": -0.1, "pairs": 24,
+                          "objects": 6}}})
 
 
 def _writer(files: dict[str, str | bytes], metrics: dict | None = None):
     def run(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
         for name, data in files.items():
+            (out / name).parent.mkdir(parents=True, exist_ok=True)
             (out / name).write_bytes(data if isinstance(data, bytes) else data.encode())
         if metrics is not None:
             write_json_atomic(out / "metrics.json", metrics)
@@ -44,7 +53,7 @@ def finished(tmp_path_factory: pytest.TempPathFactory) -> Workspace:
                                                    "chance": 0.3333}}),
         "observe": _writer({"quality.md": QUALITY}),
         "evaluate": _writer({"table1.md": TABLE1, "tradeoff.md": TRADEOFF, "fig3.png": PNG,
-                             "tradeoff.png": PNG}),
+                             "tradeoff.png": PNG, "held_out/comparison.json": HELD_OUT}),
         # the report's Fig. 1 of the figure class (no evaluate.json: the configured bicycle),
         # and one of another class, which is not the lead figure
         "report": _writer({"fig1_bicycle.png": FIG1, "fig1_cup.png": PNG}),
@@ -66,6 +75,11 @@ def test_the_block_holds_the_workspace_numbers_and_is_idempotent(finished, tmp_p
     for part in (TABLE1.strip(), TRADEOFF.strip(), QUALITY.strip()):
         assert part in block
     assert "right on 54.2% of the test models' views from X_rho (chance 33.3%)" in block
+    # the held-out comparison, Table 1's forecast, in the order the methods ran
+    assert "On the 6 held-out objects, with 95 % intervals that resample them, RA-POMDP is " \
+        "more accurate than Random (by 0.250)." in block
+    assert "| Random | 0.500 | 1.50 | -0.250 [-0.400, -0.100] | 24 |\n| RA-POMDP | 0.750 | " \
+        "1.25 | — | 24 |" in block
     assert "1 test model(s) per class (3 classes" in block  # the tiny split, from the dataset
     assert "](docs/figures/demo_tradeoff.png)" in block
     assert (tmp_path / "docs" / "figures" / "demo_fig3.png").read_bytes() == PNG

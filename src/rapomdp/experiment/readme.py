@@ -3,10 +3,10 @@
 ``rapomdp report -w runs/demo --readme README.md`` replaces the block between
 :data:`BEGIN` and :data:`END` in the README with what the workspace's artefacts say: the
 dataset's roles, the stages' times, single-view accuracy, Table 1 with its paired column, the
-accuracy–energy sweep, the final beliefs' calibration and the self-awareness table; its
-figures are copied next to the README (``--readme-figures``, default ``docs/figures`` beside
-it), and so is the report's Fig. 1, the README's lead figure (:data:`LEAD_FIGURE`). Nothing in
-the block is typed by hand.
+held-out comparison (its forecast), the accuracy–energy sweep, the final beliefs' calibration
+and the self-awareness table; its figures are copied next to the README
+(``--readme-figures``, default ``docs/figures`` beside it), and so is the report's Fig. 1, the
+README's lead figure (:data:`LEAD_FIGURE`). Nothing in the block is typed by hand.
 """
 
 from __future__ import annotations
@@ -18,12 +18,18 @@ from pathlib import Path
 from rapomdp.config import Config
 from rapomdp.data.dataset import load_dataset, role_count_lines
 from rapomdp.experiment.episode_table import EPISODES_FILE, SUMMARY_FILE, EpisodeTable
+from rapomdp.experiment.held_out import load_held_out_comparison
 from rapomdp.experiment.metrics import (
     belief_calibration_cells,
     reported_belief_note,
     table1_story,
 )
-from rapomdp.experiment.report import evaluation_summaries, figure_class
+from rapomdp.experiment.report import (
+    evaluation_summaries,
+    figure_class,
+    held_out_comparison_cells,
+    held_out_comparison_story,
+)
 from rapomdp.io import (
     atomic_path,
     check_output_path,
@@ -97,6 +103,12 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
         _read(evaluate / "table1.md"),
         "",
     ]
+    held_out = load_held_out_comparison(evaluate)
+    if held_out is not None and held_out["methods"]:
+        lines += ["**The held-out comparison** (every method on the volume models, run before "
+                  "any test model was read: the forecast of Table 1; docs/experiment.md). "
+                  + held_out_comparison_story(held_out), "",
+                  markdown_table(*held_out_comparison_cells(held_out)).strip(), ""]
     if (evaluate / "tradeoff.md").exists():
         lines += ["**Accuracy against energy** (every method over its settings, the same "
                   "(test model, start) pairs):", "", _read(evaluate / "tradeoff.md"), "",
