@@ -187,3 +187,5 @@ def test_the_report_shows_the_held_out_forecast_beside_table_1(tiny_study: TinyS
         "any test model was read; 2 seeds" in text
     assert "| Random | 0.500 | 2.000 | -0.125 [" in text
     assert "Test Δ vs RA-POMDP [95 %, seeds × test models]" in text
+    block = study_markdown(tiny_study.spec, root, resamples=200)  # the README's block too
+    assert "| Random | 0.500 | 2.000 | -0.125 [" in block

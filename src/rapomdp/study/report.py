@@ -264,7 +264,8 @@ def _concat(tables: Sequence[str]) -> str:
 
 def study_markdown(spec: StudySpec, root: str | Path, resamples: int = 10_000) -> str:
     """The README's study block (without its markers): per configuration, who wins and the
-    pooled Table 1, naming the seeds."""
+    pooled Table 1, naming the seeds, and the held-out comparison beside it where the seeds
+    have one."""
     results = load_seed_results(spec, root)
     lines = [f"*Generated from the study `{Path(root).name}`: {len(spec.seeds)} seeds "
              f"({', '.join(map(str, spec.seeds))}), vary {spec.vary} ({VARY_WORDS[spec.vary]}); "
@@ -275,6 +276,10 @@ def study_markdown(spec: StudySpec, root: str | Path, resamples: int = 10_000) -
         lines += [study_story(name, rows, spec.seeds, spec.vary), "",
                   markdown_table(*pooled_cells(rows)).strip(), "",
                   reported_confidence(seeds), ""]
+        held = held_out_table(seeds, resamples)
+        if held:
+            lines += [held_out_story(held, len(seeds)), "",
+                      markdown_table(*held_out_cells(held, rows)).strip(), ""]
     return "\n".join(lines).rstrip()
 
 
