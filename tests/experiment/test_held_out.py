@@ -258,7 +258,7 @@ def test_every_method_runs_on_the_held_out_objects_paired_with_ra(workspace):
     record = load_held_out_comparison(ws.require("evaluate"))
     reachable = int(load_robot(ws.require("robot"))["reachable"].sum())
     episodes = 2 * 3 * min(HELD_OUT_STARTS, reachable)  # groups x classes x starts
-    assert record["reference"] == "ra" and record["unpaired"] == []
+    assert record["reference"] == "ra" and record["unpaired"] == [] and record["skipped"] == {}
     assert set(record["methods"]) == set(config.evaluate.methods)
     for row in record["methods"].values():
         assert row["episodes"] == episodes and row["objects"] == 2 * 3
@@ -317,6 +317,19 @@ def test_the_comparison_pairs_by_object_and_start_whatever_the_order():
     assert paired["per_object"] == {"objects": ["0/0", "0/1", "1/0", "1/1"],
                                     "sums": [0.0, 0.0, 1.0, 0.0], "pairs": [1, 1, 1, 1]}
     assert record["order"] == ["ra", "random", "vptree"]
+
+
+def test_without_ra_held_out_the_comparison_says_why(workspace, tmp_path):
+    ws, config = workspace
+    nuisance = config.model_copy(update={"observe": config.observe.model_copy(
+        update={"belief": "nuisance"})})
+    runs, skipped = held_out_runs(nuisance, _inputs(ws), ["random", "ra", "vptree"], tmp_path)
+    assert set(runs) == {"vptree"} and set(skipped) == {"random", "ra"}
+    record = held_out_comparison(runs, skipped=skipped)
+    assert record["paired"] == {} and list(record["methods"]) == ["vptree"]
+    assert held_out_comparison_story(record) == (
+        "RA-POMDP has no held-out closed loop to pair the others with: observe.belief "
+        "nuisance: the held-out folds are refitted for a naive belief only.")
 
 
 def test_the_comparison_story_says_where_the_intervals_leave_zero():

@@ -460,7 +460,8 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
                          per_fold=cfg.declared_fit == "closed_loop_per_fold")
     if runs[0]:
         write_json_atomic(out / HELD_OUT_DIR / COMPARISON_FILE,
-                          held_out_comparison(runs[0], PAIRED_REFERENCE, seed=config.seed))
+                          held_out_comparison(runs[0], PAIRED_REFERENCE, seed=config.seed,
+                                              skipped=runs[1]))
     fits: dict[str, ClosedLoopFit] = {}
     if cfg.declared_fit != "walks" and cfg.declared_confidence == "calibrated":
         # the POMDPs' declared confidence, fitted where they stop on held-out objects

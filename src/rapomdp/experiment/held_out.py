@@ -385,14 +385,16 @@ COMPARISON_FILE = "comparison.json"
 
 
 def held_out_comparison(runs: Mapping[str, HeldOutRun], reference: str = "ra",
-                        resamples: int = 10_000, seed: int = 0) -> dict[str, Any]:
+                        resamples: int = 10_000, seed: int = 0,
+                        skipped: Mapping[str, str] | None = None) -> dict[str, Any]:
     """Every method's held-out accuracy and mean energy and, where it ran from the same
     (object, start) pairs as ``reference``, its paired accuracy difference to it with a 95 %
     cluster-bootstrap interval that resamples held-out objects: what objects the classifier
     and the observation models never saw say about the methods on this dataset, before any
     test model is read; each paired method's per-object sums and pair counts too (what a study
     pools over seeds). ``order``: the methods as run. A method whose pairs differ is listed
-    under ``unpaired``."""
+    under ``unpaired``; ``skipped``: the methods without held-out folds, and why
+    (:func:`held_out_runs`)."""
     from rapomdp.experiment.metrics import cluster_bootstrap_difference
 
     record: dict[str, Any] = {
@@ -400,7 +402,7 @@ def held_out_comparison(runs: Mapping[str, HeldOutRun], reference: str = "ra",
         "methods": {name: {"accuracy": run.accuracy, "energy_m": run.energy_m,
                            "episodes": run.episodes, "objects": int(np.unique(
                                run.objects()).size)} for name, run in runs.items()},
-        "paired": {}, "unpaired": []}
+        "paired": {}, "unpaired": [], "skipped": dict(skipped or {})}
     if reference not in runs:
         return record
     base = runs[reference]

@@ -450,7 +450,8 @@ def held_out_comparison_story(record: dict[str, Any]) -> str:
     said = standing_phrases([(METHOD_NAMES.get(m, m), p["difference"], p["low"], p["high"])
                              for m, p in paired.items()])
     if not said:
-        return f"{name} did not run on the held-out objects."
+        why = record.get("skipped", {}).get(reference, "it is not among evaluate.methods")
+        return f"{name} has no held-out closed loop to pair the others with: {why}."
     objects = max(p["objects"] for p in paired.values())
     return (f"On the {objects} held-out objects, with 95 % intervals that resample them, "
             f"{name} is {'; '.join(said)}.")
