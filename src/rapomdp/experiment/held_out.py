@@ -26,6 +26,7 @@ from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, Policy, run_episode
 from rapomdp.experiment.learned import LearnedPolicy, load_learned_policy
 from rapomdp.experiment.methods import POMDPPolicy, RandomWalkPolicy, StaticPolicy
+from rapomdp.experiment.metrics import cluster_bootstrap_difference, paired_cluster_sums
 from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import load_npz, read_json, write_json_atomic
 from rapomdp.parallel import run_tasks
@@ -395,8 +396,6 @@ def held_out_comparison(runs: Mapping[str, HeldOutRun], reference: str = "ra",
     pools over seeds). ``order``: the methods as run. A method whose pairs differ is listed
     under ``unpaired``; ``skipped``: the methods without held-out folds, and why
     (:func:`held_out_runs`)."""
-    from rapomdp.experiment.metrics import cluster_bootstrap_difference
-
     record: dict[str, Any] = {
         "reference": reference, "order": list(runs),
         "methods": {name: {"accuracy": run.accuracy, "energy_m": run.energy_m,
@@ -406,22 +405,16 @@ def held_out_comparison(runs: Mapping[str, HeldOutRun], reference: str = "ra",
     if reference not in runs:
         return record
     base = runs[reference]
-    base_pairs = base.pairs()
-    base_order = np.argsort(base_pairs, kind="stable")
     for name, run in runs.items():
         if name == reference:
             continue
-        pairs = run.pairs()
-        order = np.argsort(pairs, kind="stable")
-        if pairs.shape != base_pairs.shape or np.any(pairs[order] != base_pairs[base_order]) \
-                or np.unique(pairs).size != pairs.size:
+        try:
+            objects, sums, sizes = paired_cluster_sums(run.pairs(), run.stops.correct,
+                                                       run.objects(), base.pairs(),
+                                                       base.stops.correct)
+        except ValueError:
             record["unpaired"].append(name)
             continue
-        difference = (run.stops.correct[order].astype(np.float64)
-                      - base.stops.correct[base_order].astype(np.float64))
-        objects, cluster = np.unique(run.objects()[order], return_inverse=True)
-        sums = np.bincount(cluster, weights=difference, minlength=objects.size)
-        sizes = np.bincount(cluster, minlength=objects.size).astype(np.float64)
         estimate, low, high = cluster_bootstrap_difference(sums, sizes, resamples, seed)
         record["paired"][name] = {"difference": estimate, "low": low, "high": high,
                                   "pairs": int(sizes.sum()), "objects": int(objects.size),

@@ -141,6 +141,28 @@ def cluster_bootstrap_difference(per_model_sum: np.ndarray, per_model_pairs: np.
     return estimate, float(low), float(high)
 
 
+def paired_cluster_sums(pairs: np.ndarray, correct: np.ndarray, clusters: np.ndarray,
+                        reference_pairs: np.ndarray, reference_correct: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each cluster's summed paired accuracy difference (a method's ``correct`` minus the
+    reference's, matched by their ``pairs`` keys, in any order) and its number of pairs:
+    ``(clusters, sums, pairs)``, clusters sorted. ``clusters`` names each of the method's
+    episodes' cluster (the object it ran on). A ValueError where the two sets of keys differ
+    or a key repeats."""
+    order, reference_order = (np.argsort(pairs, kind="stable"),
+                              np.argsort(reference_pairs, kind="stable"))
+    if pairs.shape != reference_pairs.shape \
+            or np.any(pairs[order] != reference_pairs[reference_order]) \
+            or np.unique(pairs).size != pairs.size:
+        raise ValueError("not the same pairs")
+    diff = (np.asarray(correct)[order].astype(np.float64)
+            - np.asarray(reference_correct)[reference_order].astype(np.float64))
+    names, cluster = np.unique(np.asarray(clusters)[order], return_inverse=True)
+    sums = np.bincount(cluster, weights=diff, minlength=names.size)
+    sizes = np.bincount(cluster, minlength=names.size).astype(np.float64)
+    return names, sums, sizes
+
+
 def paired_model_sums(table: EpisodeTable, method: str, reference: str,
                       reference_table: EpisodeTable | None = None,
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -152,25 +174,22 @@ def paired_model_sums(table: EpisodeTable, method: str, reference: str,
     another table of the same pairs (another configuration of the same seed).
     """
     other = table if reference_table is None else reference_table
-    sorted_pairs = []
+    rows = {}
     for key, source in ((method, table), (reference, other)):
         sel = np.flatnonzero(source.method == key)
         if sel.size == 0:
             raise ValueError(f"no episodes of method '{key}'")
-        pairs = np.char.add(np.char.add(source.model[sel].astype(str), "#"),
-                            source.start[sel].astype(str))
-        order = np.argsort(pairs, kind="stable")
-        sorted_pairs.append((pairs[order], sel[order]))
-    (pairs_m, rows_m), (pairs_r, rows_r) = sorted_pairs
-    if pairs_m.shape != pairs_r.shape or np.any(pairs_m != pairs_r) \
-            or np.unique(pairs_m).size != pairs_m.size:
+        rows[key] = sel
+    keys = [np.char.add(np.char.add(source.model[rows[key]].astype(str), "#"),
+                        source.start[rows[key]].astype(str))
+            for key, source in ((method, table), (reference, other))]
+    try:
+        return paired_cluster_sums(keys[0], table.correct[rows[method]],
+                                   table.model[rows[method]], keys[1],
+                                   other.correct[rows[reference]])
+    except ValueError:
         raise ValueError(f"methods '{method}' and '{reference}' did not run from the same "
-                         "(test model, start) pairs")
-    diff = table.correct[rows_m].astype(np.float64) - other.correct[rows_r].astype(np.float64)
-    models, cluster = np.unique(table.model[rows_m], return_inverse=True)
-    sums = np.bincount(cluster, weights=diff, minlength=models.size)
-    sizes = np.bincount(cluster, minlength=models.size).astype(np.float64)
-    return models, sums, sizes
+                         "(test model, start) pairs") from None
 
 
 def paired_accuracy_difference(table: EpisodeTable, method: str, reference: str,
