@@ -16,6 +16,7 @@ from rapomdp.experiment.held_out import (
     DECLARED_FIT_FILE,
     HELD_OUT_DIR,
     HELD_OUT_STARTS,
+    NOT_HELD_OUT,
     HeldOutRun,
     HeldOutStops,
     closed_loop_declared,
@@ -259,14 +260,16 @@ def test_every_method_runs_on_the_held_out_objects_paired_with_ra(workspace):
     reachable = int(load_robot(ws.require("robot"))["reachable"].sum())
     episodes = 2 * 3 * min(HELD_OUT_STARTS, reachable)  # groups x classes x starts
     assert record["reference"] == "ra" and record["unpaired"] == [] and record["skipped"] == {}
-    assert set(record["methods"]) == set(config.evaluate.methods)
+    # the learned baseline trained on these objects' labels: its loop is not held out for it
+    assert record["not_held_out"] == {"learned": NOT_HELD_OUT["learned"]}
+    assert set(record["methods"]) == set(config.evaluate.methods) - {"learned"}
     for row in record["methods"].values():
         assert row["episodes"] == episodes and row["objects"] == 2 * 3
     # the declared confidence is fitted on these same episodes
     fits = read_json(ws.require("evaluate") / HELD_OUT_DIR / DECLARED_FIT_FILE)["methods"]
-    for name in FITTED:
+    for name in POMDPS:
         assert record["methods"][name]["accuracy"] == fits[name]["accuracy"], name
-    assert set(record["paired"]) == set(config.evaluate.methods) - {"ra"}
+    assert set(record["paired"]) == set(config.evaluate.methods) - {"ra", "learned"}
     for name, paired in record["paired"].items():  # the same pairs: a difference of means
         assert paired["difference"] == pytest.approx(
             record["methods"][name]["accuracy"] - record["methods"]["ra"]["accuracy"])
@@ -274,6 +277,9 @@ def test_every_method_runs_on_the_held_out_objects_paired_with_ra(workspace):
         assert paired["pairs"] == episodes and paired["objects"] == 2 * 3
     report = (ws.require("report") / "report.md").read_text()
     assert held_out_comparison_story(record) in report
+    assert held_out_comparison_story(record).endswith(
+        " Learned (PPO) is not compared: the learn stage trained it on these objects' recorded "
+        "labels, so its episodes here are not held out.")
     assert "What held-out objects say, before any test model is read" in report
 
 

@@ -383,6 +383,9 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
 
 COMPARISON_FILE = "comparison.json"
 """The record of :func:`held_out_comparison` in :data:`HELD_OUT_DIR`."""
+NOT_HELD_OUT = {LEARNED: "the learn stage trained it on these objects' recorded labels, so its "
+                         "episodes here are not held out"}
+"""Methods whose held-out closed loop is not held out for them, left out of the comparison."""
 
 
 def held_out_comparison(runs: Mapping[str, HeldOutRun], reference: str = "ra",
@@ -395,13 +398,17 @@ def held_out_comparison(runs: Mapping[str, HeldOutRun], reference: str = "ra",
     test model is read; each paired method's per-object sums and pair counts too (what a study
     pools over seeds). ``order``: the methods as run. A method whose pairs differ is listed
     under ``unpaired``; ``skipped``: the methods without held-out folds, and why
-    (:func:`held_out_runs`)."""
+    (:func:`held_out_runs`); ``not_held_out``: the methods of :data:`NOT_HELD_OUT` among
+    ``runs``, left out, and why."""
+    left_out = {name: why for name, why in NOT_HELD_OUT.items() if name in runs}
+    runs = {name: run for name, run in runs.items() if name not in left_out}
     record: dict[str, Any] = {
         "reference": reference, "order": list(runs),
         "methods": {name: {"accuracy": run.accuracy, "energy_m": run.energy_m,
                            "episodes": run.episodes, "objects": int(np.unique(
                                run.objects()).size)} for name, run in runs.items()},
-        "paired": {}, "unpaired": [], "skipped": dict(skipped or {})}
+        "paired": {}, "unpaired": [], "skipped": dict(skipped or {}),
+        "not_held_out": left_out}
     if reference not in runs:
         return record
     base = runs[reference]

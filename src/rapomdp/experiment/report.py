@@ -453,8 +453,10 @@ def held_out_comparison_story(record: dict[str, Any]) -> str:
         why = record.get("skipped", {}).get(reference, "it is not among evaluate.methods")
         return f"{name} has no held-out closed loop to pair the others with: {why}."
     objects = max(p["objects"] for p in paired.values())
+    left_out = "".join(f" {METHOD_NAMES.get(m, m)} is not compared: {why}."
+                       for m, why in record.get("not_held_out", {}).items())
     return (f"On the {objects} held-out objects, with 95 % intervals that resample them, "
-            f"{name} is {'; '.join(said)}.")
+            f"{name} is {'; '.join(said)}.{left_out}")
 
 
 def held_out_comparison_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
