@@ -71,6 +71,7 @@ from rapomdp.experiment.episode_table import (
 from rapomdp.experiment.held_out import (
     COMPARISON_FILE,
     HELD_OUT_DIR,
+    NOT_HELD_OUT,
     ClosedLoopFit,
     closed_loop_declared,
     held_out_comparison,
@@ -455,15 +456,19 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
         solve_sweep(config, inputs, sweep_dir, context)
     solved_s = time.perf_counter() - began
     cfg = config.evaluate
+    fitting = cfg.declared_fit != "walks" and cfg.declared_confidence == "calibrated"
     # every method on the held-out volume models, compared before any test model is read
-    runs = held_out_runs(config, inputs, cfg.methods, out / HELD_OUT_DIR, context,
+    # (the learned baseline, not held out for itself, only where its declared fit reads it)
+    runs = held_out_runs(config, inputs, [m for m in cfg.methods
+                                          if fitting or m not in NOT_HELD_OUT],
+                         out / HELD_OUT_DIR, context,
                          per_fold=cfg.declared_fit == "closed_loop_per_fold")
     if runs[0]:
         write_json_atomic(out / HELD_OUT_DIR / COMPARISON_FILE,
                           held_out_comparison(runs[0], PAIRED_REFERENCE, seed=config.seed,
                                               skipped=runs[1]))
     fits: dict[str, ClosedLoopFit] = {}
-    if cfg.declared_fit != "walks" and cfg.declared_confidence == "calibrated":
+    if fitting:
         # the POMDPs' declared confidence, fitted where they stop on held-out objects
         # (Random's too when its a depends on the images taken: evaluate.declared_form)
         skipped = ("static",) if cfg.declared_form == "views" else ("static", "random")

@@ -234,7 +234,8 @@ def write_study_report(spec: StudySpec, root: str | Path,
                    Paragraph(reported_confidence(seeds))]
         held = held_out_table(seeds, resamples)
         if held:
-            blocks += [Paragraph(held_out_story(held, len(seeds))),
+            story = held_out_story(held, len(seeds))
+            blocks += [*([Paragraph(story)] if story else []),
                        Table(*held_out_cells(held, rows))]
         blocks += [Paragraph(f"Stage time of the study's {len(seeds)} seeds: {spent:.0f} s "
                              f"(shared stages counted once; sharing saved {shared:.0f} s).")]
@@ -278,7 +279,8 @@ def study_markdown(spec: StudySpec, root: str | Path, resamples: int = 10_000) -
                   reported_confidence(seeds), ""]
         held = held_out_table(seeds, resamples)
         if held:
-            lines += [held_out_story(held, len(seeds)), "",
+            story = held_out_story(held, len(seeds))
+            lines += [*([story, ""] if story else []),
                       markdown_table(*held_out_cells(held, rows)).strip(), ""]
     return "\n".join(lines).rstrip()
 
