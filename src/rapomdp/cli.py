@@ -314,11 +314,12 @@ def run_summary_lines(workspace: Path, seconds: float, peak_gb: tuple[float, flo
 
 def _story(ws: Workspace) -> list[str]:
     """What Table 1 says, as the report says it (who won, which paired differences exclude 0),
-    and each paired difference with its interval."""
+    each paired difference with its interval, and the held-out comparison's sentence."""
     from rapomdp.config import METHOD_NAMES, Config
     from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+    from rapomdp.experiment.held_out import load_held_out_comparison
     from rapomdp.experiment.metrics import table1_story
-    from rapomdp.experiment.report import evaluation_summaries
+    from rapomdp.experiment.report import evaluation_summaries, held_out_comparison_story
 
     folder = ws.stage_dir("evaluate")
     if not (folder / EPISODES_FILE).is_file():
@@ -332,6 +333,10 @@ def _story(ws: Workspace) -> list[str]:
                      "pairs [95 % interval]: " + "; ".join(
                          f"{METHOD_NAMES.get(m, m)} {p.difference:+.3f} "
                          f"[{p.low:+.3f}, {p.high:+.3f}]" for m, p in paired.items()))
+    held_out = load_held_out_comparison(folder)
+    if held_out is not None and held_out["methods"]:
+        lines.append("held out, the forecast made before any test model was read: "
+                     + held_out_comparison_story(held_out))
     return lines
 
 

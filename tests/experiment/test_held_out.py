@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rapomdp.cli import run_summary_lines
 from rapomdp.config import METHOD_NAMES, Config, config_from_dict
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import class_ranks, load_dataset
@@ -281,6 +282,9 @@ def test_every_method_runs_on_the_held_out_objects_paired_with_ra(workspace):
         " Learned (PPO) is not compared: the learn stage trained it on these objects' recorded "
         "labels, so its episodes here are not held out.")
     assert "What held-out objects say, before any test model is read" in report
+    # and the lines that end a run say it too
+    assert ("held out, the forecast made before any test model was read: "
+            + held_out_comparison_story(record)) in run_summary_lines(ws.root, 1.0, (0.1, 0.0))
 
 
 def test_static_declares_its_start_views_label_on_the_held_out_objects(workspace, tmp_path):
