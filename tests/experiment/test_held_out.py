@@ -185,6 +185,9 @@ def test_one_volume_group_leaves_every_method_the_walks_a(pipeline_workspace, tm
     assert closed_loop_declared(config, ws.inputs(get_stage("evaluate")), POMDPS,
                                 tmp_path / "held_out") == {}
     assert not (tmp_path / "held_out").exists()
+    # nor is there a held-out comparison: the stage writes none and the report shows none
+    assert load_held_out_comparison(ws.require("evaluate")) is None
+    assert "What held-out objects say" not in (ws.require("report") / "report.md").read_text()
 
 
 def test_the_report_shows_the_closed_loop_fit_and_says_what_was_reported(workspace):
