@@ -26,7 +26,7 @@ from rapomdp.study.pooled import SeedResult, held_out_table, pooled_table
 from rapomdp.workspace import Workspace
 
 
-def test_differences(evaluate: Path) -> dict[str, tuple[float, float, float]]:
+def table1_differences(evaluate: Path) -> dict[str, tuple[float, float, float]]:
     """Table 1's paired differences to RA-POMDP: method -> (difference, low, high)."""
     with open(evaluate / PAIRED_CSV, newline="") as handle:
         return {row["method"]: (float(row["accuracy_difference"]), float(row["ci95_low"]),
@@ -52,7 +52,7 @@ def main() -> None:
         if record is None:
             print(f"{str(root):44s} no held-out comparison (rerun its evaluate stage)")
             continue
-        tested = test_differences(root / "evaluate")
+        tested = table1_differences(root / "evaluate")
         for method, held in record["paired"].items():
             if method not in tested:
                 continue

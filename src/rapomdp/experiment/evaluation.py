@@ -72,6 +72,7 @@ from rapomdp.experiment.held_out import (
     COMPARISON_FILE,
     HELD_OUT_DIR,
     NOT_HELD_OUT,
+    NOT_POMDP,
     ClosedLoopFit,
     closed_loop_declared,
     held_out_comparison,
@@ -325,11 +326,6 @@ def run_episodes(config: Config, inputs: StageInputs,
     return [r for records in per_model_records for r in records], dataset
 
 
-#: The methods that are no POMDP policies (solved per λ): Static, Random, and the learned
-#: baseline (trained per λ by the learn stage).
-NOT_POMDP = ("static", "random", LEARNED)
-
-
 def sweep_settings(config: Config) -> list[tuple[str, str, float, str | None]]:
     """The accuracy-energy sweep's extra settings: (method, parameter, value, λ folder) for
     every POMDP method at every extra λ (the learned baseline too, with no solve folder: the
@@ -463,10 +459,11 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
                                           if fitting or m not in NOT_HELD_OUT],
                          out / HELD_OUT_DIR, context,
                          per_fold=cfg.declared_fit == "closed_loop_per_fold")
-    if runs[0]:
+    ran, without_folds = runs
+    if ran:
         write_json_atomic(out / HELD_OUT_DIR / COMPARISON_FILE,
-                          held_out_comparison(runs[0], PAIRED_REFERENCE, seed=config.seed,
-                                              skipped=runs[1]))
+                          held_out_comparison(ran, PAIRED_REFERENCE, seed=config.seed,
+                                              skipped=without_folds))
     fits: dict[str, ClosedLoopFit] = {}
     if fitting:
         # the POMDPs' declared confidence, fitted where they stop on held-out objects

@@ -188,19 +188,40 @@ def load_declared_fit(evaluate_dir: Path) -> dict[str, Any] | None:
 
 @dataclass(frozen=True)
 class ClosedLoopFit:
-    """One method's held-out closed loop: its ``declared`` confidence fitted at the stops,
-    the loop's ``accuracy`` and mean ``energy`` (m), the ``episodes`` run, and the stops
-    themselves (``log_beliefs`` (episodes, C), ``truth``, ``images`` taken and held-out
-    ``groups`` (episodes,); not recorded)."""
+    """One method's held-out closed loop (``run``, not recorded) and its ``declared``
+    confidence fitted at the stops; the loop's accuracy, mean energy (m), episodes and stops
+    read from the run."""
 
     declared: DeclaredConfidence
-    accuracy: float
-    energy: float
-    episodes: int
-    log_beliefs: np.ndarray
-    truth: np.ndarray
-    images: np.ndarray
-    groups: np.ndarray
+    run: HeldOutRun
+
+    @property
+    def accuracy(self) -> float:
+        return self.run.accuracy
+
+    @property
+    def energy(self) -> float:
+        return self.run.energy_m
+
+    @property
+    def episodes(self) -> int:
+        return self.run.episodes
+
+    @property
+    def log_beliefs(self) -> np.ndarray:
+        return self.run.stops.log_beliefs
+
+    @property
+    def truth(self) -> np.ndarray:
+        return self.run.stops.truth
+
+    @property
+    def images(self) -> np.ndarray:
+        return self.run.stops.images
+
+    @property
+    def groups(self) -> np.ndarray:
+        return self.run.groups
 
     def to_dict(self) -> dict[str, object]:
         return {"declared_confidence": self.declared.to_dict(), "accuracy": self.accuracy,
@@ -254,8 +275,9 @@ def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldO
     return held_out_stops(config, policy, fold, motion)
 
 
-NOT_SOLVED = ("static", "random", LEARNED)
-"""The methods of the held-out closed loop that act without a solved plan."""
+NOT_POMDP = ("static", "random", LEARNED)
+"""The methods that are no POMDP policies (solved per λ): Static, Random, and the learned
+baseline (trained per λ by the learn stage)."""
 
 
 @dataclass(frozen=True)
@@ -297,7 +319,7 @@ def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str], o
     stage's plan or, with ``per_fold``, the fold model's own (solved into ``out``,
     :func:`solve_held_out_folds`); the learned baseline by the learn stage's policy at Table
     1's λ; Random walking at Table 1's threshold on its observation model's folds; Static
-    declaring its start view's label (on RA-POMDP's folds, or the first model's). Returns the
+    declaring its start view's label (on RA-POMDP's folds). Returns the
     runs and, for each method without held-out folds, why (:func:`closed_loop_skipped`)."""
     model_of = {name: name for name in methods}
     if "random" in methods:
@@ -305,9 +327,8 @@ def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str], o
     if LEARNED in methods:  # its belief's observation model
         _, spec = load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
         model_of[LEARNED] = spec.observation_model
-    if "static" in methods:  # it reads labels only: any CNN model's folds hold them
-        others = [model_of[m] for m in methods if m != "static" and model_of[m] != "vptree"]
-        model_of["static"] = "ra" if "ra" in others or not others else others[0]
+    if "static" in methods:  # it reads labels only: RA-POMDP's folds hold them
+        model_of["static"] = "ra"
     by_model = held_out_folds(config, inputs, sorted(set(model_of.values())))
     all_folds = {name: by_model[model] for name, model in model_of.items()}
     folds = {name: f for name, f in all_folds.items() if f}
@@ -316,14 +337,14 @@ def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str], o
     if not folds:
         return {}, skipped
     if per_fold:
-        solve_held_out_folds(config, {n: f for n, f in folds.items() if n not in NOT_SOLVED},
+        solve_held_out_folds(config, {n: f for n, f in folds.items() if n not in NOT_POMDP},
                              inputs.robot, out, context)
     pairs = [(name, fold) for name, fs in folds.items() for fold in fs]
     config_json = config.model_dump_json()
     tasks = []
     for name, fold in pairs:
         plans = None  # Static, Random; the learned baseline: the learn stage's policy
-        if name not in NOT_SOLVED:
+        if name not in NOT_POMDP:
             path = (out / f"group_{fold.group}" if per_fold else inputs.solve) / policy_file(name)
             if not path.is_file():
                 raise StageError(f"method '{name}' needs {path.name} from the solve stage for "
@@ -365,12 +386,10 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
     for name in methods:
         if name not in ran:
             continue
-        stops, group = ran[name].stops, ran[name].groups
-        declared = stops_declared_confidence(stops.log_beliefs, stops.truth, group,
+        stops = ran[name].stops
+        declared = stops_declared_confidence(stops.log_beliefs, stops.truth, ran[name].groups,
                                              images=stops.images if form == "views" else None)
-        fits[name] = ClosedLoopFit(declared, float(stops.correct.mean()),
-                                   float(stops.energy.mean()), int(stops.truth.size),
-                                   stops.log_beliefs, stops.truth, stops.images, group)
+        fits[name] = ClosedLoopFit(declared, ran[name])
     write_json_atomic(out / DECLARED_FIT_FILE, {
         "lambda_m": config.solve.wrong_declaration_cost_m,
         "starts_per_model": HELD_OUT_STARTS,
