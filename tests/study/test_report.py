@@ -22,6 +22,7 @@ from rapomdp.study.report import (
     update_study_readme,
     write_study_report,
 )
+from rapomdp.workspace import Workspace
 from tests.study.conftest import TinyStudy
 
 
@@ -56,7 +57,11 @@ def test_report_pools_each_seed_and_pairs_against_ra(tiny_study: TinyStudy) -> N
     assert {r["seed"] for r in seeds} == {"0", "1"}
     text = (out / "report.md").read_text()
     assert "2 seeds (0, 1), vary: train" in text and "### Seed 1" in text
-    assert "Stage time of the study's 2 seeds" in text
+    # the seconds every seed's manifest records for its stages' latest runs, summed
+    recorded = sum(float(r.get("seconds", 0.0)) for result in results
+                   for r in Workspace(result.workspace).manifest()["stages"].values())
+    assert (f"Stage time of the study's 2 seeds: {recorded:.0f} s (each stage's latest run; "
+            "shared stages counted once") in text
     # what the confidence columns are: the declared confidence, as the seeds' evaluate ran
     assert "Confidence − accuracy and ECE: Random, the POMDP methods and the learned " \
         "baseline report their belief raised to a declared-confidence temperature" in text

@@ -147,7 +147,9 @@ def points_csv(dataset: str, points: Sequence[PooledPoint]) -> str:
 
 
 def study_seconds(results: Sequence[SeedResult]) -> tuple[float, float]:
-    """(stage seconds the study spent, seconds the shared stages would have cost again)."""
+    """(stage seconds the study's workspaces record, seconds the shared stages would have cost
+    again). Each stage's seconds are its latest run's: a stage redone in place (a new version,
+    a changed setting) counts that run, not the first."""
     spent = shared = 0.0
     for result in results:
         for name, record in Workspace(result.workspace).manifest()["stages"].items():
@@ -238,7 +240,8 @@ def write_study_report(spec: StudySpec, root: str | Path,
             blocks += [*([Paragraph(story)] if story else []),
                        Table(*held_out_cells(held, rows))]
         blocks += [Paragraph(f"Stage time of the study's {len(seeds)} seeds: {spent:.0f} s "
-                             f"(shared stages counted once; sharing saved {shared:.0f} s).")]
+                             "(each stage's latest run; shared stages counted once; sharing "
+                             f"saved {shared:.0f} s).")]
         if points:
             blocks.append(Image(figure, f"Accuracy against energy on '{name}', the mean of "
                                         f"{len(seeds)} seeds (bars: the range over seeds)."))
