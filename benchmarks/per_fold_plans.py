@@ -8,7 +8,9 @@ seed name), it prints:
 - **D1, held out only**: the POMDP methods' leave-one-group-out ECE of the declared confidence
   at their held-out closed-loop stops (``evaluate/held_out/declared_fit.json``), pooled over
   the seeds weighted by stops, for both settings; the evaluate stage's seconds; and the rule's
-  verdict over the sets.
+  verdict over the sets. Then, held out too, each planned method's held-out accuracy and
+  energy (``evaluate/held_out/comparison.json``, mean of the seeds) under both settings: what
+  taking the held-out group out of the plan costs each.
 - **M1, with ``--test`` only** (it reads the test models, so it chooses nothing): each method's
   held-out Δ to RA-POMDP pooled over the seeds as ``rapomdp study`` pools it, for both
   settings, beside the test Δ; and the mean |held-out Δ − test Δ| of each setting. Then the
@@ -29,10 +31,25 @@ import numpy as np
 
 from rapomdp.config import METHOD_NAMES
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.experiment.held_out import load_held_out_comparison
 from rapomdp.study.pooled import SeedResult, held_out_table, pooled_table
 from rapomdp.workspace import Workspace
 
 POMDPS = ("ra", "classifier")
+PLANNED = (*POMDPS, "vptree")
+
+
+def held_out_means(roots: list[Path], method: str) -> tuple[float, float]:
+    """(held-out accuracy, energy in m) of ``method``, the mean of the workspaces'."""
+    rows = []
+    for root in roots:
+        record = load_held_out_comparison(root / "evaluate")
+        if record is None:
+            raise SystemExit(f"{root}: no held-out comparison (rerun its evaluate stage)")
+        rows.append((record["methods"][method]["accuracy"],
+                     record["methods"][method]["energy_m"]))
+    accuracy, energy = np.mean(rows, axis=0)
+    return float(accuracy), float(energy)
 
 
 def by_set(roots: list[Path]) -> dict[str, dict[str, Path]]:
@@ -108,6 +125,15 @@ def main() -> None:
     print(f"per_fold lower on every set: {lower_everywhere}; mean fall over the sets "
           f"{fall:+.4f} (the rule asks >= 0.01): "
           f"{'adopt closed_loop_per_fold' if adopt else 'closed_loop stays the default'}")
+
+    print("\nheld out: each planned method's accuracy and energy (m), mean of the seeds, with the "
+          "solve stage's plan -> each fold's own plan")
+    for name in stage:
+        for method in PLANNED:
+            a, ea = held_out_means([stage[name][s] for s in names[name]], method)
+            b, eb = held_out_means([per_fold[name][s] for s in names[name]], method)
+            print(f"{name:22s} {METHOD_NAMES[method]:12s} {a:.3f} -> {b:.3f} ({b - a:+.3f})   "
+                  f"energy {ea:.2f} -> {eb:.2f}")
     if not args.test:
         return
 
