@@ -104,13 +104,12 @@ def main() -> None:
     print(f"{'set':22s} {'method':12s} {'stops':>6s} {'closed_loop':>12s} {'per_fold':>10s}")
     means: dict[str, dict[str, float]] = {}
     for name in stage:
-        for side, sets in sides.items():
-            roots = [sets[name][s] for s in names[name]]
-            means.setdefault(name, {})[side] = float(np.mean(
-                [held_out_ece(roots, m)[0] for m in POMDPS]))
+        ece = {side: {m: held_out_ece([sets[name][s] for s in names[name]], m)
+                      for m in POMDPS} for side, sets in sides.items()}
+        means[name] = {side: float(np.mean([e for e, _ in by.values()]))
+                       for side, by in ece.items()}
         for method in POMDPS:
-            a, stops = held_out_ece([stage[name][s] for s in names[name]], method)
-            b, _ = held_out_ece([per_fold[name][s] for s in names[name]], method)
+            (a, stops), (b, _) = ece["closed_loop"][method], ece["closed_loop_per_fold"][method]
             print(f"{name:22s} {METHOD_NAMES[method]:12s} {stops:6d} {a:12.3f} {b:10.3f}")
         seconds = {side: evaluate_seconds([sets[name][s] for s in names[name]])
                    for side, sets in sides.items()}
@@ -147,14 +146,14 @@ def main() -> None:
         held = {side: {r.method: r.difference for r in held_out_table(res)}
                 for side, res in results.items()}
         for method, t in tested.items():
-            a, b = held["closed_loop"].get(method), held["closed_loop_per_fold"].get(method)
-            if t is None or a is None or b is None:
+            x, y = held["closed_loop"].get(method), held["closed_loop_per_fold"].get(method)
+            if t is None or x is None or y is None:
                 continue
-            errors["closed_loop"].append(abs(a.estimate - t.estimate))
-            errors["closed_loop_per_fold"].append(abs(b.estimate - t.estimate))
+            errors["closed_loop"].append(abs(x.estimate - t.estimate))
+            errors["closed_loop_per_fold"].append(abs(y.estimate - t.estimate))
             print(f"  {name:22s} {METHOD_NAMES.get(method, method):12s} held out: stage plan "
-                  f"{a.estimate:+.3f} [{a.low:+.3f}, {a.high:+.3f}]  per fold "
-                  f"{b.estimate:+.3f} [{b.low:+.3f}, {b.high:+.3f}]   test {t.estimate:+.3f} "
+                  f"{x.estimate:+.3f} [{x.low:+.3f}, {x.high:+.3f}]  per fold "
+                  f"{y.estimate:+.3f} [{y.low:+.3f}, {y.high:+.3f}]   test {t.estimate:+.3f} "
                   f"[{t.low:+.3f}, {t.high:+.3f}]")
     for side, values in errors.items():
         print(f"  mean |held-out Δ − test Δ| over {len(values)} (set, method) cells, {side}: "
