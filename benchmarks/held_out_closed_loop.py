@@ -17,7 +17,7 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
         [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead]
         [--lookahead-depth 1|2] [--lookahead-width N] [--save F]
         [--wrong-labels none|recorded] [--volume-labels F.npz] [--declared]
-        [--fit-groups K] [--region-weight W]
+        [--fit-groups K] [--region-weight W] [--nested]
 
 ``--fit-groups K``: each held-out group's models are fitted on K of the other groups only (the
 next K after it, cyclically) instead of all of them: how the held-out accuracy grows with the
@@ -27,6 +27,11 @@ evidence the models are counted on (the temperatures stay the recorded ones).
 held-out group's P(correct | c, x) moved on the logit scale by W times the other groups'
 accuracy per viewpoint pooled over classes (centred, ``viewpoint_logit(pooled=True)``), the
 wrong labels rescaled to keep their proportions; the temperature stays the recorded one.
+
+``--nested``: each held-out group's knobs chosen without it: the RA variant, the
+``ra_transfer`` kernel, every model's wrong-label shrinkage and belief temperature, made as
+the observe stage makes them (``nested_choices.py``, which checks it repeats the stage) on the
+other groups only, instead of the stage's choices on every group, the held-out one included.
 
 ``--declared``: the declared confidence (``evaluate.declared_confidence``, docs/awareness.md
 §4.8) at each method's held-out stops: confidence − accuracy and ECE of the belief, of the
@@ -82,6 +87,7 @@ from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
 
 sys.path.insert(0, str(Path(__file__).parent))
+from nested_choices import ObserveChoices, nested_choices  # noqa: E402
 from size_prior import workspace_size_model  # noqa: E402
 
 #: A held-out object's id in ``--save``'s rows: group * HELD_OUT_ID_STRIDE + its row in the group.
@@ -203,6 +209,9 @@ def main() -> None:
                              "models) instead of the uniform one")
     parser.add_argument("--region-weight", type=float, default=0.0, metavar="W",
                         help="RA-POMDP's model made region-aware by W (above); 0: as fitted")
+    parser.add_argument("--nested", action="store_true",
+                        help="each group's RA variant, kernel, wrong-label shrinkage and "
+                             "temperatures chosen without it (above)")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -219,6 +228,21 @@ def main() -> None:
         raise SystemExit(f"{args.workspace}: its evidence holds cross-fitted rows; this closed "
                          "loop refits volume-only models: observe with observe.evidence=volume")
     volume_groups = np.unique(evidence.groups[evidence.volume_mask])
+    nested: dict[int, ObserveChoices] | None = None
+    if args.nested:
+        clash = [flag for flag, on in (
+            ("--kernel", args.kernel is not None), ("--correction", args.correction is not None),
+            ("--naive", args.naive), ("--temperature", args.temperature is not None),
+            ("--volume-labels", args.volume_labels is not None),
+            ("--fit-groups", args.fit_groups is not None),
+            ("--region-weight", bool(args.region_weight)),
+            ("--wrong-labels none", args.wrong_labels != "recorded"),
+            ("--models vptree", "vptree" in args.models)) if on]
+        if clash:
+            raise SystemExit(f"--nested chooses every knob per fold as the observe stage does "
+                             f"(wrong labels as chosen: --wrong-labels recorded); drop "
+                             f"{', '.join(clash)}")
+        nested = nested_choices(ws, recorded)
     if args.volume_labels is not None:
         evidence = replaced_labels(ws, evidence, args.volume_labels)
     size_model, size_extents = workspace_size_model(ws) if args.size_prior else (None, {})
@@ -272,10 +296,21 @@ def main() -> None:
     for i, g in enumerate(volume_groups):
         held = evidence.groups == g
         others = np.roll(volume_groups, -i)[1:][:args.fit_groups]  # the next K after g
-        fitted = fit_observation_models(evidence.subset(np.isin(evidence.groups, others)),
-                                        scores, classes, config.observe,
-                                        observe["directions"], kernel)
-        fitted["ra"] = fitted[variant]
+        if nested is not None:  # every knob chosen without g; the models shrunk
+            choices = nested[int(g)]
+            fold_single = choices.models
+            fold_t, fold_corrections = choices.temperatures, choices.corrections
+        else:
+            fitted = fit_observation_models(
+                evidence.subset(np.isin(evidence.groups, others)), scores, classes,
+                config.observe, observe["directions"], kernel)
+            fitted["ra"] = fitted[variant]
+            fold_single = {name: m.probabilities for name, m in fitted.items()}
+            if args.wrong_labels == "recorded":
+                fold_single = {name: shrink_wrong_labels(p, calibration.get(
+                    "wrong_labels", {}).get(name, {}).get("amount", 0.0))
+                    for name, p in fold_single.items()}
+            fold_t, fold_corrections = temperatures, corrections
         rest = evidence.subset(np.isin(evidence.groups, others))
         region = (viewpoint_logit(rest.labels, rest.predicted, len(classes),
                                   observe["directions"], pooled=True)[0]
@@ -294,17 +329,14 @@ def main() -> None:
                 held_predicted = vptree["volume_predictions"][in_group]
             else:
                 key = cfg.random.observation_model if name == "random" else name
-                single = fitted[key].probabilities
-                if args.wrong_labels == "recorded":
-                    single = shrink_wrong_labels(single, calibration.get(
-                        "wrong_labels", {}).get(key, {}).get("amount", 0.0))
+                single = fold_single[key]
                 if name == "ra" and region is not None:
                     single = shift_level(single, args.region_weight * region)
                 if args.temperature is not None:
                     planner = first = temper(single, args.temperature)
                 else:
-                    planner = temper(single, temperatures[key])
-                    first = single if corrections[key] == "after_first" else planner
+                    planner = temper(single, fold_t[key])
+                    first = single if fold_corrections[key] == "after_first" else planner
             draws = (np.array([1.0]) if name == "random" or args.draws == 1
                      else np.linspace(1.0 - DRAW_SPREAD, 1.0 + DRAW_SPREAD, args.draws))
             for lam in ([0.0] if name == "random" else args.lambdas):
@@ -354,11 +386,13 @@ def main() -> None:
              0.0)
             for r, row in enumerate(static[:, motion.reachable]) for c in row)
     fitted_t = ", ".join(f"{m} {temperatures[m]:.3f}" for m in args.models)
-    belief = (f"t = {args.temperature:g}" if args.temperature is not None
+    belief = ("each group's own (nested)" if nested is not None
+              else f"t = {args.temperature:g}" if args.temperature is not None
               else f"{args.correction} (t: {fitted_t})" if args.correction is not None
               else f"the observe stage corrections (t: {fitted_t})")
     print(f"held-out closed loop on {len(volume_groups)} volume group(s) of "
-          f"{len(classes)} classes ({args.starts} starts a model); RA model {variant}; "
+          f"{len(classes)} classes ({args.starts} starts a model); RA model "
+          f"{variant if nested is None else 'per group, nested (below)'}; "
           f"POMDPs act by {f'a {depth}-step lookahead' if lookahead else 'the solved plans'}"
           f"{f' (width {width})' if lookahead and depth > 1 else ''}; "
           f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}; wrong labels: "
@@ -367,7 +401,11 @@ def main() -> None:
              if args.fit_groups is not None else "")
           + (f"; volume labels: {args.volume_labels} (temperatures refitted)"
              if args.volume_labels is not None else "")
-          + ("; beliefs start from the size prior" if args.size_prior else ""))
+          + ("; beliefs start from the size prior" if args.size_prior else "")
+          + ("; nested: " + "; ".join(
+              f"without group {g} {c.variant}, t ra {c.temperatures['ra']:.3f} classifier "
+              f"{c.temperatures['classifier']:.3f}" for g, c in nested.items())
+             if nested is not None else ""))
     print("belief: final belief in the true class; confidence: in the declared class; "
           "ECE over the confidence (10 bins)")
     print(f"{'method':12s} {'lambda':>6s} {'accuracy':>8s} {'energy':>7s} {'belief':>7s} "

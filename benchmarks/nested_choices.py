@@ -1,0 +1,162 @@
+"""The observe stage's held-out choices made again on part of its evidence: for a nested
+held-out closed loop, in which each held-out group's RA variant, ``ra_transfer`` kernel,
+wrong-label shrinkage and belief temperatures are chosen without that group
+(``held_out_closed_loop.py --nested``).
+
+The stage chooses them on every volume group, so its held-out closed loop scores each group
+by knobs that saw it. :func:`observe_choices` repeats the stage's sequence of choices
+(``rapomdp.awareness.stage.observe``, the naive belief on volume evidence: the default) with
+the library's own choosers; :func:`check_reproduces` asserts that on the whole evidence it
+gives what the stage recorded, so the two cannot drift apart unnoticed. The saliency scores
+stay the stage's: they are geometry over every volume model, no label enters them.
+
+    python benchmarks/nested_choices.py -w W...   # per workspace: the check, then each
+                                                  # group's nested choices against the stage's
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rapomdp.awareness.evidence import (
+    DEFAULT_TRANSFER_KERNEL,
+    Evidence,
+    RecordedObservation,
+    TransferKernel,
+    choose_belief_correction,
+    choose_ra_variant,
+    choose_transfer_kernel,
+    choose_wrong_label_shrinkage,
+    fit_observation_models,
+    held_out_temperatures,
+    leave_one_group_out,
+    shrink_wrong_labels,
+    shrunk_folds,
+    transfer_kernel_grid,
+)
+from rapomdp.config import ObserveConfig
+from rapomdp.data.splits import class_seed
+from rapomdp.recognition.belief import (
+    TEMPERATURE_NEIGHBOURS,
+    TEMPERATURE_WALK_LENGTH,
+    TEMPERATURE_WALKS_PER_ROW,
+)
+from rapomdp.workspace import Workspace
+
+
+@dataclass
+class ObserveChoices:
+    """What the observe stage chooses on held-out groups, and the single-view models it
+    fits with them (``models``: shrunk, not tempered; ``ra`` is ``ra_<variant>``)."""
+
+    variant: str
+    variant_rule: str
+    kernel: TransferKernel
+    shrinkage: dict[str, float]
+    corrections: dict[str, str]
+    temperatures: dict[str, float]
+    models: dict[str, np.ndarray]
+
+
+def observe_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes: Sequence[str],
+                    cfg: ObserveConfig, directions: np.ndarray, seed: int) -> ObserveChoices:
+    """The observe stage's choices on ``evidence`` (the naive belief on volume evidence)."""
+    if cfg.belief != "naive" or cfg.evidence != "volume":
+        raise SystemExit(f"nested choices repeat the naive belief on volume evidence; this "
+                         f"workspace has observe.belief {cfg.belief}, evidence {cfg.evidence}")
+    kernel = DEFAULT_TRANSFER_KERNEL
+    if "similarity" in scores:
+        kernel, _ = choose_transfer_kernel(evidence, scores["similarity"], directions,
+                                           cfg.confusion_pseudo_count,
+                                           transfer_kernel_grid(cfg.transfer_shrinkage))
+    folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
+    choice = choose_ra_variant(evidence, folds, cfg.ra_model, classes)
+    fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
+    amounts = {name: choose_wrong_label_shrinkage(evidence, folds, name, cfg.wrong_labels).amount
+               for name in fitted}
+    models = {name: shrink_wrong_labels(m.probabilities, amounts[name])
+              for name, m in fitted.items()}
+    folds = shrunk_folds(folds, amounts)
+    fits = {kind: held_out_temperatures(
+        evidence, folds, directions, TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW,
+        TEMPERATURE_NEIGHBOURS, class_seed(seed, "observe/temperature"),
+        after_first=kind == "after_first") for kind in ("temperature", "after_first")}
+    corrections, temperatures = {}, {}
+    for name in fitted:
+        if name not in fits["temperature"][1]:
+            corrections[name], temperatures[name] = "none", 1.0
+            continue
+        report = {**fits["temperature"][1][name],
+                  **{f"after_first_{k}": v for k, v in fits["after_first"][1][name].items()}}
+        corrections[name] = choose_belief_correction(report, cfg.belief_correction)
+        temperatures[name] = (fits[corrections[name]][0][name]
+                              if corrections[name] != "none" else 1.0)
+    ra = f"ra_{choice.variant}"
+    models["ra"], amounts["ra"] = models[ra], amounts[ra]
+    corrections["ra"], temperatures["ra"] = corrections[ra], temperatures[ra]
+    return ObserveChoices(ra, choice.rule, kernel, amounts, corrections, temperatures, models)
+
+
+def check_reproduces(recorded: RecordedObservation, choices: ObserveChoices) -> None:
+    """Raise unless ``choices`` (made on the whole evidence) are what the stage recorded."""
+    calibration = recorded.calibration
+    found = {
+        "variant": (choices.variant, recorded.variant),
+        "kernel": (choices.kernel.to_dict(), recorded.transfer_kernel.to_dict()),
+        "shrinkage": (choices.shrinkage, {n: float(c["amount"]) for n, c in
+                                          calibration["wrong_labels"].items()}),
+        "corrections": (choices.corrections, calibration["belief_corrections"]),
+    }
+    wrong = [k for k, (ours, theirs) in found.items() if ours != theirs]
+    t_ours, t_stage = choices.temperatures, calibration["temperatures"]
+    if set(t_ours) != set(t_stage) or not np.allclose(
+            [t_ours[n] for n in t_stage], [t_stage[n] for n in t_stage], rtol=1e-9):
+        wrong.append("temperatures")
+    if wrong:
+        raise SystemExit(f"the nested choices no longer repeat the observe stage "
+                         f"({', '.join(wrong)} differ): update observe_choices to the "
+                         "stage's sequence")
+
+
+def nested_choices(ws: Workspace, recorded: RecordedObservation
+                   ) -> dict[int, ObserveChoices]:
+    """Per volume group g: the observe stage's choices made on the other groups only, after
+    checking that on every group they are the stage's own."""
+    config = ws.config()
+    evidence, scores = recorded.evidence, recorded.scores
+    classes, directions = recorded.classes, recorded.arrays["directions"]
+    check_reproduces(recorded, observe_choices(evidence, scores, classes, config.observe,
+                                               directions, config.seed))
+    return {int(g): observe_choices(evidence.subset(evidence.groups != g), scores, classes,
+                                    config.observe, directions, config.seed)
+            for g in np.unique(evidence.groups)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workspace", "-w", type=Path, nargs="+", required=True)
+    args = parser.parse_args()
+    for root in args.workspace:
+        ws = Workspace(root)
+        recorded = RecordedObservation.load(ws.require("observe"))
+        per_group = nested_choices(ws, recorded)
+        t = recorded.calibration["temperatures"]
+        shrink = recorded.calibration["wrong_labels"]
+        print(f"{root}: the stage's choices reproduced; stage: {recorded.variant}, kernel "
+              f"{recorded.transfer_kernel.to_dict()}, shrinkage ra "
+              f"{shrink['ra']['amount']:g} classifier {shrink['classifier']['amount']:g}, t ra "
+              f"{t['ra']:.3f} classifier {t['classifier']:.3f}")
+        for g, c in per_group.items():
+            print(f"  without group {g}: {c.variant} ({c.variant_rule}), kernel "
+                  f"{c.kernel.to_dict()}, shrinkage ra {c.shrinkage['ra']:g} classifier "
+                  f"{c.shrinkage['classifier']:g}, t ra {c.temperatures['ra']:.3f} classifier "
+                  f"{c.temperatures['classifier']:.3f}")
+
+
+if __name__ == "__main__":
+    main()
