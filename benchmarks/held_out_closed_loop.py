@@ -395,16 +395,19 @@ def main() -> None:
           f"{variant if nested is None else 'per group, nested (below)'}; "
           f"POMDPs act by {f'a {depth}-step lookahead' if lookahead else 'the solved plans'}"
           f"{f' (width {width})' if lookahead and depth > 1 else ''}; "
-          f"belief: {belief}; ra_transfer kernel {kernel.to_dict()}; wrong labels: "
-          f"{args.wrong_labels}"
+          f"belief: {belief}; ra_transfer kernel "
+          f"{kernel.to_dict() if nested is None else 'per group'}; wrong labels: "
+          f"{args.wrong_labels if nested is None else 'per group'}"
           + (f"; each group's models counted on {args.fit_groups} other group(s)"
              if args.fit_groups is not None else "")
           + (f"; volume labels: {args.volume_labels} (temperatures refitted)"
              if args.volume_labels is not None else "")
           + ("; beliefs start from the size prior" if args.size_prior else "")
           + ("; nested: " + "; ".join(
-              f"without group {g} {c.variant}, t ra {c.temperatures['ra']:.3f} classifier "
-              f"{c.temperatures['classifier']:.3f}" for g, c in nested.items())
+              f"without group {g} {c.variant}, kernel {c.kernel.to_dict()}, shrinkage ra "
+              f"{c.shrinkage['ra']:g} classifier {c.shrinkage['classifier']:g}, t ra "
+              f"{c.temperatures['ra']:.3f} classifier {c.temperatures['classifier']:.3f}"
+              for g, c in nested.items())
              if nested is not None else ""))
     print("belief: final belief in the true class; confidence: in the declared class; "
           "ECE over the confidence (10 bins)")

@@ -12,6 +12,13 @@ stay the stage's: they are geometry over every volume model, no label enters the
 
     python benchmarks/nested_choices.py -w W...   # per workspace: the check, then each
                                                   # group's nested choices against the stage's
+        [--score]
+
+``--score``: per volume group g, the RA variant picked without g and the robust default
+``ra_class``, both fitted without g (wrong labels shrunk as chosen there), score g's objects by
+their mean log-likelihood per label (as ``auto`` scores them); per dataset (the workspaces'
+parent folder), over the folds whose pick is not ``ra_class``, the pick's mean advantage per
+object, with a bootstrap interval over objects (benchmarks/results/choice_stability_rule.md).
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ import numpy as np
 
 from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
+    ROBUST_RA_VARIANT,
     Evidence,
     RecordedObservation,
     TransferKernel,
@@ -35,12 +43,14 @@ from rapomdp.awareness.evidence import (
     fit_observation_models,
     held_out_temperatures,
     leave_one_group_out,
+    observed_probabilities,
     shrink_wrong_labels,
     shrunk_folds,
     transfer_kernel_grid,
 )
 from rapomdp.config import ObserveConfig
 from rapomdp.data.splits import class_seed
+from rapomdp.experiment.metrics import cluster_bootstrap_difference
 from rapomdp.recognition.belief import (
     TEMPERATURE_NEIGHBOURS,
     TEMPERATURE_WALK_LENGTH,
@@ -137,10 +147,37 @@ def nested_choices(ws: Workspace, recorded: RecordedObservation
             for g in np.unique(evidence.groups)}
 
 
+def object_log_likelihood(model: np.ndarray, part: Evidence) -> np.ndarray:
+    """Each object's mean log P(observed label) under ``model`` (V, C, C)."""
+    observed, _ = observed_probabilities(model, part.labels, part.predicted)
+    return np.log(np.maximum(observed, 1e-300)).mean(axis=1)
+
+
+def pick_advantages(evidence: Evidence, per_group: dict[int, ObserveChoices]) -> np.ndarray:
+    """Per object of the groups whose pick without them is not ``ra_class``: the pick's
+    log-likelihood minus ``ra_class``'s (both fitted without the object's group)."""
+    out = []
+    for g, choices in per_group.items():
+        if choices.variant == ROBUST:
+            continue
+        part = evidence.subset(evidence.groups == g)
+        out.append(object_log_likelihood(choices.models[choices.variant], part)
+                   - object_log_likelihood(choices.models[ROBUST], part))
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+#: The robust default of ``observe.ra_model: auto``, as a model's name.
+ROBUST = f"ra_{ROBUST_RA_VARIANT}"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workspace", "-w", type=Path, nargs="+", required=True)
+    parser.add_argument("--score", action="store_true",
+                        help="score each group's pick against ra_class on that group (above)")
     args = parser.parse_args()
+    advantages: dict[str, list[np.ndarray]] = {}
+    folds: dict[str, list[int]] = {}
     for root in args.workspace:
         ws = Workspace(root)
         recorded = RecordedObservation.load(ws.require("observe"))
@@ -156,6 +193,23 @@ def main() -> None:
                   f"{c.kernel.to_dict()}, shrinkage ra {c.shrinkage['ra']:g} classifier "
                   f"{c.shrinkage['classifier']:g}, t ra {c.temperatures['ra']:.3f} classifier "
                   f"{c.temperatures['classifier']:.3f}")
+        if args.score:
+            d = pick_advantages(recorded.evidence, per_group)
+            advantages.setdefault(root.parent.name, []).append(d)
+            picks = [c.variant for c in per_group.values() if c.variant != ROBUST]
+            folds.setdefault(root.parent.name, []).append(len(picks))
+            print(f"  picks other than {ROBUST}: {picks or 'none'}"
+                  + (f"; their advantage on the unseen group {d.mean():+.4f} per object "
+                     f"({d.size} objects)" if d.size else ""))
+    for name, parts in advantages.items():
+        d = np.concatenate(parts)
+        if not d.size:
+            print(f"{name}: every pick without a group is {ROBUST}")
+            continue
+        estimate, low, high = cluster_bootstrap_difference(d, np.ones_like(d))
+        print(f"{name}: {sum(folds[name])} of {3 * len(parts)} folds pick another variant "
+              f"than {ROBUST}; its advantage on the group it did not see {estimate:+.4f} "
+              f"[{low:+.4f}, {high:+.4f}] per object over {d.size} objects")
 
 
 if __name__ == "__main__":
