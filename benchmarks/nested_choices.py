@@ -36,6 +36,7 @@ from rapomdp.awareness.evidence import (
     Evidence,
     RecordedObservation,
     TransferKernel,
+    check_variant_stability,
     choose_belief_correction,
     choose_ra_variant,
     choose_transfer_kernel,
@@ -85,7 +86,8 @@ def observe_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes: 
                                            cfg.confusion_pseudo_count,
                                            transfer_kernel_grid(cfg.transfer_shrinkage))
     folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
-    choice = choose_ra_variant(evidence, folds, cfg.ra_model, classes)
+    choice = check_variant_stability(choose_ra_variant(evidence, folds, cfg.ra_model, classes),
+                                     evidence, scores, classes, cfg, directions)
     fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
     amounts = {name: choose_wrong_label_shrinkage(evidence, folds, name, cfg.wrong_labels).amount
                for name in fitted}

@@ -9,6 +9,7 @@ from rapomdp.awareness.evidence import (
     CLASS_PRIOR_GRID,
     DEFAULT_TRANSFER_KERNEL,
     MIN_HELD_OUT_OBJECTS,
+    MIN_STABILITY_GROUPS,
     ROBUST_RA_VARIANT,
     SHRUNK_TRANSFER_KERNEL_GRID,
     TRANSFER_KERNEL_GRID,
@@ -16,6 +17,7 @@ from rapomdp.awareness.evidence import (
     WRONG_LABEL_SHRINKAGES,
     Evidence,
     TransferKernel,
+    check_variant_stability,
     choose_belief_correction,
     choose_ra_variant,
     choose_transfer_kernel,
@@ -124,6 +126,58 @@ def test_the_held_out_chooser_picks_the_planted_informative_model() -> None:
     assert best["mean_log_likelihood"] == pytest.approx(
         float(pooled[f"ra_{choice.variant}"]["log_likelihood"]), abs=1e-9)
     assert "more than one standard error" in choice.reason
+
+
+def test_a_choice_every_group_supports_is_kept_and_records_the_choices_without_each() -> None:
+    evidence, scores = _planted_area_evidence(4, 8)
+    classes, cfg = ["a", "b", "c"], ObserveConfig()
+    choice = choose_ra_variant(evidence, leave_one_group_out(evidence, scores, classes, cfg),
+                               "auto", classes)
+    checked = check_variant_stability(choice, evidence, scores, classes, cfg, None)
+    assert (checked.variant, checked.rule, checked.reason) == (choice.variant, "best",
+                                                                choice.reason)
+    # made without each group it may pick the other informative variant, never the default
+    assert set(checked.without_each_group) == {"0", "1", "2", "3"}
+    assert set(checked.without_each_group.values()) <= {"area", "class_area"}
+    assert checked.to_dict()["without_each_group"] == checked.without_each_group
+
+
+def test_a_choice_that_rests_on_some_groups_falls_back_as_unstable() -> None:
+    """Planted: correctness follows the 'area' score on groups 0 and 1 only; on 2 and 3 it is
+    each class's rate. On all four groups 'area' wins; without any one of them it does not."""
+    rng = np.random.default_rng(0)
+    views, classes = 96, ["a", "b", "c"]
+    scores = {"mean": rng.random((3, views)), "area": rng.random((3, views))}
+    labels, groups = np.repeat(np.arange(3), 4), np.tile(np.arange(4), 3)
+    carries = np.isin(groups, [0, 1])[:, None]
+    p_right = _sigmoid(np.where(carries, -3.0 + 7.0 * scores["area"][labels], -1.5))
+    right = rng.random(p_right.shape) < p_right
+    predicted = np.where(right, labels[:, None], (labels[:, None] + 1) % 3)
+    evidence, cfg = Evidence(labels, predicted, groups), ObserveConfig()
+    choice = choose_ra_variant(evidence, leave_one_group_out(evidence, scores, classes, cfg),
+                               "auto", classes)
+    assert (choice.variant, choice.rule) == ("area", "best")
+    checked = check_variant_stability(choice, evidence, scores, classes, cfg, None)
+    assert (checked.variant, checked.rule) == (ROBUST_RA_VARIANT, "unstable")
+    assert checked.without_each_group == dict.fromkeys(["0", "1", "2", "3"], ROBUST_RA_VARIANT)
+    assert checked.best == "area" and checked.held_out == choice.held_out
+    assert checked.reason.startswith("'area' is the best held out, but made without group(s) "
+                                     "0, 1, 2, 3 the choice is the robust default")
+
+
+def test_stability_is_checked_only_where_a_choice_can_be_made_without_a_group() -> None:
+    classes, cfg = ["a", "b", "c"], ObserveConfig()
+    evidence, scores = _planted_area_evidence(MIN_STABILITY_GROUPS - 1, 8)
+    choice = choose_ra_variant(evidence, leave_one_group_out(evidence, scores, classes, cfg),
+                               "auto", classes)
+    assert choice.rule == "best" and choice.variant != ROBUST_RA_VARIANT
+    assert check_variant_stability(choice, evidence, scores, classes, cfg, None) == choice
+    # a configured variant and the robust default are never second-guessed
+    evidence, scores = _planted_area_evidence(4, 8)
+    folds = leave_one_group_out(evidence, scores, classes, cfg)
+    configured = choose_ra_variant(evidence, folds, "paper", classes)
+    assert check_variant_stability(configured, evidence, scores, classes, cfg,
+                                   None) == configured
 
 
 def test_the_held_out_chooser_says_when_there_is_too_little_evidence() -> None:

@@ -112,7 +112,7 @@ class RAChoice:
     the array of ``ra_<variant>``), the ``configured`` ``observe.ra_model`` (``auto``: chosen
     on held-out objects) and ``method``, what the variant's fit is (``logistic``,
     ``salient_view_transfer``, ...); with ``auto``, the choice's ``rule`` (``best``, ``one
-    standard error``, ``too little evidence``) and ``reason`` (calibration.json's
+    standard error``, ``too little evidence``, ``unstable``) and ``reason`` (calibration.json's
     ``ra_model_choice``; empty in a workspace from before it)."""
 
     variant: str

@@ -12,7 +12,7 @@ the temperature without the test models.
 from __future__ import annotations
 
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -570,11 +570,13 @@ def held_out_object_log_likelihoods(
 class VariantChoice:
     """RA-POMDP's model and why: ``rule`` is ``configured``, ``best`` (the best held-out
     log-likelihood, better than the robust default by more than one standard error),
-    ``one standard error`` (the robust default, within one standard error of the best) or
+    ``one standard error`` (the robust default, within one standard error of the best),
     ``too little evidence`` (the robust default: fewer than :data:`MIN_HELD_OUT_OBJECTS`
-    held-out objects in some class); ``held_out``: per RA variant its mean held-out
-    log-likelihood per object and the standard error of its paired difference to the best;
-    ``objects_per_class``: the held-out objects each class had."""
+    held-out objects in some class) or ``unstable`` (the robust default: made without some
+    group, the choice is the robust default, :func:`check_variant_stability`); ``held_out``: per RA
+    variant its mean held-out log-likelihood per object and the standard error of its paired
+    difference to the best; ``objects_per_class``: the held-out objects each class had;
+    ``without_each_group``: the variant chosen without each group (by group), where checked."""
 
     variant: str
     rule: str
@@ -582,6 +584,7 @@ class VariantChoice:
     best: str | None = None
     held_out: dict[str, dict[str, float]] = field(default_factory=dict)
     objects_per_class: dict[str, int] = field(default_factory=dict)
+    without_each_group: dict[str, str] = field(default_factory=dict)
 
     @property
     def too_little_evidence(self) -> bool:
@@ -592,7 +595,8 @@ class VariantChoice:
                 "best": self.best, "too_little_evidence": self.too_little_evidence,
                 "robust_default": ROBUST_RA_VARIANT,
                 "min_held_out_objects": MIN_HELD_OUT_OBJECTS, "held_out": self.held_out,
-                "objects_per_class": self.objects_per_class}
+                "objects_per_class": self.objects_per_class,
+                "without_each_group": self.without_each_group}
 
 
 def choose_ra_variant(evidence: Evidence,
@@ -643,6 +647,54 @@ def choose_ra_variant(evidence: Evidence,
               f"{-robust['difference_to_best']:.4f} per object, more than one standard error "
               f"({robust['standard_error']:.4f}) over {int(covered.sum())} held-out objects")
     return VariantChoice(best, "best", reason, best, table, objects)
+
+
+MIN_STABILITY_GROUPS = 3
+"""Groups of held-out evidence :func:`check_variant_stability` needs: without one group, two
+more must remain for a choice to be made at all."""
+
+
+def check_variant_stability(choice: VariantChoice, evidence: Evidence,
+                            scores: dict[str, np.ndarray], classes: Sequence[str],
+                            cfg: ObserveConfig, directions: np.ndarray | None
+                            ) -> VariantChoice:
+    """``choice`` if ``auto``, made again without each group of held-out evidence, leaves the
+    robust default every time; else the robust default, rule ``unstable``: the evidence against
+    it rests on one group. Each choice without a group is made as the stage makes the whole
+    one (its own ``ra_transfer`` kernel, its own folds, the one-standard-error rule); which
+    non-default variant it picks may change (two variants may carry the same signal). A
+    configured variant or the robust default is kept unchecked, and so is any choice with fewer
+    than :data:`MIN_STABILITY_GROUPS` groups (none could be made without one).
+
+    Why: on two real-CAD sets ``auto`` made on two of three volume groups picked another
+    variant than on all three in 17 of 30 folds, and its picks other than the robust default
+    scored worse than it on the group they had not seen; on the default and the mesh set it
+    picked its whole-evidence variant in every fold (benchmarks/results/choice_stability_rule.md).
+    """
+    if choice.rule != "best" or choice.variant == ROBUST_RA_VARIANT:
+        return choice
+    masks = held_out_groups(evidence.labels, evidence.groups)
+    if len(masks) < MIN_STABILITY_GROUPS:
+        return choice
+    without: dict[str, str] = {}
+    for held in masks:
+        rest = evidence.subset(~held)
+        kernel = DEFAULT_TRANSFER_KERNEL
+        if "similarity" in scores and directions is not None:
+            kernel, _ = choose_transfer_kernel(rest, scores["similarity"], directions,
+                                               cfg.confusion_pseudo_count,
+                                               transfer_kernel_grid(cfg.transfer_shrinkage))
+        folds = leave_one_group_out(rest, scores, classes, cfg, directions, kernel)
+        group = str(int(evidence.groups[held][0]))
+        without[group] = choose_ra_variant(rest, folds, "auto", classes).variant
+    if all(v != ROBUST_RA_VARIANT for v in without.values()):
+        return replace(choice, without_each_group=without)
+    short = ", ".join(g for g, v in without.items() if v == ROBUST_RA_VARIANT)
+    reason = (f"'{choice.variant}' is the best held out, but made without group(s) {short} the "
+              f"choice is the robust default: too unstable to leave it; the robust default "
+              f"'{ROBUST_RA_VARIANT}'")
+    return VariantChoice(ROBUST_RA_VARIANT, "unstable", reason, choice.best, choice.held_out,
+                         choice.objects_per_class, without)
 
 
 WRONG_LABEL_SHRINKAGES = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0)

@@ -66,6 +66,7 @@ from rapomdp.awareness.evidence import (
     ShrinkageChoice,
     TransferKernel,
     VariantChoice,
+    check_variant_stability,
     choose_belief_correction,
     choose_ra_variant,
     choose_transfer_kernel,
@@ -427,7 +428,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     kernel_s = time.perf_counter() - kernel_start
     folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
     validation = validation_quality(evidence, folds)
-    choice = choose_ra_variant(evidence, folds, cfg.ra_model, classes)
+    choice = check_variant_stability(choose_ra_variant(evidence, folds, cfg.ra_model, classes),
+                                     evidence, scores, classes, cfg, directions)
     variant = choice.variant
     if variant == "contrastive" and not cfg.contrastive:
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
@@ -741,6 +743,7 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                        out / CALIBRATION_FIGURE, predicted=p_correct.T[ev.labels],
                        variant=result.ra_variant)
     write_json_atomic(out / TIMING_FILE, result.seconds)
-    if result.ra_choice is not None and result.ra_choice.too_little_evidence:
+    if result.ra_choice is not None and result.ra_choice.rule in ("too little evidence",
+                                                                  "unstable"):
         Console(stderr=True).print(f"observe: {result.ra_choice.reason}", highlight=False,
                                    soft_wrap=True)
