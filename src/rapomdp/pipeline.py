@@ -155,10 +155,11 @@ STAGES: list[Stage] = [
         run=_deferred("observe"),
         sections=OBSERVE_SECTIONS,
         inputs=("dataset", "render", "train", "xrho", "classifier_eval", "volume", "crossfit"),
-        version="5",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence; 3: the
+        version="6",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence; 3: the
         # declared confidence fitted where held-out walks stop; 4: by the confidence's
         # cross-entropy, and at each stop threshold; 5: ra_viewpoint's stacked term centred,
-        # ra_region fitted
+        # ra_region fitted; 6: auto leaves the robust default only if it does so without
+        # each group too (evidence.check_variant_stability)
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
     Stage(
