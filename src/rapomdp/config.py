@@ -322,7 +322,9 @@ class ObserveConfig(Section):
                       "viewpoint", "region", "transfer"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence; "
-        "'region', the accuracy per viewpoint pooled over classes, only when named)")
+        "'region', the accuracy per viewpoint pooled over classes, only when named); 'class' "
+        "unless the best beats it by more than one standard error and the choice made without "
+        "each group leaves it too (docs/awareness.md 4.4)")
     transfer_shrinkage: bool = Field(
         False, description="ra_transfer's kernel choice also scores shrinking each class row's "
         "accuracy toward the accuracy pooled over every class (by 0-64 objects' worth, chosen "
