@@ -10,7 +10,13 @@ differences pooled over the seeds as ``rapomdp study`` pools them (its report sh
 two columns): seeds × held-out objects, and seeds × test models. A diagnostic: it reads the
 test models' results, so nothing here may drive a choice.
 
-    python benchmarks/held_out_forecast.py -w W [W ...]
+    python benchmarks/held_out_forecast.py -w W [W ...] [--gaps]
+
+``--gaps``: the forecast's error per workspace and method, e = test Δ − held-out Δ, and per set
+(the workspaces' parent folder) its mean over the seeds with a Student-t 95 % interval over
+seeds, then the same over every seed of the sets whose folder name starts with ``real-cad``
+(benchmarks/results/forecast_gap_rule.md). Each seed's held-out objects and test models are
+different objects, so its e carries both samples' noise and the seeds are its replicates.
 """
 
 from __future__ import annotations
@@ -18,6 +24,9 @@ from __future__ import annotations
 import argparse
 import csv
 from pathlib import Path
+
+import numpy as np
+from scipy import stats
 
 from rapomdp.config import METHOD_NAMES
 from rapomdp.experiment.episode_table import EPISODES_FILE, PAIRED_CSV, EpisodeTable
@@ -37,10 +46,41 @@ def sign(value: float) -> int:
     return (value > 0) - (value < 0)
 
 
+def t_interval(values: list[float]) -> tuple[float, float, float]:
+    """Mean and Student-t 95 % interval over replicates."""
+    x = np.asarray(values, dtype=np.float64)
+    half = (float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size))
+            if x.size > 1 else float("inf"))
+    return float(x.mean()), float(x.mean() - half), float(x.mean() + half)
+
+
+def print_gaps(errors: dict[Path, dict[str, list[float]]]) -> None:
+    """``--gaps``: the forecast's error e per set and method over its seeds, then pooled over
+    the real-CAD sets."""
+    print("\nthe forecast's error e = test Δ − held-out Δ per seed; mean over seeds, Student-t "
+          "95 % over seeds")
+    pooled: dict[str, list[float]] = {}
+    for parent, by_method in errors.items():
+        for method, values in by_method.items():
+            mean, low, high = t_interval(values)
+            print(f"  {parent.name:22s} {METHOD_NAMES.get(method, method):12s} e {mean:+.3f} "
+                  f"[{low:+.3f}, {high:+.3f}] over {len(values)} seeds (per seed "
+                  + " / ".join(f"{v:+.3f}" for v in values) + ")")
+            if parent.name.startswith("real-cad"):
+                pooled.setdefault(method, []).extend(values)
+    for method, values in pooled.items():
+        mean, low, high = t_interval(values)
+        print(f"  {'real-CAD sets together':22s} {METHOD_NAMES.get(method, method):12s} e "
+              f"{mean:+.3f} [{low:+.3f}, {high:+.3f}] over {len(values)} seeds")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workspace", "-w", type=Path, nargs="+", required=True)
+    parser.add_argument("--gaps", action="store_true",
+                        help="the forecast's error per set over seeds (above)")
     args = parser.parse_args()
+    errors: dict[Path, dict[str, list[float]]] = {}
     print("Δ: a method's accuracy minus RA-POMDP's over the same (object, start) pairs; "
           "held out: the volume models; test: Table 1's test models")
     print(f"{'workspace':44s} {'method':12s} {'held-out Δ [95 %]':>28s} "
@@ -62,6 +102,7 @@ def main() -> None:
                   f"{h:+8.3f} [{held['low']:+.3f}, {held['high']:+.3f}]  "
                   f"{d:+8.3f} [{low:+.3f}, {high:+.3f}]")
             same.setdefault(method, []).append(sign(h) == sign(d))
+            errors.setdefault(root.parent, {}).setdefault(method, []).append(d - h)
             if held["low"] > 0 or held["high"] < 0:
                 confident.setdefault(method, []).append(sign(h) == sign(d))
     print("\nper method: workspaces whose held-out and test differences have the same sign; "
@@ -89,6 +130,8 @@ def main() -> None:
             print(f"  {parent.name:16s} {row.name:12s} held out {d.estimate:+.3f} "
                   f"[{d.low:+.3f}, {d.high:+.3f}]   test {t.estimate:+.3f} "
                   f"[{t.low:+.3f}, {t.high:+.3f}]   ({len(roots)} seeds)")
+    if args.gaps:
+        print_gaps(errors)
 
 
 if __name__ == "__main__":
