@@ -165,6 +165,21 @@ def test_a_choice_that_rests_on_some_groups_falls_back_as_unstable() -> None:
                                      "0, 1, 2, 3 the choice is the robust default")
 
 
+def test_a_group_without_which_some_class_is_too_thin_to_choose_checks_nothing() -> None:
+    """Class c has two volume models (groups 0 and 1), the others four: without group 0 or 1,
+    c keeps one and no choice can be made; groups 2 and 3 still check the pick."""
+    evidence, scores = _planted_area_evidence(4, 8)
+    classes, cfg = ["a", "b", "c"], ObserveConfig()
+    uneven = evidence.subset((evidence.labels != 2) | (evidence.groups < 2))
+    choice = choose_ra_variant(uneven, leave_one_group_out(uneven, scores, classes, cfg),
+                               "auto", classes)
+    assert choice.rule == "best" and choice.objects_per_class["c"] == 2
+    checked = check_variant_stability(choice, uneven, scores, classes, cfg, None)
+    assert (checked.variant, checked.rule) == (choice.variant, "best")
+    assert set(checked.without_each_group) == {"2", "3"}
+    assert ROBUST_RA_VARIANT not in checked.without_each_group.values()
+
+
 def test_stability_is_checked_only_where_a_choice_can_be_made_without_a_group() -> None:
     classes, cfg = ["a", "b", "c"], ObserveConfig()
     evidence, scores = _planted_area_evidence(MIN_STABILITY_GROUPS - 1, 8)
