@@ -162,7 +162,7 @@ def test_a_choice_that_rests_on_some_groups_falls_back_as_unstable() -> None:
     assert checked.without_each_group == dict.fromkeys(["0", "1", "2", "3"], ROBUST_RA_VARIANT)
     assert checked.best == "area" and checked.held_out == choice.held_out
     assert checked.reason.startswith("'area' is the best held out, but made without group(s) "
-                                     "0, 1, 2, 3 the choice is the robust default")
+                                     "0, 1, 2, 3, the choice would be the robust default")
 
 
 def test_a_group_without_which_some_class_is_too_thin_to_choose_checks_nothing() -> None:

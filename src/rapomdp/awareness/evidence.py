@@ -693,9 +693,9 @@ def check_variant_stability(choice: VariantChoice, evidence: Evidence,
     if all(v != ROBUST_RA_VARIANT for v in without.values()):
         return replace(choice, without_each_group=without)
     short = ", ".join(g for g, v in without.items() if v == ROBUST_RA_VARIANT)
-    reason = (f"'{choice.variant}' is the best held out, but made without group(s) {short} the "
-              f"choice is the robust default: too unstable to leave it; the robust default "
-              f"'{ROBUST_RA_VARIANT}'")
+    reason = (f"'{choice.variant}' is the best held out, but made without group(s) {short}, the "
+              f"choice would be the robust default: too unstable to leave it; the robust "
+              f"default '{ROBUST_RA_VARIANT}'")
     return VariantChoice(ROBUST_RA_VARIANT, "unstable", reason, choice.best, choice.held_out,
                          choice.objects_per_class, without)
 
