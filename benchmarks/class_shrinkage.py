@@ -21,6 +21,7 @@ import numpy as np
 
 from rapomdp.awareness.evidence import (
     Evidence,
+    Folds,
     RecordedObservation,
     held_out_object_log_likelihoods,
     leave_one_group_out,
@@ -46,7 +47,7 @@ def shrunk_class_model(model: ObservationModel, amount: float) -> np.ndarray:
     return out
 
 
-def per_object(evidence: Evidence, folds: list, amount: float) -> np.ndarray:
+def per_object(evidence: Evidence, folds: Folds, amount: float) -> np.ndarray:
     """Each held-out object's mean log-likelihood per label under shrunk ``ra_class``."""
     shrunk = [(held, {"ra_class": ObservationModel(
         shrunk_class_model(models["ra_class"], amount), models["ra_class"].classes)})
@@ -70,14 +71,14 @@ def main() -> None:
         covered = np.zeros(len(evidence.labels), dtype=bool)
         for held, _ in folds:
             covered |= held
-        by_amount = {w: per_object(evidence, folds, w)[covered] for w in AMOUNTS}
+        scored = {w: per_object(evidence, folds, w)[covered] for w in AMOUNTS}
         name = root.parent.name
-        for w, ll in by_amount.items():
+        for w, ll in scored.items():
             pooled.setdefault(name, {}).setdefault(w, []).append(ll)
         chosen.setdefault(name, []).append(
             held_out_object_log_likelihoods(evidence, folds)[recorded.variant][covered])
         print(f"{root}: stage's variant {recorded.variant}; ra_class held out per w: "
-              + ", ".join(f"{w:g} {ll.mean():+.4f}" for w, ll in by_amount.items()))
+              + ", ".join(f"{w:g} {ll.mean():+.4f}" for w, ll in scored.items()))
     print("\nper set, pooled: mean held-out log-likelihood per object of ra_class at each w; "
           "the best w against w = 0 (± one standard error over objects); the stage's variant")
     for name, by_amount in pooled.items():

@@ -17,7 +17,7 @@ others with ``vptree.pseudo_count`` and tempered by the vptree stage's t (1 with
         [--kernel POWER BANDWIDTH_DEG PRIOR] [--draws K] [--[no-]lookahead]
         [--lookahead-depth 1|2] [--lookahead-width N] [--save F]
         [--wrong-labels none|recorded] [--volume-labels F.npz] [--declared]
-        [--fit-groups K] [--region-weight W] [--nested]
+        [--fit-groups K] [--region-weight W] [--nested] [--class-shrinkage auto|W]
 
 ``--fit-groups K``: each held-out group's models are fitted on K of the other groups only (the
 next K after it, cyclically) instead of all of them: how the held-out accuracy grows with the
@@ -32,6 +32,13 @@ wrong labels rescaled to keep their proportions; the temperature stays the recor
 ``ra_transfer`` kernel, every model's wrong-label shrinkage and belief temperature, made as
 the observe stage makes them (``nested_choices.py``, which checks it repeats the stage) on the
 other groups only, instead of the stage's choices on every group, the held-out one included.
+
+``--class-shrinkage auto|W``: ``ra_class`` (RA-POMDP's model, which it must be) with its class
+intercepts a_c moved to a_c + w (mean(a) − a_c) in every fold (``class_shrinkage.py``); ``auto``
+chooses w as the wrong-label shrinkage is chosen (the best held-out log-likelihood per object on
+the leave-one-group-out folds, kept beyond one standard error over w = 0); its wrong-label
+shrinkage is chosen again and its temperature refitted on the shrunk folds, as the observe
+stage would (benchmarks/results/class_shrinkage_closed_loop_rule.md).
 
 ``--declared``: the declared confidence (``evaluate.declared_confidence``, docs/awareness.md
 §4.8) at each method's held-out stops: confidence − accuracy and ECE of the belief, of the
@@ -50,15 +57,20 @@ import numpy as np
 
 from rapomdp.awareness.evidence import (
     Evidence,
+    Folds,
     RecordedObservation,
     TransferKernel,
+    choose_wrong_label_shrinkage,
     fit_observation_models,
     held_out_temperatures,
     leave_one_group_out,
     shift_level,
     shrink_wrong_labels,
+    shrunk_folds,
     viewpoint_logit,
 )
+from rapomdp.awareness.observation import ObservationModel
+from rapomdp.config import Config
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
@@ -87,6 +99,7 @@ from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
 
 sys.path.insert(0, str(Path(__file__).parent))
+from class_shrinkage import AMOUNTS, per_object, shrunk_class_model  # noqa: E402
 from nested_choices import ObserveChoices, nested_choices  # noqa: E402
 from size_prior import workspace_size_model  # noqa: E402
 
@@ -116,6 +129,30 @@ def replaced_labels(ws: Workspace, evidence: Evidence, path: Path) -> Evidence:
         raise SystemExit(f"{path}: no labels of {missing[:3]}")
     predicted = np.stack([by_file[m.file] for m in models]).astype(evidence.predicted.dtype)
     return Evidence(evidence.labels, predicted, evidence.groups, evidence.volume_mask)
+
+
+def class_shrinkage_amount(evidence: Evidence, scores: dict[str, np.ndarray],
+                           classes: list[str], config: Config, directions: np.ndarray,
+                           kernel: TransferKernel, configured: str) -> float:
+    """``--class-shrinkage``'s w: the number given, or with ``auto`` the amount of best mean
+    held-out log-likelihood per object, kept only beyond one standard error over none."""
+    if configured != "auto":
+        return float(configured)
+    folds = leave_one_group_out(evidence, scores, classes, config.observe, directions, kernel)
+    covered = np.zeros(len(evidence.labels), dtype=bool)
+    for held, _ in folds:
+        covered |= held
+    by_amount = {w: per_object(evidence, folds, w)[covered] for w in AMOUNTS}
+    best = max(AMOUNTS, key=lambda w: by_amount[w].mean())
+    d = by_amount[best] - by_amount[0.0]
+    return best if d.size > 1 and d.mean() > d.std(ddof=1) / np.sqrt(d.size) else 0.0
+
+
+def class_shrunk_folds(folds: Folds, amount: float) -> Folds:
+    """``folds`` with each fold's ``ra_class`` shrunk by ``amount`` (its own intercepts)."""
+    return [(held, {**models, "ra_class": ObservationModel(
+        shrunk_class_model(models["ra_class"], amount), models["ra_class"].classes)})
+        for held, models in folds]
 
 
 def declared_at_stops(ws: Workspace, finals: dict[tuple[str, float], list[np.ndarray]],
@@ -212,6 +249,8 @@ def main() -> None:
     parser.add_argument("--nested", action="store_true",
                         help="each group's RA variant, kernel, wrong-label shrinkage and "
                              "temperatures chosen without it (above)")
+    parser.add_argument("--class-shrinkage", default=None, metavar="auto|W",
+                        help="ra_class's class intercepts shrunk toward their mean (above)")
     parser.add_argument("--save", type=Path, default=None,
                         help="write every episode's (correct, energy, belief, confidence, "
                              "held-out model) per (method, λ) to this .npz, for paired "
@@ -284,6 +323,28 @@ def main() -> None:
                              "labels: rapomdp run -w W --redo vptree")
         temperatures["vptree"] = (1.0 if args.correction == "none"
                                   else float(vptree["temperature"]))
+    wrong_amounts = {name: float(c.get("amount", 0.0))
+                     for name, c in calibration.get("wrong_labels", {}).items()}
+    class_w = 0.0
+    if args.class_shrinkage is not None:
+        if variant != "ra_class" or args.wrong_labels != "recorded" or nested is not None \
+                or args.fit_groups is not None or args.volume_labels is not None \
+                or args.correction is not None or args.temperature is not None:
+            raise SystemExit("--class-shrinkage: RA-POMDP's model must be ra_class, with "
+                             "--wrong-labels recorded and none of --nested, --fit-groups, "
+                             "--volume-labels, --correction, --temperature")
+        class_w = class_shrinkage_amount(evidence, scores, classes, config, observe["directions"],
+                                         kernel, args.class_shrinkage)
+        folds = class_shrunk_folds(leave_one_group_out(
+            evidence, scores, classes, config.observe, observe["directions"], kernel), class_w)
+        wrong_amounts["ra"] = wrong_amounts["ra_class"] = choose_wrong_label_shrinkage(
+            evidence, folds, "ra_class", config.observe.wrong_labels).amount
+        refit, _ = held_out_temperatures(
+            evidence, shrunk_folds(folds, wrong_amounts), observe["directions"],
+            TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
+            class_seed(config.seed, "observe/temperature"),
+            after_first=corrections["ra_class"] == "after_first")
+        temperatures["ra"] = temperatures["ra_class"] = refit["ra_class"]
     cfg = config.evaluate
     lookahead = cfg.lookahead if args.lookahead is None else args.lookahead
     depth = cfg.lookahead_depth if args.lookahead_depth is None else args.lookahead_depth
@@ -306,10 +367,12 @@ def main() -> None:
                 config.observe, observe["directions"], kernel)
             fitted["ra"] = fitted[variant]
             fold_single = {name: m.probabilities for name, m in fitted.items()}
+            if class_w:
+                fold_single["ra"] = fold_single["ra_class"] = shrunk_class_model(
+                    fitted["ra_class"], class_w)
             if args.wrong_labels == "recorded":
-                fold_single = {name: shrink_wrong_labels(p, calibration.get(
-                    "wrong_labels", {}).get(name, {}).get("amount", 0.0))
-                    for name, p in fold_single.items()}
+                fold_single = {name: shrink_wrong_labels(p, wrong_amounts.get(name, 0.0))
+                               for name, p in fold_single.items()}
             fold_t, fold_corrections = temperatures, corrections
         rest = evidence.subset(np.isin(evidence.groups, others))
         region = (viewpoint_logit(rest.labels, rest.predicted, len(classes),
@@ -403,6 +466,9 @@ def main() -> None:
           + (f"; volume labels: {args.volume_labels} (temperatures refitted)"
              if args.volume_labels is not None else "")
           + ("; beliefs start from the size prior" if args.size_prior else "")
+          + (f"; ra_class's class intercepts shrunk by {class_w:g} (--class-shrinkage "
+             f"{args.class_shrinkage}; t ra {temperatures['ra']:.3f}, wrong labels "
+             f"{wrong_amounts.get('ra', 0.0):g})" if args.class_shrinkage is not None else "")
           + ("; nested: " + "; ".join(
               f"without group {g} {c.variant}, kernel {c.kernel.to_dict()}, shrinkage ra "
               f"{c.shrinkage['ra']:g} classifier {c.shrinkage['classifier']:g}, t ra "
