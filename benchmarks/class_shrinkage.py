@@ -2,12 +2,13 @@
 mean? (benchmarks/results/class_shrinkage_rule.md; a diagnostic, it changes no setting.)
 
 In each leave-one-group-out fold of the observe stage's evidence, ``ra_class`` is fitted on the
-other groups and its intercepts a_c moved to a_c + w (mean(a) − a_c): P(correct | c, x) moved
-by w (mean(a) − a_c) on the logit scale, the wrong labels rescaled to keep their proportions
-(``shift_level``); each held-out object is scored by its mean log-likelihood per label, as
-``observe.ra_model: auto`` scores it. Per dataset (the workspaces' parent folder), pooled over
-its workspaces: the mean per object at each w, the best w's paired difference to w = 0 with its
-standard error over objects, and the stage's chosen variant for reference.
+other groups and its intercepts a_c moved to a_c + w (mean(a) − a_c): P(correct | c, x) moved by
+w (mean(a) − a_c) on the logit scale, the wrong labels rescaled to keep their proportions
+(``evidence.shrink_class_intercepts``); each held-out object is scored by its mean
+log-likelihood per label, as ``observe.ra_model: auto`` scores it. Per dataset (the workspaces'
+parent folder), pooled over its workspaces: the mean per object at each w, the best w's paired
+difference to w = 0 with its standard error over objects, and the stage's chosen variant for
+reference.
 
     python benchmarks/class_shrinkage.py -w W [W ...]
 """
@@ -20,38 +21,21 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.evidence import (
+    CLASS_SHRINKAGES,
     Evidence,
     Folds,
     RecordedObservation,
     held_out_object_log_likelihoods,
     leave_one_group_out,
-    shift_level,
+    shrink_class_intercepts,
 )
-from rapomdp.awareness.observation import ClassScoreCalibration, ObservationModel
 from rapomdp.workspace import Workspace
-
-#: The shrinkage amounts scored: from none (the fitted intercepts) to one shared intercept.
-AMOUNTS = (0.0, 0.25, 0.5, 0.75, 1.0)
-
-
-def shrunk_class_model(model: ObservationModel, amount: float) -> np.ndarray:
-    """``ra_class``'s probabilities (V, C, C) with its intercepts shrunk by ``amount``."""
-    calibration = model.calibration  # type: ignore[attr-defined]
-    if not isinstance(calibration, ClassScoreCalibration):
-        raise SystemExit("ra_class is not a per-class calibration in this workspace")
-    a = calibration.intercepts
-    shifts = amount * (a.mean() - a)  # (C,)
-    out = model.probabilities.copy()
-    for c, shift in enumerate(shifts):  # one class's rows at a time (C calls, a diagnostic)
-        out[:, c] = shift_level(model.probabilities, float(shift))[:, c]
-    return out
 
 
 def per_object(evidence: Evidence, folds: Folds, amount: float) -> np.ndarray:
     """Each held-out object's mean log-likelihood per label under shrunk ``ra_class``."""
-    shrunk = [(held, {"ra_class": ObservationModel(
-        shrunk_class_model(models["ra_class"], amount), models["ra_class"].classes)})
-        for held, models in folds]
+    shrunk = [(held, {"ra_class": shrink_class_intercepts(models["ra_class"], amount)})
+              for held, models in folds]
     return held_out_object_log_likelihoods(evidence, shrunk)["ra_class"]
 
 
@@ -71,7 +55,7 @@ def main() -> None:
         covered = np.zeros(len(evidence.labels), dtype=bool)
         for held, _ in folds:
             covered |= held
-        scored = {w: per_object(evidence, folds, w)[covered] for w in AMOUNTS}
+        scored = {w: per_object(evidence, folds, w)[covered] for w in CLASS_SHRINKAGES}
         name = root.parent.name
         for w, ll in scored.items():
             pooled.setdefault(name, {}).setdefault(w, []).append(ll)
@@ -83,7 +67,7 @@ def main() -> None:
           "the best w against w = 0 (± one standard error over objects); the stage's variant")
     for name, by_amount in pooled.items():
         lls = {w: np.concatenate(parts) for w, parts in by_amount.items()}
-        best = max(AMOUNTS, key=lambda w: lls[w].mean())
+        best = max(CLASS_SHRINKAGES, key=lambda w: lls[w].mean())
         d = lls[best] - lls[0.0]
         se = float(d.std(ddof=1) / np.sqrt(d.size))
         variant = np.concatenate(chosen[name])

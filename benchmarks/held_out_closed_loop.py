@@ -34,11 +34,11 @@ the observe stage makes them (``nested_choices.py``, which checks it repeats the
 other groups only, instead of the stage's choices on every group, the held-out one included.
 
 ``--class-shrinkage auto|W``: ``ra_class`` (RA-POMDP's model, which it must be) with its class
-intercepts a_c moved to a_c + w (mean(a) − a_c) in every fold (``class_shrinkage.py``); ``auto``
-chooses w as the wrong-label shrinkage is chosen (the best held-out log-likelihood per object on
-the leave-one-group-out folds, kept beyond one standard error over w = 0); its wrong-label
-shrinkage is chosen again and its temperature refitted on the shrunk folds, as the observe
-stage would (benchmarks/results/class_shrinkage_closed_loop_rule.md).
+intercepts a_c moved to a_c + w (mean(a) − a_c) in every fold (``shrink_class_intercepts``);
+``auto`` chooses w as ``observe.class_shrinkage: auto`` does; its wrong-label shrinkage is
+chosen again and its temperature refitted on the shrunk folds, as the observe stage would
+(benchmarks/results/class_shrinkage_closed_loop_rule.md). Without it, ``--wrong-labels
+recorded`` shrinks ``ra_class`` as the observe stage chose (none before the option).
 
 ``--declared``: the declared confidence (``evaluate.declared_confidence``, docs/awareness.md
 §4.8) at each method's held-out stops: confidence − accuracy and ECE of the belief, of the
@@ -57,20 +57,20 @@ import numpy as np
 
 from rapomdp.awareness.evidence import (
     Evidence,
-    Folds,
     RecordedObservation,
     TransferKernel,
+    choose_class_shrinkage,
     choose_wrong_label_shrinkage,
+    class_shrunk_folds,
     fit_observation_models,
     held_out_temperatures,
     leave_one_group_out,
     shift_level,
+    shrink_class_intercepts,
     shrink_wrong_labels,
     shrunk_folds,
     viewpoint_logit,
 )
-from rapomdp.awareness.observation import ObservationModel
-from rapomdp.config import Config
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, run_episode
@@ -99,7 +99,6 @@ from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
 
 sys.path.insert(0, str(Path(__file__).parent))
-from class_shrinkage import AMOUNTS, per_object, shrunk_class_model  # noqa: E402
 from nested_choices import ObserveChoices, nested_choices  # noqa: E402
 from size_prior import workspace_size_model  # noqa: E402
 
@@ -129,30 +128,6 @@ def replaced_labels(ws: Workspace, evidence: Evidence, path: Path) -> Evidence:
         raise SystemExit(f"{path}: no labels of {missing[:3]}")
     predicted = np.stack([by_file[m.file] for m in models]).astype(evidence.predicted.dtype)
     return Evidence(evidence.labels, predicted, evidence.groups, evidence.volume_mask)
-
-
-def class_shrinkage_amount(evidence: Evidence, scores: dict[str, np.ndarray],
-                           classes: list[str], config: Config, directions: np.ndarray,
-                           kernel: TransferKernel, configured: str) -> float:
-    """``--class-shrinkage``'s w: the number given, or with ``auto`` the amount of best mean
-    held-out log-likelihood per object, kept only beyond one standard error over none."""
-    if configured != "auto":
-        return float(configured)
-    folds = leave_one_group_out(evidence, scores, classes, config.observe, directions, kernel)
-    covered = np.zeros(len(evidence.labels), dtype=bool)
-    for held, _ in folds:
-        covered |= held
-    by_amount = {w: per_object(evidence, folds, w)[covered] for w in AMOUNTS}
-    best = max(AMOUNTS, key=lambda w: by_amount[w].mean())
-    d = by_amount[best] - by_amount[0.0]
-    return best if d.size > 1 and d.mean() > d.std(ddof=1) / np.sqrt(d.size) else 0.0
-
-
-def class_shrunk_folds(folds: Folds, amount: float) -> Folds:
-    """``folds`` with each fold's ``ra_class`` shrunk by ``amount`` (its own intercepts)."""
-    return [(held, {**models, "ra_class": ObservationModel(
-        shrunk_class_model(models["ra_class"], amount), models["ra_class"].classes)})
-        for held, models in folds]
 
 
 def declared_at_stops(ws: Workspace, finals: dict[tuple[str, float], list[np.ndarray]],
@@ -325,7 +300,8 @@ def main() -> None:
                                   else float(vptree["temperature"]))
     wrong_amounts = {name: float(c.get("amount", 0.0))
                      for name, c in calibration.get("wrong_labels", {}).items()}
-    class_w = 0.0
+    # ra_class's class intercepts as the stage shrank them (--wrong-labels recorded: its knobs)
+    class_w = recorded.class_shrinkage if args.wrong_labels == "recorded" else 0.0
     if args.class_shrinkage is not None:
         if variant != "ra_class" or args.wrong_labels != "recorded" or nested is not None \
                 or args.fit_groups is not None or args.volume_labels is not None \
@@ -333,10 +309,11 @@ def main() -> None:
             raise SystemExit("--class-shrinkage: RA-POMDP's model must be ra_class, with "
                              "--wrong-labels recorded and none of --nested, --fit-groups, "
                              "--volume-labels, --correction, --temperature")
-        class_w = class_shrinkage_amount(evidence, scores, classes, config, observe["directions"],
-                                         kernel, args.class_shrinkage)
-        folds = class_shrunk_folds(leave_one_group_out(
-            evidence, scores, classes, config.observe, observe["directions"], kernel), class_w)
+        folds = leave_one_group_out(evidence, scores, classes, config.observe,
+                                    observe["directions"], kernel)
+        class_w = (choose_class_shrinkage(evidence, folds, "auto").amount
+                   if args.class_shrinkage == "auto" else float(args.class_shrinkage))
+        folds = class_shrunk_folds(folds, class_w)
         wrong_amounts["ra"] = wrong_amounts["ra_class"] = choose_wrong_label_shrinkage(
             evidence, folds, "ra_class", config.observe.wrong_labels).amount
         refit, _ = held_out_temperatures(
@@ -368,8 +345,10 @@ def main() -> None:
             fitted["ra"] = fitted[variant]
             fold_single = {name: m.probabilities for name, m in fitted.items()}
             if class_w:
-                fold_single["ra"] = fold_single["ra_class"] = shrunk_class_model(
-                    fitted["ra_class"], class_w)
+                fold_single["ra_class"] = shrink_class_intercepts(fitted["ra_class"],
+                                                                  class_w).probabilities
+                if variant == "ra_class":
+                    fold_single["ra"] = fold_single["ra_class"]
             if args.wrong_labels == "recorded":
                 fold_single = {name: shrink_wrong_labels(p, wrong_amounts.get(name, 0.0))
                                for name, p in fold_single.items()}

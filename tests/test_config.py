@@ -91,6 +91,12 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
         config_from_dict({"observe": {"belief": "similarity", "discount_walks": "far"}})
     with pytest.raises(ConfigError, match="discount_walks applies to belief: similarity only"):
         config_from_dict({"observe": {"discount_walks": "mixed"}})
+    # added after workspaces existed: absent from the key at its default, which they ran with
+    assert "class_shrinkage" not in Config().section("observe")
+    assert config_from_dict({"observe": {"class_shrinkage": "auto"}}).section(
+        "observe")["class_shrinkage"] == "auto"
+    with pytest.raises(ConfigError, match="class_shrinkage applies to the naive and similarity"):
+        config_from_dict({"observe": {"belief": "nuisance", "class_shrinkage": "auto"}})
 
 
 def test_auto_volume_models_needs_split_auto_and_at_least_three() -> None:

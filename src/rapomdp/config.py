@@ -299,7 +299,7 @@ class VolumeConfig(Section):
 class ObserveConfig(Section):
     """Observation models P(o | class, viewpoint) (see docs/awareness.md)."""
 
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("discount_walks",)
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("discount_walks", "class_shrinkage")
 
     calibration: Literal["logistic", "isotonic"] = "logistic"
     classifier_pseudo_count: float = Field(
@@ -350,6 +350,11 @@ class ObserveConfig(Section):
         "standard error; none with fewer than 2 held-out objects a class). Where one object's "
         "mistakes went need not be where another's go (docs/awareness.md §4.7). The nuisance "
         "belief fits its own rows: none there")
+    class_shrinkage: Literal["none", "auto"] = Field(
+        "none", description="ra_class's class intercepts: none (as fitted); auto (moved toward "
+        "their mean by the amount of 0-1 of best leave-one-group-out log-likelihood, kept only "
+        "if it beats none by more than one standard error). A class's intercept is fitted on a "
+        "few objects whose errors gather on whole objects (docs/awareness.md 4.4)")
     belief_correction: Literal["auto", "none", "temperature", "after_first"] = Field(
         "temperature", description="temperature: every model's likelihoods raised to a power "
         "fitted on held-out multi-view walks, so correlated views count less than independent "
@@ -360,6 +365,9 @@ class ObserveConfig(Section):
 
     @model_validator(mode="after")
     def _discount_walks_need_similarity(self) -> ObserveConfig:
+        if self.class_shrinkage != "none" and self.belief == "nuisance":
+            raise ValueError("class_shrinkage applies to the naive and similarity beliefs; the "
+                             "nuisance belief fits its own rows (set class_shrinkage: none)")
         if self.discount_walks != "neighbours" and self.belief != "similarity":
             raise ValueError("discount_walks applies to belief: similarity only (the view "
                              f"discount it fits); belief is {self.belief!r}")

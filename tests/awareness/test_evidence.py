@@ -7,6 +7,7 @@ import pytest
 
 from rapomdp.awareness.evidence import (
     CLASS_PRIOR_GRID,
+    CLASS_SHRINKAGES,
     DEFAULT_TRANSFER_KERNEL,
     MIN_HELD_OUT_OBJECTS,
     MIN_STABILITY_GROUPS,
@@ -19,20 +20,27 @@ from rapomdp.awareness.evidence import (
     TransferKernel,
     check_variant_stability,
     choose_belief_correction,
+    choose_class_shrinkage,
     choose_ra_variant,
     choose_transfer_kernel,
     choose_wrong_label_shrinkage,
+    class_shrunk_folds,
     fit_observation_models,
     leave_one_group_out,
     recorded_evidence,
     recorded_scores,
     recorded_transfer_kernel,
     salient_view_similarity,
+    shrink_class_intercepts,
     shrink_wrong_labels,
     transfer_confusion,
     validation_quality,
 )
-from rapomdp.awareness.observation import calibrate_correctness, calibrate_per_class
+from rapomdp.awareness.observation import (
+    ObservationModel,
+    calibrate_correctness,
+    calibrate_per_class,
+)
 from rapomdp.config import ObserveConfig
 from rapomdp.geometry.viewsphere import fibonacci_directions
 
@@ -670,6 +678,71 @@ def test_a_model_some_folds_cannot_fit_is_chosen_on_the_folds_that_have_it() -> 
             for held, models in folds]
     assert choose_wrong_label_shrinkage(evidence, none, "blackbox", "auto").rule == \
         "too little evidence"
+
+
+def _planted_class_rates(rates: list[float], seed: int, groups: int = 4, spread: float = 1.5,
+                         views: int = 64) -> tuple[Evidence, dict[str, np.ndarray]]:
+    """Each object right on its views at its own rate: logit N(logit(its class's rate), spread)."""
+    rng = np.random.default_rng(seed)
+    c = len(rates)
+    scores = {"mean": rng.random((c, views)), "area": rng.random((c, views))}
+    labels, groups_of = np.repeat(np.arange(c), groups), np.tile(np.arange(groups), c)
+    logit = np.log(np.array(rates) / (1 - np.array(rates)))[labels]
+    own = _sigmoid(logit + spread * rng.standard_normal(labels.size))
+    right = rng.random((labels.size, views)) < own[:, None]
+    predicted = np.where(right, labels[:, None], (labels[:, None] + 1) % c)
+    return Evidence(labels, predicted, groups_of), scores
+
+
+def test_shrinking_class_intercepts_moves_them_toward_their_mean_and_keeps_the_rest() -> None:
+    evidence, scores = _planted_class_rates([0.9, 0.6, 0.3], 3)
+    model = fit_observation_models(evidence, scores, ["a", "b", "c"], ObserveConfig())["ra_class"]
+    a = model.calibration.intercepts  # type: ignore[attr-defined]
+    assert shrink_class_intercepts(model, 0.0) is model
+    half = shrink_class_intercepts(model, 0.5)
+    np.testing.assert_allclose(half.calibration.intercepts,  # type: ignore[attr-defined]
+                               a + 0.5 * (a.mean() - a))
+    idx = np.arange(3)
+    p, q = model.probabilities, half.probabilities
+    logit = np.log(q[:, idx, idx] / (1 - q[:, idx, idx])) - np.log(
+        p[:, idx, idx] / (1 - p[:, idx, idx]))
+    np.testing.assert_allclose(logit, np.broadcast_to(0.5 * (a.mean() - a), logit.shape),
+                               atol=1e-9)
+    np.testing.assert_allclose(q.sum(axis=2), 1.0)
+    wrong = ~np.eye(3, dtype=bool)
+    np.testing.assert_allclose(  # the wrong labels' proportions within each row are kept
+        (q / (1 - q[:, idx, idx])[:, :, None])[:, wrong],
+        (p / (1 - p[:, idx, idx])[:, :, None])[:, wrong], atol=1e-9)
+    one = shrink_class_intercepts(model, 1.0).calibration.intercepts  # type: ignore[attr-defined]
+    np.testing.assert_allclose(one, a.mean())
+    with pytest.raises(ValueError, match="per-class calibration"):
+        shrink_class_intercepts(ObservationModel(p, ["a", "b", "c"]), 0.5)
+
+
+def test_class_shrinkage_is_chosen_where_class_rates_do_not_transfer() -> None:
+    """Every class has the same rate, each object its own: a class's intercept counted on its
+    other objects misleads and the chooser shrinks; where the classes' rates differ far more
+    than their objects', it keeps them."""
+    names = [f"c{i}" for i in range(10)]
+    evidence, scores = _planted_class_rates([0.6] * 10, 0)
+    folds = leave_one_group_out(evidence, scores, names, ObserveConfig())
+    choice = choose_class_shrinkage(evidence, folds, "auto")
+    assert choice.rule == "best" and choice.amount > 0
+    assert choice.grid == CLASS_SHRINKAGES and choice.to_dict()["grid"] == list(CLASS_SHRINKAGES)
+    row = choice.held_out[f"{choice.amount:g}"]
+    assert row["difference_to_none"] > row["standard_error"] > 0
+    shrunk = class_shrunk_folds(folds, choice.amount)
+    assert all(m["classifier"] is f["classifier"] for (_, m), (_, f) in zip(shrunk, folds,
+                                                                             strict=True))
+    assert not np.allclose(shrunk[0][1]["ra_class"].probabilities,
+                           folds[0][1]["ra_class"].probabilities)
+    assert class_shrunk_folds(folds, 0.0) is folds
+    distinct = [0.95, 0.9, 0.8, 0.3, 0.15, 0.05]
+    evidence, scores = _planted_class_rates(distinct, 0, spread=0.3)
+    folds = leave_one_group_out(evidence, scores, names[:6], ObserveConfig())
+    assert choose_class_shrinkage(evidence, folds, "auto").amount == 0.0
+    off = choose_class_shrinkage(evidence, folds, "none")
+    assert (off.amount, off.rule) == (0.0, "configured")
 
 
 def test_shrunk_folds_shrink_the_named_models_wrong_labels_and_keep_the_rest():

@@ -11,7 +11,7 @@ the temperature without the test models.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -24,6 +24,7 @@ from rapomdp.awareness.artefacts import CALIBRATION_FILE, OBSERVATION_FILE
 from rapomdp.awareness.observation import (
     BlackBoxObservationModel,
     ClassifierObservationModel,
+    ClassScoreCalibration,
     ObservationModel,
     RAObservationModel,
     TransferObservationModel,
@@ -313,17 +314,25 @@ class RecordedObservation:
                    recorded_evidence(arrays), recorded_scores(arrays),
                    recorded_transfer_kernel(calibration), f"ra_{calibration['ra_model']}")
 
+    @property
+    def class_shrinkage(self) -> float:
+        """``ra_class``'s class-intercept shrinkage as the stage chose it (0 before it)."""
+        return float(self.calibration.get("class_shrinkage", {}).get("amount", 0.0))
+
     def belief_folds(self, cfg: ObserveConfig) -> Folds:
         """The held-out folds the stage fitted its belief's corrections on, refitted from what
         it recorded (``cfg``: the observe configuration it ran with): every model fitted
-        without each volume group, its wrong labels shrunk by the stage's choice, and ``ra``
+        without each volume group, ``ra_class``'s class intercepts and every model's wrong
+        labels shrunk by the stage's choices, and ``ra``
         the chosen variant's. A naive belief's only (the nuisance belief's folds are fitted by
         EM, a view discount's belief depends on the views taken)."""
         if cfg.belief != "naive":
             raise ValueError(f"the held-out folds are refitted for observe.belief 'naive' "
                              f"only; the stage ran with {cfg.belief!r}")
-        folds = leave_one_group_out(self.evidence, self.scores, self.classes, cfg,
-                                    self.arrays["directions"], self.transfer_kernel)
+        folds = class_shrunk_folds(
+            leave_one_group_out(self.evidence, self.scores, self.classes, cfg,
+                                self.arrays["directions"], self.transfer_kernel),
+            self.class_shrinkage)
         amounts = {name: float(choice["amount"])
                    for name, choice in self.calibration.get("wrong_labels", {}).items()}
         return [(held, {**models, "ra": models[self.variant]})
@@ -661,8 +670,9 @@ def check_variant_stability(choice: VariantChoice, evidence: Evidence,
     """``choice`` if ``auto``, made again without each group of held-out evidence, leaves the
     robust default every time; else the robust default, rule ``unstable``: the evidence against
     it rests on one group. Each choice without a group is made as the stage makes the whole
-    one (its own ``ra_transfer`` kernel, its own folds, the one-standard-error rule); which
-    non-default variant it picks may change (two variants may carry the same signal). A
+    one (its own ``ra_transfer`` kernel, its own folds and class shrinkage, the
+    one-standard-error rule); which non-default variant it picks may change (two variants may
+    carry the same signal). A
     configured variant or the robust default is kept unchecked, and so is any choice with fewer
     than :data:`MIN_STABILITY_GROUPS` groups (none could be made without one). A group without
     which some class keeps too few held-out objects to choose (uneven volume models a class)
@@ -687,6 +697,8 @@ def check_variant_stability(choice: VariantChoice, evidence: Evidence,
                                                cfg.confusion_pseudo_count,
                                                transfer_kernel_grid(cfg.transfer_shrinkage))
         folds = leave_one_group_out(rest, scores, classes, cfg, directions, kernel)
+        folds = class_shrunk_folds(folds, choose_class_shrinkage(
+            rest, folds, cfg.class_shrinkage).amount)
         made = choose_ra_variant(rest, folds, "auto", classes)
         if not made.too_little_evidence:
             without[str(int(evidence.groups[held][0]))] = made.variant
@@ -740,21 +752,23 @@ def shrunk_folds(folds: Folds, amounts: Mapping[str, float]) -> Folds:
 
 @dataclass
 class ShrinkageChoice:
-    """One model's wrong-label shrinkage and why: ``rule`` is ``configured`` (none),
-    ``best`` (the best held-out log-likelihood, better than none by more than one standard
-    error), ``one standard error`` (none: the best is not better by more) or ``too little
-    evidence`` (none: fewer than :data:`MIN_HELD_OUT_OBJECTS` held-out objects in some class);
-    ``held_out``: per amount its mean held-out log-likelihood per object and its paired
-    difference to none with the standard error."""
+    """One model's shrinkage (of its wrong labels, or of its class intercepts) and why:
+    ``rule`` is ``configured`` (none), ``best`` (the best held-out log-likelihood, better than
+    none by more than one standard error), ``one standard error`` (none: the best is not
+    better by more) or ``too little evidence`` (none: fewer than :data:`MIN_HELD_OUT_OBJECTS`
+    held-out objects in some class); ``held_out``: per amount its mean held-out
+    log-likelihood per object and its paired difference to none with the standard error;
+    ``grid``: the amounts scored."""
 
     amount: float
     rule: str
     reason: str
     held_out: dict[str, dict[str, float]] = field(default_factory=dict)
+    grid: tuple[float, ...] = WRONG_LABEL_SHRINKAGES
 
     def to_dict(self) -> dict[str, Any]:
         return {"amount": self.amount, "rule": self.rule, "reason": self.reason,
-                "grid": list(WRONG_LABEL_SHRINKAGES), "held_out": self.held_out}
+                "grid": list(self.grid), "held_out": self.held_out}
 
 
 def choose_wrong_label_shrinkage(
@@ -768,6 +782,63 @@ def choose_wrong_label_shrinkage(
     :data:`MIN_HELD_OUT_OBJECTS` held-out objects."""
     if configured == "none":
         return ShrinkageChoice(0.0, "configured", "observe.wrong_labels is 'none'")
+    return _choose_amount(evidence, folds, name, WRONG_LABEL_SHRINKAGES, lambda m, a: (
+        ObservationModel(shrink_wrong_labels(m.probabilities, a), m.classes)))
+
+
+CLASS_SHRINKAGES = (0.0, 0.25, 0.5, 0.75, 1.0)
+"""The amounts ``observe.class_shrinkage: auto`` scores, fixed before its measurement
+(benchmarks/results/class_shrinkage_rule.md): from the fitted class intercepts (0) to one
+intercept shared by every class (1)."""
+
+
+def shrink_class_intercepts(model: ObservationModel, amount: float) -> ObservationModel:
+    """``ra_class`` with its class intercepts a_c moved to a_c + amount (mean(a) − a_c): each
+    class's P(correct | c, x) moved by that on the logit scale, its wrong labels' proportions
+    kept (:func:`shift_level`), its calibration the shrunk one. A class's intercept is fitted as
+    if its held-out views were independent; they come from a few objects whose errors gather on
+    whole objects (docs/awareness.md §4.4). 0 returns the model."""
+    calibration = getattr(model, "calibration", None)
+    if not isinstance(calibration, ClassScoreCalibration):
+        raise ValueError("class intercepts are shrunk on a per-class calibration (ra_class), "
+                         f"got {type(calibration).__name__}")
+    if amount == 0.0:
+        return model
+    a = calibration.intercepts
+    shift = amount * (a.mean() - a)
+    out = ObservationModel(shift_level(model.probabilities, np.broadcast_to(
+        shift, model.probabilities.shape[:2])), model.classes)
+    shrunk = ClassScoreCalibration(a + shift, calibration.slope)
+    out.calibration = shrunk  # type: ignore[attr-defined]
+    return out
+
+
+def choose_class_shrinkage(evidence: Evidence, folds: Folds, configured: str
+                           ) -> ShrinkageChoice:
+    """``ra_class``'s class-intercept shrinkage (:func:`shrink_class_intercepts`), chosen as
+    the wrong-label shrinkage is: none when ``configured`` is ``none``; with ``auto`` the amount
+    of :data:`CLASS_SHRINKAGES` of best mean held-out log-likelihood per object, kept only
+    beyond one standard error over none."""
+    if configured == "none":
+        return ShrinkageChoice(0.0, "configured", "observe.class_shrinkage is 'none'",
+                               grid=CLASS_SHRINKAGES)
+    return _choose_amount(evidence, folds, "ra_class", CLASS_SHRINKAGES, shrink_class_intercepts)
+
+
+def class_shrunk_folds(folds: Folds, amount: float) -> Folds:
+    """``folds`` with each fold's ``ra_class`` shrunk by ``amount`` (its own intercepts)."""
+    if amount == 0.0:
+        return folds
+    return [(held, {name: (shrink_class_intercepts(m, amount) if name == "ra_class" else m)
+                    for name, m in models.items()})
+            for held, models in folds]
+
+
+def _choose_amount(evidence: Evidence, folds: Folds, name: str, grid: tuple[float, ...],
+                   transform: Callable[[ObservationModel, float], ObservationModel]
+                   ) -> ShrinkageChoice:
+    """The amount of ``grid`` (0 first: none) of best mean held-out log-likelihood per object
+    for model ``name`` transformed by it, kept only beyond one standard error over none."""
     # the folds that fitted the model (ra_viewpoint stacks over groups: a fold left with one
     # group has none)
     folds = [(held, models) for held, models in folds if name in models]
@@ -779,12 +850,10 @@ def choose_wrong_label_shrinkage(
     if not folds or counts.min() < MIN_HELD_OUT_OBJECTS:
         return ShrinkageChoice(0.0, "too little evidence",
                                f"too little held-out evidence to choose: some class has fewer "
-                               f"than {MIN_HELD_OUT_OBJECTS} held-out objects; none")
+                               f"than {MIN_HELD_OUT_OBJECTS} held-out objects; none", grid=grid)
     per_amount = {}
-    for amount in WRONG_LABEL_SHRINKAGES:
-        shrunk = [(held, {name: ObservationModel(
-                      shrink_wrong_labels(models[name].probabilities, amount),
-                      models[name].classes)}) for held, models in folds]
+    for amount in grid:
+        shrunk = [(held, {name: transform(models[name], amount)}) for held, models in folds]
         per_amount[amount] = held_out_object_log_likelihoods(evidence, shrunk)[name][covered]
     table = {}
     for amount, ll in per_amount.items():
@@ -792,21 +861,21 @@ def choose_wrong_label_shrinkage(
         se = float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
         table[f"{amount:g}"] = {"mean_log_likelihood": float(ll.mean()),
                                 "difference_to_none": float(d.mean()), "standard_error": se}
-    best = max(WRONG_LABEL_SHRINKAGES, key=lambda a: per_amount[a].mean())
+    best = max(grid, key=lambda a: per_amount[a].mean())
     row = table[f"{best:g}"]
     if best == 0.0:
-        return ShrinkageChoice(0.0, "best", "none is the best held out", table)
+        return ShrinkageChoice(0.0, "best", "none is the best held out", table, grid)
     if row["difference_to_none"] <= row["standard_error"]:
         return ShrinkageChoice(0.0, "one standard error",
                                f"{best:g} is the best held out, but not better than none by "
                                f"more than one standard error ({row['difference_to_none']:+.4f}"
                                f" ± {row['standard_error']:.4f} per object over "
-                               f"{int(covered.sum())} held-out objects)", table)
+                               f"{int(covered.sum())} held-out objects)", table, grid)
     return ShrinkageChoice(best, "best",
                            f"{best:g} is better held out than none by "
                            f"{row['difference_to_none']:.4f} per object, more than one standard "
                            f"error ({row['standard_error']:.4f}) over {int(covered.sum())} "
-                           "held-out objects", table)
+                           "held-out objects", table, grid)
 
 
 def choose_belief_correction(report: dict[str, float], configured: str) -> str:
@@ -843,16 +912,17 @@ def fit_softmax_temperature(probabilities: np.ndarray, labels: np.ndarray,
 # -- the classifier's level ----------------------------------------------------------------
 
 def shift_level(probabilities: np.ndarray, shift: float | np.ndarray) -> np.ndarray:
-    """The model with P(correct | c, x) moved by ``shift`` on the logit scale — one number, or
-    one per viewpoint (V,) — and the wrong labels rescaled to the rest (their proportions
-    kept). 0 returns the model."""
+    """The model with P(correct | c, x) moved by ``shift`` on the logit scale — one number, one
+    per viewpoint (V,), or one per viewpoint and class (V, C) — and the wrong labels rescaled to
+    the rest (their proportions kept). 0 returns the model."""
     p = np.asarray(probabilities, dtype=np.float64)
     by_view = np.asarray(shift, dtype=np.float64)
     if not np.any(by_view):
         return p.copy()
     idx = np.arange(p.shape[1])
     right = np.clip(p[:, idx, idx], 1e-12, 1 - 1e-12)  # (V, C)
-    moved = 1.0 / (1.0 + np.exp(-(np.log(right / (1 - right)) + by_view.reshape(-1, 1))))
+    offset = by_view if by_view.ndim == 2 else by_view.reshape(-1, 1)
+    moved = 1.0 / (1.0 + np.exp(-(np.log(right / (1 - right)) + offset)))
     out = p * ((1.0 - moved) / (1.0 - right))[:, :, None]
     out[:, idx, idx] = moved
     return out

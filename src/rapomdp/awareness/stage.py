@@ -68,9 +68,11 @@ from rapomdp.awareness.evidence import (
     VariantChoice,
     check_variant_stability,
     choose_belief_correction,
+    choose_class_shrinkage,
     choose_ra_variant,
     choose_transfer_kernel,
     choose_wrong_label_shrinkage,
+    class_shrunk_folds,
     fit_level,
     fit_observation_models,
     fit_softmax_temperature,
@@ -80,6 +82,7 @@ from rapomdp.awareness.evidence import (
     leave_one_group_out,
     salient_view_similarity,
     shift_level,
+    shrink_class_intercepts,
     shrink_wrong_labels,
     shrunk_folds,
     transfer_kernel_grid,
@@ -347,6 +350,8 @@ class Observation:
     #: models: the temperature's and the declared confidence's).
     belief_folds: list[tuple[np.ndarray, dict[str, ObservationModel]]] = field(
         default_factory=list)
+    #: ``ra_class``'s class-intercept shrinkage and why (observe.class_shrinkage).
+    class_shrinkage: ShrinkageChoice | None = None
 
 
 def observe(config: Config, dataset: Dataset, classifier: Classifier,
@@ -427,6 +432,10 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
             transfer_kernel_grid(cfg.transfer_shrinkage))
     kernel_s = time.perf_counter() - kernel_start
     folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
+    # ra_class's class intercepts moved toward their mean where held-out objects say so
+    # (observe.class_shrinkage), before anything is chosen on the folds
+    class_shrinkage = choose_class_shrinkage(evidence, folds, cfg.class_shrinkage)
+    folds = class_shrunk_folds(folds, class_shrinkage.amount)
     validation = validation_quality(evidence, folds)
     choice = check_variant_stability(choose_ra_variant(evidence, folds, cfg.ra_model, classes),
                                      evidence, scores, classes, cfg, directions)
@@ -438,6 +447,9 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                          "evidence: use two or more volume models per class "
                          "(dataset.split.volume) or set observe.evidence to crossfit or both")
     fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
+    if class_shrinkage.amount:
+        fitted["ra_class"] = shrink_class_intercepts(fitted["ra_class"],
+                                                     class_shrinkage.amount)
     levels = {name: 0.0 for name in fitted}
     if (~evidence.volume_mask).any() and evidence.volume_mask.any():
         # cross-fitted classifiers train on less data and err more: each model's P(correct)
@@ -549,7 +561,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
                         "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
                        softmax_t, kernel, kernel_grid,
                        {name: nm.to_dict() for name, nm in nuisance.items()}, choice,
-                       discounts, discount_kernel, shrinkage, declared, belief_folds)
+                       discounts, discount_kernel, shrinkage, declared, belief_folds,
+                       class_shrinkage)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -725,6 +738,8 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                             "grid": result.transfer_kernel_grid},
         "belief": config.observe.belief,
         "wrong_labels": {name: c.to_dict() for name, c in result.wrong_labels.items()},
+        **({"class_shrinkage": result.class_shrinkage.to_dict()}
+           if result.class_shrinkage is not None else {}),
         "declared_confidence": {name: d.to_dict() for name, d in result.declared.items()},
         **({"view_discounts": {name: {"scale": d.scale, "redundancy": d.redundancy,
                                       "planner_temperature": result.temperatures[name]}
