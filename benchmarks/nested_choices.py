@@ -89,11 +89,11 @@ def observe_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes: 
                                            cfg.confusion_pseudo_count,
                                            transfer_kernel_grid(cfg.transfer_shrinkage))
     folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
-    class_amount = choose_class_shrinkage(evidence, folds, cfg.class_shrinkage).amount
-    folds = class_shrunk_folds(folds, class_amount)
     choice = check_variant_stability(choose_ra_variant(evidence, folds, cfg.ra_model, classes),
                                      evidence, scores, classes, cfg, directions)
     fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
+    class_amount = choose_class_shrinkage(evidence, folds, cfg.class_shrinkage).amount
+    folds = class_shrunk_folds(folds, class_amount)
     if class_amount:
         fitted["ra_class"] = shrink_class_intercepts(fitted["ra_class"], class_amount)
     amounts = {name: choose_wrong_label_shrinkage(evidence, folds, name, cfg.wrong_labels).amount

@@ -670,9 +670,8 @@ def check_variant_stability(choice: VariantChoice, evidence: Evidence,
     """``choice`` if ``auto``, made again without each group of held-out evidence, leaves the
     robust default every time; else the robust default, rule ``unstable``: the evidence against
     it rests on one group. Each choice without a group is made as the stage makes the whole
-    one (its own ``ra_transfer`` kernel, its own folds and class shrinkage, the
-    one-standard-error rule); which non-default variant it picks may change (two variants may
-    carry the same signal). A
+    one (its own ``ra_transfer`` kernel, its own folds, the one-standard-error rule); which
+    non-default variant it picks may change (two variants may carry the same signal). A
     configured variant or the robust default is kept unchecked, and so is any choice with fewer
     than :data:`MIN_STABILITY_GROUPS` groups (none could be made without one). A group without
     which some class keeps too few held-out objects to choose (uneven volume models a class)
@@ -697,8 +696,6 @@ def check_variant_stability(choice: VariantChoice, evidence: Evidence,
                                                cfg.confusion_pseudo_count,
                                                transfer_kernel_grid(cfg.transfer_shrinkage))
         folds = leave_one_group_out(rest, scores, classes, cfg, directions, kernel)
-        folds = class_shrunk_folds(folds, choose_class_shrinkage(
-            rest, folds, cfg.class_shrinkage).amount)
         made = choose_ra_variant(rest, folds, "auto", classes)
         if not made.too_little_evidence:
             without[str(int(evidence.groups[held][0]))] = made.variant
