@@ -354,7 +354,8 @@ class ObserveConfig(Section):
         "none", description="ra_class's class intercepts: none (as fitted); auto (moved toward "
         "their mean by the amount of 0-1 of best leave-one-group-out log-likelihood, kept only "
         "if it beats none by more than one standard error). A class's intercept is fitted on a "
-        "few objects whose errors gather on whole objects (docs/awareness.md 4.4)")
+        "few objects whose errors gather on whole objects. Measured, not adopted "
+        "(docs/awareness.md 4.7)")
     belief_correction: Literal["auto", "none", "temperature", "after_first"] = Field(
         "temperature", description="temperature: every model's likelihoods raised to a power "
         "fitted on held-out multi-view walks, so correlated views count less than independent "
