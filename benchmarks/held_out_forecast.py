@@ -46,6 +46,14 @@ def sign(value: float) -> int:
     return (value > 0) - (value < 0)
 
 
+def seed_results(roots: list[Path]) -> list[SeedResult]:
+    """One set's workspaces as ``rapomdp study`` pools them (their evaluated episodes)."""
+    return [SeedResult(root.parent.name, i, root,
+                       EpisodeTable.load(root / "evaluate" / EPISODES_FILE), [],
+                       str(Workspace(root).manifest()["stages"]["dataset"]["key"]))
+            for i, root in enumerate(roots)]
+
+
 def t_interval(values: list[float]) -> tuple[float, float, float]:
     """Mean and Student-t 95 % interval over replicates."""
     x = np.asarray(values, dtype=np.float64)
@@ -118,18 +126,15 @@ def main() -> None:
         sets.setdefault(root.parent, []).append(root)
     print("\npooled over each set's seeds (95 %: seeds x held-out objects | seeds x test models)")
     for parent, roots in sets.items():
-        results = [SeedResult(parent.name, i, root,
-                              EpisodeTable.load(root / "evaluate" / EPISODES_FILE), [],
-                              str(Workspace(root).manifest()["stages"]["dataset"]["key"]))
-                   for i, root in enumerate(roots)]
-        tested = {r.method: r.difference for r in pooled_table(results)}
+        results = seed_results(roots)
+        pooled_test = {r.method: r.difference for r in pooled_table(results)}
         for row in held_out_table(results):
-            d, t = row.difference, tested.get(row.method)
-            if d is None or t is None:
+            held, test = row.difference, pooled_test.get(row.method)
+            if held is None or test is None:
                 continue
-            print(f"  {parent.name:16s} {row.name:12s} held out {d.estimate:+.3f} "
-                  f"[{d.low:+.3f}, {d.high:+.3f}]   test {t.estimate:+.3f} "
-                  f"[{t.low:+.3f}, {t.high:+.3f}]   ({len(roots)} seeds)")
+            print(f"  {parent.name:16s} {row.name:12s} held out {held.estimate:+.3f} "
+                  f"[{held.low:+.3f}, {held.high:+.3f}]   test {test.estimate:+.3f} "
+                  f"[{test.low:+.3f}, {test.high:+.3f}]   ({len(roots)} seeds)")
     if args.gaps:
         print_gaps(errors)
 

@@ -44,14 +44,15 @@ from rapomdp.awareness.evidence import (
     choose_wrong_label_shrinkage,
     class_shrunk_folds,
     fit_observation_models,
+    held_out_object_log_likelihoods,
     held_out_temperatures,
     leave_one_group_out,
-    observed_probabilities,
     shrink_class_intercepts,
     shrink_wrong_labels,
     shrunk_folds,
     transfer_kernel_grid,
 )
+from rapomdp.awareness.observation import ObservationModel
 from rapomdp.config import ObserveConfig
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.metrics import cluster_bootstrap_difference
@@ -156,22 +157,19 @@ def nested_choices(ws: Workspace, recorded: RecordedObservation
             for g in np.unique(evidence.groups)}
 
 
-def object_log_likelihood(model: np.ndarray, part: Evidence) -> np.ndarray:
-    """Each object's mean log P(observed label) under ``model`` (V, C, C)."""
-    observed, _ = observed_probabilities(model, part.labels, part.predicted)
-    return np.log(np.maximum(observed, 1e-300)).mean(axis=1)
-
-
-def pick_advantages(evidence: Evidence, per_group: dict[int, ObserveChoices]) -> np.ndarray:
+def pick_advantages(evidence: Evidence, per_group: dict[int, ObserveChoices],
+                    classes: Sequence[str]) -> np.ndarray:
     """Per object of the groups whose pick without them is not ``ra_class``: the pick's
     log-likelihood minus ``ra_class``'s (both fitted without the object's group)."""
     out = []
     for g, choices in per_group.items():
         if choices.variant == ROBUST:
             continue
-        part = evidence.subset(evidence.groups == g)
-        out.append(object_log_likelihood(choices.models[choices.variant], part)
-                   - object_log_likelihood(choices.models[ROBUST], part))
+        held = evidence.groups == g
+        scored = held_out_object_log_likelihoods(evidence, [(held, {
+            name: ObservationModel(choices.models[name], classes)
+            for name in (choices.variant, ROBUST)})])
+        out.append((scored[choices.variant] - scored[ROBUST])[held])
     return np.concatenate(out) if out else np.zeros(0)
 
 
@@ -203,7 +201,7 @@ def main() -> None:
                   f"{c.shrinkage['classifier']:g}, t ra {c.temperatures['ra']:.3f} classifier "
                   f"{c.temperatures['classifier']:.3f}")
         if args.score:
-            d = pick_advantages(recorded.evidence, per_group)
+            d = pick_advantages(recorded.evidence, per_group, recorded.classes)
             advantages.setdefault(root.parent.name, []).append(d)
             picks = [c.variant for c in per_group.values() if c.variant != ROBUST]
             folds.setdefault(root.parent.name, []).append(len(picks))

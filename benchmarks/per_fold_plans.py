@@ -25,15 +25,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from rapomdp.config import METHOD_NAMES
-from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.experiment.held_out import load_held_out_comparison
-from rapomdp.study.pooled import SeedResult, held_out_table, pooled_table
+from rapomdp.study.pooled import held_out_table, pooled_table
 from rapomdp.workspace import Workspace
+
+sys.path.insert(0, str(Path(__file__).parent))
+from held_out_forecast import seed_results  # noqa: E402
 
 POMDPS = ("ra", "classifier")
 PLANNED = (*POMDPS, "vptree")
@@ -74,13 +77,6 @@ def held_out_ece(roots: list[Path], method: str) -> tuple[float, int]:
 def evaluate_seconds(roots: list[Path]) -> float:
     return sum(float(Workspace(r).manifest()["stages"]["evaluate"].get("seconds", 0.0))
                for r in roots)
-
-
-def seed_results(roots: list[Path]) -> list[SeedResult]:
-    return [SeedResult(root.parent.name, i, root,
-                       EpisodeTable.load(root / "evaluate" / EPISODES_FILE), [],
-                       str(Workspace(root).manifest()["stages"]["dataset"]["key"]))
-            for i, root in enumerate(roots)]
 
 
 def main() -> None:
