@@ -4,11 +4,11 @@ wrong-label shrinkage and belief temperatures are chosen without that group
 (``held_out_closed_loop.py --nested``).
 
 The stage chooses them on every volume group, so its held-out closed loop scores each group
-by knobs that saw it. :func:`observe_choices` repeats the stage's sequence of choices
-(``rapomdp.awareness.stage.observe``, the naive belief on volume evidence: the default) with
-the library's own choosers; :func:`check_reproduces` asserts that on the whole evidence it
-gives what the stage recorded, so the two cannot drift apart unnoticed. The saliency scores
-stay the stage's: they are geometry over every volume model, no label enters them.
+by knobs that saw it. :func:`observe_choices` makes the stage's choices with the function the
+stage calls (``rapomdp.awareness.choices.held_out_choices``; the naive belief on volume
+evidence, the default); :func:`check_reproduces` asserts that on the whole evidence they are
+what the workspace recorded, so a workspace observed by older code is refused. The saliency
+scores stay the stage's: they are geometry over every volume model, no label enters them.
 
     python benchmarks/nested_choices.py -w W...   # per workspace: the check, then each
                                                   # group's nested choices against the stage's
@@ -30,44 +30,25 @@ from pathlib import Path
 
 import numpy as np
 
+from rapomdp.awareness.choices import held_out_choices
 from rapomdp.awareness.evidence import (
-    DEFAULT_TRANSFER_KERNEL,
     ROBUST_RA_VARIANT,
     Evidence,
     RecordedObservation,
     TransferKernel,
-    check_variant_stability,
-    choose_belief_correction,
-    choose_class_shrinkage,
-    choose_ra_variant,
-    choose_transfer_kernel,
-    choose_wrong_label_shrinkage,
-    class_shrunk_folds,
-    fit_observation_models,
     held_out_object_log_likelihoods,
-    held_out_temperatures,
-    leave_one_group_out,
-    shrink_class_intercepts,
-    shrink_wrong_labels,
-    shrunk_folds,
-    transfer_kernel_grid,
 )
 from rapomdp.awareness.observation import ObservationModel
 from rapomdp.config import ObserveConfig
-from rapomdp.data.splits import class_seed
 from rapomdp.experiment.metrics import cluster_bootstrap_difference
-from rapomdp.recognition.belief import (
-    TEMPERATURE_NEIGHBOURS,
-    TEMPERATURE_WALK_LENGTH,
-    TEMPERATURE_WALKS_PER_ROW,
-)
 from rapomdp.workspace import Workspace
 
 
 @dataclass
 class ObserveChoices:
-    """What the observe stage chooses on held-out groups, and the single-view models it
-    fits with them (``models``: shrunk, not tempered; ``ra`` is ``ra_<variant>``)."""
+    """What the observe stage chooses on held-out groups (:func:`held_out_choices`), and the
+    single-view models it fits with them (``models``: shrunk, not tempered; ``ra`` is
+    ``ra_<variant>``), as the closed loop and this script read them."""
 
     variant: str
     variant_rule: str
@@ -80,46 +61,16 @@ class ObserveChoices:
 
 def observe_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes: Sequence[str],
                     cfg: ObserveConfig, directions: np.ndarray, seed: int) -> ObserveChoices:
-    """The observe stage's choices on ``evidence`` (the naive belief on volume evidence)."""
+    """The observe stage's choices on ``evidence`` (the naive belief on volume evidence, whose
+    models the held-out closed loop replays)."""
     if cfg.belief != "naive" or cfg.evidence != "volume":
         raise SystemExit(f"nested choices repeat the naive belief on volume evidence; this "
                          f"workspace has observe.belief {cfg.belief}, evidence {cfg.evidence}")
-    kernel = DEFAULT_TRANSFER_KERNEL
-    if "similarity" in scores:
-        kernel, _ = choose_transfer_kernel(evidence, scores["similarity"], directions,
-                                           cfg.confusion_pseudo_count,
-                                           transfer_kernel_grid(cfg.transfer_shrinkage))
-    folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
-    choice = check_variant_stability(choose_ra_variant(evidence, folds, cfg.ra_model, classes),
-                                     evidence, scores, classes, cfg, directions)
-    fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
-    class_amount = choose_class_shrinkage(evidence, folds, cfg.class_shrinkage).amount
-    folds = class_shrunk_folds(folds, class_amount)
-    if class_amount:
-        fitted["ra_class"] = shrink_class_intercepts(fitted["ra_class"], class_amount)
-    amounts = {name: choose_wrong_label_shrinkage(evidence, folds, name, cfg.wrong_labels).amount
-               for name in fitted}
-    models = {name: shrink_wrong_labels(m.probabilities, amounts[name])
-              for name, m in fitted.items()}
-    folds = shrunk_folds(folds, amounts)
-    fits = {kind: held_out_temperatures(
-        evidence, folds, directions, TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW,
-        TEMPERATURE_NEIGHBOURS, class_seed(seed, "observe/temperature"),
-        after_first=kind == "after_first") for kind in ("temperature", "after_first")}
-    corrections, temperatures = {}, {}
-    for name in fitted:
-        if name not in fits["temperature"][1]:
-            corrections[name], temperatures[name] = "none", 1.0
-            continue
-        report = {**fits["temperature"][1][name],
-                  **{f"after_first_{k}": v for k, v in fits["after_first"][1][name].items()}}
-        corrections[name] = choose_belief_correction(report, cfg.belief_correction)
-        temperatures[name] = (fits[corrections[name]][0][name]
-                              if corrections[name] != "none" else 1.0)
-    ra = f"ra_{choice.variant}"
-    models["ra"], amounts["ra"] = models[ra], amounts[ra]
-    corrections["ra"], temperatures["ra"] = corrections[ra], temperatures[ra]
-    return ObserveChoices(ra, choice.rule, kernel, amounts, corrections, temperatures, models)
+    chosen = held_out_choices(evidence, scores, classes, cfg, directions, seed)
+    return ObserveChoices(
+        f"ra_{chosen.variant}", chosen.choice.rule, chosen.kernel,
+        {name: c.amount for name, c in chosen.shrinkage.items()}, chosen.corrections,
+        chosen.temperatures, {name: m.probabilities for name, m in chosen.single_view.items()})
 
 
 def check_reproduces(recorded: RecordedObservation, choices: ObserveChoices) -> None:
@@ -138,9 +89,8 @@ def check_reproduces(recorded: RecordedObservation, choices: ObserveChoices) -> 
             [t_ours[n] for n in t_stage], [t_stage[n] for n in t_stage], rtol=1e-9):
         wrong.append("temperatures")
     if wrong:
-        raise SystemExit(f"the nested choices no longer repeat the observe stage "
-                         f"({', '.join(wrong)} differ): update observe_choices to the "
-                         "stage's sequence")
+        raise SystemExit(f"the workspace's recorded choices are not this code's "
+                         f"({', '.join(wrong)} differ): rerun its observe stage")
 
 
 def nested_choices(ws: Workspace, recorded: RecordedObservation

@@ -420,3 +420,27 @@ def test_the_recorded_belief_folds_are_those_the_stage_fitted_its_declared_confi
             calibration["declared_confidence"][name]["temperature"], abs=1e-9), name
     with pytest.raises(ValueError, match="observe.belief 'naive' only"):
         recorded.belief_folds(config.observe.model_copy(update={"belief": "nuisance"}))
+
+
+def test_the_stage_records_the_choices_held_out_choices_makes_on_its_evidence(workspace):
+    """The stage's choices are :func:`held_out_choices` on its evidence: made again from the
+    recorded evidence and scores, they are the recorded ones (a nested loop relies on it).
+    The artefact keeps the saliency similarity in float32, so ``ra_transfer``'s kernel may
+    break a near-tie otherwise on this tiny workspace: the models that do not read it are
+    compared."""
+    from rapomdp.awareness.choices import held_out_choices
+
+    config = config_from_dict(TINY)
+    recorded = RecordedObservation.load(workspace.root / "observe")
+    chosen = held_out_choices(recorded.evidence, recorded.scores, recorded.classes,
+                              config.observe, recorded.arrays["directions"], config.seed)
+    calibration = recorded.calibration
+    assert f"ra_{chosen.variant}" == recorded.variant
+    for name in ("classifier", "blackbox", "ra_paper", "ra_class"):
+        assert chosen.corrections[name] == calibration["belief_corrections"][name]
+        assert chosen.shrinkage[name].amount == calibration["wrong_labels"][name]["amount"]
+        assert chosen.temperatures[name] == pytest.approx(
+            calibration["temperatures"][name], rel=1e-9), name
+        assert chosen.declared[name].temperature == pytest.approx(
+            calibration["declared_confidence"][name]["temperature"], abs=1e-9), name
+    assert chosen.levels["classifier"] != 0.0  # the cross-fitted rows' level, shifted

@@ -28,7 +28,7 @@ log-likelihood, and under ``grid`` every grid kernel's); ``quality.csv|md`` (tes
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -58,38 +58,17 @@ from rapomdp.awareness.artefacts import (
     saliency_map_file,
     volume_file,
 )
+from rapomdp.awareness.choices import held_out_choices
 from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes, crossfit_outcomes
 from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
-    STACKED_VARIANTS,
     Evidence,
     ShrinkageChoice,
     TransferKernel,
     VariantChoice,
-    check_variant_stability,
-    choose_belief_correction,
-    choose_class_shrinkage,
-    choose_ra_variant,
-    choose_transfer_kernel,
-    choose_wrong_label_shrinkage,
-    class_shrunk_folds,
-    fit_level,
-    fit_observation_models,
     fit_softmax_temperature,
-    held_out_declared_confidence,
-    held_out_temperatures,
-    held_out_view_discounts,
-    leave_one_group_out,
     salient_view_similarity,
-    shift_level,
-    shrink_class_intercepts,
-    shrink_wrong_labels,
-    shrunk_folds,
-    transfer_kernel_grid,
-    validation_quality,
-    view_similarity_kernel,
 )
-from rapomdp.awareness.nuisance import NuisanceModel, nuisance_belief_models
 from rapomdp.awareness.observation import (
     ClassScoreCalibration,
     ObservationModel,
@@ -122,10 +101,6 @@ from rapomdp.progress import track
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 from rapomdp.recognition.belief import (
     DECLARED_STOP_THRESHOLDS,
-    DISCOUNT_JUMP,
-    TEMPERATURE_NEIGHBOURS,
-    TEMPERATURE_WALK_LENGTH,
-    TEMPERATURE_WALKS_PER_ROW,
     DeclaredConfidence,
     ViewDiscount,
     temper,
@@ -421,122 +396,11 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         scores["contrastive"] = contrastive_scores(config, views, classifier, evidence, cache,
                                                    progress)
     scores_s = time.perf_counter() - start
-    # RA-POMDP's model and the belief's temperature: chosen / fitted on held-out groups
+    # RA-POMDP's model and the belief's corrections: chosen / fitted on held-out groups
     directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
-    kernel_start = time.perf_counter()
-    kernel = DEFAULT_TRANSFER_KERNEL
-    kernel_grid: list[dict[str, float]] = []
-    if "similarity" in scores:  # ra_transfer's kernel, on the same folds (one group: default)
-        kernel, kernel_grid = choose_transfer_kernel(
-            evidence, scores["similarity"], directions, cfg.confusion_pseudo_count,
-            transfer_kernel_grid(cfg.transfer_shrinkage))
-    kernel_s = time.perf_counter() - kernel_start
-    folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
-    validation = validation_quality(evidence, folds)
-    choice = check_variant_stability(choose_ra_variant(evidence, folds, cfg.ra_model, classes),
-                                     evidence, scores, classes, cfg, directions)
-    variant = choice.variant
-    if variant == "contrastive" and not cfg.contrastive:
-        raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
-    if variant in STACKED_VARIANTS and len(np.unique(evidence.groups)) < 2:
-        raise StageError(f"observe.ra_model '{variant}' stacks over groups of held-out "
-                         "evidence: use two or more volume models per class "
-                         "(dataset.split.volume) or set observe.evidence to crossfit or both")
-    fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
-    # ra_class's class intercepts moved toward their mean where held-out objects say so
-    # (observe.class_shrinkage); after the variant is chosen, which it leaves as it is
-    # (benchmarks/results/class_shrinkage_closed_loop_rule.md), and before what is fitted on it
-    class_shrinkage = choose_class_shrinkage(evidence, folds, cfg.class_shrinkage)
-    folds = class_shrunk_folds(folds, class_shrinkage.amount)
-    if class_shrinkage.amount:
-        fitted["ra_class"] = shrink_class_intercepts(fitted["ra_class"],
-                                                     class_shrinkage.amount)
-    levels = {name: 0.0 for name in fitted}
-    if (~evidence.volume_mask).any() and evidence.volume_mask.any():
-        # cross-fitted classifiers train on less data and err more: each model's P(correct)
-        # is moved to the level of the modelled classifier on its own held-out objects
-        own = evidence.subset(evidence.volume_mask)
-        levels = {name: fit_level(m.probabilities, own.labels, own.predicted)
-                  for name, m in fitted.items()}
-        fitted = {name: _with_probabilities(m, shift_level(m.probabilities, levels[name]))
-                  for name, m in fitted.items()}
-    # where each model's mistakes go, shrunk toward uniform by the held-out choice
-    # (observe.wrong_labels); the folds too, so the belief's corrections are fitted on the
-    # models the belief uses
-    shrinkage = {name: (choose_wrong_label_shrinkage(evidence, folds, name, cfg.wrong_labels)
-                        if cfg.belief != "nuisance" else
-                        ShrinkageChoice(0.0, "configured", "observe.belief 'nuisance' fits "
-                                        "its own rows"))
-                 for name in fitted}
-    fitted = {name: _with_probabilities(m, shrink_wrong_labels(
-                  m.probabilities, shrinkage[name].amount))
-              for name, m in fitted.items()}
-    folds = shrunk_folds(folds, {name: choice.amount for name, choice in shrinkage.items()})
-    single_view = {"ra": fitted[f"ra_{variant}"], **fitted}
-    levels["ra"] = levels[f"ra_{variant}"]
-    shrinkage["ra"] = shrinkage[f"ra_{variant}"]
-    # the belief's model of one object's views (observe.belief): independent given the class
-    # (naive), or given (class, instance type) with the per-object nuisance fitted by EM over
-    # the held-out objects — for the folds (the walks that fit the temperature) and for all
-    belief_models: dict[str, ObservationModel] = single_view
-    belief_folds = folds
-    nuisance: dict[str, NuisanceModel] = {}
-    if cfg.belief == "nuisance":
-        def base_fit(part: Evidence, names: Sequence[str] | None) -> dict[str, np.ndarray]:
-            return {n: m.probabilities for n, m in fit_observation_models(
-                part, scores, classes, cfg, directions, kernel, names).items()}
-
-        nuisance, per_fold = nuisance_belief_models(
-            evidence, [held for held, _ in folds], base_fit, list(fitted),
-            cfg.confusion_pseudo_count)
-        for name, nm in nuisance.items():  # cross-fitted evidence: the typical rows' level
-            nm.typical = shift_level(nm.typical, levels[name])
-        belief_models = {name: ObservationModel(nm.probabilities, classes, nm.prior)
-                         for name, nm in nuisance.items()}
-        belief_models = {"ra": belief_models[f"ra_{variant}"], **belief_models}
-        belief_folds = [(held, {name: ObservationModel(nm.probabilities, classes, nm.prior)
-                                for name, nm in fold.items()})
-                        for (held, _), fold in zip(folds, per_fold, strict=True)]
-    temperatures = {name: 1.0 for name in single_view}
-    corrections = {name: "none" for name in single_view}
-    fits = {kind: held_out_temperatures(  # the same walks for both
-        evidence, belief_folds, directions, TEMPERATURE_WALK_LENGTH, TEMPERATURE_WALKS_PER_ROW,
-        TEMPERATURE_NEIGHBOURS, class_seed(config.seed, "observe/temperature"),
-        after_first=kind == "after_first") for kind in ("temperature", "after_first")}
-    belief_calibration = {name: {**report, **{f"after_first_{k}": v for k, v in
-                                              fits["after_first"][1][name].items()}}
-                          for name, report in fits["temperature"][1].items()}
-    for name in belief_calibration:
-        corrections[name] = choose_belief_correction(belief_calibration[name],
-                                                     cfg.belief_correction)
-        kind = corrections[name]
-        temperatures[name] = fits[kind][0][name] if kind != "none" else 1.0
-    discounts: dict[str, ViewDiscount] = {}
-    discount_kernel = np.zeros((0, 0))
-    if cfg.belief == "similarity" and folds:
-        # evidence discounted by how alike a view is to those taken (ra_transfer's kernel),
-        # fitted on the same held-out walks; the planner's model is the memoryless stand-in
-        # tempered by the mean later weight there, the first view counts in full
-        discount_kernel = view_similarity_kernel(scores["similarity"], directions, kernel)
-        discounts, stand_ins = held_out_view_discounts(
-            evidence, folds, directions, discount_kernel, TEMPERATURE_WALK_LENGTH,
-            TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
-            class_seed(config.seed, "observe/temperature"),
-            DISCOUNT_JUMP if config.observe.discount_walks == "mixed" else 0.0)
-        for name, t in stand_ins.items():
-            corrections[name], temperatures[name] = "similarity", t
-    corrections["ra"] = corrections.get(f"ra_{variant}", "none")
-    temperatures["ra"] = temperatures.get(f"ra_{variant}", 1.0)
-    if f"ra_{variant}" in discounts:
-        discounts["ra"] = discounts[f"ra_{variant}"]
-    # what a policy reports after its views: its belief ** a, a fitted where held-out walks
-    # stop (evaluate.declared_confidence); the belief it acts on is unchanged
-    declared = held_out_declared_confidence(
-        evidence, belief_folds, temperatures, corrections, directions,
-        TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
-        class_seed(config.seed, "observe/declared"))
-    if f"ra_{variant}" in declared:
-        declared["ra"] = declared[f"ra_{variant}"]
+    chosen = held_out_choices(evidence, scores, classes, cfg, directions, config.seed)
+    corrections, temperatures = chosen.corrections, chosen.temperatures
+    belief_models = chosen.belief_models
     models: dict[str, ObservationModel] = {
         name: ObservationModel(temper(m.probabilities, temperatures[name]), classes, m.prior)
         for name, m in belief_models.items()}
@@ -552,18 +416,20 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     test_pred = np.stack([outcomes(m, TEST_STREAM).predicted
                           for m in track(test_models, "observe: test models at X_rho", progress,
                                          unit="test models")])
-    rows = quality_table(single_view, test_labels, test_pred)
-    calibration = single_view["ra"].calibration  # type: ignore[attr-defined]
+    rows = quality_table(chosen.single_view, test_labels, test_pred)
+    calibration = chosen.single_view["ra"].calibration  # type: ignore[attr-defined]
     return Observation(models, raw, scores["mean"], scores["area"], calibration, labels,
-                       predicted, evidence, test_labels, test_pred, rows, validation, variant,
-                       temperatures, single_view, first_view, corrections, levels,
-                       belief_calibration, scores,
+                       predicted, evidence, test_labels, test_pred, rows, chosen.validation,
+                       chosen.variant, temperatures, chosen.single_view, first_view,
+                       corrections, chosen.levels, chosen.belief_calibration, scores,
                        {"scores_s": scores_s, "observation_models_s": models_s,
-                        "transfer_kernel_s": kernel_s, "total_s": time.perf_counter() - start},
-                       softmax_t, kernel, kernel_grid,
-                       {name: nm.to_dict() for name, nm in nuisance.items()}, choice,
-                       discounts, discount_kernel, shrinkage, declared, belief_folds,
-                       class_shrinkage)
+                        "transfer_kernel_s": chosen.kernel_s,
+                        "total_s": time.perf_counter() - start},
+                       softmax_t, chosen.kernel, chosen.kernel_grid,
+                       {name: nm.to_dict() for name, nm in chosen.nuisance.items()},
+                       chosen.choice, chosen.discounts, chosen.discount_kernel,
+                       chosen.shrinkage, chosen.declared, chosen.belief_folds,
+                       chosen.class_shrinkage)
 
 
 def most_confused(evidence: Evidence, classes: int) -> np.ndarray:
@@ -607,14 +473,6 @@ def contrastive_scores(config: Config, views: TrainingViews, classifier: Classif
             per_model.append(viewpoint_scores(vis, volume.flat_scores()))
         raw[c] = np.nanmean(np.stack(per_model), axis=0)
     return normalise_scores(raw)
-
-
-def _with_probabilities(model: ObservationModel, probabilities: np.ndarray
-                        ) -> ObservationModel:
-    """``model``'s rows replaced (its score calibration kept, for the records)."""
-    out = ObservationModel(probabilities, model.classes)
-    out.calibration = getattr(model, "calibration", None)  # type: ignore[attr-defined]
-    return out
 
 
 def observation_evidence(kind: str, volume_labels: np.ndarray, volume_predicted: np.ndarray,

@@ -1,0 +1,83 @@
+"""The observe stage's held-out choices as one function: what it chooses on planted evidence,
+how ``ra`` follows the chosen variant, and where it refuses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rapomdp.awareness.choices import held_out_choices
+from rapomdp.awareness.evidence import (
+    ROBUST_RA_VARIANT,
+    Evidence,
+    check_variant_stability,
+    choose_ra_variant,
+    leave_one_group_out,
+)
+from rapomdp.config import ObserveConfig
+from rapomdp.geometry.viewsphere import fibonacci_directions
+from rapomdp.workspace import StageError
+from tests.awareness.test_evidence import _planted_area_evidence, _planted_class_rates
+
+CLASSES = ["a", "b", "c"]
+
+
+def _volume(evidence: Evidence) -> Evidence:
+    """``evidence`` as volume models' (every row labelled by the trained classifier)."""
+    return Evidence(evidence.labels, evidence.predicted, evidence.groups,
+                    np.ones(len(evidence.labels), dtype=bool))
+
+
+def test_the_planted_informative_variant_is_chosen_and_ra_is_its_entry_everywhere() -> None:
+    evidence, scores = _planted_area_evidence(4, 8)
+    evidence = _volume(evidence)
+    directions = fibonacci_directions(96, hemisphere=True)
+    chosen = held_out_choices(evidence, scores, CLASSES, ObserveConfig(), directions, seed=3)
+    cfg = ObserveConfig()
+    alone = check_variant_stability(
+        choose_ra_variant(evidence, leave_one_group_out(evidence, scores, CLASSES, cfg, directions),
+                          "auto", CLASSES), evidence, scores, CLASSES, cfg, directions)
+    assert chosen.choice == alone and chosen.variant in {"area", "class_area"}
+    assert chosen.choice.rule == "best"
+    ra = f"ra_{chosen.variant}"
+    assert chosen.single_view["ra"] is chosen.single_view[ra]
+    assert chosen.belief_models is chosen.single_view  # the naive belief: one model
+    for per_model in (chosen.shrinkage, chosen.corrections, chosen.temperatures,
+                      chosen.levels, chosen.declared):
+        assert per_model["ra"] == per_model[ra]
+    assert set(chosen.levels.values()) == {0.0}  # volume evidence only: no level shift
+    crossfit = held_out_choices(Evidence(evidence.labels, evidence.predicted, evidence.groups),
+                                scores, CLASSES, cfg, directions, seed=3)
+    assert crossfit.levels["ra"] == crossfit.levels[f"ra_{crossfit.variant}"] != 0.0
+    assert chosen.class_shrinkage.rule == "configured" and chosen.class_shrinkage.amount == 0
+    assert len(chosen.belief_folds) == 4 and len(chosen.validation) == len(chosen.single_view) - 1
+    for model in chosen.single_view.values():
+        assert np.allclose(model.probabilities.sum(axis=2), 1.0)
+    assert chosen.kernel_grid == []  # no similarity scores: ra_transfer's default kernel
+
+
+def test_errors_shared_within_an_object_temper_the_belief() -> None:
+    """Each object right at its own rate: its views are not independent given the class, so
+    the held-out walks make the belief count them less (t < 1)."""
+    evidence, scores = _planted_class_rates([0.6, 0.7, 0.8], seed=2, groups=5, spread=2.5)
+    evidence = _volume(evidence)
+    directions = fibonacci_directions(64, hemisphere=True)
+    chosen = held_out_choices(evidence, scores, CLASSES, ObserveConfig(), directions, seed=0)
+    for name in ("classifier", "ra"):
+        assert chosen.corrections[name] in {"temperature", "after_first"}
+        assert 0.0 < chosen.temperatures[name] < 0.9
+        assert 0.0 <= chosen.declared[name].temperature <= 2.0
+
+
+def test_one_group_chooses_nothing_and_a_stacked_variant_is_refused() -> None:
+    evidence, scores = _planted_area_evidence(4, 9)
+    one = _volume(Evidence(evidence.labels, evidence.predicted, np.zeros_like(evidence.groups)))
+    directions = fibonacci_directions(96, hemisphere=True)
+    chosen = held_out_choices(one, scores, CLASSES, ObserveConfig(), directions, seed=0)
+    assert (chosen.variant, chosen.choice.rule) == (ROBUST_RA_VARIANT, "too little evidence")
+    assert chosen.belief_folds == [] and chosen.declared == {}
+    assert set(chosen.temperatures.values()) == {1.0}
+    assert set(chosen.corrections.values()) == {"none"}
+    with pytest.raises(StageError, match="'viewpoint' stacks over groups"):
+        held_out_choices(one, scores, CLASSES, ObserveConfig(ra_model="viewpoint"),
+                         directions, seed=0)
