@@ -134,6 +134,20 @@ def test_a_method_pairs_with_itself_in_another_table_of_the_same_pairs() -> None
         paired_model_sums(_episodes({"ra": variant}, 3), "ra", "ra", shifted)
 
 
+def test_a_method_pairs_with_itself_where_the_other_table_holds_more_methods() -> None:
+    """The base configuration evaluated a method the variant did not: each table's own rows
+    are paired (the same method name on both sides must not share one row selection)."""
+    base = np.zeros((4, 3), dtype=bool)
+    variant = base.copy()
+    variant[1, :2] = True
+    wider = _episodes({"static": np.ones((4, 3), dtype=bool), "ra": base}, 3)
+    models, sums, pairs = paired_model_sums(_episodes({"ra": variant}, 3), "ra", "ra", wider)
+    np.testing.assert_array_equal(sums, [0.0, 2.0, 0.0, 0.0])
+    np.testing.assert_array_equal(pairs, [3.0, 3.0, 3.0, 3.0])
+    models, sums, _ = paired_model_sums(wider, "ra", "ra", _episodes({"ra": variant}, 3))
+    np.testing.assert_array_equal(sums, [0.0, -2.0, 0.0, 0.0])
+
+
 def test_markdown_has_the_paired_column() -> None:
     ra = np.zeros((4, 5), dtype=bool)
     ra[:, :2] = True

@@ -174,19 +174,19 @@ def paired_model_sums(table: EpisodeTable, method: str, reference: str,
     another table of the same pairs (another configuration of the same seed).
     """
     other = table if reference_table is None else reference_table
-    rows = {}
-    for key, source in ((method, table), (reference, other)):
+    sides = ((method, table), (reference, other))  # by position: the names may be the same
+    rows = []
+    for key, source in sides:
         sel = np.flatnonzero(source.method == key)
         if sel.size == 0:
             raise ValueError(f"no episodes of method '{key}'")
-        rows[key] = sel
-    keys = [np.char.add(np.char.add(source.model[rows[key]].astype(str), "#"),
-                        source.start[rows[key]].astype(str))
-            for key, source in ((method, table), (reference, other))]
+        rows.append(sel)
+    keys = [np.char.add(np.char.add(source.model[sel].astype(str), "#"),
+                        source.start[sel].astype(str))
+            for (_, source), sel in zip(sides, rows, strict=True)]
     try:
-        return paired_cluster_sums(keys[0], table.correct[rows[method]],
-                                   table.model[rows[method]], keys[1],
-                                   other.correct[rows[reference]])
+        return paired_cluster_sums(keys[0], table.correct[rows[0]], table.model[rows[0]],
+                                   keys[1], other.correct[rows[1]])
     except ValueError:
         raise ValueError(f"methods '{method}' and '{reference}' did not run from the same "
                          "(test model, start) pairs") from None
