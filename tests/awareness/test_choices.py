@@ -81,3 +81,10 @@ def test_one_group_chooses_nothing_and_a_stacked_variant_is_refused() -> None:
     with pytest.raises(StageError, match="'viewpoint' stacks over groups"):
         held_out_choices(one, scores, CLASSES, ObserveConfig(ra_model="viewpoint"),
                          directions, seed=0)
+
+
+def test_empty_evidence_is_refused_by_name() -> None:
+    evidence, scores = _planted_area_evidence(4, 9)
+    with pytest.raises(ValueError, match="no held-out evidence"):
+        held_out_choices(evidence.subset(evidence.groups > 9), scores, CLASSES,
+                         ObserveConfig(), fibonacci_directions(96, hemisphere=True), seed=0)

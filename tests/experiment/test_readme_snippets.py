@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rapomdp.awareness.evidence import RA_VARIANTS
 from tests.planning.planning_fixtures import TIGER
 
 README = Path(__file__).resolve().parents[2] / "README.md"
@@ -118,7 +119,7 @@ def test_the_robot_docs_run_as_written(reader_folder) -> None:
 
 def test_the_awareness_docs_run_as_written(reader_folder) -> None:
     namespace: dict = {}
-    block, = python_blocks((DOCS / "awareness.md").read_text())
+    block, choices = python_blocks((DOCS / "awareness.md").read_text())
     exec(block, namespace)
     assert namespace["pixels"].shape == namespace["depth"].shape
     assert namespace["score"].shape == (16,) and np.nanmax(namespace["score"]) <= 1.0
@@ -126,6 +127,13 @@ def test_the_awareness_docs_run_as_written(reader_folder) -> None:
     similarity = namespace["similarity"]  # ra_transfer's kernel: 1 on the diagonal
     assert similarity.shape[1] == similarity.shape[2]
     assert np.allclose(np.diagonal(similarity, 0, 1, 2), 1.0, atol=1e-5)
+    # the held-out choices remade on one fold's evidence
+    exec(choices, namespace)
+    part, chosen, groups = namespace["part"], namespace["chosen"], namespace["groups"]
+    assert len(part.labels) > 0 and (len(groups) == 1 or groups[-1] not in part.groups)
+    assert chosen.variant in RA_VARIANTS and chosen.choice.reason
+    assert chosen.single_view["ra"] is chosen.single_view[f"ra_{chosen.variant}"]
+    assert chosen.temperatures["ra"] > 0
 
 
 def test_the_cluster_snippets_are_valid_python_for_their_libraries() -> None:
@@ -142,6 +150,6 @@ def test_the_cluster_snippets_are_valid_python_for_their_libraries() -> None:
 
 def test_every_python_snippet_of_the_docs_is_covered() -> None:
     counts = {p.name: len(python_blocks(p.read_text())) for p in sorted(DOCS.glob("*.md"))}
-    covered = {"awareness.md": 1, "experiment.md": 3, "planning.md": 1, "recognition.md": 1,
+    covered = {"awareness.md": 2, "experiment.md": 3, "planning.md": 1, "recognition.md": 1,
                "robot.md": 1, "scale-out.md": 2}
     assert {name: n for name, n in counts.items() if n} == covered

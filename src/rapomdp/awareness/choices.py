@@ -113,6 +113,8 @@ def held_out_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes:
                      cfg: ObserveConfig, directions: np.ndarray, seed: int) -> HeldOutChoices:
     """Every held-out choice of the observe stage on ``evidence``, in the stage's order, and
     the models fitted with them; ``seed`` is the run's (the walks' streams derive from it)."""
+    if len(evidence.labels) == 0:
+        raise ValueError("no held-out evidence to choose on (an empty subset of the groups?)")
     kernel_start = time.perf_counter()
     kernel, kernel_grid = DEFAULT_TRANSFER_KERNEL, []
     if "similarity" in scores:  # ra_transfer's kernel, on the same folds (one group: default)
