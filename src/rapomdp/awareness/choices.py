@@ -22,6 +22,7 @@ from rapomdp.awareness.evidence import (
     DEFAULT_TRANSFER_KERNEL,
     STACKED_VARIANTS,
     Evidence,
+    Folds,
     ShrinkageChoice,
     TransferKernel,
     VariantChoice,
@@ -60,9 +61,6 @@ from rapomdp.recognition.belief import (
 )
 from rapomdp.workspace import StageError
 
-#: One held-out group's rows and the models fitted without it.
-Fold = tuple[np.ndarray, dict[str, ObservationModel]]
-
 
 @dataclass
 class HeldOutChoices:
@@ -92,7 +90,7 @@ class HeldOutChoices:
     #: The belief's models of one view (``observe.belief``; the single-view ones when naive).
     belief_models: dict[str, ObservationModel]
     #: Each held-out group's rows and the belief's models fitted without it.
-    belief_folds: list[Fold]
+    belief_folds: Folds
     nuisance: dict[str, NuisanceModel]
     #: The belief's correction per model (``observe.belief_correction``) and its temperature.
     corrections: dict[str, str]
