@@ -3,7 +3,7 @@
 1. A 164-byte file declaring 4999 states: ``rapomdp pomdp solve FILE --timeout 10`` must end
    within its budget (every phase stoppable) and print bounds; CPU time and peak memory of
    the whole command are measured.
-2. 1000 states x 40 actions x 40 observations: refused by its estimate before allocation.
+2. 3000 states x 40 actions x 40 observations: refused by its estimate before allocation.
 3. The reader on 10^5 and 10^6 state names (linear; the dense arrays are then refused).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src nice -n 5 python benchmarks/planning_flat_limits.py
@@ -22,7 +22,7 @@ from pathlib import Path
 BIG = ("discount: 0.95\nvalues: reward\nstates: 4999\nactions: 2\nobservations: 2\n"
        "start: uniform\nT: 0 identity\nT: 1 uniform\nO: * uniform\nR: 0 : * : * : * 1\n"
        "R: 1 : 7 : * : * 50\n")
-WIDE = ("discount: 0.95\nvalues: reward\nstates: 1000\nactions: 40\nobservations: 40\n"
+WIDE = ("discount: 0.95\nvalues: reward\nstates: 3000\nactions: 40\nobservations: 40\n"
         "start: uniform\nT: * uniform\nO: * uniform\nR: 0 : * : * : * 1\n")
 
 
@@ -55,7 +55,7 @@ def main() -> None:
         wide = Path(tmp) / "wide.pomdp"
         wide.write_text(WIDE)
         text, wall, cpu, rss = run_cli(wide, 10.0)
-        print(f"2. 1000 x 40 x 40: exit after {cpu:.2f} s CPU, max RSS {rss:.0f} MB (largest "
+        print(f"2. 3000 x 40 x 40: exit after {cpu:.2f} s CPU, max RSS {rss:.0f} MB (largest "
               f"child so far): {text.splitlines()[-1]}")
     for n in (10**5, 10**6):
         names = " ".join(f"s{i}" for i in range(n))
