@@ -817,3 +817,19 @@ def test_shift_level_moves_p_correct_by_one_shift_or_one_per_viewpoint():
         ratio = out[:, wrong].reshape(5, 4, 3) / p[:, wrong].reshape(5, 4, 3)
         assert np.allclose(ratio, ratio[:, :, :1])  # the wrong labels keep their proportions
     assert np.array_equal(shift_level(p, 0.0), p) and shift_level(p, np.zeros(5)) is not p
+
+
+def test_the_configured_kernel_is_the_grids_choice_or_the_default_without_similarity() -> None:
+    from rapomdp.awareness.evidence import configured_transfer_kernel
+
+    evidence, similarity, directions = _planted_kernel_evidence(True, 1)
+    scores = {"similarity": similarity}
+    cfg = ObserveConfig()
+    assert configured_transfer_kernel(evidence, {}, cfg, directions) == (
+        DEFAULT_TRANSFER_KERNEL, [])
+    assert configured_transfer_kernel(evidence, scores, cfg, None) == (
+        DEFAULT_TRANSFER_KERNEL, [])
+    kernel, table = configured_transfer_kernel(evidence, scores, cfg, directions)
+    expected = choose_transfer_kernel(evidence, similarity, directions,
+                                      cfg.confusion_pseudo_count, TRANSFER_KERNEL_GRID)
+    assert (kernel, table) == expected and len(table) == len(TRANSFER_KERNEL_GRID)

@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rapomdp.awareness.evidence import (
-    DEFAULT_TRANSFER_KERNEL,
     STACKED_VARIANTS,
     Evidence,
     Folds,
@@ -30,9 +29,9 @@ from rapomdp.awareness.evidence import (
     choose_belief_correction,
     choose_class_shrinkage,
     choose_ra_variant,
-    choose_transfer_kernel,
     choose_wrong_label_shrinkage,
     class_shrunk_folds,
+    configured_transfer_kernel,
     fit_level,
     fit_observation_models,
     held_out_declared_confidence,
@@ -43,7 +42,6 @@ from rapomdp.awareness.evidence import (
     shrink_class_intercepts,
     shrink_wrong_labels,
     shrunk_folds,
-    transfer_kernel_grid,
     validation_quality,
     view_similarity_kernel,
 )
@@ -113,12 +111,8 @@ def held_out_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes:
     the models fitted with them; ``seed`` is the run's (the walks' streams derive from it)."""
     if len(evidence.labels) == 0:
         raise ValueError("no held-out evidence to choose on (an empty subset of the groups?)")
-    kernel_start = time.perf_counter()
-    kernel, kernel_grid = DEFAULT_TRANSFER_KERNEL, []
-    if "similarity" in scores:  # ra_transfer's kernel, on the same folds (one group: default)
-        kernel, kernel_grid = choose_transfer_kernel(
-            evidence, scores["similarity"], directions, cfg.confusion_pseudo_count,
-            transfer_kernel_grid(cfg.transfer_shrinkage))
+    kernel_start = time.perf_counter()  # ra_transfer's kernel (one group: the default)
+    kernel, kernel_grid = configured_transfer_kernel(evidence, scores, cfg, directions)
     kernel_s = time.perf_counter() - kernel_start
     folds = leave_one_group_out(evidence, scores, classes, cfg, directions, kernel)
     validation = validation_quality(evidence, folds)

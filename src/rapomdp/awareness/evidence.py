@@ -510,6 +510,19 @@ def observed_probabilities(model: np.ndarray, labels: np.ndarray, predicted: np.
     return model[x, t, predicted], model[x, t, t]
 
 
+def configured_transfer_kernel(evidence: Evidence, scores: dict[str, np.ndarray],
+                               cfg: ObserveConfig, directions: np.ndarray | None
+                               ) -> tuple[TransferKernel, list[dict[str, float]]]:
+    """``ra_transfer``'s kernel as the observe stage chooses it on ``evidence``
+    (:func:`choose_transfer_kernel` over ``observe.transfer_shrinkage``'s grid), and the grid's
+    held-out table; the default kernel without saliency similarity or directions."""
+    if "similarity" not in scores or directions is None:
+        return DEFAULT_TRANSFER_KERNEL, []
+    return choose_transfer_kernel(evidence, scores["similarity"], directions,
+                                  cfg.confusion_pseudo_count,
+                                  transfer_kernel_grid(cfg.transfer_shrinkage))
+
+
 def leave_one_group_out(evidence: Evidence, scores: dict[str, np.ndarray],
                         classes: Sequence[str], cfg: ObserveConfig,
                         directions: np.ndarray | None = None,
@@ -690,11 +703,7 @@ def check_variant_stability(choice: VariantChoice, evidence: Evidence,
     without: dict[str, str] = {}
     for held in masks:
         rest = evidence.subset(~held)
-        kernel = DEFAULT_TRANSFER_KERNEL
-        if "similarity" in scores and directions is not None:
-            kernel, _ = choose_transfer_kernel(rest, scores["similarity"], directions,
-                                               cfg.confusion_pseudo_count,
-                                               transfer_kernel_grid(cfg.transfer_shrinkage))
+        kernel, _ = configured_transfer_kernel(rest, scores, cfg, directions)
         folds = leave_one_group_out(rest, scores, classes, cfg, directions, kernel)
         made = choose_ra_variant(rest, folds, "auto", classes)
         if not made.too_little_evidence:
