@@ -319,12 +319,13 @@ class ObserveConfig(Section):
         False, description="also fit ra_contrastive: each class's saliency volume against its "
         "most confused class (one more mask per volume-model view)")
     ra_model: Literal["auto", "paper", "class", "area", "class_area", "contrastive",
-                      "viewpoint", "region", "transfer"] = Field(
+                      "viewpoint", "region", "transfer", "mixture"] = Field(
         "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
         "variant with the best held-out log-likelihood (leave-one-group-out over the evidence; "
         "'region', the accuracy per viewpoint pooled over classes, only when named); 'class' "
         "unless the best beats it by more than one standard error and the choice made without "
-        "each group leaves it too (docs/awareness.md 4.4)")
+        "each group leaves it too (docs/awareness.md 4.4); mixture: the variants auto compares, "
+        "averaged with weights fitted on the held-out labels (needs two volume groups or more)")
     transfer_shrinkage: bool = Field(
         False, description="ra_transfer's kernel choice also scores shrinking each class row's "
         "accuracy toward the accuracy pooled over every class (by 0-64 objects' worth, chosen "

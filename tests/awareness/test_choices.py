@@ -88,3 +88,38 @@ def test_empty_evidence_is_refused_by_name() -> None:
     with pytest.raises(ValueError, match="no held-out evidence"):
         held_out_choices(evidence.subset(evidence.groups > 9), scores, CLASSES,
                          ObserveConfig(), fibonacci_directions(96, hemisphere=True), seed=0)
+
+
+def test_the_mixture_averages_the_variants_it_weighs_and_ra_is_it() -> None:
+    evidence, scores = _planted_area_evidence(4, 8)
+    evidence = _volume(evidence)
+    directions = fibonacci_directions(96, hemisphere=True)
+    chosen = held_out_choices(evidence, scores, CLASSES, ObserveConfig(ra_model="mixture"),
+                              directions, seed=3)
+    mixture = chosen.single_view["ra"]
+    assert chosen.variant == "mixture" and mixture is chosen.single_view["ra_mixture"]
+    weights = mixture.calibration.weights  # type: ignore[attr-defined]
+    # auto's variants (no similarity scores planted: no ra_transfer), not the configured-only
+    assert set(weights) == {"ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint"}
+    assert sum(weights.values()) == pytest.approx(1.0)
+    # the planted signal is the salient area: the area variants carry most of the weight
+    assert weights["ra_area"] + weights["ra_class_area"] + weights["ra_viewpoint"] > 0.5
+    table = sum(w * chosen.single_view[name].probabilities for name, w in weights.items())
+    assert np.allclose(mixture.probabilities, table)
+    for _, models in chosen.belief_folds:  # each fold its own mixture, weighted without it
+        fold_weights = models["ra_mixture"].calibration.weights  # type: ignore[attr-defined]
+        assert set(fold_weights) == set(weights)
+        assert np.allclose(models["ra_mixture"].probabilities.sum(axis=2), 1.0)
+    assert chosen.shrinkage["ra"].amount == 0.0 and chosen.levels["ra"] == 0.0
+
+
+def test_the_mixture_is_refused_on_one_group_and_with_the_nuisance_belief() -> None:
+    evidence, scores = _planted_area_evidence(4, 9)
+    directions = fibonacci_directions(96, hemisphere=True)
+    one = _volume(Evidence(evidence.labels, evidence.predicted, np.zeros_like(evidence.groups)))
+    with pytest.raises(StageError, match="'mixture' weighs its variants by groups"):
+        held_out_choices(one, scores, CLASSES, ObserveConfig(ra_model="mixture"), directions,
+                         seed=0)
+    with pytest.raises(StageError, match="'nuisance' refits each model's rows"):
+        held_out_choices(_volume(evidence), scores, CLASSES,
+                         ObserveConfig(ra_model="mixture", belief="nuisance"), directions, seed=0)

@@ -25,8 +25,10 @@ from rapomdp.awareness.evidence import (
     choose_transfer_kernel,
     choose_wrong_label_shrinkage,
     class_shrunk_folds,
+    fit_mixture_weights,
     fit_observation_models,
     leave_one_group_out,
+    ra_mixture_folds,
     recorded_evidence,
     recorded_scores,
     recorded_transfer_kernel,
@@ -833,3 +835,48 @@ def test_the_configured_kernel_is_the_grids_choice_or_the_default_without_simila
     expected = choose_transfer_kernel(evidence, similarity, directions,
                                       cfg.confusion_pseudo_count, TRANSFER_KERNEL_GRID)
     assert (kernel, table) == expected and len(table) == len(TRANSFER_KERNEL_GRID)
+
+
+def test_mixture_weights_recover_a_planted_mixture_and_refuse_zero_probabilities() -> None:
+    rng = np.random.default_rng(0)
+    first, second = np.array([0.7, 0.1, 0.1, 0.1]), np.array([0.1, 0.1, 0.1, 0.7])
+    source = rng.random(20_000) < 0.3  # 30 % of the labels drawn from the first model
+    labels = np.where(source, rng.choice(4, 20_000, p=first), rng.choice(4, 20_000, p=second))
+    w = fit_mixture_weights(np.stack([first[labels], second[labels]]))
+    assert w.sum() == pytest.approx(1.0) and w[0] == pytest.approx(0.3, abs=0.02)
+    # a model that is the truth against a uniform one takes almost all the weight
+    truth = fit_mixture_weights(np.stack([second[labels[~source]], np.full((~source).sum(), 0.25)]))
+    assert truth[0] > 0.95
+    with pytest.raises(ValueError, match="positive probabilities"):
+        fit_mixture_weights(np.array([[0.5, 0.0], [0.5, 0.5]]))
+
+
+def test_each_folds_mixture_is_weighted_without_the_group_it_scores() -> None:
+    """Group 0's objects are always misread, groups 1 and 2 always read right: group 0's
+    fold weighs the variants on groups 1-2 alone (all on the one that says 'right'), and the
+    mixture over every group weighs both."""
+    classes = ["a", "b"]
+    labels = np.array([0, 1, 0, 1, 0, 1])
+    groups = np.array([0, 0, 1, 1, 2, 2])
+    predicted = np.where(groups[:, None] == 0, 1 - labels[:, None], labels[:, None])
+    predicted = np.repeat(predicted, 4, axis=1)  # (6, 4 viewpoints)
+    evidence = Evidence(labels, predicted, groups)
+
+    def table(p_correct: float) -> ObservationModel:
+        return ObservationModel(np.broadcast_to(np.array([[p_correct, 1 - p_correct],
+                                                          [1 - p_correct, p_correct]]),
+                                                (4, 2, 2)).copy(), classes)
+
+    models = {"ra_right": table(0.9), "ra_wrong": table(0.1), "ra_region": table(0.5),
+              "classifier": table(0.5)}
+    folds = [(groups == g, dict(models)) for g in range(3)]
+    weights, mixed = ra_mixture_folds(evidence, folds, classes)
+    assert set(weights) == {"ra_right", "ra_wrong"}  # RA variants auto compares only
+    assert 0.5 < weights["ra_right"] < 0.8  # a third of the labels are misread
+    fold_weights = [m["ra_mixture"].calibration.weights for _, m in mixed]
+    assert fold_weights[0]["ra_right"] > 0.99  # fitted on groups 1-2: always right
+    assert 0.3 < fold_weights[1]["ra_right"] < 0.7  # groups 0 and 2: half misread
+    assert np.allclose(mixed[0][1]["ra_mixture"].probabilities[:, 0, 0],
+                       0.9 * fold_weights[0]["ra_right"] + 0.1 * fold_weights[0]["ra_wrong"])
+    with pytest.raises(ValueError, match="two groups of held-out evidence"):
+        ra_mixture_folds(evidence, folds[:1], classes)

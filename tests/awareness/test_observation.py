@@ -8,6 +8,7 @@ import pytest
 from rapomdp.awareness.observation import (
     BlackBoxObservationModel,
     ClassifierObservationModel,
+    MixtureObservationModel,
     ObservationModel,
     RAObservationModel,
     calibrate_correctness,
@@ -110,3 +111,17 @@ def test_isotonic_calibration_pools_adjacent_violators_exactly():
                                         np.array([True, False, True, True]), "isotonic")
     np.testing.assert_allclose(calibration.knots_y, [0.5, 1.0])
     np.testing.assert_allclose(calibration.knots_x, [0.15, 0.35])
+
+
+def test_a_mixture_is_the_weighted_sum_of_its_tables_and_refuses_bad_weights() -> None:
+    rng = np.random.default_rng(1)
+    tables = {name: rng.dirichlet(np.ones(3), size=(5, 3)) for name in ("ra_a", "ra_b")}
+    models = {name: ObservationModel(t, CLASSES) for name, t in tables.items()}
+    mixture = MixtureObservationModel(models, {"ra_a": 0.25, "ra_b": 0.75}, CLASSES)
+    assert np.allclose(mixture.probabilities, 0.25 * tables["ra_a"] + 0.75 * tables["ra_b"])
+    assert mixture.calibration.to_dict() == {"method": "held_out_mixture",
+                                             "weights": {"ra_a": 0.25, "ra_b": 0.75}}
+    with pytest.raises(ValueError, match="must be a distribution"):
+        MixtureObservationModel(models, {"ra_a": 0.5, "ra_b": 0.6}, CLASSES)
+    with pytest.raises(ValueError, match="weights for models not given"):
+        MixtureObservationModel(models, {"ra_c": 1.0}, CLASSES)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rapomdp.awareness.evidence import (
+    MIXTURE_VARIANT,
     STACKED_VARIANTS,
     Evidence,
     Folds,
@@ -38,6 +39,7 @@ from rapomdp.awareness.evidence import (
     held_out_temperatures,
     held_out_view_discounts,
     leave_one_group_out,
+    ra_mixture_folds,
     shift_level,
     shrink_class_intercepts,
     shrink_wrong_labels,
@@ -46,7 +48,7 @@ from rapomdp.awareness.evidence import (
     view_similarity_kernel,
 )
 from rapomdp.awareness.nuisance import NuisanceModel, nuisance_belief_models
-from rapomdp.awareness.observation import ObservationModel
+from rapomdp.awareness.observation import MixtureObservationModel, ObservationModel
 from rapomdp.config import ObserveConfig
 from rapomdp.data.splits import class_seed
 from rapomdp.recognition.belief import (
@@ -121,10 +123,16 @@ def held_out_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes:
     variant = choice.variant
     if variant == "contrastive" and not cfg.contrastive:
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
-    if variant in STACKED_VARIANTS and len(np.unique(evidence.groups)) < 2:
-        raise StageError(f"observe.ra_model '{variant}' stacks over groups of held-out "
+    if (variant in STACKED_VARIANTS or variant == MIXTURE_VARIANT) and \
+            len(np.unique(evidence.groups)) < 2:
+        what = ("weighs its variants by" if variant == MIXTURE_VARIANT else "stacks over")
+        raise StageError(f"observe.ra_model '{variant}' {what} groups of held-out "
                          "evidence: use two or more volume models per class "
                          "(dataset.split.volume) or set observe.evidence to crossfit or both")
+    if variant == MIXTURE_VARIANT and cfg.belief == "nuisance":
+        raise StageError("observe.ra_model 'mixture' averages the single-view variants; "
+                         "observe.belief 'nuisance' refits each model's rows by EM: use "
+                         "observe.belief naive or similarity with it")
     fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
     # ra_class's class intercepts moved toward their mean where held-out objects say so
     # (observe.class_shrinkage); after the variant is chosen, which it leaves as it is
@@ -155,6 +163,13 @@ def held_out_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes:
                   m.probabilities, shrinkage[name].amount))
               for name, m in fitted.items()}
     folds = shrunk_folds(folds, {name: c.amount for name, c in shrinkage.items()})
+    if variant == MIXTURE_VARIANT:  # the shrunk variants averaged, weighted held out
+        weights, folds = ra_mixture_folds(evidence, folds, classes)
+        name = f"ra_{MIXTURE_VARIANT}"
+        fitted[name] = MixtureObservationModel(fitted, weights, classes)
+        levels[name] = 0.0  # its variants' rows carry their level shifts already
+        shrinkage[name] = ShrinkageChoice(0.0, "configured", "a mixture of its variants' "
+                                          "shrunk rows")
     ra = f"ra_{variant}"
     single_view = {"ra": fitted[ra], **fitted}
     levels["ra"] = levels[ra]

@@ -25,6 +25,7 @@ from rapomdp.awareness.observation import (
     BlackBoxObservationModel,
     ClassifierObservationModel,
     ClassScoreCalibration,
+    MixtureObservationModel,
     ObservationModel,
     RAObservationModel,
     TransferObservationModel,
@@ -335,8 +336,10 @@ class RecordedObservation:
             self.class_shrinkage)
         amounts = {name: float(choice["amount"])
                    for name, choice in self.calibration.get("wrong_labels", {}).items()}
-        return [(held, {**models, "ra": models[self.variant]})
-                for held, models in shrunk_folds(folds, amounts)]
+        folds = shrunk_folds(folds, amounts)
+        if self.variant == f"ra_{MIXTURE_VARIANT}":
+            folds = ra_mixture_folds(self.evidence, folds, self.classes)[1]
+        return [(held, {**models, "ra": models[self.variant]}) for held, models in folds]
 
 
 def salient_view_similarity(seen_saliency: np.ndarray | sparse.spmatrix) -> np.ndarray:
@@ -586,6 +589,68 @@ def held_out_object_log_likelihoods(
                                                  part.predicted)
             out[name][held] = np.log(np.maximum(observed, 1e-300)).mean(axis=1)
     return out
+
+
+MIXTURE_VARIANT = "mixture"
+"""``observe.ra_model: mixture``: RA-POMDP's model is the weighted average of the RA variants
+``auto`` compares (:func:`ra_mixture_folds`), never chosen by ``auto`` itself
+(benchmarks/results/ra_mixture_rule_v2.md)."""
+MIXTURE_ITERATIONS = 5000
+"""EM iterations at most for the mixture weights (it stops when the log-likelihood gains less
+than 1e-10 per label)."""
+
+
+def fit_mixture_weights(observed: np.ndarray) -> np.ndarray:
+    """Simplex weights (K,) maximising Σ_m log Σ_k w_k p[k, m] for the probabilities ``observed``
+    (K, M) that K models give M labels: EM, from equal weights (the problem is concave, so
+    the start only sets the speed)."""
+    p = np.asarray(observed, dtype=np.float64)
+    if p.ndim != 2 or p.shape[0] == 0 or p.shape[1] == 0 or np.any(p <= 0):
+        raise ValueError(f"mixture weights need positive probabilities (models, labels), got "
+                         f"shape {p.shape}")
+    w = np.full(p.shape[0], 1.0 / p.shape[0])
+    last = -np.inf
+    for _ in range(MIXTURE_ITERATIONS):
+        mix = w @ p
+        ll = float(np.log(mix).sum())
+        if ll - last < 1e-10 * p.shape[1]:
+            break
+        last = ll
+        w = (w[:, None] * p / mix).mean(axis=1)
+    return w / w.sum()
+
+
+def mixture_candidates(names: Collection[str]) -> list[str]:
+    """The models a mixture averages: every RA variant ``auto`` compares (``ra_*``, not the
+    configured-only ones nor the mixture itself)."""
+    return [n for n in names if n.startswith("ra_") and n != f"ra_{MIXTURE_VARIANT}"
+            and n.removeprefix("ra_") not in CONFIGURED_ONLY]
+
+
+def ra_mixture_folds(evidence: Evidence, folds: Folds, classes: Sequence[str]
+                     ) -> tuple[dict[str, float], Folds]:
+    """``ra_mixture``'s weights on every held-out group (each group's labels scored by the
+    variants fitted without it), and ``folds`` with each fold's ``ra_mixture`` added, weighted
+    by the *other* groups' labels only, so no fold's mixture has seen the group it scores."""
+    if len(folds) < 2:
+        raise ValueError("a mixture of the RA variants is weighted on held-out groups: it "
+                         "needs two groups of held-out evidence or more")
+    names = mixture_candidates(folds[0][1])
+    observed = np.full((len(names), *evidence.predicted.shape), np.nan)
+    covered = np.zeros(len(evidence.labels), dtype=bool)
+    for held, models in folds:
+        part = evidence.subset(held)
+        for k, name in enumerate(names):
+            observed[k, held] = observed_probabilities(models[name].probabilities, part.labels,
+                                                       part.predicted)[0]
+        covered |= held
+    weights = fit_mixture_weights(observed[:, covered].reshape(len(names), -1))
+    out = []
+    for held, models in folds:
+        nested = fit_mixture_weights(observed[:, covered & ~held].reshape(len(names), -1))
+        mixture = MixtureObservationModel(models, dict(zip(names, nested, strict=True)), classes)
+        out.append((held, {**models, f"ra_{MIXTURE_VARIANT}": mixture}))
+    return dict(zip(names, (float(w) for w in weights), strict=True)), out
 
 
 @dataclass

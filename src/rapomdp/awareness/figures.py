@@ -40,6 +40,8 @@ NO_SCORE_MAP = {
                                              "per-viewpoint evidence",
     "logistic_score_and_region_evidence": "its P(correct) also reads the held-out accuracy "
                                           "per viewpoint pooled over the classes",
+    "held_out_mixture": "it averages the RA variants' rows with weights fitted on the held-out "
+                        "labels",
 }
 #: The x axis of calibration.png per viewpoint score.
 SCORE_AXES = {"mean": "normalised mean saliency seen (Eq. 6)",

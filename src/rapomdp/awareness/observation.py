@@ -16,7 +16,7 @@ summing to 1; V follows the test viewpoints X_rho in order and C the dataset's c
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -266,6 +266,38 @@ class TransferObservationModel(ObservationModel):
     def __init__(self, probabilities: np.ndarray, classes: Sequence[str]) -> None:
         super().__init__(probabilities, classes)
         self.calibration = TransferCalibration()
+
+
+@dataclass
+class MixtureCalibration:
+    """What ``ra_mixture`` was fitted with: each RA variant's weight (they sum to 1), chosen by
+    the held-out likelihood of the held-out labels (it has no score calibration of its own)."""
+
+    weights: dict[str, float]
+    method: str = "held_out_mixture"
+
+    def to_dict(self) -> dict[str, object]:
+        return {"method": self.method, "weights": dict(self.weights)}
+
+
+class MixtureObservationModel(ObservationModel):
+    """Recognition-aware by averaging: P(o | c, x) = Σ_v w_v P_v(o | c, x) over RA variants,
+    the weights w (a simplex) those that best predict held-out labels
+    (:func:`rapomdp.awareness.evidence.ra_mixture_folds`). One variant picked from a few
+    held-out objects is brittle; a weighted average of them is not."""
+
+    name = "ra_mixture"
+
+    def __init__(self, models: Mapping[str, ObservationModel], weights: Mapping[str, float],
+                 classes: Sequence[str]) -> None:
+        if set(weights) - set(models):
+            raise ValueError(f"weights for models not given: {sorted(set(weights) - set(models))}")
+        w = np.array([weights[name] for name in weights], dtype=np.float64)
+        if w.size == 0 or np.any(w < 0) or not np.isclose(w.sum(), 1.0):
+            raise ValueError(f"mixture weights must be a distribution, got {dict(weights)}")
+        table = np.einsum("k,kvco->vco", w, np.stack([models[n].probabilities for n in weights]))
+        super().__init__(table, classes)
+        self.calibration = MixtureCalibration({name: float(x) for name, x in weights.items()})
 
 
 class ClassifierObservationModel(ObservationModel):
