@@ -320,12 +320,14 @@ class ObserveConfig(Section):
         "most confused class (one more mask per volume-model view)")
     ra_model: Literal["auto", "paper", "class", "area", "class_area", "contrastive",
                       "viewpoint", "region", "transfer", "mixture"] = Field(
-        "auto", description="the recognition-aware model RA-POMDP uses ('ra'); auto: the "
-        "variant with the best held-out log-likelihood (leave-one-group-out over the evidence; "
-        "'region', the accuracy per viewpoint pooled over classes, only when named); 'class' "
+        "mixture", description="the recognition-aware model RA-POMDP uses ('ra'); mixture: "
+        "the RA variants averaged with weights fitted on the held-out labels (each group "
+        "scored by the variants fitted without it; the default since 2026-12-06, by a rule "
+        "on held-out objects); auto: the variant with the best held-out log-likelihood "
+        "('region', the accuracy per viewpoint pooled over classes, only when named), 'class' "
         "unless the best beats it by more than one standard error and the choice made without "
-        "each group leaves it too (docs/awareness.md 4.4); mixture: the variants auto compares, "
-        "averaged with weights fitted on the held-out labels (needs two volume groups or more)")
+        "each group leaves it too; with too little held-out evidence both fall back to 'class' "
+        "and say so (docs/awareness.md 4.4)")
     transfer_shrinkage: bool = Field(
         False, description="ra_transfer's kernel choice also scores shrinking each class row's "
         "accuracy toward the accuracy pooled over every class (by 0-64 objects' worth, chosen "

@@ -32,8 +32,8 @@ def test_the_planted_informative_variant_is_chosen_and_ra_is_its_entry_everywher
     evidence, scores = _planted_area_evidence(4, 8)
     evidence = _volume(evidence)
     directions = fibonacci_directions(96, hemisphere=True)
-    chosen = held_out_choices(evidence, scores, CLASSES, ObserveConfig(), directions, seed=3)
-    cfg = ObserveConfig()
+    cfg = ObserveConfig(ra_model="auto")
+    chosen = held_out_choices(evidence, scores, CLASSES, cfg, directions, seed=3)
     alone = check_variant_stability(
         choose_ra_variant(evidence, leave_one_group_out(evidence, scores, CLASSES, cfg, directions),
                           "auto", CLASSES), evidence, scores, CLASSES, cfg, directions)
@@ -113,13 +113,14 @@ def test_the_mixture_averages_the_variants_it_weighs_and_ra_is_it() -> None:
     assert chosen.shrinkage["ra"].amount == 0.0 and chosen.levels["ra"] == 0.0
 
 
-def test_the_mixture_is_refused_on_one_group_and_with_the_nuisance_belief() -> None:
+def test_the_mixture_falls_back_on_one_group_and_is_refused_with_the_nuisance_belief() -> None:
     evidence, scores = _planted_area_evidence(4, 9)
     directions = fibonacci_directions(96, hemisphere=True)
     one = _volume(Evidence(evidence.labels, evidence.predicted, np.zeros_like(evidence.groups)))
-    with pytest.raises(StageError, match="'mixture' weighs its variants by groups"):
-        held_out_choices(one, scores, CLASSES, ObserveConfig(ra_model="mixture"), directions,
-                         seed=0)
+    chosen = held_out_choices(one, scores, CLASSES, ObserveConfig(ra_model="mixture"),
+                              directions, seed=0)
+    assert (chosen.variant, chosen.choice.rule) == (ROBUST_RA_VARIANT, "too little evidence")
+    assert "ra_mixture" not in chosen.single_view
     with pytest.raises(StageError, match="'nuisance' refits each model's rows"):
         held_out_choices(_volume(evidence), scores, CLASSES,
                          ObserveConfig(ra_model="mixture", belief="nuisance"), directions, seed=0)

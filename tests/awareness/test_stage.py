@@ -24,7 +24,7 @@ TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"], "split": 
         # the cross-fitted evidence too (the default is the volume models alone)
         "observe": {**TINY_PIPELINE["observe"], "evidence": "both"}}
 MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint",
-          "ra_region", "ra_transfer", "classifier", "blackbox")
+          "ra_region", "ra_transfer", "classifier", "blackbox", "ra_mixture")
 
 
 @pytest.fixture(scope="module")
@@ -215,7 +215,8 @@ def test_the_nuisance_belief_is_the_model_the_solve_stage_plans(workspace, tmp_p
     from rapomdp.planning.stage import run_solve_stage
 
     config = config_from_dict({**TINY, "observe": {**TINY["observe"], "belief": "nuisance",
-                                                   "transfer_shrinkage": True},
+                                                   "transfer_shrinkage": True,
+                                                   "ra_model": "auto"},  # no mixture with it
                                "solve": {"timeout_s": 2.0, "iterations": 3,
                                          "models": ["ra", "classifier"]}})
     run_pipeline(config, workspace, until="observe", context=TEST_CONTEXT)
@@ -354,7 +355,10 @@ def test_the_wrong_label_choice_is_recorded_per_model(workspace):
     made = calibration["wrong_labels"]
     assert set(made) == set(auto["models"].tolist())
     assert made["ra"] == made[f"ra_{calibration['ra_model']}"]
-    for record in made.values():
+    assert made["ra_mixture"]["rule"] == "configured"  # a mixture of the shrunk variants
+    for name, record in made.items():
+        if name in ("ra", "ra_mixture"):
+            continue
         assert record["grid"] == list(WRONG_LABEL_SHRINKAGES)
         assert record["amount"] == 0.0 and record["rule"] in {"best", "one standard error"}
         assert abs(record["held_out"]["1"]["difference_to_none"]) < 1e-9

@@ -14,7 +14,7 @@ self-awareness table, :func:`load_quality`), :data:`CALIBRATION_FILE`,
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -111,15 +111,17 @@ class RAChoice:
     """Which RA variant is RA-POMDP's model ``ra`` (calibration.json): ``variant`` (``ra`` is
     the array of ``ra_<variant>``), the ``configured`` ``observe.ra_model`` (``auto``: chosen
     on held-out objects) and ``method``, what the variant's fit is (``logistic``,
-    ``salient_view_transfer``, ...); with ``auto``, the choice's ``rule`` (``best``, ``one
-    standard error``, ``too little evidence``, ``unstable``) and ``reason`` (calibration.json's
-    ``ra_model_choice``; empty in a workspace from before it)."""
+    ``salient_view_transfer``, ``held_out_mixture``, ...); with ``auto`` or ``mixture``, the
+    choice's ``rule`` (``best``, ``one standard error``, ``too little evidence``, ``unstable``,
+    ``mixture``) and ``reason`` (calibration.json's ``ra_model_choice``; empty in a workspace
+    from before it); with the mixture, each variant's ``weights``."""
 
     variant: str
     configured: str
     method: str
     rule: str = ""
     reason: str = ""
+    weights: dict[str, float] = field(default_factory=dict)
 
     @property
     def model(self) -> str:
@@ -135,8 +137,10 @@ def load_ra_choice(observe_dir: str | Path) -> RAChoice:
         variants = data.get("variants", {})
         method = variants.get(f"ra_{variant}", {}).get("method", data.get("method", ""))
         made = data.get("ra_model_choice", {})
+        weights = variants.get(f"ra_{variant}", {}).get("weights", {})
         return RAChoice(variant, str(data.get("ra_model_configured", variant)), str(method),
-                        str(made.get("rule", "")), str(made.get("reason", "")))
+                        str(made.get("rule", "")), str(made.get("reason", "")),
+                        {str(k): float(w) for k, w in weights.items()})
     except (KeyError, TypeError, AttributeError):
         raise ArtefactError(f"{path}: expected the key ra_model (the RA variant chosen) and "
                             f"variants by name") from None

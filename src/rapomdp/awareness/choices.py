@@ -123,16 +123,14 @@ def held_out_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes:
     variant = choice.variant
     if variant == "contrastive" and not cfg.contrastive:
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
-    if (variant in STACKED_VARIANTS or variant == MIXTURE_VARIANT) and \
-            len(np.unique(evidence.groups)) < 2:
-        what = ("weighs its variants by" if variant == MIXTURE_VARIANT else "stacks over")
-        raise StageError(f"observe.ra_model '{variant}' {what} groups of held-out "
+    if variant in STACKED_VARIANTS and len(np.unique(evidence.groups)) < 2:
+        raise StageError(f"observe.ra_model '{variant}' stacks over groups of held-out "
                          "evidence: use two or more volume models per class "
                          "(dataset.split.volume) or set observe.evidence to crossfit or both")
     if variant == MIXTURE_VARIANT and cfg.belief == "nuisance":
-        raise StageError("observe.ra_model 'mixture' averages the single-view variants; "
-                         "observe.belief 'nuisance' refits each model's rows by EM: use "
-                         "observe.belief naive or similarity with it")
+        raise StageError("observe.ra_model 'mixture' (the default) averages the single-view "
+                         "variants, and observe.belief 'nuisance' refits each model's rows by "
+                         "EM: with the nuisance belief set observe.ra_model to auto or a variant")
     fitted = fit_observation_models(evidence, scores, classes, cfg, directions, kernel)
     # ra_class's class intercepts moved toward their mean where held-out objects say so
     # (observe.class_shrinkage); after the variant is chosen, which it leaves as it is

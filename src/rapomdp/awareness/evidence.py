@@ -592,9 +592,9 @@ def held_out_object_log_likelihoods(
 
 
 MIXTURE_VARIANT = "mixture"
-"""``observe.ra_model: mixture``: RA-POMDP's model is the weighted average of the RA variants
-``auto`` compares (:func:`ra_mixture_folds`), never chosen by ``auto`` itself
-(benchmarks/results/ra_mixture_rule_v2.md)."""
+"""``observe.ra_model: mixture`` (the default): RA-POMDP's model is the weighted average of the
+RA variants ``auto`` compares (:func:`ra_mixture_folds`); adopted by a rule on fresh held-out
+objects (benchmarks/results/ra_mixture_rule_v2.md), never chosen by ``auto`` itself."""
 MIXTURE_ITERATIONS = 5000
 """EM iterations at most for the mixture weights (it stops when the log-likelihood gains less
 than 1e-10 per label)."""
@@ -689,14 +689,17 @@ class VariantChoice:
 def choose_ra_variant(evidence: Evidence,
                       folds: list[tuple[np.ndarray, dict[str, ObservationModel]]],
                       configured: str, classes: Sequence[str]) -> VariantChoice:
-    """RA-POMDP's model: the configured variant, or with ``auto`` the one the held-out objects
-    support, knowing how little they may tell. Too little evidence — some class with fewer
-    than :data:`MIN_HELD_OUT_OBJECTS` held-out objects (no folds: none) — gives the robust
-    default :data:`ROBUST_RA_VARIANT`, and says so. Otherwise the one-standard-error rule over
-    held-out objects: the variant of best mean held-out log-likelihood per object, unless the
+    """RA-POMDP's model: the configured variant, with ``mixture`` the weighted average of the
+    variants (:func:`ra_mixture_folds`), or with ``auto`` the one the held-out objects
+    support, knowing how little they may tell. For either, too little evidence — some class
+    with fewer than :data:`MIN_HELD_OUT_OBJECTS` held-out objects (no folds: none) — gives the
+    robust default :data:`ROBUST_RA_VARIANT`, and says so. Otherwise ``mixture`` is kept (rule
+    ``mixture``, the variants' held-out table recorded) and ``auto`` applies the
+    one-standard-error rule over held-out objects: the variant of best mean held-out
+    log-likelihood per object, unless the
     robust default's paired difference to it (per object, each scored by the models fitted
     without its group) is within one standard error, in which case the robust default."""
-    if configured != "auto":
+    if configured not in ("auto", MIXTURE_VARIANT):
         return VariantChoice(configured, "configured", f"observe.ra_model is '{configured}'")
     per_object = held_out_object_log_likelihoods(evidence, folds)
     covered = np.zeros(len(evidence.labels), dtype=bool)
@@ -721,6 +724,10 @@ def choose_ra_variant(evidence: Evidence,
         se = float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
         table[name] = {"mean_log_likelihood": means[name], "difference_to_best": float(d.mean()),
                        "standard_error": se}
+    if configured == MIXTURE_VARIANT:
+        reason = (f"the RA variants averaged with weights fitted on the held-out labels "
+                  f"({int(covered.sum())} held-out objects; '{best}' alone is the best)")
+        return VariantChoice(MIXTURE_VARIANT, "mixture", reason, best, table, objects)
     robust = table[ROBUST_RA_VARIANT]
     if best == ROBUST_RA_VARIANT or robust["difference_to_best"] >= -robust["standard_error"]:
         rule = "best" if best == ROBUST_RA_VARIANT else "one standard error"

@@ -541,7 +541,15 @@ def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
     validation = (b.load(observe / VALIDATION_CSV,
                          lambda p: load_quality(p.parent, VALIDATION_CSV), how)
                   if (observe / VALIDATION_CSV).exists() else None)
-    if choice.configured != "auto":
+    if choice.configured == "mixture" and choice.weights:
+        weights = ", ".join(f"`{name}` {w:.2f}" for name, w in
+                            sorted(choice.weights.items(), key=lambda kv: -kv[1]) if w >= 0.005)
+        why = ("the RA variants averaged with weights fitted on the held-out labels "
+               f"(`observe.ra_model: mixture`, the default; each held-out object scored by the "
+               f"variants fitted without its group, the test models play no part): {weights}")
+    elif choice.configured == "mixture":
+        why = (f"the fallback of `observe.ra_model: mixture` ({choice.rule}): {choice.reason}")
+    elif choice.configured != "auto":
         why = (f"as configured (`observe.ra_model: {choice.configured}`)"
                + ("; the held-out validation below shows how the variants compare"
                   if validation else ""))
