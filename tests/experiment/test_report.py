@@ -347,3 +347,31 @@ def test_tables_convert_to_html_escaped() -> None:
     assert table_html(table) == ("<table>\n<thead><tr><th>a</th><th>b | c</th></tr></thead>\n"
                                  "<tbody><tr><td>1</td><td>&lt;2&gt;</td></tr>"
                                  "<tr><td>3</td><td></td></tr></tbody>\n</table>")
+
+
+def test_the_mixture_is_named_with_its_weights_or_its_fallback(synthetic, tmp_path: Path) -> None:
+    ws, config = synthetic
+    mixture = {**CALIBRATION, "ra_model": "mixture", "ra_model_configured": "mixture",
+               "variants": {**CALIBRATION["variants"], "ra_mixture": {
+                   "method": "held_out_mixture",
+                   "weights": {"ra_paper": 0.15, "ra_transfer": 0.85, "ra_class": 1e-9}}},
+               "ra_model_choice": {"variant": "mixture", "rule": "mixture", "reason": "r"}}
+    fallback = {**CALIBRATION, "ra_model": "class", "ra_model_configured": "mixture",
+                "ra_model_choice": {"variant": "class", "rule": "too little evidence",
+                                    "reason": "too little held-out evidence to choose"}}
+    texts = []
+    try:
+        for i, record in enumerate((mixture, fallback)):
+            write_json_atomic(ws.root / "observe" / "calibration.json", record)
+            _, md = write_report(config, _inputs(ws), tmp_path / f"r{i}", fig1=_fake_fig1([]))
+            texts.append(md.read_text())
+    finally:
+        write_json_atomic(ws.root / "observe" / "calibration.json", CALIBRATION)
+    assert ("RA-POMDP's observation model (`ra`) is `ra_mixture`, the RA variants averaged with "
+            "weights fitted on the held-out labels (`observe.ra_model: mixture`, the default; "
+            "each held-out object scored by the variants fitted without its group, the test "
+            "models play no part): `ra_transfer` 0.85, `ra_paper` 0.15.") in texts[0]
+    assert "`ra_class` 0.00" not in texts[0]  # weights below 0.005 are left out
+    assert ("RA-POMDP's observation model (`ra`) is `ra_class`, the fallback of "
+            "`observe.ra_model: mixture` (too little evidence): too little held-out evidence "
+            "to choose.") in texts[1]
