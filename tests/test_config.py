@@ -97,6 +97,11 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
         "observe")["class_shrinkage"] == "auto"
     with pytest.raises(ConfigError, match="class_shrinkage applies to the naive and similarity"):
         config_from_dict({"observe": {"belief": "nuisance", "class_shrinkage": "auto"}})
+    # the default RA model, the mixture, is not defined for the nuisance belief's refitted rows
+    with pytest.raises(ConfigError, match="with belief: nuisance set ra_model to auto"):
+        config_from_dict({"observe": {"belief": "nuisance"}})
+    assert config_from_dict({"observe": {"belief": "nuisance", "ra_model": "auto"}}).section(
+        "observe")["belief"] == "nuisance"
 
 
 def test_auto_volume_models_needs_split_auto_and_at_least_three() -> None:

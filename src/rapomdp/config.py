@@ -372,6 +372,10 @@ class ObserveConfig(Section):
         if self.class_shrinkage != "none" and self.belief == "nuisance":
             raise ValueError("class_shrinkage applies to the naive and similarity beliefs; the "
                              "nuisance belief fits its own rows (set class_shrinkage: none)")
+        if self.ra_model == "mixture" and self.belief == "nuisance":
+            raise ValueError("ra_model mixture (the default) averages the single-view RA "
+                             "variants, and the nuisance belief refits each model's rows: with "
+                             "belief: nuisance set ra_model to auto or a variant")
         if self.discount_walks != "neighbours" and self.belief != "similarity":
             raise ValueError("discount_walks applies to belief: similarity only (the view "
                              f"discount it fits); belief is {self.belief!r}")

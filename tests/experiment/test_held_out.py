@@ -87,7 +87,7 @@ def test_each_method_holds_out_each_volume_group_and_reads_its_recorded_labels(w
         # a fold's model is fitted without its group: the two folds' models differ
         assert not np.allclose(folds[name][0].model, folds[name][1].model), name
     nuisance = config.model_copy(update={"observe": config.observe.model_copy(
-        update={"belief": "nuisance"})})
+        update={"belief": "nuisance", "ra_model": "auto"})})
     assert held_out_folds(nuisance, _inputs(ws), ["ra"]) == {"ra": []}
     assert closed_loop_skipped(nuisance, "ra") == (
         "observe.belief nuisance: the held-out folds are refitted for a naive belief only")
@@ -161,7 +161,7 @@ def test_a_belief_without_refitted_folds_keeps_the_walks_a_and_the_record_says_w
         workspace, tmp_path):
     ws, config = workspace
     nuisance = config.model_copy(update={"observe": config.observe.model_copy(
-        update={"belief": "nuisance"})})
+        update={"belief": "nuisance", "ra_model": "auto"})})
     fits = closed_loop_declared(nuisance, _inputs(ws), ["ra", "vptree"], tmp_path)
     assert set(fits) == {"vptree"}  # the VP-tree's folds do not depend on observe.belief
     record = read_json(tmp_path / DECLARED_FIT_FILE)
@@ -335,7 +335,7 @@ def test_the_comparison_pairs_by_object_and_start_whatever_the_order():
 def test_without_ra_held_out_the_comparison_says_why(workspace, tmp_path):
     ws, config = workspace
     nuisance = config.model_copy(update={"observe": config.observe.model_copy(
-        update={"belief": "nuisance"})})
+        update={"belief": "nuisance", "ra_model": "auto"})})
     runs, skipped = held_out_runs(nuisance, _inputs(ws), ["random", "ra", "vptree"], tmp_path)
     assert set(runs) == {"vptree"} and set(skipped) == {"random", "ra"}
     record = held_out_comparison(runs, skipped=skipped)
