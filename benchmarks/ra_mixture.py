@@ -33,21 +33,10 @@ from rapomdp.awareness.evidence import (
 )
 from rapomdp.awareness.observation import MixtureObservationModel, ObservationModel
 from rapomdp.awareness.quality import awareness_quality
+from rapomdp.awareness.report import single_view_models
 from rapomdp.workspace import Workspace
 
 MIXTURE = f"ra_{MIXTURE_VARIANT}"
-
-
-def single_view_models(recorded: RecordedObservation) -> dict[str, ObservationModel]:
-    """The stage's single-view models (shrunk, not tempered), from its tempered tables: the
-    belief's temper t is undone row by row (P ∝ P_t^(1/t))."""
-    temperatures = dict(zip((str(n) for n in recorded.arrays["models"]),
-                            recorded.arrays["temperatures"], strict=True))
-    out = {}
-    for name, t in temperatures.items():
-        p = np.asarray(recorded.arrays[name], dtype=np.float64) ** (1.0 / float(t))
-        out[name] = ObservationModel(p / p.sum(axis=2, keepdims=True), recorded.classes)
-    return out
 
 
 def main() -> None:
@@ -86,7 +75,8 @@ def print_test(ws: Workspace, recorded: RecordedObservation, weights: dict[str, 
     """The test models' figures of the mixture against the stage's quality table."""
     observe = ws.require("observe")
     quality = {str(row["model"]): row for row in load_quality(observe)}
-    models = single_view_models(recorded)
+    models = {name: ObservationModel(p, recorded.classes)
+              for name, p in single_view_models(dict(recorded.arrays)).items()}
     labels, predicted = recorded.arrays["test_labels"], recorded.arrays["test_predictions"]
     chosen = awareness_quality(models[recorded.variant], labels, predicted)
     recorded_ll = float(quality[recorded.variant]["log_likelihood"])

@@ -16,22 +16,21 @@ then the rule's decision.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from rapomdp.experiment.held_out import load_held_out_comparison
 from rapomdp.experiment.metrics import cluster_bootstrap_difference
 
-COMPARISON = Path("evaluate/held_out/comparison.json")
 
-
-def held_out(workspace: Path) -> dict:
+def held_out(workspace: Path) -> dict[str, Any]:
     """The evaluate stage's held-out comparison of ``workspace``."""
-    path = workspace / COMPARISON
-    if not path.is_file():
-        raise SystemExit(f"{path}: no held-out closed loop (run the evaluate stage first)")
-    return json.loads(path.read_text())
+    record = load_held_out_comparison(workspace / "evaluate")
+    if record is None:
+        raise SystemExit(f"{workspace}: no held-out closed loop (run the evaluate stage first)")
+    return record
 
 
 def main() -> None:
