@@ -571,12 +571,14 @@ class EvaluateConfig(Section):
         "The closed loop fits the learned baseline's a too (1 with walks); Random keeps the "
         "walks' a. closed_loop chosen on held-out objects by a rule written "
         "first (docs/awareness.md §4.8)")
-    declared_form: Literal["scalar", "views"] = Field(
+    declared_form: Literal["scalar", "views", "auto"] = Field(
         "scalar", description="the declared confidence's temperature with declared_fit "
         "closed_loop: scalar (one a per method) or views (a(n) = s * n**-beta after n images, "
         "(s, beta) fitted on the method's held-out closed-loop stops: a long episode means "
-        "the object's labels disagreed; Random's fitted on its own held-out closed loop too). "
-        "The actions are the same either way (docs/awareness.md §4.8, round five)")
+        "the object's labels disagreed; Random's fitted on its own held-out closed loop too); "
+        "auto: per method, the form whose fit on the other held-out groups declares each "
+        "group's stops better (Random's scalar: the walks' a; one held-out group: scalar). "
+        "The actions are the same either way (docs/awareness.md §4.8, rounds five and six)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "
@@ -617,10 +619,11 @@ class EvaluateConfig(Section):
 
     @model_validator(mode="after")
     def _views_form_on_the_closed_loop(self) -> EvaluateConfig:
-        if self.declared_form == "views" and (self.declared_fit == "walks"
-                                              or self.declared_confidence != "calibrated"):
-            raise ValueError("evaluate.declared_form 'views' is fitted on the held-out closed "
-                             "loop: it needs declared_confidence 'calibrated' and declared_fit "
+        if self.declared_form != "scalar" and (self.declared_fit == "walks"
+                                               or self.declared_confidence != "calibrated"):
+            raise ValueError(f"evaluate.declared_form {self.declared_form!r} is fitted on the "
+                             "held-out closed loop: it needs declared_confidence "
+                             "'calibrated' and declared_fit "
                              f"'closed_loop' or 'closed_loop_per_fold' (got "
                              f"{self.declared_confidence!r}, {self.declared_fit!r})")
         return self

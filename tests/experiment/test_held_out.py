@@ -27,9 +27,11 @@ from rapomdp.experiment.held_out import (
     held_out_runs,
     load_declared_fit,
     load_held_out_comparison,
+    random_walks_temperature,
 )
 from rapomdp.experiment.report import (
     closed_loop_cells,
+    declared_choices_sentence,
     held_out_comparison_cells,
     held_out_comparison_story,
 )
@@ -37,6 +39,7 @@ from rapomdp.io import read_json
 from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.planning.stage import declared_temperatures
 from rapomdp.recognition.artefacts import load_volume_probabilities
+from rapomdp.recognition.belief import choose_declared_form
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT
@@ -250,11 +253,47 @@ def test_the_views_form_fits_random_too_and_reports_each_step_with_its_own_a(wor
             atol=1e-9)
 
 
+def test_the_auto_form_chooses_per_method_by_the_held_out_criterion(workspace, tmp_path):
+    ws, config = workspace
+    auto = config.model_copy(update={"evaluate": config.evaluate.model_copy(
+        update={"declared_form": "auto"})})
+    inputs = _inputs(ws)
+    runs = held_out_runs(auto, inputs, ["random", *FITTED], tmp_path)
+    fits = closed_loop_declared(auto, inputs, ["random", *FITTED], tmp_path, form="auto",
+                                runs=runs)
+    record = read_json(tmp_path / DECLARED_FIT_FILE)
+    assert record["form"] == "auto" and set(record["choices"]) == {"random", *FITTED}
+    walks_a = random_walks_temperature(auto, inputs)
+    walk = auto.evaluate.random  # the a Random reports with under scalar
+    assert walks_a == declared_temperatures(inputs.observe, [walk.observation_model],
+                                            inputs.vptree_dir, walk.belief_threshold
+                                            )[walk.observation_model]
+    for name, choice in record["choices"].items():
+        stops, groups = runs[0][name].stops, runs[0][name].groups
+        # the same choice as the library's on the method's stops (Random: the walks' a)
+        expected = choose_declared_form(stops.log_beliefs, stops.truth, groups, stops.images,
+                                        fixed_scalar=walks_a if name == "random" else None)
+        assert choice["form"] == expected.form, name
+        assert choice["held_out_loss"] == pytest.approx(expected.held_out_loss), name
+        loss = choice["held_out_loss"]
+        assert choice["form"] == ("views" if loss["views"] < loss["scalar"] else "scalar")
+        # a method that chose views reports with a(n); one that chose scalar with one a,
+        # Random's scalar being the walks' a it keeps (left out of the fits)
+        if name == "random" and choice["form"] == "scalar":
+            assert name not in fits
+        else:
+            assert fits[name].declared.form == choice["form"], name
+    report_sentence = declared_choices_sentence(record["choices"])
+    assert all(f"{METHOD_NAMES[n]} {c['form']} (" in report_sentence
+               for n, c in record["choices"].items())
+
+
 def test_the_views_form_needs_the_closed_loop():
-    with pytest.raises(ValueError, match="evaluate.declared_form 'views' is fitted on the "
-                                         "held-out closed loop"):
-        config_from_dict({"evaluate": {"declared_form": "views", "declared_fit": "walks"}})
-    with pytest.raises(ValueError, match="form must be one of scalar, views"):
+    for form in ("views", "auto"):
+        with pytest.raises(ValueError, match=f"evaluate.declared_form '{form}' is fitted on "
+                                             "the held-out closed loop"):
+            config_from_dict({"evaluate": {"declared_form": form, "declared_fit": "walks"}})
+    with pytest.raises(ValueError, match="form must be one of scalar, views, auto"):
         closed_loop_declared(Config(), StageInputs("evaluate"), ["ra"], Path("x"), form="n")
 
 

@@ -12,13 +12,16 @@ from rapomdp.recognition.belief import (
     DECLARED_STOP_THRESHOLDS,
     DeclaredTemperature,
     belief_log_loss,
+    choose_declared_form,
     declared_belief,
     declared_confidence,
+    declared_log_beliefs,
     expected_calibration_error,
     fit_declared_temperature,
     fit_declared_views,
     fit_temperature,
     fold_of_rows,
+    held_out_declared_loss,
     held_out_groups,
     held_out_walks,
     random_walks,
@@ -357,6 +360,53 @@ def _stops_overconfident_by_length(rng: np.random.Generator, factor: np.ndarray
     images = steps + 1
     final = factor[steps][:, None] * log_belief[np.arange(len(true)), steps]
     return final - logsumexp(final, axis=1, keepdims=True), true, images
+
+
+def test_the_form_is_chosen_by_the_held_out_groups_where_the_length_matters():
+    rng = np.random.default_rng(23)
+    n = np.arange(1, 9)
+    final, true, images = _stops_overconfident_by_length(rng, 1.5 * np.sqrt(n))
+    groups = np.arange(len(true)) % 3
+    choice = choose_declared_form(final, true, groups, images)
+    assert choice.form == "views" and choice.declared is not None
+    assert choice.declared.form == "views"
+    assert choice.held_out_loss["views"] < choice.held_out_loss["scalar"] - 0.005
+    # each loss is the held-out criterion of that form's fit: every group by the others'
+    scalar = stops_declared_confidence(final, true, groups)
+    assert choice.held_out_loss["scalar"] == pytest.approx(
+        held_out_declared_loss(scalar, final, true, groups))
+    rest = groups != 0
+    a = fit_declared_temperature(final[rest], true[rest])
+    assert scalar.held_out_readouts[0].scale == pytest.approx(a)
+    # no length effect: a(n) finds nothing one a does not, and the two score alike
+    final, true, images = _stops_overconfident_by_length(rng, np.full(8, 3.0))
+    even = choose_declared_form(final, true, groups, images)
+    assert abs(even.held_out_loss["views"] - even.held_out_loss["scalar"]) < 2e-3
+    # one group: nothing to score, one a, and the choice says why
+    one = choose_declared_form(final, true, np.zeros(len(true)), images)
+    assert one.form == "scalar" and "too little evidence" in one.reason
+    assert np.isnan(one.held_out_loss["views"])
+    assert one.to_dict()["form"] == "scalar"
+
+
+def test_a_fixed_scalar_competes_as_it_is_and_is_kept_where_it_wins():
+    rng = np.random.default_rng(26)
+    final, true, images = _stops_overconfident_by_length(rng, np.full(8, 2.0))
+    final, true, images = final[:90], true[:90], images[:90]
+    groups = np.arange(len(true)) % 3
+    # the calibrating a (1/2), fixed, against a(n) fitted on 60 stops at a time (it follows
+    # their noise): the fixed a is scored on every stop as it is, and kept
+    kept = choose_declared_form(final, true, groups, images, fixed_scalar=0.5)
+    assert kept.form == "scalar" and kept.declared is None
+    right = declared_log_beliefs(final, 0.5).argmax(axis=1) == true
+    confidence = np.exp(declared_log_beliefs(final, 0.5).max(axis=1))
+    assert kept.held_out_loss["scalar"] == pytest.approx(
+        -np.mean(np.where(right, np.log(confidence), np.log1p(-confidence))))
+    assert kept.held_out_loss["views"] > kept.held_out_loss["scalar"] + 0.01
+    # a wrong fixed a (sharpening an overconfident belief) loses to the fitted a(n)
+    lost = choose_declared_form(final, true, groups, images, fixed_scalar=2.0)
+    assert lost.form == "views" and lost.declared is not None
+    assert lost.held_out_loss["scalar"] > lost.held_out_loss["views"] + 0.05
 
 
 def test_the_declared_temperature_by_images_is_a_power_of_the_images_taken():

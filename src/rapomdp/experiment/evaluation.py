@@ -468,7 +468,7 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
     if fitting:
         # the POMDPs' declared confidence, fitted where they stop on held-out objects
         # (Random's too when its a depends on the images taken: evaluate.declared_form)
-        skipped = ("static",) if cfg.declared_form == "views" else ("static", "random")
+        skipped = ("static",) if cfg.declared_form != "scalar" else ("static", "random")
         fits = closed_loop_declared(config, inputs, [m for m in cfg.methods
                                                      if m not in skipped],
                                     out / HELD_OUT_DIR, context,

@@ -32,10 +32,12 @@ from rapomdp.io import load_npz, read_json, write_json_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.stage import start_viewpoint
+from rapomdp.planning.stage import declared_temperatures, start_viewpoint
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
 from rapomdp.recognition.belief import (
     DeclaredConfidence,
+    DeclaredFormChoice,
+    choose_declared_form,
     stops_declared_confidence,
     temper,
 )
@@ -47,8 +49,10 @@ HELD_OUT_STARTS = 4
 """Seeded reachable starts per held-out model (each group's models × starts are the stops)."""
 
 DECLARED_FORMS: tuple[str, ...] = get_args(EvaluateConfig.model_fields["declared_form"].annotation)
-"""``evaluate.declared_form``: one declared temperature a per method, or a(n) by the images n
-an episode took (:class:`~rapomdp.recognition.belief.DeclaredTemperature`)."""
+"""``evaluate.declared_form``: one declared temperature a per method, a(n) by the images n
+an episode took (:class:`~rapomdp.recognition.belief.DeclaredTemperature`), or either, chosen
+per method on its held-out stops (``auto``,
+:func:`~rapomdp.recognition.belief.choose_declared_form`)."""
 
 HELD_OUT_DIR = "held_out"
 """The evaluate stage's folder of the held-out closed loop (its solves and record)."""
@@ -373,8 +377,11 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
     """Fit each method's declared confidence on its held-out closed loop
     (:func:`held_out_runs`, or ``runs`` already run for at least ``methods``) and write
     ``out/declared_fit.json``. With ``form`` ``views`` the temperature depends on the images
-    an episode took (``evaluate.declared_form``). Methods without held-out folds are left out
-    (they keep the walks' a; the record says why)."""
+    an episode took (``evaluate.declared_form``); with ``auto`` each method's form is chosen
+    on its held-out stops (:func:`~rapomdp.recognition.belief.choose_declared_form`; Random's
+    scalar candidate is the walks' a at its threshold, and where it wins Random is left out of
+    the fits, keeping that a; the record's ``choices`` say which and why). Methods without
+    held-out folds are left out (they keep the walks' a; the record says why)."""
     if form not in DECLARED_FORMS:
         raise ValueError(f"form must be one of {', '.join(DECLARED_FORMS)}, got {form!r}")
     if runs is None:
@@ -383,10 +390,19 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
     if not any(name in ran for name in methods):
         return {}
     fits: dict[str, ClosedLoopFit] = {}
+    choices: dict[str, DeclaredFormChoice] = {}
     for name in methods:
         if name not in ran:
             continue
         stops = ran[name].stops
+        if form == "auto":
+            choices[name] = choice = choose_declared_form(
+                stops.log_beliefs, stops.truth, ran[name].groups, stops.images,
+                fixed_scalar=random_walks_temperature(config, inputs) if name == "random"
+                else None)
+            if choice.declared is not None:
+                fits[name] = ClosedLoopFit(choice.declared, ran[name])
+            continue
         declared = stops_declared_confidence(stops.log_beliefs, stops.truth, ran[name].groups,
                                              images=stops.images if form == "views" else None)
         fits[name] = ClosedLoopFit(declared, ran[name])
@@ -396,8 +412,17 @@ def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[
         "plans": "per fold" if per_fold else "solve stage",
         "form": form,
         "methods": {name: fit.to_dict() for name, fit in fits.items()},
+        **({"choices": {name: c.to_dict() for name, c in choices.items()}} if choices else {}),
         "walks_kept": {name: why for name, why in skipped.items() if name in methods}})
     return fits
+
+
+def random_walks_temperature(config: Config, inputs: StageInputs) -> float:
+    """The declared-confidence a Random reports with under ``evaluate.declared_form: scalar``:
+    the one the observe stage fitted on held-out walks stopped at Random's belief threshold."""
+    name = config.evaluate.random.observation_model
+    return declared_temperatures(inputs.observe, [name], inputs.vptree_dir,
+                                 config.evaluate.random.belief_threshold)[name]
 
 
 COMPARISON_FILE = "comparison.json"

@@ -287,6 +287,15 @@ def reported_belief_note(declared_confidence: str, declared_fit: str = "walks",
                 "evaluate.declared_confidence, evaluate.declared_fit, "
                 "evaluate.declared_form), Static the classifier's softmax at its held-out "
                 "temperature.")
+    if declared_confidence == "calibrated" and declared_form == "auto":
+        return ("Random, the POMDP methods and the learned baseline report their belief "
+                "raised to a declared-confidence temperature, per method one a or a(n) = "
+                "a · n^(−β) by the images the episode took, whichever form declared the "
+                "method's own held-out closed-loop stops better, each group by the other "
+                "groups' fit (Random's one a: the walks' at its stop belief; their actions "
+                "are the belief's: evaluate.declared_confidence, evaluate.declared_fit, "
+                "evaluate.declared_form), Static the classifier's softmax at its held-out "
+                "temperature.")
     if declared_confidence == "calibrated" and declared_fit == "walks":
         return ("Random and the POMDP methods report their belief raised to the declared-"
                 "confidence temperature of its model (fitted where held-out walks stop; their "

@@ -663,16 +663,34 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
             "give). These a are the ones the methods above reported with."
             + (" With evaluate.declared_form views, a after n images is a · n^(−β): Random's "
                "too, fitted on its own held-out closed loop."
-               if record.get("form", "scalar") == "views" else "")))
+               if record.get("form", "scalar") == "views" else "")
+            + (" With evaluate.declared_form auto, each method's form (one a, or a · n^(−β) "
+               "after n images) is the one whose fit on the other groups declared each "
+               "held-out group's stops with the lower cross-entropy: "
+               + declared_choices_sentence(record["choices"])
+               if record.get("form", "scalar") == "auto" and record.get("choices") else "")))
         b.add(Table(*closed_loop_cells(record)))
+
+
+def declared_choices_sentence(choices: dict[str, dict[str, Any]]) -> str:
+    """``evaluate.declared_form: auto``'s choice per method (``declared_fit.json: choices``):
+    the form and each form's held-out cross-entropy."""
+    parts = []
+    for name, choice in choices.items():
+        loss = choice["held_out_loss"]
+        scored = all(np.isfinite(v) for v in loss.values())
+        parts.append(f"{METHOD_NAMES.get(name, name)} {choice['form']}"
+                     + (f" ({loss['scalar']:.4f} one a against {loss['views']:.4f} a(n))"
+                        if scored else f" ({choice['reason']})"))
+    return "; ".join(parts) + "."
 
 
 def closed_loop_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
     """The held-out closed loop's record (``held_out/declared_fit.json``) as a table: per
     POMDP method a, the loop's accuracy and mean energy, the belief's and the declared
     belief's (held out) confidence and ECE at its stops, and the stops; with
-    ``evaluate.declared_form`` views, β of a(n) = a · n^(−β) after a."""
-    views = record.get("form", "scalar") == "views"
+    ``evaluate.declared_form`` views or auto, β of a(n) = a · n^(−β) after a (0: one a)."""
+    views = record.get("form", "scalar") != "scalar"
     header = ["Method", "a", *(["β"] if views else []), "Accuracy", "Energy (m)",
               "Belief: confidence", "ECE", "Declared (held out): confidence", "ECE", "Stops"]
     rows = []

@@ -13,6 +13,7 @@ the energy goes to the problem builder as it is, which handles those entries
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from pathlib import Path
 
 import numpy as np
@@ -58,11 +59,12 @@ def observation_priors(observe_dir: Path, offered: dict[str, np.ndarray]
     return {name: observe.get(f"{PRIOR_PREFIX}{name}") for name in offered}
 
 
-def declared_temperatures(observe_dir: Path, offered: dict[str, np.ndarray],
+def declared_temperatures(observe_dir: Path, offered: Collection[str],
                           vptree_dir: Path | None = None,
                           stop_threshold: float | None = None) -> dict[str, float]:
-    """Each ``offered`` model's declared-confidence temperature (the observe stage's
-    ``declared_temperature_<name>``, the vptree stage's ``declared_temperature``): what a
+    """Each ``offered`` model's (by name; a dict of models will do) declared-confidence
+    temperature (the observe stage's ``declared_temperature_<name>``, the vptree stage's
+    ``declared_temperature``): what a
     policy with that belief reports is its belief ** a. With ``stop_threshold`` (a policy that
     stops once its belief reaches it: Random), the a fitted at that threshold, interpolated
     between the thresholds fitted (the pooled a where a stage fitted none). 1 where none was

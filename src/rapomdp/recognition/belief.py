@@ -656,3 +656,73 @@ def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.nda
         tuple(expected_calibration_error(confidence[r], right[r]) for r in per_threshold),
         tuple(ece(declared, r) for r in per_threshold),
         tuple(ece(declared_own, r) for r in per_threshold), **views)
+
+
+def held_out_declared_loss(declared: DeclaredConfidence, log_beliefs: np.ndarray,
+                           true: np.ndarray, groups: np.ndarray,
+                           images: np.ndarray | None = None) -> float:
+    """The mean criterion (``declared.criterion``) of the stops' declared confidence, each
+    group's stops (``groups``) declared by the fit on the other groups
+    (``declared.held_out_readouts``): how well the fit's form calibrates objects it did not
+    see. NaN where the fit had fewer than two groups."""
+    readouts = declared.held_out_readouts
+    if not readouts:
+        return float("nan")
+    groups = np.asarray(groups)
+    n = np.ones(len(groups)) if images is None else np.asarray(images, dtype=np.float64)
+    temperature = np.empty(len(groups))
+    for g, a in readouts.items():
+        mine = groups == g
+        temperature[mine] = a.at(n[mine])
+    return _declared_loss(temperature, np.asarray(log_beliefs, dtype=np.float64),
+                          np.asarray(true), declared.criterion)
+
+
+DECLARED_FORM_CHOICES = ("scalar", "views")
+"""The forms ``evaluate.declared_form: auto`` chooses between (:func:`choose_declared_form`)."""
+
+
+@dataclass(frozen=True)
+class DeclaredFormChoice:
+    """The declared confidence's form chosen for one method on its held-out stops: ``form``
+    (:data:`DECLARED_FORM_CHOICES`), its fit ``declared`` (None where the choice is a fixed
+    scalar a the caller keeps: Random's walks' a), each form's held-out criterion
+    (``held_out_loss``; NaN: not scored) and why (``reason``)."""
+
+    form: str
+    declared: DeclaredConfidence | None
+    held_out_loss: dict[str, float]
+    reason: str
+
+    def to_dict(self) -> dict[str, object]:
+        return {"form": self.form, "held_out_loss": dict(self.held_out_loss),
+                "reason": self.reason}
+
+
+def choose_declared_form(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
+                         images: np.ndarray, fixed_scalar: float | None = None,
+                         criterion: str = DECLARED_CRITERION) -> DeclaredFormChoice:
+    """Choose, on stops a policy made itself (:func:`stops_declared_confidence`'s inputs, with
+    each episode's ``images``), between one declared temperature (``scalar``) and a(n) =
+    s · n^−β (``views``): the form whose fit on the other groups declares each group's stops
+    with the lower mean ``criterion`` (:func:`held_out_declared_loss`); ties keep ``scalar``.
+    ``fixed_scalar``: the scalar candidate is this a, not fitted here (Random's walks' a, fitted
+    by the observe stage), scored on every stop. Fewer than two groups: nothing is scored and
+    the form is ``scalar`` (the reason says so)."""
+    scalar = (None if fixed_scalar is not None else
+              stops_declared_confidence(log_beliefs, true, groups, criterion))
+    if np.unique(np.asarray(groups)).size < 2:
+        return DeclaredFormChoice("scalar", scalar, {f: float("nan") for f in
+                                                     DECLARED_FORM_CHOICES},
+                                  "too little evidence: fewer than two held-out groups")
+    views = stops_declared_confidence(log_beliefs, true, groups, criterion, images)
+    loss = {"scalar": (held_out_declared_loss(scalar, log_beliefs, true, groups)
+                       if scalar is not None else
+                       _declared_loss(fixed_scalar, np.asarray(log_beliefs, dtype=np.float64),
+                                      np.asarray(true), criterion)),
+            "views": held_out_declared_loss(views, log_beliefs, true, groups, images)}
+    if loss["views"] < loss["scalar"]:
+        return DeclaredFormChoice("views", views, loss,
+                                  "a(n) declares the held-out groups' stops better")
+    return DeclaredFormChoice("scalar", scalar, loss,
+                              "one a declares the held-out groups' stops as well or better")
