@@ -63,19 +63,22 @@ def held_out_confidence(fit: ClosedLoopFit, declared: DeclaredConfidence | None,
     return out
 
 
-def nested_auto_confidence(fit: ClosedLoopFit, walk_a: float | None
+def nested_auto_confidence(fit: ClosedLoopFit, walk_a: float | None, margin_se: float = 0.0
                            ) -> tuple[np.ndarray, dict[int, str]]:
     """Each stop's declared confidence under ``declared_form: auto``, scored held out: its
     group's stops are declared by the form chosen on the other groups' stops alone (with
-    their own leave-one-group-out criterion; Random's scalar: the walks' ``walk_a``) and
-    fitted on those groups; per group, the form chosen."""
+    their own leave-one-group-out criterion; Random's scalar: the walks' ``walk_a``; views
+    asked to win by ``margin_se`` standard errors, clustered by object) and fitted on those
+    groups; per group, the form chosen."""
     out = np.empty(len(fit.truth))
     forms = {}
+    objects = fit.run.objects()
     for g in np.unique(fit.groups):
         mine = fit.groups == g
         rest = ~mine
         choice = choose_declared_form(fit.log_beliefs[rest], fit.truth[rest], fit.groups[rest],
-                                      fit.images[rest], fixed_scalar=walk_a)
+                                      fit.images[rest], fixed_scalar=walk_a,
+                                      margin_se=margin_se, objects=objects[rest])
         forms[int(g)] = choice.form
         a = (walk_a if choice.declared is None
              else choice.declared.readout.at(fit.images[mine]))
@@ -94,7 +97,11 @@ def main() -> None:
     parser.add_argument("--auto", action="store_true",
                         help="score declared_form auto too, nested, and check "
                              "declared_form_auto_rule.md's conditions")
+    parser.add_argument("--margins", type=float, nargs="*", default=[],
+                        help="with --auto, after the rule (deciding nothing): the pooled ECE "
+                             "when views must win by each of these many standard errors")
     args = parser.parse_args()
+    margins: dict[tuple[str, str], list[np.ndarray]] = {}
     rows: dict[tuple[str, str], list[tuple[float, float, float, float]]] = {}
     stops: dict[tuple[str, str], list[np.ndarray]] = {}
     print(f"{'workspace':44s} {'method':10s} {'stops':>5s} {'acc':>6s} "
@@ -122,6 +129,9 @@ def main() -> None:
             views = held_out_confidence(fit, fit.declared)
             if args.auto:  # the candidate of declared_form_auto_rule.md in the third column
                 views, forms = nested_auto_confidence(fit, walk_a)
+                margins.setdefault((root.parent.name, name), []).append(np.stack(
+                    [right, scalar, *(nested_auto_confidence(fit, walk_a, k)[0]
+                                      for k in args.margins)]))
             gaps = (scalar.mean() - right.mean(), expected_calibration_error(scalar, right),
                     views.mean() - right.mean(), expected_calibration_error(views, right))
             rows.setdefault((root.parent.name, name), []).append(gaps)
@@ -154,6 +164,14 @@ def main() -> None:
     if args.auto:  # declared_form_auto_rule.md: its conditions on the pooled stops
         print_pooled(pooled, f"{over_pooled}:", "auto (nested)")
         print_auto_rule(pooled)
+        if args.margins:
+            print("\nafter the rule, deciding nothing: pooled ECE, scalar and auto with views "
+                  "asked to win by k standard errors (clustered by object)")
+            for (folder, name), parts in margins.items():
+                right, *confidences = np.concatenate(parts, axis=1)
+                eces = [expected_calibration_error(c, right) for c in confidences]
+                print(f"{folder:24s} {name:10s} scalar {eces[0]:.3f}  " + "  ".join(
+                    f"k={k:g}: {e:.3f}" for k, e in zip(args.margins, eces[1:], strict=True)))
         return
     if args.pooled:  # declared_views_rule_v2.md: the conditions on the pooled stops
         print_pooled(pooled, f"{over_pooled}:")

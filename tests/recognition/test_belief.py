@@ -13,6 +13,7 @@ from rapomdp.recognition.belief import (
     DeclaredTemperature,
     belief_log_loss,
     choose_declared_form,
+    clustered_standard_error,
     declared_belief,
     declared_confidence,
     declared_log_beliefs,
@@ -21,7 +22,7 @@ from rapomdp.recognition.belief import (
     fit_declared_views,
     fit_temperature,
     fold_of_rows,
-    held_out_declared_loss,
+    held_out_declared_losses,
     held_out_groups,
     held_out_walks,
     random_walks,
@@ -373,11 +374,18 @@ def test_the_form_is_chosen_by_the_held_out_groups_where_the_length_matters():
     assert choice.held_out_loss["views"] < choice.held_out_loss["scalar"] - 0.005
     # each loss is the held-out criterion of that form's fit: every group by the others'
     scalar = stops_declared_confidence(final, true, groups)
-    assert choice.held_out_loss["scalar"] == pytest.approx(
-        held_out_declared_loss(scalar, final, true, groups))
+    per_stop = held_out_declared_losses(scalar, final, true, groups)
+    assert per_stop.shape == true.shape
+    assert choice.held_out_loss["scalar"] == pytest.approx(per_stop.mean())
     rest = groups != 0
     a = fit_declared_temperature(final[rest], true[rest])
     assert scalar.held_out_readouts[0].scale == pytest.approx(a)
+    # asked to win by more standard errors than it does, views gives way to one a
+    gain = (held_out_declared_losses(scalar, final, true, groups)
+            - held_out_declared_losses(choice.declared, final, true, groups, images))
+    z = gain.mean() / clustered_standard_error(gain, np.arange(len(gain)))
+    assert choose_declared_form(final, true, groups, images, margin_se=0.9 * z).form == "views"
+    assert choose_declared_form(final, true, groups, images, margin_se=1.1 * z).form == "scalar"
     # no length effect: a(n) finds nothing one a does not, and the two score alike
     final, true, images = _stops_overconfident_by_length(rng, np.full(8, 3.0))
     even = choose_declared_form(final, true, groups, images)
@@ -460,3 +468,12 @@ def test_the_views_fit_keeps_one_a_where_the_overconfidence_does_not_depend_on_l
     assert same.scale == pytest.approx(fit_declared_temperature(final, true), abs=2e-3)
     with pytest.raises(ValueError, match="one image count per stop"):
         fit_declared_views(final, true, images[:-1])
+
+
+def test_the_clustered_standard_error_counts_a_cluster_of_copies_once():
+    values = np.random.default_rng(5).normal(size=50)
+    alone = clustered_standard_error(values, np.arange(50))
+    assert alone == pytest.approx(values.std() / np.sqrt(50))
+    twice = np.repeat(values, 2)  # each value twice, both copies one cluster
+    assert clustered_standard_error(twice, np.repeat(np.arange(50), 2)) == pytest.approx(alone)
+    assert clustered_standard_error(twice, np.arange(100)) == pytest.approx(alone / np.sqrt(2))

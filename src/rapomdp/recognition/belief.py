@@ -448,15 +448,21 @@ DECLARED_CRITERION = "confidence"
 for RA's and the Classifier's model on both development sets)."""
 
 
-def _declared_loss(temperature: float | np.ndarray, log_beliefs: np.ndarray, true: np.ndarray,
-                   criterion: str) -> float:
+def _declared_losses(temperature: float | np.ndarray, log_beliefs: np.ndarray,
+                     true: np.ndarray, criterion: str) -> np.ndarray:
+    """Each stop's ``criterion`` (:data:`DECLARED_CRITERIA`) of its declared belief."""
     declared = declared_log_beliefs(log_beliefs, temperature)
     if criterion == "log_loss":
-        return float(-declared[np.arange(len(true)), true].mean())
+        return -declared[np.arange(len(true)), true]
     right = declared.argmax(axis=1) == true
     log_confidence = np.minimum(declared.max(axis=1), -1e-12)
     log_doubt = np.log(-np.expm1(log_confidence))  # log(1 − confidence), exact near 1
-    return float(-np.where(right, log_confidence, log_doubt).mean())
+    return -np.where(right, log_confidence, log_doubt)
+
+
+def _declared_loss(temperature: float | np.ndarray, log_beliefs: np.ndarray, true: np.ndarray,
+                   criterion: str) -> float:
+    return float(_declared_losses(temperature, log_beliefs, true, criterion).mean())
 
 
 def fit_declared_temperature(log_beliefs: np.ndarray, true: np.ndarray,
@@ -658,24 +664,25 @@ def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.nda
         tuple(ece(declared_own, r) for r in per_threshold), **views)
 
 
-def held_out_declared_loss(declared: DeclaredConfidence, log_beliefs: np.ndarray,
-                           true: np.ndarray, groups: np.ndarray,
-                           images: np.ndarray | None = None) -> float:
-    """The mean criterion (``declared.criterion``) of the stops' declared confidence, each
-    group's stops (``groups``) declared by the fit on the other groups
+def held_out_declared_losses(declared: DeclaredConfidence, log_beliefs: np.ndarray,
+                             true: np.ndarray, groups: np.ndarray,
+                             images: np.ndarray | None = None) -> np.ndarray:
+    """Each stop's criterion (``declared.criterion``) of its declared confidence, each group's
+    stops (``groups``) declared by the fit on the other groups
     (``declared.held_out_readouts``): how well the fit's form calibrates objects it did not
-    see. NaN where the fit had fewer than two groups."""
+    see (the mean is :func:`choose_declared_form`'s score). NaN where the fit had fewer than
+    two groups."""
     readouts = declared.held_out_readouts
-    if not readouts:
-        return float("nan")
     groups = np.asarray(groups)
+    if not readouts:
+        return np.full(len(groups), np.nan)
     n = np.ones(len(groups)) if images is None else np.asarray(images, dtype=np.float64)
     temperature = np.empty(len(groups))
     for g, a in readouts.items():
         mine = groups == g
         temperature[mine] = a.at(n[mine])
-    return _declared_loss(temperature, np.asarray(log_beliefs, dtype=np.float64),
-                          np.asarray(true), declared.criterion)
+    return _declared_losses(temperature, np.asarray(log_beliefs, dtype=np.float64),
+                            np.asarray(true), declared.criterion)
 
 
 DECLARED_FORM_CHOICES = ("scalar", "views")
@@ -701,14 +708,17 @@ class DeclaredFormChoice:
 
 def choose_declared_form(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
                          images: np.ndarray, fixed_scalar: float | None = None,
-                         criterion: str = DECLARED_CRITERION) -> DeclaredFormChoice:
+                         criterion: str = DECLARED_CRITERION, margin_se: float = 0.0,
+                         objects: np.ndarray | None = None) -> DeclaredFormChoice:
     """Choose, on stops a policy made itself (:func:`stops_declared_confidence`'s inputs, with
     each episode's ``images``), between one declared temperature (``scalar``) and a(n) =
     s · n^−β (``views``): the form whose fit on the other groups declares each group's stops
-    with the lower mean ``criterion`` (:func:`held_out_declared_loss`); ties keep ``scalar``.
+    with the lower mean ``criterion`` (:func:`held_out_declared_losses`); ties keep ``scalar``.
     ``fixed_scalar``: the scalar candidate is this a, not fitted here (Random's walks' a, fitted
     by the observe stage), scored on every stop. Fewer than two groups: nothing is scored and
-    the form is ``scalar`` (the reason says so)."""
+    the form is ``scalar`` (the reason says so). ``margin_se`` > 0 (measured, not a setting:
+    docs/awareness.md §4.8, round six) asks ``views`` to win by that many standard errors of
+    the mean difference, the stops clustered by ``objects`` (each stop its own without)."""
     scalar = (None if fixed_scalar is not None else
               stops_declared_confidence(log_beliefs, true, groups, criterion))
     if np.unique(np.asarray(groups)).size < 2:
@@ -716,13 +726,27 @@ def choose_declared_form(log_beliefs: np.ndarray, true: np.ndarray, groups: np.n
                                                      DECLARED_FORM_CHOICES},
                                   "too little evidence: fewer than two held-out groups")
     views = stops_declared_confidence(log_beliefs, true, groups, criterion, images)
-    loss = {"scalar": (held_out_declared_loss(scalar, log_beliefs, true, groups)
-                       if scalar is not None else
-                       _declared_loss(fixed_scalar, np.asarray(log_beliefs, dtype=np.float64),
-                                      np.asarray(true), criterion)),
-            "views": held_out_declared_loss(views, log_beliefs, true, groups, images)}
-    if loss["views"] < loss["scalar"]:
+    per_stop = {"scalar": (held_out_declared_losses(scalar, log_beliefs, true, groups)
+                           if scalar is not None else
+                           _declared_losses(fixed_scalar, np.asarray(log_beliefs,
+                                                                     dtype=np.float64),
+                                            np.asarray(true), criterion)),
+                "views": held_out_declared_losses(views, log_beliefs, true, groups, images)}
+    loss = {form: float(values.mean()) for form, values in per_stop.items()}
+    gain = per_stop["scalar"] - per_stop["views"]
+    if loss["views"] < loss["scalar"] and (
+            margin_se <= 0 or gain.mean() > margin_se * clustered_standard_error(
+                gain, np.arange(len(gain)) if objects is None else objects)):
         return DeclaredFormChoice("views", views, loss,
                                   "a(n) declares the held-out groups' stops better")
     return DeclaredFormChoice("scalar", scalar, loss,
                               "one a declares the held-out groups' stops as well or better")
+
+
+def clustered_standard_error(values: np.ndarray, clusters: np.ndarray) -> float:
+    """The standard error of the mean of ``values`` when those sharing a cluster (an object's
+    episodes) are dependent: the cluster-robust sandwich, √Σ_k (Σ_{i∈k} (v_i − v̄))² / N."""
+    values = np.asarray(values, dtype=np.float64)
+    _, cluster = np.unique(np.asarray(clusters), return_inverse=True)
+    sums = np.bincount(cluster, values - values.mean())
+    return float(np.sqrt((sums ** 2).sum()) / len(values))
