@@ -581,14 +581,23 @@ def held_out_object_log_likelihoods(
     """Every model's mean log-likelihood of each held-out object's labels (N,), the object
     scored by the models fitted without its group; NaN for rows no fold holds out."""
     names = [n for n in (folds[0][1] if folds else {}) if all(n in m for _, m in folds)]
-    out = {name: np.full(len(evidence.labels), np.nan) for name in names}
+    observed = held_out_observed_probabilities(evidence, folds, names)
+    return {name: np.log(np.maximum(observed[k], 1e-300)).mean(axis=1)
+            for k, name in enumerate(names)}
+
+
+def held_out_observed_probabilities(evidence: Evidence, folds: Folds, names: Sequence[str]
+                                    ) -> np.ndarray:
+    """The probability (K, N, V) each of the K models ``names`` gives each held-out label
+    (N objects, V viewpoints), the object's by the model fitted without its group; NaN for
+    rows no fold holds out."""
+    observed = np.full((len(names), *evidence.predicted.shape), np.nan)
     for held, models in folds:
         part = evidence.subset(held)
-        for name in names:
-            observed, _ = observed_probabilities(models[name].probabilities, part.labels,
-                                                 part.predicted)
-            out[name][held] = np.log(np.maximum(observed, 1e-300)).mean(axis=1)
-    return out
+        for k, name in enumerate(names):
+            observed[k, held] = observed_probabilities(models[name].probabilities, part.labels,
+                                                       part.predicted)[0]
+    return observed
 
 
 MIXTURE_VARIANT = "mixture"
@@ -636,14 +645,8 @@ def ra_mixture_folds(evidence: Evidence, folds: Folds, classes: Sequence[str]
         raise ValueError("a mixture of the RA variants is weighted on held-out groups: it "
                          "needs two groups of held-out evidence or more")
     names = mixture_candidates(folds[0][1])
-    observed = np.full((len(names), *evidence.predicted.shape), np.nan)
-    covered = np.zeros(len(evidence.labels), dtype=bool)
-    for held, models in folds:
-        part = evidence.subset(held)
-        for k, name in enumerate(names):
-            observed[k, held] = observed_probabilities(models[name].probabilities, part.labels,
-                                                       part.predicted)[0]
-        covered |= held
+    observed = held_out_observed_probabilities(evidence, folds, names)
+    covered = np.logical_or.reduce([held for held, _ in folds])
     weights = fit_mixture_weights(observed[:, covered].reshape(len(names), -1))
     out = []
     for held, models in folds:
