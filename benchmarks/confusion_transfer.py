@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.evidence import (
+    MIXTURE_VARIANT,
     Evidence,
     RecordedObservation,
     fit_observation_models,
@@ -118,6 +119,11 @@ class Held:
         self.workspace = Workspace(root)
         self.config = self.workspace.config()
         self.recorded = RecordedObservation.load(root / "observe")
+        if self.recorded.variant == f"ra_{MIXTURE_VARIANT}":  # refits single variants by name
+            raise SystemExit(f"{root}: RA-POMDP's model is the mixture of RA variants "
+                             "(observe.ra_model: mixture); this benchmark refits one "
+                             "variant by name: run it on a workspace with ra_model auto "
+                             "or a variant")
         self.evidence: Evidence = self.recorded.evidence
         self.directions = self.recorded.arrays["directions"]
         self.names = {"ra": self.recorded.variant, "classifier": "classifier"}

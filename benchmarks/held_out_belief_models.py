@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.evidence import (
+    MIXTURE_VARIANT,
     RecordedObservation,
     fit_observation_models,
     held_out_temperatures,
@@ -204,6 +205,11 @@ def main() -> None:
     ws = Workspace(args.workspace)
     config = ws.config()
     recorded = RecordedObservation.load(ws.require("observe"))
+    if recorded.variant == f"ra_{MIXTURE_VARIANT}":  # refits single variants by name
+        raise SystemExit(f"{ws.root}: RA-POMDP's model is the mixture of RA variants "
+                         "(observe.ra_model: mixture); this benchmark refits one "
+                         "variant by name: run it on a workspace with ra_model auto "
+                         "or a variant")
     evidence = recorded.evidence
     if not evidence.volume_mask.all():
         raise SystemExit(f"{args.workspace}: its evidence holds cross-fitted rows; this "
