@@ -111,6 +111,12 @@ def test_the_mixture_averages_the_variants_it_weighs_and_ra_is_it() -> None:
         assert set(fold_weights) == set(weights)
         assert np.allclose(models["ra_mixture"].probabilities.sum(axis=2), 1.0)
     assert chosen.shrinkage["ra"].amount == 0.0 and chosen.levels["ra"] == 0.0
+    # the held-out validation scores the mixture too, each group by weights fitted without it
+    rows = {str(row["model"]): row for row in chosen.validation}
+    assert [row["model"] for row in chosen.validation].count("ra_mixture") == 1
+    variants = [float(rows[name]["log_likelihood"]) for name in weights]
+    assert min(variants) < float(rows["ra_mixture"]["log_likelihood"])
+    assert float(rows["ra_mixture"]["log_likelihood"]) > max(variants) - 0.02
 
 
 def test_the_mixture_falls_back_on_one_group_and_is_refused_with_the_nuisance_belief() -> None:

@@ -121,6 +121,11 @@ def held_out_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes:
     choice = check_variant_stability(choose_ra_variant(evidence, folds, cfg.ra_model, classes),
                                      evidence, scores, classes, cfg, directions)
     variant = choice.variant
+    if variant == MIXTURE_VARIANT:  # its held-out row: each fold's weights without its group
+        name = f"ra_{MIXTURE_VARIANT}"
+        validation += validation_quality(evidence, [
+            (held, {name: models[name]})
+            for held, models in ra_mixture_folds(evidence, folds, classes)[1]])
     if variant == "contrastive" and not cfg.contrastive:
         raise StageError("observe.ra_model is 'contrastive': set observe.contrastive: true")
     if variant in STACKED_VARIANTS and len(np.unique(evidence.groups)) < 2:
