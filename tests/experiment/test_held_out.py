@@ -12,7 +12,8 @@ from rapomdp.cli import run_summary_lines
 from rapomdp.config import METHOD_NAMES, Config, config_from_dict
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import class_ranks, load_dataset
-from rapomdp.experiment.evaluation import ClosedLoop
+from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.experiment.evaluation import ClosedLoop, run_evaluate_stage
 from rapomdp.experiment.held_out import (
     DECLARED_FIT_FILE,
     HELD_OUT_DIR,
@@ -286,6 +287,27 @@ def test_the_auto_form_chooses_per_method_by_the_held_out_criterion(workspace, t
     report_sentence = declared_choices_sentence(record["choices"])
     assert all(f"{METHOD_NAMES[n]} {c['form']} (" in report_sentence
                for n, c in record["choices"].items())
+
+
+def test_the_evaluate_stage_with_the_auto_form_reports_each_method_as_it_chose(workspace,
+                                                                               tmp_path):
+    ws, config = workspace
+    auto = config.model_copy(update={"evaluate": config.evaluate.model_copy(
+        update={"declared_form": "auto"})})
+    run_evaluate_stage(auto, _inputs(ws), tmp_path, TEST_CONTEXT)
+    record = read_json(tmp_path / HELD_OUT_DIR / DECLARED_FIT_FILE)
+    assert set(record["choices"]) == {"random", *FITTED}  # Random chooses too
+    fitted = read_json(tmp_path / "evaluate.json")["declared_fit"]["closed_loop"]
+    kept = {n for n, c in record["choices"].items() if n == "random" and c["form"] == "scalar"}
+    assert set(fitted) == {"random", *FITTED} - kept
+    for name, fit in fitted.items():  # each reports in the form it chose
+        chosen = record["choices"][name]["form"]
+        assert fit["declared_confidence"].get("form", "scalar") == chosen, name
+    # the actions are the stage's with one a: only what the methods report differs
+    mine = EpisodeTable.load(tmp_path / EPISODES_FILE)
+    theirs = EpisodeTable.load(ws.require("evaluate") / EPISODES_FILE)
+    np.testing.assert_array_equal(mine.step_viewpoints, theirs.step_viewpoints)
+    np.testing.assert_array_equal(mine.correct, theirs.correct)
 
 
 def test_the_views_form_needs_the_closed_loop():

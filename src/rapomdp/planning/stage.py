@@ -64,8 +64,8 @@ def declared_temperatures(observe_dir: Path, offered: Collection[str],
                           stop_threshold: float | None = None) -> dict[str, float]:
     """Each ``offered`` model's (by name; a dict of models will do) declared-confidence
     temperature (the observe stage's ``declared_temperature_<name>``, the vptree stage's
-    ``declared_temperature``): what a
-    policy with that belief reports is its belief ** a. With ``stop_threshold`` (a policy that
+    ``declared_temperature``): what a policy with that belief reports is its belief ** a.
+    With ``stop_threshold`` (a policy that
     stops once its belief reaches it: Random), the a fitted at that threshold, interpolated
     between the thresholds fitted (the pooled a where a stage fitted none). 1 where none was
     fitted (one held-out group, a view discount's belief)."""
