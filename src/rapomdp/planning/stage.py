@@ -65,10 +65,10 @@ def declared_temperatures(observe_dir: Path, offered: Collection[str],
     """Each ``offered`` model's (by name; a dict of models will do) declared-confidence
     temperature (the observe stage's ``declared_temperature_<name>``, the vptree stage's
     ``declared_temperature``): what a policy with that belief reports is its belief ** a.
-    With ``stop_threshold`` (a policy that
-    stops once its belief reaches it: Random), the a fitted at that threshold, interpolated
-    between the thresholds fitted (the pooled a where a stage fitted none). 1 where none was
-    fitted (one held-out group, a view discount's belief)."""
+    With ``stop_threshold`` (a policy that stops once its belief reaches it: Random), the a
+    fitted at that threshold, interpolated between the thresholds fitted (the pooled a where a
+    stage fitted none). 1 where none was fitted (one held-out group, a view discount's
+    belief)."""
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     vptree: dict[str, np.ndarray] = (load_npz(Path(vptree_dir) / VPTREE_FILE)
                                      if vptree_dir is not None else {})
