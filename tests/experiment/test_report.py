@@ -243,7 +243,8 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
     # final beliefs' calibration, provenance, classifier, solver
     assert html.count("<table>") == len(re.findall(r"^\|---", text, flags=re.M)) == 8
     assert ("| Method | Accuracy | Belief in the true class | Confidence | "
-            "Confidence − accuracy | ECE |") in text
+            "Confidence − accuracy | ECE | ECE if calibrated (95 %) |") in text
+    assert "ECE if calibrated: the 95th percentile of the ECE a reporter calibrated" in text
     # the fixture's beliefs stay uniform over 3 classes: confidence 1/3 whatever was declared
     assert "| Static | 0.360 | 0.480 | 0.333 | -0.027 | 0.027 |" in text
     assert "| RA-POMDP | 1.000 | 0.800 | 0.333 | -0.667 | 0.667 |" in text

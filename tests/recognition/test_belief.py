@@ -12,6 +12,8 @@ from rapomdp.recognition.belief import (
     DECLARED_STOP_THRESHOLDS,
     DeclaredTemperature,
     belief_log_loss,
+    calibrated_ece,
+    calibrated_ece_draws,
     choose_declared_form,
     clustered_standard_error,
     declared_belief,
@@ -477,3 +479,25 @@ def test_the_clustered_standard_error_counts_a_cluster_of_copies_once():
     twice = np.repeat(values, 2)  # each value twice, both copies one cluster
     assert clustered_standard_error(twice, np.repeat(np.arange(50), 2)) == pytest.approx(alone)
     assert clustered_standard_error(twice, np.arange(100)) == pytest.approx(alone / np.sqrt(2))
+
+
+def test_the_ece_of_a_calibrated_reporter_is_what_sampling_alone_gives():
+    # certain and right: no draw can show an error
+    assert np.all(calibrated_ece_draws(np.ones(50), draws=20) == 0.0)
+    # every stop at 0.5, one bin: ECE = |R − N/2| / N with R ~ Binomial(N, 1/2), whose mean is
+    # about √(N / (2π)) / N
+    draws = calibrated_ece_draws(np.full(400, 0.5), draws=4000, seed=1)
+    assert draws.mean() == pytest.approx(np.sqrt(400 / (2 * np.pi)) / 400, rel=0.05)
+    # each draw is the ECE of those confidences against coins of them
+    confidence = np.random.default_rng(2).uniform(0.3, 1.0, 300)
+    rng = np.random.default_rng(7)
+    coins = rng.random((5, 300)) < confidence
+    assert calibrated_ece_draws(confidence, draws=5, seed=7) == pytest.approx(
+        [expected_calibration_error(confidence, c) for c in coins])
+    # more stops, a lower floor; the reported figure is a quantile of the draws
+    few, many = calibrated_ece(confidence[:60]), calibrated_ece(np.tile(confidence, 10))
+    assert many < few / 2
+    assert calibrated_ece(confidence, quantile=0.5) == pytest.approx(
+        np.quantile(calibrated_ece_draws(confidence), 0.5))
+    with pytest.raises(ValueError, match="no confidences"):
+        calibrated_ece_draws(np.array([]))

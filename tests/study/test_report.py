@@ -13,11 +13,14 @@ from typer.testing import CliRunner
 
 from rapomdp.cli import app
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
+from rapomdp.experiment.metrics import CALIBRATED_ECE_NOTE
 from rapomdp.io import save_npz
+from rapomdp.recognition.belief import calibrated_ece
 from rapomdp.study.pooled import load_seed_results, pooled_table
 from rapomdp.study.report import (
     BEGIN,
     END,
+    pooled_cells,
     study_markdown,
     update_study_readme,
     write_study_report,
@@ -70,6 +73,20 @@ def test_report_pools_each_seed_and_pairs_against_ra(tiny_study: TinyStudy) -> N
 def test_vary_train_pairs_crossed_over_the_same_test_models(tiny_study: TinyStudy) -> None:
     rows = pooled_table(load_seed_results(tiny_study.spec, tiny_study.root)["tiny"], 200)
     assert all(r.difference.crossed for r in rows if r.difference is not None)
+
+
+def test_the_pooled_ece_sits_beside_what_sampling_gives_a_calibrated_reporter(
+        tiny_study: TinyStudy) -> None:
+    results = load_seed_results(tiny_study.spec, tiny_study.root)["tiny"]
+    rows = pooled_table(results, 200)
+    header, cells = pooled_cells(rows)
+    column = header.index("ECE if calibrated (95 %)")
+    assert header[column - 1] == "ECE"
+    for row, cell in zip(rows, cells, strict=True):
+        confidence = np.concatenate([r.table.final_confidence()[r.table.method == row.method]
+                                     for r in results])
+        assert row.ece_if_calibrated == calibrated_ece(confidence)
+        assert cell[column] == f"{row.ece_if_calibrated:.3f}"
 
 
 def test_the_readme_block_follows_the_study(tiny_study: TinyStudy, tmp_path: Path) -> None:
@@ -126,7 +143,7 @@ def test_the_confidence_line_reads_what_each_seeds_evaluate_stage_reported(
     assert reported_confidence(results[1:]) == (
         "Confidence − accuracy and ECE: Every method reports the belief it acts on "
         "(evaluate.declared_confidence: belief), Static the classifier's softmax at its "
-        "held-out temperature.")
+        "held-out temperature. " + CALIBRATED_ECE_NOTE)
     assert "the others' where their own held-out closed loop stops" in \
         reported_confidence(results[:1])
     # a seed from before evaluate.declared_fit fitted every a on walks

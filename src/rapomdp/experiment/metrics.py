@@ -271,8 +271,14 @@ def table1_markdown(rows: Sequence[MethodSummary],
     return out + f"\n{paired_note(paired)}\n" if paired else out
 
 
+CALIBRATED_ECE_NOTE = ("ECE if calibrated: the 95th percentile of the ECE a reporter calibrated "
+                       "by construction shows at the same confidences on as many stops (each "
+                       "outcome drawn as a coin of its confidence); an ECE below it is not "
+                       "evidence of miscalibration.")
+"""What the calibration tables' last ECE column is, for the text beside them."""
+
 BELIEF_CALIBRATION_HEADER = ["Method", "Accuracy", "Belief in the true class", "Confidence",
-                             "Confidence − accuracy", "ECE"]
+                             "Confidence − accuracy", "ECE", "ECE if calibrated (95 %)"]
 
 
 def reported_belief_note(declared_confidence: str, declared_fit: str = "walks",
@@ -316,8 +322,10 @@ def reported_belief_note(declared_confidence: str, declared_fit: str = "walks",
 def belief_calibration_cells(table: EpisodeTable) -> tuple[list[str], list[list[str]]]:
     """Every method's final belief against its accuracy: the mean belief in the true class, the
     mean confidence (the belief in the declared class, which a calibrated belief's accuracy
-    equals), their difference and the confidence's ECE (10 equal-width bins)."""
-    from rapomdp.recognition.belief import expected_calibration_error
+    equals), their difference, the confidence's ECE (10 equal-width bins) and the ECE that
+    sampling alone gives a calibrated reporter of the same confidences, 95th percentile
+    (:func:`~rapomdp.recognition.belief.calibrated_ece`)."""
+    from rapomdp.recognition.belief import calibrated_ece, expected_calibration_error
 
     confidence = table.final_confidence()
     cells = []
@@ -327,7 +335,8 @@ def belief_calibration_cells(table: EpisodeTable) -> tuple[list[str], list[list[
         cells.append([METHOD_NAMES.get(method, method), f"{right.mean():.3f}",
                       f"{table.belief[mine].mean():.3f}", f"{confidence[mine].mean():.3f}",
                       f"{confidence[mine].mean() - right.mean():+.3f}",
-                      f"{expected_calibration_error(confidence[mine], right):.3f}"])
+                      f"{expected_calibration_error(confidence[mine], right):.3f}",
+                      f"{calibrated_ece(confidence[mine]):.3f}"])
     return list(BELIEF_CALIBRATION_HEADER), cells
 
 

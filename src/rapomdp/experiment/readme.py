@@ -20,6 +20,7 @@ from rapomdp.data.dataset import load_dataset, role_count_lines
 from rapomdp.experiment.episode_table import EPISODES_FILE, SUMMARY_FILE, EpisodeTable
 from rapomdp.experiment.held_out import load_held_out_comparison
 from rapomdp.experiment.metrics import (
+    CALIBRATED_ECE_NOTE,
     belief_calibration_cells,
     reported_belief_note,
     table1_story,
@@ -118,7 +119,7 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
         lines += ["**Calibration of the final belief** (confidence: the belief in the declared "
                   "class, which a calibrated belief's accuracy equals; ECE over 10 bins). "
                   + reported_belief_note(ran.declared_confidence, ran.declared_fit,
-                                           ran.declared_form), "",
+                                           ran.declared_form) + " " + CALIBRATED_ECE_NOTE, "",
                   markdown_table(*belief_calibration_cells(episodes)).strip(), ""]
     lines += ["**Self-awareness** (observation models on the test models):", "",
               _read(workspace.require("observe") / "quality.md"), "",

@@ -58,6 +58,7 @@ from rapomdp.experiment.evaluation import figure_class as evaluation_figure_clas
 from rapomdp.experiment.held_out import load_declared_fit, load_held_out_comparison
 from rapomdp.experiment.learned import CURVES_FIGURE, LEARN_SUMMARY
 from rapomdp.experiment.metrics import (
+    CALIBRATED_ECE_NOTE,
     PER_CLASS_NOTE,
     MethodSummary,
     PairedDifference,
@@ -721,7 +722,8 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path,
                     "the declared class), which a calibrated belief's accuracy equals; ECE of "
                     "the confidence over 10 equal-width bins. "
                     + reported_belief_note(ran.declared_confidence, ran.declared_fit,
-                                           ran.declared_form)))
+                                           ran.declared_form)
+                    + " " + CALIBRATED_ECE_NOTE))
     b.add(Table(*belief_calibration_cells(table)))
     figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
                                 xlabel="final belief in the declared class",

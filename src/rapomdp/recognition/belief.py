@@ -60,6 +60,43 @@ def expected_calibration_error(confidence: np.ndarray, correct: np.ndarray,
     return float(np.sum(count[used] * np.abs(accuracy[used] - mean_conf[used])) / count.sum())
 
 
+CALIBRATED_ECE_DRAWS = 1000
+"""Draws of :func:`calibrated_ece_draws` behind a reported sampling floor of the ECE."""
+CALIBRATED_ECE_QUANTILE = 0.95
+"""The quantile of those draws a report shows: an ECE below it is what sampling alone gives a
+calibrated reporter of the same confidences on as many stops."""
+
+
+def calibrated_ece_draws(confidence: np.ndarray, draws: int = CALIBRATED_ECE_DRAWS,
+                         seed: int = 0, bins: int = 10) -> np.ndarray:
+    """(draws,) the ECE (:func:`expected_calibration_error`, ``bins`` bins) of ``confidence``
+    with each stop's outcome drawn as a coin of its own confidence: calibrated by construction,
+    so what the ECE of these stops shows from sampling alone."""
+    confidence = np.clip(np.ravel(confidence).astype(np.float64), 0.0, 1.0)
+    if confidence.size == 0:
+        raise ValueError("no confidences to draw outcomes for")
+    which = np.minimum((confidence * bins).astype(np.int64), bins - 1)
+    in_bin = np.zeros((confidence.size, bins))
+    in_bin[np.arange(confidence.size), which] = 1.0
+    expected = confidence @ in_bin  # per bin, the sum of confidences (= of a calibrated P(right))
+    rng = np.random.default_rng(seed)
+    out = np.empty(draws)
+    chunk = max(1, 2_000_000 // confidence.size)  # about 16 MB of coins at a time
+    for start in range(0, draws, chunk):
+        stop = min(draws, start + chunk)
+        right = (rng.random((stop - start, confidence.size)) < confidence).astype(np.float64)
+        # count · |accuracy − mean confidence| of a bin is |Σ right − Σ confidence| there
+        out[start:stop] = np.abs(right @ in_bin - expected).sum(axis=1) / confidence.size
+    return out
+
+
+def calibrated_ece(confidence: np.ndarray, quantile: float = CALIBRATED_ECE_QUANTILE,
+                   seed: int = 0) -> float:
+    """The ``quantile`` of :func:`calibrated_ece_draws`: an ECE up to it on these stops is not
+    evidence of miscalibration."""
+    return float(np.quantile(calibrated_ece_draws(confidence, seed=seed), quantile))
+
+
 # -- the belief's temperature ----------------------------------------------------------------
 
 def temper(probabilities: np.ndarray, temperature: float | np.ndarray) -> np.ndarray:

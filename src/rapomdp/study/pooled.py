@@ -23,7 +23,7 @@ from rapomdp.experiment.metrics import (
     table1,
 )
 from rapomdp.io import read_text
-from rapomdp.recognition.belief import expected_calibration_error
+from rapomdp.recognition.belief import calibrated_ece, expected_calibration_error
 from rapomdp.study.bootstrap import PooledInterval, SeedClusters, hierarchical_bootstrap
 from rapomdp.study.runner import seed_workspace
 from rapomdp.study.spec import StudySpec
@@ -79,6 +79,10 @@ class PooledRow:
     moves: float
     overconfidence: float
     ece: float
+    #: The ECE a calibrated reporter of the same confidences shows from sampling alone, 95th
+    #: percentile (:func:`~rapomdp.recognition.belief.calibrated_ece`): below it, no evidence
+    #: of miscalibration.
+    ece_if_calibrated: float
     episodes: int
     accuracy_by_seed: tuple[float, ...]
     energy_by_seed: tuple[float, ...]
@@ -135,6 +139,7 @@ def pooled_table(results: Sequence[SeedResult], resamples: int = 10_000,
             float(np.mean([c.mean() - k.mean() for c, k in zip(confidence, correct,
                                                                  strict=True)])),
             expected_calibration_error(all_conf, all_correct),
+            calibrated_ece(all_conf),
             sum(s.episodes for s in summaries),
             tuple(s.accuracy for s in summaries),
             tuple(s.means["energy"] for s in summaries),

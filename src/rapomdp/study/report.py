@@ -11,7 +11,11 @@ from pathlib import Path
 
 from rapomdp.config import METHOD_NAMES
 from rapomdp.experiment.figures import tradeoff
-from rapomdp.experiment.metrics import reported_belief_note, standing_phrases
+from rapomdp.experiment.metrics import (
+    CALIBRATED_ECE_NOTE,
+    reported_belief_note,
+    standing_phrases,
+)
 from rapomdp.experiment.report import Block, Heading, Image, Paragraph, Table, to_html, to_markdown
 from rapomdp.io import markdown_table, read_json, read_text, write_text_atomic
 from rapomdp.study.pooled import (
@@ -47,10 +51,12 @@ def pooled_cells(rows: Sequence[PooledRow]) -> tuple[list[str], list[list[str]]]
     ref = METHOD_NAMES.get(REFERENCE, REFERENCE)
     header = ["Method", "Accuracy (mean of seeds)", "Per seed", "SD over seeds",
               "Energy (m)", "# steps", "Confidence − accuracy", "ECE",
+              "ECE if calibrated (95 %)",
               f"Δ accuracy vs {ref} [95 %, seeds × test models]", "Episodes"]
     cells = [[r.name, f"{r.accuracy:.3f}", " / ".join(f"{a:.3f}" for a in r.accuracy_by_seed),
               f"{r.accuracy_sd:.3f}", f"{r.energy_m:.3f}", f"{r.moves:.2f}",
-              f"{r.overconfidence:+.3f}", f"{r.ece:.3f}", _interval(r), str(r.episodes)]
+              f"{r.overconfidence:+.3f}", f"{r.ece:.3f}", f"{r.ece_if_calibrated:.3f}",
+              _interval(r), str(r.episodes)]
              for r in rows]
     return header, cells
 
@@ -114,7 +120,7 @@ def rows_csv(dataset: str, rows: Sequence[PooledRow]) -> str:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(["dataset", "method", "accuracy", "accuracy_sd", "energy_m", "moves",
                      "confidence_minus_accuracy", "ece", "episodes", "difference_vs_ra",
-                     "ci95_low", "ci95_high", "seeds"])
+                     "ci95_low", "ci95_high", "seeds", "ece_if_calibrated_95"])
     for r in rows:
         d = r.difference
         writer.writerow([dataset, r.method, f"{r.accuracy:.6g}", f"{r.accuracy_sd:.6g}",
@@ -122,7 +128,8 @@ def rows_csv(dataset: str, rows: Sequence[PooledRow]) -> str:
                          f"{r.ece:.6g}", r.episodes,
                          "" if d is None else f"{d.estimate:.6g}",
                          "" if d is None else f"{d.low:.6g}",
-                         "" if d is None else f"{d.high:.6g}", len(r.accuracy_by_seed)])
+                         "" if d is None else f"{d.high:.6g}", len(r.accuracy_by_seed),
+                         f"{r.ece_if_calibrated:.6g}"])
     return buffer.getvalue()
 
 
@@ -197,7 +204,8 @@ def reported_confidence(seeds: Sequence[SeedResult]) -> str:
         return ("Confidence − accuracy and ECE: the seeds' evaluate stages reported differently "
                 f"(evaluate.declared_confidence, declared_fit, declared_form: "
                 f"{'; '.join(', '.join(v) for v in sorted(ran))}).")
-    return "Confidence − accuracy and ECE: " + reported_belief_note(*ran.pop())
+    return ("Confidence − accuracy and ECE: " + reported_belief_note(*ran.pop()) + " "
+            + CALIBRATED_ECE_NOTE)
 
 
 def write_study_report(spec: StudySpec, root: str | Path,
