@@ -66,10 +66,14 @@ def test_the_declared_confidence_table_lists_the_methods_models_fitted_held_out(
     write_json_atomic(observe / "calibration.json", {"declared_confidence": {
         "ra": record(0.6, [0, 1, 2]), "classifier": record(0.7, []),  # one group: no row
         "blackbox": record(0.5, [0, 1])}})  # not a method's model
-    write_json_atomic(vptree / "vptree.json", {"declared_confidence": record(0.8, [0, 1])})
+    write_json_atomic(vptree / "vptree.json", {"declared_confidence": {
+        **record(0.8, [0, 1]), "declared_ece_if_calibrated": 0.0412}})
     header, rows = declared_confidence_cells(observe, vptree)
     assert header[1] == "a" and len(header) == len(rows[0])
+    assert header[-1] == "ECE if calibrated (95 %)"
     assert [r[:2] for r in rows] == [["ra", "0.600"], ["vptree", "0.800"]]
-    assert rows[0][2:] == ["0.700", "0.800", "0.120", "0.710", "0.050"]
+    # a record from before the floor shows a dash; one with it, the floor
+    assert rows[0][2:] == ["0.700", "0.800", "0.120", "0.710", "0.050", "—"]
+    assert rows[1][-1] == "0.041"
     write_json_atomic(observe / "calibration.json", {})  # a workspace from before the option
     assert declared_confidence_cells(observe, None)[1] == []

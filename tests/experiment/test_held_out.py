@@ -204,6 +204,8 @@ def test_the_report_shows_the_closed_loop_fit_and_says_what_was_reported(workspa
         fit = record["methods"][key]
         assert row[1] == f"{fit['declared_confidence']['temperature']:.3f}"
         assert row[-1] == str(fit["episodes"])
+        floor = fit["declared_confidence"]["declared_ece_if_calibrated"]
+        assert 0.0 < floor < 1.0 and row[-2] == f"{floor:.3f}"
     report = (ws.require("report") / "report.md").read_text()
     assert "The POMDP methods' and the learned baseline's declared confidence, fitted at " \
            "their own held-out closed-loop stops (evaluate.declared_fit: closed_loop)" in report

@@ -382,6 +382,13 @@ def test_the_form_is_chosen_by_the_held_out_groups_where_the_length_matters():
     rest = groups != 0
     a = fit_declared_temperature(final[rest], true[rest])
     assert scalar.held_out_readouts[0].scale == pytest.approx(a)
+    # beside the held-out ECE, what sampling alone would give those declared confidences
+    held_out = np.empty(len(true))
+    for g, a in scalar.held_out_readouts.items():
+        held_out[groups == g] = np.exp(declared_log_beliefs(final[groups == g],
+                                                            a.at(1)).max(axis=1))
+    assert scalar.declared_ece_if_calibrated == calibrated_ece(held_out)
+    assert scalar.to_dict()["declared_ece_if_calibrated"] == scalar.declared_ece_if_calibrated
     # asked to win by more standard errors than it does, views gives way to one a
     gain = (held_out_declared_losses(scalar, final, true, groups)
             - held_out_declared_losses(choice.declared, final, true, groups, images))
@@ -395,6 +402,7 @@ def test_the_form_is_chosen_by_the_held_out_groups_where_the_length_matters():
     # one group: nothing to score, one a, and the choice says why
     one = choose_declared_form(final, true, np.zeros(len(true)), images)
     assert one.form == "scalar" and "too little evidence" in one.reason
+    assert np.isnan(one.declared.declared_ece_if_calibrated)  # nothing held out to score
     assert np.isnan(one.held_out_loss["views"])
     assert one.to_dict()["form"] == "scalar"
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -107,7 +108,7 @@ def declared_confidence_cells(observe_dir: Path, vptree_dir: Path | None = None
     others' a). No rows for a workspace from before it or without two held-out groups."""
     records = load_declared_confidence(observe_dir, vptree_dir)
     header = ["Model", "a", "Accuracy at the stops", "Belief: confidence", "ECE",
-              "Declared (held out): confidence", "ECE"]
+              "Declared (held out): confidence", "ECE", "ECE if calibrated (95 %)"]
     rows = []
     for name in DECLARED_MODELS:
         r = records.get(name)
@@ -115,8 +116,16 @@ def declared_confidence_cells(observe_dir: Path, vptree_dir: Path | None = None
             continue
         rows.append([name, f"{r['temperature']:.3f}", f"{r['accuracy']:.3f}",
                      f"{r['confidence']:.3f}", f"{r['ece']:.3f}",
-                     f"{r['declared_confidence']:.3f}", f"{r['declared_ece']:.3f}"])
+                     f"{r['declared_confidence']:.3f}", f"{r['declared_ece']:.3f}",
+                     floor_cell(r)])
     return header, rows
+
+
+def floor_cell(record: dict[str, Any]) -> str:
+    """A declared-confidence record's ``declared_ece_if_calibrated`` as a cell ("—" for a
+    record from before it)."""
+    floor = record.get("declared_ece_if_calibrated")
+    return "—" if floor is None or not np.isfinite(floor) else f"{floor:.3f}"
 
 
 def single_view_models(observe: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

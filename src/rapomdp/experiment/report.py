@@ -40,7 +40,12 @@ from rapomdp.awareness.artefacts import (
 )
 from rapomdp.awareness.figures import RELIABILITY_MIN_COUNT, calibration_caption
 from rapomdp.awareness.quality import quality_cells
-from rapomdp.awareness.report import FIGURES_DIR, declared_confidence_cells, write_fig1
+from rapomdp.awareness.report import (
+    FIGURES_DIR,
+    declared_confidence_cells,
+    floor_cell,
+    write_fig1,
+)
 from rapomdp.config import METHOD_NAMES, Config, EvaluateConfig
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
@@ -693,7 +698,8 @@ def closed_loop_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]
     ``evaluate.declared_form`` views or auto, β of a(n) = a · n^(−β) after a (0: one a)."""
     views = record.get("form", "scalar") != "scalar"
     header = ["Method", "a", *(["β"] if views else []), "Accuracy", "Energy (m)",
-              "Belief: confidence", "ECE", "Declared (held out): confidence", "ECE", "Stops"]
+              "Belief: confidence", "ECE", "Declared (held out): confidence", "ECE",
+              "ECE if calibrated (95 %)", "Stops"]
     rows = []
     for name, fit in record["methods"].items():
         d = fit["declared_confidence"]
@@ -702,6 +708,7 @@ def closed_loop_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]
                      f"{fit['accuracy']:.3f}", f"{fit['energy']:.2f}",
                      f"{d['confidence']:.3f}", f"{d['ece']:.3f}",
                      f"{d['declared_confidence']:.3f}", f"{d['declared_ece']:.3f}",
+                     floor_cell(d),
                      str(fit["episodes"])])
     return header, rows
 

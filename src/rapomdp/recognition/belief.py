@@ -578,7 +578,8 @@ class DeclaredConfidence:
     ``threshold_declared_ece``, ``threshold_own_ece``). NaN where there are not two groups.
     With ``form`` ``views`` the temperature depends on the images an episode took (its fit's
     ``temperature`` is the scale s and ``views_exponent`` β of :class:`DeclaredTemperature`,
-    ``held_out_views_exponents`` the other groups' β); ``scalar`` records leave both out."""
+    ``held_out_views_exponents`` the other groups' β); ``scalar`` records leave both out.
+    ``declared_ece_if_calibrated``: what ``declared_ece`` would be from sampling alone."""
 
     temperature: float
     criterion: str
@@ -598,6 +599,9 @@ class DeclaredConfidence:
     form: str = "scalar"
     views_exponent: float = 0.0
     held_out_views_exponents: tuple[float, ...] = ()
+    #: The ECE a calibrated reporter of the held-out declared confidences shows on as many
+    #: stops from sampling alone, 95th percentile (:func:`calibrated_ece`); NaN as above.
+    declared_ece_if_calibrated: float = float("nan")
 
     @property
     def readout(self) -> DeclaredTemperature:
@@ -698,7 +702,8 @@ def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.nda
         tuple(float(t) for t in thresholds), own,
         tuple(expected_calibration_error(confidence[r], right[r]) for r in per_threshold),
         tuple(ece(declared, r) for r in per_threshold),
-        tuple(ece(declared_own, r) for r in per_threshold), **views)
+        tuple(ece(declared_own, r) for r in per_threshold), **views,
+        declared_ece_if_calibrated=calibrated_ece(declared) if ok else nan)
 
 
 def held_out_declared_losses(declared: DeclaredConfidence, log_beliefs: np.ndarray,
