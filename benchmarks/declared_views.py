@@ -102,10 +102,12 @@ def main() -> None:
                              "when views must win by each of these many standard errors")
     args = parser.parse_args()
     margins: dict[tuple[str, str], list[np.ndarray]] = {}
+    candidate = "auto (nested)" if args.auto else "views"
     rows: dict[tuple[str, str], list[tuple[float, float, float, float]]] = {}
     stops: dict[tuple[str, str], list[np.ndarray]] = {}
     print(f"{'workspace':44s} {'method':10s} {'stops':>5s} {'acc':>6s} "
-          f"{'scalar: c-a / ECE':>18s} {'views: c-a / ECE':>17s} {'s':>6s} {'beta':>6s}")
+          f"{'scalar: c-a / ECE':>18s} {candidate + ': c-a / ECE':>17s} {'s':>6s} "
+          f"{'beta':>6s}" + ("  (s, beta: views fitted on every group)" if args.auto else ""))
     for root in args.workspace:
         ws = Workspace(root)
         config = ws.config()
@@ -148,7 +150,8 @@ def main() -> None:
                     print(f"{'':44s}   {low}-{min(high, 99)} images: {int(k.sum()):4d} stops, "
                           f"accuracy {right[k].mean():.3f}, confidence scalar "
                           f"{scalar[k].mean():.3f} views {views[k].mean():.3f}")
-    print("\nmean over each folder's workspaces (held out): scalar c-a / ECE -> views c-a / ECE")
+    print(f"\nmean over each folder's workspaces (held out): scalar c-a / ECE -> {candidate} "
+          "c-a / ECE")
     mean = {key: np.mean(np.array(v), axis=0) for key, v in rows.items()}
     for (folder, name), m in mean.items():
         print(f"{folder:24s} {name:10s} {m[0]:+.3f} / {m[1]:.3f} -> {m[2]:+.3f} / {m[3]:.3f}  "
@@ -162,7 +165,7 @@ def main() -> None:
                                 expected_calibration_error(views, right), right.size])
     over_pooled = "each folder's held-out stops pooled over its workspaces"
     if args.auto:  # declared_form_auto_rule.md: its conditions on the pooled stops
-        print_pooled(pooled, f"{over_pooled}:", "auto (nested)")
+        print_pooled(pooled, f"{over_pooled}:", candidate)
         print_auto_rule(pooled)
         if args.margins:
             print("\nafter the rule, deciding nothing: pooled ECE, scalar and auto with views "
