@@ -28,6 +28,7 @@ from pydantic import (
 )
 
 from rapomdp.io import ArtefactError, check_plain_name, decode_text
+from rapomdp.retired import RetiredOptionError, drop_retired
 from rapomdp.section import Section
 
 
@@ -935,6 +936,10 @@ def config_from_dict(data: dict[str, Any], source: str = "configuration") -> Con
     """Validate a mapping; errors name every wrong key or value."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: expected a mapping of sections, got {type(data).__name__}")
+    try:
+        data = drop_retired(data, source)
+    except RetiredOptionError as exc:
+        raise ConfigError(str(exc)) from None
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
