@@ -107,7 +107,8 @@ def drop_retired(data: dict[str, Any], source: str) -> dict[str, Any]:
         if not isinstance(node, dict) or leaf not in node:
             continue
         value = node[leaf]
-        if value == retired.default and isinstance(value, bool) == isinstance(retired.default, bool):
+        same_kind = isinstance(value, bool) == isinstance(retired.default, bool)
+        if value == retired.default and same_kind:
             del node[leaf]
             continue
         raise RetiredOptionError(
