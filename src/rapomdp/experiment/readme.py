@@ -1,44 +1,37 @@
-"""The README's results, generated from a finished workspace so that they cannot drift.
+r"""The README's example run, generated from a finished workspace so that it cannot drift.
 
-``rapomdp report -w runs/demo --readme README.md`` replaces the block between
-:data:`BEGIN` and :data:`END` in the README with what the workspace's artefacts say: the
-dataset's roles, the stages' times, single-view accuracy, Table 1 with its paired column, the
-held-out comparison (its forecast), the accuracy–energy sweep, the final beliefs' calibration
-and the self-awareness table; its figures are copied next to the README
-(``--readme-figures``, default ``docs/figures`` beside it), and so is the report's Fig. 1, the
-README's lead figure (:data:`LEAD_FIGURE`). Nothing in the block is typed by hand.
+``rapomdp report -w runs/demo --readme README.md`` replaces the block between :data:`BEGIN`
+and :data:`END` in the README with one sentence and one table, both from the evaluate stage's
+Table 1 (``W/evaluate/table1.md``): which method was most accurate on this run and how
+RA-POMDP stands against each other method (:func:`table1_sentence`). The evaluate stage's
+figures are copied next to the README (``--readme-figures``, default ``docs/figures`` beside
+it; the documentation shows them), and so is the report's Fig. 1, the README's lead figure
+(:data:`LEAD_FIGURE`). Nothing in the block is typed by hand.
+
+Example:
+    >>> table = ("| Method | Accuracy [95 % CI] | Δ accuracy vs RA-POMDP [95 % CI] |\n"
+    ...          "|---|---|---|\n| Random | 0.700 [0.6, 0.8] | -0.100 [-0.150, -0.050] |\n"
+    ...          "| RA-POMDP | 0.800 [0.7, 0.9] | — |\n")
+    >>> print(table1_sentence(table))  # doctest: +NORMALIZE_WHITESPACE
+    On this run RA-POMDP is the most accurate method (0.800); over the same (test model,
+    start) pairs, with 95 % intervals that resample test models, RA-POMDP is more accurate
+    than Random (by 0.100).
 """
 
 from __future__ import annotations
 
 import platform
+import re
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
 from rapomdp.config import Config
-from rapomdp.data.dataset import load_dataset, role_count_lines
-from rapomdp.experiment.episode_table import EPISODES_FILE, SUMMARY_FILE, EpisodeTable
-from rapomdp.experiment.held_out import load_held_out_comparison
-from rapomdp.experiment.metrics import (
-    CALIBRATED_ECE_NOTE,
-    belief_calibration_cells,
-    reported_belief_note,
-    table1_story,
-)
-from rapomdp.experiment.report import (
-    evaluation_summaries,
-    figure_class,
-    held_out_comparison_cells,
-    held_out_comparison_story,
-)
-from rapomdp.io import (
-    atomic_path,
-    check_output_path,
-    markdown_table,
-    read_json,
-    write_text_atomic,
-)
-from rapomdp.recognition.artefacts import load_single_view_metrics
+from rapomdp.data.dataset import load_dataset
+from rapomdp.experiment.episode_table import SUMMARY_FILE
+from rapomdp.experiment.metrics import standing_phrases
+from rapomdp.experiment.report import figure_class
+from rapomdp.io import atomic_path, check_output_path, read_json, write_text_atomic
 from rapomdp.workspace import StageError, Workspace
 
 BEGIN = "<!-- BEGIN generated results: rapomdp report --readme (do not edit by hand) -->"
@@ -59,73 +52,120 @@ def _read(path: Path) -> str:
     return path.read_text(encoding="utf-8").strip()
 
 
-def _story(table: EpisodeTable | None, evaluate: Path, seed: int) -> list[str]:
-    """What Table 1 and the curves show, from the episodes (as the report says it)."""
-    if table is None:
-        return []
-    rows, paired, points, _ = evaluation_summaries(table, evaluate, seed)
-    return [table1_story(rows, paired, points), ""]
+def markdown_tables(text: str) -> list[tuple[list[str], list[list[str]]]]:
+    """Every pipe table of a Markdown text, as (header, rows of cells), in order.
+
+    Args:
+        text: Markdown, as :func:`rapomdp.io.markdown_table` writes tables (one row a line,
+            cells between ``|``, a ``|---|`` rule under the header).
+
+    Returns:
+        One ``(header, rows)`` per table; cells are stripped strings.
+    """
+    tables: list[tuple[list[str], list[list[str]]]] = []
+    lines = text.splitlines()
+    i = 0
+    while i + 1 < len(lines):
+        head, rule = lines[i].strip(), lines[i + 1].strip()
+        if head.startswith("|") and re.fullmatch(r"\|(\s*:?-+:?\s*\|)+", rule):
+            rows = []
+            i += 2
+            while i < len(lines) and lines[i].strip().startswith("|"):
+                rows.append([c.strip() for c in lines[i].strip().strip("|").split("|")])
+                i += 1
+            tables.append(([c.strip() for c in head.strip("|").split("|")], rows))
+        else:
+            i += 1
+    return tables
 
 
-def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> str:
-    """The generated block (without its markers) for a workspace whose stages have all run;
-    ``figures_link`` is the figures folder as the README links it."""
-    manifest = workspace.manifest()["stages"]
-    missing = [s for s in ("dataset", "classifier_eval", "observe", "evaluate")
-               if s not in manifest]
-    if missing:
-        raise StageError(f"{workspace.root}: stage(s) {', '.join(missing)} have not run; "
+def interval_cell(cell: str) -> tuple[float, float, float] | None:
+    """``"-0.195 [-0.254, -0.134]"`` as (estimate, low, high); None for ``"—"`` (the
+    reference's own row) or an empty cell."""
+    match = re.match(r"\s*([-+]?\d+(?:\.\d+)?)\s*\[\s*([-+]?\d+(?:\.\d+)?)\s*,"
+                     r"\s*([-+]?\d+(?:\.\d+)?)\s*\]", cell)
+    if match is None:
+        return None
+    estimate, low, high = (float(g) for g in match.groups())
+    return estimate, low, high
+
+
+def leading_number(cell: str) -> float:
+    """The number a cell starts with (``"0.857 [0.826, 0.884]"`` -> 0.857)."""
+    match = re.match(r"\s*([-+]?\d+(?:\.\d+)?)", cell)
+    if match is None:
+        raise ValueError(f"not a number: {cell!r}")
+    return float(match.group(1))
+
+
+def _column(header: Sequence[str], prefix: str) -> int | None:
+    return next((i for i, h in enumerate(header) if h.startswith(prefix)), None)
+
+
+def table1_sentence(table1: str) -> str:
+    """One sentence saying what Table 1 shows, from its Markdown (``W/evaluate/table1.md``).
+
+    Args:
+        table1: Table 1 as the evaluate stage writes it: a ``Method`` column, an ``Accuracy``
+            column and, where the methods were paired, a ``Δ accuracy vs <reference>`` column
+            (the reference's own cell ``—``).
+
+    Returns:
+        Which method is the most accurate and, with the paired column, how the reference
+        stands against each other method ("more accurate than A (by 0.1)", "not
+        distinguishable from B": an interval holding 0).
+
+    Raises:
+        ValueError: the text holds no table with ``Method`` and ``Accuracy`` columns.
+    """
+    for header, rows in markdown_tables(table1):
+        method, accuracy = _column(header, "Method"), _column(header, "Accuracy")
+        if method is None or accuracy is None or not rows:
+            continue
+        best = max(rows, key=lambda r: leading_number(r[accuracy]))
+        sentence = (f"On this run {best[method]} is the most accurate method "
+                    f"({leading_number(best[accuracy]):.3f})")
+        delta = _column(header, "Δ accuracy vs ")
+        if delta is not None:
+            reference = header[delta][len("Δ accuracy vs "):].split(" [")[0]
+            said = standing_phrases([(r[method], *interval)
+                                     for r in rows
+                                     if (interval := interval_cell(r[delta])) is not None])
+            if said:
+                sentence += ("; over the same (test model, start) pairs, with 95 % intervals "
+                             f"that resample test models, {reference} is {' and '.join(said)}")
+        return sentence + "."
+    raise ValueError("no table with Method and Accuracy columns")
+
+
+def results_markdown(workspace: Workspace, figures_link: str = "docs/figures",
+                     seed: int = 0) -> str:
+    """The generated block (without its markers) for a workspace whose stages have all run.
+
+    Args:
+        workspace: a workspace whose evaluate stage has run.
+        figures_link: unused; kept for callers that pass the README's figures folder.
+        seed: the configuration's seed, named in the block's first line.
+
+    Returns:
+        Three paragraphs: where the numbers come from, :func:`table1_sentence`, and Table 1.
+
+    Raises:
+        StageError: the evaluate stage has not run.
+    """
+    del figures_link
+    if "evaluate" not in workspace.manifest()["stages"]:
+        raise StageError(f"{workspace.root}: stage(s) evaluate have not run; "
                          f"run `rapomdp run -w {workspace.root}` first")
-    finished = max(str(r.get("finished", "")) for r in manifest.values())
-    seconds = {name: float(r.get("seconds", 0.0)) for name, r in manifest.items()}
-    metrics = load_single_view_metrics(workspace.require("classifier_eval"))
-    evaluate = workspace.require("evaluate")
-    episodes = (EpisodeTable.load(evaluate / EPISODES_FILE)
-                if (evaluate / EPISODES_FILE).exists() else None)
-    lines = [
-        f"*Generated from the workspace `{workspace.root.name}` (last stage finished "
-        f"{finished}; Python {platform.python_version()}, {platform.machine()}).*",
+    table1 = _read(workspace.require("evaluate") / "table1.md")
+    return "\n".join([
+        f"*Generated by `rapomdp report --readme` from the workspace `{workspace.root.name}` "
+        f"(seed {seed}; Python {platform.python_version()}, {platform.machine()}).*",
         "",
-        "**Dataset.** " + "; ".join(role_count_lines(workspace.require("dataset"))) + ".",
+        table1_sentence(table1),
         "",
-        f"**Single views.** The classifier is right on {metrics.xrho.accuracy:.1%} of the test "
-        f"models' views from X_rho (chance {metrics.xrho.chance:.1%}).",
-        "",
-        "**Stage times** (seconds, as recorded in the manifest; "
-        f"{sum(seconds.values()):.0f} s in all):",
-        "",
-        "| " + " | ".join(seconds) + " |",
-        "|" + "---|" * len(seconds),
-        "| " + " | ".join(f"{s:.0f}" for s in seconds.values()) + " |",
-        "",
-        "**Table 1** (closed-loop episodes on the test models):",
-        "",
-        *_story(episodes, evaluate, seed),
-        _read(evaluate / "table1.md"),
-        "",
-    ]
-    held_out = load_held_out_comparison(evaluate)
-    if held_out is not None and held_out["methods"]:
-        lines += ["**The held-out comparison** (every method on the volume models, run before "
-                  "any test model was read: the forecast of Table 1; docs/experiment.md). "
-                  + held_out_comparison_story(held_out), "",
-                  markdown_table(*held_out_comparison_cells(held_out)).strip(), ""]
-    if (evaluate / "tradeoff.md").exists():
-        lines += ["**Accuracy against energy** (every method over its settings, the same "
-                  "(test model, start) pairs):", "", _read(evaluate / "tradeoff.md"), "",
-                  f"![Accuracy against energy]({figures_link}/demo_tradeoff.png)", ""]
-    if episodes is not None:
-        ran = workspace.config(default=Config()).evaluate
-        lines += ["**Calibration of the final belief** (confidence: the belief in the declared "
-                  "class, which a calibrated belief's accuracy equals; ECE over 10 bins). "
-                  + reported_belief_note(ran.declared_confidence, ran.declared_fit,
-                                           ran.declared_form) + " " + CALIBRATED_ECE_NOTE, "",
-                  markdown_table(*belief_calibration_cells(episodes)).strip(), ""]
-    lines += ["**Self-awareness** (observation models on the test models):", "",
-              _read(workspace.require("observe") / "quality.md"), "",
-              f"![Belief in the true class]({figures_link}/demo_fig3.png)", "",
-              f"![Trajectories]({figures_link}/demo_trajectories.png)"]
-    return "\n".join(lines)
+        table1,
+    ])
 
 
 def lead_figure(workspace: Workspace) -> Path | None:
