@@ -97,8 +97,9 @@ def test_the_readme_block_follows_the_study(tiny_study: TinyStudy, tmp_path: Pat
     update_study_readme(tiny_study.spec, root, readme)
     first = readme.read_text()
     assert "\nold\n" not in first and first.endswith(f"{END}\n\nafter\n")
-    assert "2 seeds (0, 1), vary train" in first and "'tiny'" in first
-    assert "Confidence − accuracy and ECE: Random, the POMDP methods and the learned" in first
+    assert "Over 2 seeds (0, 1; the same split, models and starts; each seed its own " \
+        "classifier)" in first and "on 'tiny' (" in first
+    assert "| Method | 'tiny' accuracy | energy (m) | Δ vs RA-POMDP [95 %] |" in first
     # another outcome in seed 1: every RA-POMDP episode right
     path = root / "tiny" / "seed-1" / "evaluate" / EPISODES_FILE
     table = EpisodeTable.load(path)
@@ -209,5 +210,5 @@ def test_the_report_shows_the_held_out_forecast_beside_table_1(tiny_study: TinyS
         "any test model was read; 2 seeds" in text
     assert "| Random | 0.500 | 2.000 | -0.125 [" in text
     assert "Test Δ vs RA-POMDP [95 %, seeds × test models]" in text
-    block = study_markdown(tiny_study.spec, root, resamples=200)  # the README's block too
-    assert "| Random | 0.500 | 2.000 | -0.125 [" in block
+    block = study_markdown(tiny_study.spec, root, resamples=200)  # the README: test models only
+    assert "held-out" not in block and "| Random | 0.500 | 2.000 | -0.125 [" not in block

@@ -1,5 +1,6 @@
 """A study's report (``S/report/report.md|html``, CSVs, one accuracy–energy figure per
-configuration) and the README's study block, written from the seed workspaces' artefacts."""
+configuration), written from the seed workspaces' artefacts; the README's study block is
+:mod:`rapomdp.study.readme` (its names stay importable here)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from rapomdp.experiment.metrics import (
     standing_phrases,
 )
 from rapomdp.experiment.report import Block, Heading, Image, Paragraph, Table, to_html, to_markdown
-from rapomdp.io import markdown_table, read_json, read_text, write_text_atomic
+from rapomdp.io import read_json, read_text, write_text_atomic
 from rapomdp.study.pooled import (
     REFERENCE,
     HeldOutRow,
@@ -30,14 +31,17 @@ from rapomdp.study.pooled import (
     pooled_points,
     pooled_table,
 )
+from rapomdp.study.readme import (  # noqa: F401
+    BEGIN,
+    END,
+    VARY_WORDS,
+    study_markdown,
+    update_study_readme,
+)
 from rapomdp.study.spec import StudySpec
-from rapomdp.workspace import StageError, Workspace
+from rapomdp.workspace import Workspace
 
 REPORT_DIR = "report"
-BEGIN = "<!-- BEGIN generated study results: rapomdp study --readme (do not edit by hand) -->"
-END = "<!-- END generated study results -->"
-VARY_WORDS = {"all": "each seed its own split, models, classifier and starts",
-              "train": "the same split, models and starts; each seed its own classifier"}
 
 
 def _interval(row: PooledRow) -> str:
@@ -272,37 +276,3 @@ def _concat(tables: Sequence[str]) -> str:
     """CSV texts with one header."""
     head, *rest = tables
     return head + "".join(t.split("\n", 1)[1] for t in rest)
-
-
-def study_markdown(spec: StudySpec, root: str | Path, resamples: int = 10_000) -> str:
-    """The README's study block (without its markers): per configuration, who wins and the
-    pooled Table 1, naming the seeds, and the held-out comparison beside it where the seeds
-    have one."""
-    results = load_seed_results(spec, root)
-    lines = [f"*Generated from the study `{Path(root).name}`: {len(spec.seeds)} seeds "
-             f"({', '.join(map(str, spec.seeds))}), vary {spec.vary} ({VARY_WORDS[spec.vary]}); "
-             f"configurations {', '.join(d.name for d in spec.datasets)}. Intervals: 95 %, "
-             "resampling seeds and, within them, test models.*", ""]
-    for name, seeds in results.items():
-        rows = pooled_table(seeds, resamples)
-        lines += [study_story(name, rows, spec.seeds, spec.vary), "",
-                  markdown_table(*pooled_cells(rows)).strip(), "",
-                  reported_confidence(seeds), ""]
-        held = held_out_table(seeds, resamples)
-        if held:
-            story = held_out_story(held, len(seeds))
-            lines += [*([story, ""] if story else []),
-                      markdown_table(*held_out_cells(held, rows)).strip(), ""]
-    return "\n".join(lines).rstrip()
-
-
-def update_study_readme(spec: StudySpec, root: str | Path, readme: str | Path) -> Path:
-    """Replace the README's study block with what the study's artefacts say."""
-    readme = Path(readme)
-    text = read_text(readme)
-    start, end = text.find(BEGIN), text.find(END)
-    if start < 0 or end < start:
-        raise StageError(f"{readme}: no generated study block; add the two lines\n{BEGIN}\n"
-                         f"{END}\nwhere the study's results should go")
-    block = study_markdown(spec, root)
-    return write_text_atomic(readme, text[:start] + BEGIN + "\n" + block + "\n" + text[end:])
