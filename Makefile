@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 DEMO_WORKSPACE ?= runs/demo
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: install demo readme test lint bench clean
+.PHONY: install demo readme test lint docs bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -16,7 +16,7 @@ $(PY):
 $(STAMP): $(PY) pyproject.toml constraints.txt
 	$(PIP) install --quiet --upgrade pip
 	$(PIP) install --quiet torch==2.13.0
-	$(PIP) install --quiet -c constraints.txt -e '.[test]'
+	$(PIP) install --quiet -c constraints.txt -e '.[test,docs]'
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -38,6 +38,11 @@ test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
 	$(PY) -m mypy
 	OMP_NUM_THREADS=1 $(PY) -m pytest -q
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
+
+# The documentation site (mkdocs.yml), offline: site/index.html. Any warning is an error.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
@@ -59,4 +64,4 @@ bench: $(STAMP)
 	$(PY) benchmarks/dataset_difficulty.py --workspace $(DEMO_WORKSPACE)
 
 clean:
-	rm -rf $(VENV) runs
+	rm -rf $(VENV) runs site
