@@ -1,12 +1,12 @@
 r"""The README's example run, generated from a finished workspace so that it cannot drift.
 
-``rapomdp report -w runs/demo --readme README.md`` replaces the block between :data:`BEGIN`
-and :data:`END` in the README with one sentence and one table, both from the evaluate stage's
+``rapomdp report -w runs/demo --readme README.md`` replaces the block between `BEGIN`
+and `END` in the README with one sentence and one table, both from the evaluate stage's
 Table 1 (``W/evaluate/table1.md``): which method was most accurate on this run and how
-RA-POMDP stands against each other method (:func:`table1_sentence`). The evaluate stage's
+RA-POMDP stands against each other method (`table1_sentence`). The evaluate stage's
 figures are copied next to the README (``--readme-figures``, default ``docs/figures`` beside
 it; the documentation shows them), and so is the report's Fig. 1, the README's lead figure
-(:data:`LEAD_FIGURE`). Nothing in the block is typed by hand.
+(`LEAD_FIGURE`). Nothing in the block is typed by hand.
 
 Example:
     >>> table = ("| Method | Accuracy [95 % CI] | Δ accuracy vs RA-POMDP [95 % CI] |\n"
@@ -41,7 +41,7 @@ END = "<!-- END generated results -->"
 README_FIGURES = (("tradeoff.png", "demo_tradeoff.png"), ("fig3.png", "demo_fig3.png"),
                   ("trajectories.png", "demo_trajectories.png"))
 #: The README's lead figure, beside it: the report's Fig. 1 of the figure class
-#: (:func:`lead_figure`).
+#: (`lead_figure`).
 LEAD_FIGURE = "demo_fig1.png"
 
 
@@ -56,7 +56,7 @@ def markdown_tables(text: str) -> list[tuple[list[str], list[list[str]]]]:
     """Every pipe table of a Markdown text, as (header, rows of cells), in order.
 
     Args:
-        text: Markdown, as :func:`rapomdp.io.markdown_table` writes tables (one row a line,
+        text: Markdown, as `rapomdp.io.markdown_table` writes tables (one row a line,
             cells between ``|``, a ``|---|`` rule under the header).
 
     Returns:
@@ -148,7 +148,7 @@ def results_markdown(workspace: Workspace, figures_link: str = "docs/figures",
         seed: the configuration's seed, named in the block's first line.
 
     Returns:
-        Three paragraphs: where the numbers come from, :func:`table1_sentence`, and Table 1.
+        Three paragraphs: where the numbers come from, `table1_sentence`, and Table 1.
 
     Raises:
         StageError: the evaluate stage has not run.
@@ -170,7 +170,7 @@ def results_markdown(workspace: Workspace, figures_link: str = "docs/figures",
 
 def lead_figure(workspace: Workspace) -> Path | None:
     """The report's Fig. 1 (``W/report/fig1_<class>.png``, the class of Figs. 1 and 3:
-    :func:`rapomdp.experiment.report.figure_class`), or None before the report has run."""
+    `rapomdp.experiment.report.figure_class`), or None before the report has run."""
     if "report" not in workspace.manifest()["stages"]:
         return None
     summary = workspace.require("evaluate") / SUMMARY_FILE
@@ -185,8 +185,8 @@ def lead_figure(workspace: Workspace) -> Path | None:
 def update_readme(workspace: Workspace, readme: Path, figures: Path | None = None) -> Path:
     """Replace the README's generated block with ``workspace``'s results and copy its figures to
     ``figures`` (default: ``docs/figures`` beside the README): the evaluate stage's
-    (:data:`README_FIGURES`) and, once the report has run, its Fig. 1 as the README's lead
-    figure (:data:`LEAD_FIGURE`). The README must hold the markers."""
+    (`README_FIGURES`) and, once the report has run, its Fig. 1 as the README's lead
+    figure (`LEAD_FIGURE`). The README must hold the markers."""
     readme = check_output_path(readme)  # a FIFO or device is neither read nor replaced
     figures = Path(figures) if figures is not None else readme.parent / "docs" / "figures"
     for name in (*(n for _, n in README_FIGURES), LEAD_FIGURE):  # all checked before any write

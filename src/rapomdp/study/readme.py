@@ -1,14 +1,14 @@
 r"""The README's headline claim: one table and one sentence, generated from a study.
 
-The block between :data:`BEGIN` and :data:`END` in the README is written by code, from either
+The block between `BEGIN` and `END` in the README is written by code, from either
 of two sources that give the same block for the same study:
 
 - a study folder (``rapomdp study -s S --report-only --readme README.md``:
-  :func:`update_study_readme`), pooling its seed workspaces;
+  `update_study_readme`), pooling its seed workspaces;
 - the Markdown report such a study wrote (``S/report/report.md``, as committed under
   ``benchmarks/results/``), where the seed workspaces are not on the machine:
   ``python -m rapomdp.study.readme --readme README.md REPORT.md [REPORT.md ...]``
-  (:func:`update_study_readme_from_reports`).
+  (`update_study_readme_from_reports`).
 
 Both go through the numbers as the report prints them (three decimals), so a study folder and
 its report give the same block. The table has one row per method and, per configuration, the
