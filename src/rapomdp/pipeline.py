@@ -256,8 +256,41 @@ def run_pipeline(
     context: RunContext = RunContext(),
     share_from: Sequence[Workspace] = (),
 ) -> list[StageResult]:
-    """Run every stage (or those ``until`` needs) in order, skipping current ones; a stage that
-    a workspace of ``share_from`` already made with the same key is taken from it instead."""
+    """Run every stage (or those ``until`` needs) in order, skipping current ones.
+
+    Args:
+        config: the run's configuration (``load_config`` or ``config_from_dict``).
+        workspace: the folder the stages write to and their keys are recorded in.
+        until: the last stage to run (with the stages it needs); None: every stage.
+        force: stages to redo even if current.
+        on_result: called after each stage with its ``StageResult``.
+        context: worker processes, threads, progress bars and scheduler; no artefact
+            depends on it.
+        share_from: workspaces whose stages made with the same key are taken as hard
+            links instead of rerun (what a study does between seeds).
+
+    Returns:
+        One ``StageResult`` per stage considered, in order: its ``name``, ``key``, whether
+        it was ``cached``, its ``seconds`` and ``files``.
+
+    Raises:
+        StageError: a stage failed (the message names the file and what went wrong); the
+            earlier stages' artefacts stay intact.
+
+    Examples:
+        >>> import tempfile
+        >>> from rapomdp.config import config_from_dict
+        >>> from rapomdp.context import RunContext
+        >>> from rapomdp.workspace import Workspace
+        >>> config = config_from_dict({"dataset": {"classes": ["mug", "cup"]}})
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     done = run_pipeline(config, Workspace(folder), until="dataset",
+        ...                         context=RunContext(progress=False))
+        ...     again = run_pipeline(config, Workspace(folder), until="dataset",
+        ...                          context=RunContext(progress=False))
+        >>> [(r.name, r.cached) for r in done + again]
+        [('dataset', False), ('dataset', True)]
+    """
     force = set(force)
     unknown = force - set(STAGE_NAMES)
     if unknown:

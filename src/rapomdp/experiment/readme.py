@@ -8,7 +8,7 @@ figures are copied next to the README (``--readme-figures``, default ``docs/figu
 it; the documentation shows them), and so is the report's Fig. 1, the README's lead figure
 (`LEAD_FIGURE`). Nothing in the block is typed by hand.
 
-Example:
+Examples:
     >>> table = ("| Method | Accuracy [95 % CI] | Δ accuracy vs RA-POMDP [95 % CI] |\n"
     ...          "|---|---|---|\n| Random | 0.700 [0.6, 0.8] | -0.100 [-0.150, -0.050] |\n"
     ...          "| RA-POMDP | 0.800 [0.7, 0.9] | — |\n")

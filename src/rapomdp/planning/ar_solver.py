@@ -672,11 +672,43 @@ def solve_active_recognition(
     memory_gb: float = DEFAULT_MEMORY_GB,
     **options: Any,
 ) -> SolveResult[ActiveRecognitionPolicy]:
-    """Solve the MOMDP with :class:`ActiveRecognitionSolver`; ``result.policy`` is an
-    :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`. ``chunk``, ``grid`` (False: no
-    grid bound; an int: that resolution), ``grid_entries`` and ``memory_gb`` (the cap every
-    structure is sized against, default 4) go to the constructor, ``options`` to
-    :meth:`ActiveRecognitionSolver.solve` (``clock``, ``checkpoints``, ``max_iterations``, …).
-    ``result.note`` says which bounds the cap and the budget left in use."""
+    """Solve the active-recognition MOMDP (point-based, in the manner of SARSOP).
+
+    Args:
+        problem: from ``build_active_recognition_problem``.
+        precision: stop when the gap between the bounds at the start belief is below this.
+        timeout: the budget in seconds of process CPU time (time waiting does not count).
+        callback: called with the bounds as they improve (``Progress``).
+        chunk: entries of the working blocks (halved when the cap is small).
+        grid: the grid upper bound: True (the finest resolution that fits), False (none) or
+            a resolution.
+        grid_entries: the most entries the grid may have.
+        memory_gb: the cap every structure is sized against before it is allocated.
+        **options: ``ActiveRecognitionSolver.solve``'s (``clock``, ``checkpoints``,
+            ``max_iterations``, ...).
+
+    Returns:
+        ``lower`` and ``upper``, bounds on the value at the start belief; ``policy``, an
+        ``ActiveRecognitionPolicy`` (``act``, ``lookahead_act``, ``save``); ``note``, which
+        bounds the cap and the budget left in use.
+
+    Raises:
+        MemoryCapError: the problem cannot fit in ``memory_gb``, said before allocating.
+
+    Examples:
+        >>> import numpy as np
+        >>> from rapomdp.planning import build_active_recognition_problem
+        >>> P = np.full((4, 2, 2), 0.5)                    # viewpoint 0 tells nothing
+        >>> P[1:] = [[0.9, 0.1], [0.1, 0.9]]               # viewpoints 1-3: right 9 times in 10
+        >>> E = np.full((4, 4), 0.2)                       # 0.2 m between any two viewpoints
+        >>> np.fill_diagonal(E, 0.0)
+        >>> problem = build_active_recognition_problem(P, E, lambda_=8.0)
+        >>> from rapomdp.planning import solve_active_recognition
+        >>> result = solve_active_recognition(problem, timeout=5)
+        >>> bool(result.lower <= result.upper)
+        True
+        >>> result.policy.act(0, np.array([0.5, 0.5]))    # look from an informative view
+        ARAction(kind='move', target=1)
+    """
     solver = ActiveRecognitionSolver(problem, chunk, grid, grid_entries, memory_gb)
     return solver.solve(precision, timeout, callback, **options)

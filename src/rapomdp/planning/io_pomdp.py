@@ -459,9 +459,36 @@ def parse_pomdp(text: str, source: str = "<string>", memory_gb: float = DEFAULT_
 
 def read_pomdp(path: str | os.PathLike[str], memory_gb: float = DEFAULT_MEMORY_GB,
                solver_bytes: SizeEstimate | None = None) -> POMDP:
-    """Read a ``.pomdp`` file; a missing or undecodable file is a :class:`PomdpParseError`;
-    see :func:`parse_pomdp`. The file is sized before it is read (a device or pipe is read no
-    further than the memory cap allows): :class:`~rapomdp.planning.memory.MemoryCapError`."""
+    """Read a Cassandra ``.pomdp`` file (see ``parse_pomdp``).
+
+    Args:
+        path: the file.
+        memory_gb: the cap the file is sized against before it is read (a device or pipe is
+            read no further than the cap allows).
+        solver_bytes: also count what a solver of the problem will need.
+
+    Returns:
+        The flat ``POMDP`` (transition, observation and reward arrays, start belief).
+
+    Raises:
+        PomdpParseError: a missing, undecodable or malformed file (the message names the
+            line).
+        MemoryCapError: the problem cannot fit in ``memory_gb``.
+
+    Examples:
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> import numpy as np
+        >>> from rapomdp.planning import (build_active_recognition_problem, read_pomdp,
+        ...                               to_flat_pomdp, write_pomdp)
+        >>> P = np.full((2, 2, 2), 0.5)
+        >>> problem = build_active_recognition_problem(P, np.array([[0.0, 0.2], [0.2, 0.0]]))
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     path = write_pomdp(to_flat_pomdp(problem), Path(folder) / "ar.pomdp")
+        ...     pomdp = read_pomdp(path)
+        >>> pomdp.n_states                                 # (viewpoint, class) and the end
+        5
+    """
     path = Path(path)
     limit = int(cap_bytes(memory_gb) // READ_BYTES_PER_BYTE)
     try:

@@ -174,16 +174,44 @@ def build_active_recognition_problem(
 ) -> ActiveRecognitionProblem:
     """The pipeline's entry point: the MOMDP from the observe and robot stages' arrays.
 
-    ``observation_model`` (V, C, C) = P(o | class, viewpoint), or (V, T·C, C) with T instance
-    types; ``move_energy`` (V, V) = E_M; ``reachable`` (V,) bool (all True when omitted);
-    ``lambda_`` weighs a wrong declaration (Eq. 1); the episode starts at ``start_viewpoint``
-    with ``start_belief`` over the hidden states (uniform when omitted; a typed model's is
-    the observe stage's prior over types).
-
     ``move_energy`` may hold +inf for moves to or from an unreachable viewpoint, as the robot
     stage writes it: those moves are not actions, so the entries are replaced by the largest
-    finite energy (:func:`finite_move_energy`); inf between two reachable viewpoints, NaN or a
+    finite energy (``finite_move_energy``); inf between two reachable viewpoints, NaN or a
     negative energy is refused.
+
+    Args:
+        observation_model: (V, C, C), P(o | class, viewpoint) at ``[v, c, o]``, each row
+            summing to 1; or (V, T·C, C) with T instance types.
+        move_energy: (V, V), E_M of moving from viewpoint v to j, metres (Eq. 3).
+        reachable: (V,) bool, the viewpoints the arm reaches (all when omitted).
+        lambda_: the cost of a wrong declaration, metres of energy (Eq. 1).
+        discount: the discount factor γ of the MOMDP.
+        start_viewpoint: where the episode starts.
+        start_belief: over the hidden states (uniform when omitted; a typed model's is the
+            observe stage's prior over types).
+        allow_stay: whether "move to where you are" is an action.
+        class_names: the classes' names, for exports.
+
+    Returns:
+        The problem: ``n_viewpoints``, ``n_classes``, the move ``targets`` and
+        ``update(belief, viewpoint, label)`` (Eq. 5).
+
+    Raises:
+        ValueError: shapes that disagree, rows that do not sum to 1, or a NaN, negative or
+            infinite energy between reachable viewpoints.
+
+    Examples:
+        >>> import numpy as np
+        >>> from rapomdp.planning import build_active_recognition_problem
+        >>> P = np.full((4, 2, 2), 0.5)                    # viewpoint 0 tells nothing
+        >>> P[1:] = [[0.9, 0.1], [0.1, 0.9]]               # viewpoints 1-3: right 9 times in 10
+        >>> E = np.full((4, 4), 0.2)                       # 0.2 m between any two viewpoints
+        >>> np.fill_diagonal(E, 0.0)
+        >>> problem = build_active_recognition_problem(P, E, lambda_=8.0)
+        >>> problem.n_viewpoints, problem.n_classes
+        (4, 2)
+        >>> problem.update(np.array([0.5, 0.5]), 1, 0)    # label 0 seen from viewpoint 1
+        array([0.9, 0.1])
     """
     P = np.asarray(observation_model, dtype=np.float64)
     reach = np.asarray(np.ones(P.shape[0], dtype=bool) if reachable is None else reachable,

@@ -406,7 +406,30 @@ def solve_pomdp(
     memory_gb: float = DEFAULT_MEMORY_GB,
     **options: Any,
 ) -> SolveResult[AlphaVectorPolicy]:
-    """Solve a flat POMDP with :class:`FlatSarsop` within ``timeout`` seconds of process CPU
-    time and ``memory_gb``; see :meth:`FlatSarsop.solve`."""
+    """Solve a flat POMDP (any Cassandra ``.pomdp`` problem) with ``FlatSarsop``.
+
+    Args:
+        pomdp: the problem, e.g. from ``read_pomdp``.
+        precision: stop when the gap between the bounds at the start belief is below this.
+        timeout: the budget in seconds of process CPU time.
+        callback: called with the bounds as they improve.
+        memory_gb: the cap every structure is sized against before it is allocated.
+        **options: ``FlatSarsop.solve``'s.
+
+    Returns:
+        ``lower`` and ``upper`` on the value at the start belief, and ``policy``, an
+        ``AlphaVectorPolicy`` (``act(belief)`` gives an action index).
+
+    Examples:
+        >>> import numpy as np
+        >>> from rapomdp.planning import (build_active_recognition_problem, solve_pomdp,
+        ...                               to_flat_pomdp)
+        >>> P = np.full((2, 2, 2), 0.5)
+        >>> P[1] = [[0.9, 0.1], [0.1, 0.9]]
+        >>> problem = build_active_recognition_problem(P, np.array([[0.0, 0.2], [0.2, 0.0]]))
+        >>> result = solve_pomdp(to_flat_pomdp(problem), timeout=5)
+        >>> bool(result.lower <= result.upper + 1e-9)
+        True
+    """
     check_budget(precision, timeout)
     return FlatSarsop(pomdp, memory_gb).solve(precision, timeout, callback, **options)

@@ -15,7 +15,7 @@ its report give the same block. The table has one row per method and, per config
 accuracy (mean of seeds), the energy and the paired difference to RA-POMDP with its 95 %
 interval; the sentence says how RA-POMDP stands on each configuration.
 
-Example:
+Examples:
     >>> report = '''5 seeds (0, 1, 2, 3, 4), vary: all (each seed its own split).
     ...
     ... ## Configuration 'default'
