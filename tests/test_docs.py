@@ -69,9 +69,10 @@ def test_the_readme_is_short_and_names_no_retired_option() -> None:
 
 
 #: Modules whose docstring examples the reference shows: each must run as written.
-EXAMPLE_MODULES = ("rapomdp.planning.momdp", "rapomdp.planning.ar_solver",
+EXAMPLE_MODULES = ("rapomdp.planning.momdp", "rapomdp.planning.ar_solver", "rapomdp.data.renderer",
                    "rapomdp.planning.sarsop", "rapomdp.planning.io_pomdp", "rapomdp.retired",
-                   "rapomdp.experiment.readme", "rapomdp.study.readme", "rapomdp.pipeline")
+                   "rapomdp.experiment.readme", "rapomdp.study.readme", "rapomdp.pipeline",
+                   "rapomdp.study.spec")
 
 
 def test_the_reference_examples_run() -> None:

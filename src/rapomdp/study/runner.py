@@ -93,8 +93,27 @@ def _seed_task(config_json: str, root: str, dataset: str, seed: int, sources: li
 def run_study(spec: StudySpec, root: str | Path, context: RunContext = RunContext(),
               on_result: Callable[[str, int, StageResult], None] | None = None
               ) -> list[SeedRun]:
-    """Every (configuration, seed) of ``spec`` under ``root``, in order; ``spec`` is recorded
-    as the study's (``S/study.yaml``) before anything runs."""
+    """Run every (configuration, seed) of ``spec`` under ``root``, in order.
+
+    Each is a workspace ``root/<configuration>/seed-<seed>``, cached and resumable; a stage
+    another seed or configuration already made with the same key is shared as hard links.
+    ``spec`` is recorded as the study's (``S/study.yaml``) before anything runs.
+
+    Args:
+        spec: the configurations, seeds and what a seed varies.
+        root: the study folder.
+        context: worker processes, threads, progress bars and scheduler (with a scheduler,
+            one Dask task per seed).
+        on_result: called with (configuration, seed, ``StageResult``) after each stage.
+
+    Returns:
+        One ``SeedRun`` per (configuration, seed): its workspace and what each stage did.
+
+    Raises:
+        ConfigError: ``root`` is neither a study folder nor empty (a study never writes
+            among a user's files).
+        StageError: a stage failed (the message names it); finished stages stay cached.
+    """
     root = Path(root)
     check_study_folder(root)
     root.mkdir(parents=True, exist_ok=True)

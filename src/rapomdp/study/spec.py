@@ -40,8 +40,23 @@ class StudyDataset:
 
 @dataclass(frozen=True)
 class StudySpec:
-    """Configurations × seeds; ``vary``: ``all`` (the run seed) or ``train`` (the classifier's
-    seed only)."""
+    """Configurations × seeds: what a study runs.
+
+    Attributes:
+        datasets: the configurations, each a ``StudyDataset`` (a name and the configuration
+            mapping; ``StudyDataset.from_file("my.yaml")`` reads one, named by its stem).
+        seeds: the seeds every configuration runs at, distinct, in [0, 2^32).
+        vary: ``all`` (the run's seed: split, models, classifier, starts) or ``train`` (the
+            classifier's seed only; the same dataset, test models and starts).
+
+    Raises:
+        ConfigError: no configuration or seed, a repeated or out-of-range seed, an unknown
+            ``vary``.
+
+    Examples:
+        >>> StudySpec(seeds=(0, 1), vary="train").datasets[0].name
+        'default'
+    """
 
     datasets: tuple[StudyDataset, ...] = (StudyDataset(DEFAULT_DATASET),)
     seeds: tuple[int, ...] = (0, 1, 2)
