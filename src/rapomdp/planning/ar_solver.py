@@ -38,19 +38,17 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.planning.grid_bound import (
-    GridUpperBound,
-    grid_bytes,
-    grid_entries,
-    grid_upper_bound,
+from rapomdp.planning.ar_children import MoveChildren, min_ratio
+from rapomdp.planning.ar_memory import (
+    KEEP_PAIRS,
+    fit_chunk,
+    grid_resolutions,
+    plan_grid,
+    plan_library,
+    working_bytes,
 )
-from rapomdp.planning.memory import (
-    DEFAULT_MEMORY_GB,
-    ENTRY_BYTES,
-    MemoryCapError,
-    cap_bytes,
-    format_bytes,
-)
+from rapomdp.planning.grid_bound import GridUpperBound, grid_entries, grid_upper_bound
+from rapomdp.planning.memory import DEFAULT_MEMORY_GB, cap_bytes
 from rapomdp.planning.momdp import ActiveRecognitionProblem
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.rules import (
@@ -65,89 +63,10 @@ from rapomdp.planning.rules import (
 )
 from rapomdp.planning.sarsop import CLOCKS, Progress, ProgressCallback, SolveResult, check_budget
 
-#: Visited (belief, viewpoint) pairs kept for pruning the library.
-KEEP_PAIRS = 20_000
-#: Smallest working block (entries) the memory cap may shrink ``chunk`` to.
-MIN_CHUNK = 65_536
-#: Vectors and points the library can always hold (the memory check reserves them).
-LIBRARY_MIN = 1_000
 #: Prune schedule: first after this many iterations, then at iteration ⌊1.3·it⌋ + 4, and
 #: whenever the library has grown past 2 × its size after the last pruning + 256 vectors.
 FIRST_PRUNE, PRUNE_GROWTH, PRUNE_STEP = 8, 1.3, 4
 LIBRARY_GROWTH, LIBRARY_SLACK = 2, 256
-
-
-def min_ratio(u: np.ndarray, inv: np.ndarray, off: np.ndarray) -> np.ndarray:
-    """min_c (u[..., c] inv[i, c] + off[i, c]) for every point i: (..., N) from u (..., C) and
-    inv, off (N, C) (off: 0 on a point's support, +inf elsewhere).
-
-    The sawtooth ratio φ_i. A running minimum over the classes, each step one product over
-    (..., N), instead of a (..., N, C) temporary reduced over its short last axis: the same
-    products and an order-free minimum, so the same bits, several times faster."""
-    u = np.asarray(u)
-    by_class = np.moveaxis(u, -1, 0)  # (C, ...)
-    inv_t, off_t = np.ascontiguousarray(inv.T), np.ascontiguousarray(off.T)  # (C, N)
-    has_off = np.isinf(off_t).any(axis=1)
-    out = np.full(u.shape[:-1] + (inv.shape[0],), np.inf)
-    term = np.empty_like(out)
-    for c in range(u.shape[-1]):
-        np.multiply(by_class[c][..., None], inv_t[c], out=term)
-        if has_off[c]:
-            term += off_t[c]
-        np.minimum(out, term, out=out)
-    return out
-
-
-class _Moves:
-    """Children of class beliefs under every move target a and label o.
-
-    ``Pj[a, o, c]`` = P(o | c, targets[a]). With the structure P = w_j(c) off the diagonal
-    and a_j(c) on it, the products use it (``fast``).
-    """
-
-    def __init__(self, Pj: np.ndarray) -> None:
-        self.Pj = Pj
-        n_j, n_o, n_c = Pj.shape
-        self.fast = False
-        self.idx = np.arange(n_c)
-        if n_o == n_c:
-            diag = Pj[:, self.idx, self.idx]  # (J, C)
-            off = Pj.copy()
-            off[:, self.idx, self.idx] = np.nan
-            hi, lo = np.nanmax(off, axis=1), np.nanmin(off, axis=1)  # (J, C) over wrong o
-            if np.all(hi - lo <= EQUAL_TOL):
-                self.fast = True
-                self.A, self.W, self.D = diag, lo, diag - lo
-
-    def unnormalised(self, B: np.ndarray) -> np.ndarray:
-        """u[k, a, o, c] = B[k, c] P(o | c, a): (K, J, O, C)."""
-        return B[:, None, None, :] * self.Pj[None]
-
-    def dots(self, B: np.ndarray, betas: np.ndarray) -> np.ndarray:
-        """u[k, a, o] · β_m: (K, J, O, M)."""
-        if self.fast:
-            first = (B[:, None, :] * self.W[None]) @ betas.T  # (K, J, M)
-            bump = B[:, None, :] * self.D[None]  # (K, J, O)
-            return first[:, :, None, :] + bump[..., None] * betas.T[None, None]
-        return self.unnormalised(B) @ betas.T
-
-    def phi(self, B: np.ndarray, inv: np.ndarray, off: np.ndarray) -> np.ndarray:
-        """min_c u[k, a, o, c] inv_i(c) (+inf off the point's support): (K, J, O, N)."""
-        if self.fast:
-            x = (B[:, None, :] * self.W[None])[:, :, None, :] * inv[None, None] + off
-            part = np.partition(x, 1, axis=-1)  # (K, J, N, C)
-            m1, m2 = part[..., 0], part[..., 1]
-            arg = x.argmin(axis=-1)
-            y = (B[:, None, :] * self.A[None])[:, :, None, :] * inv[None, None] + off
-            excl = np.where(arg[..., None] == self.idx, m2[..., None], m1[..., None])
-            return np.minimum(y, excl).transpose(0, 1, 3, 2)
-        return min_ratio(self.unnormalised(B), inv, off)
-
-    def backup(self, alpha: np.ndarray) -> np.ndarray:
-        """Σ_o P(o | c, a) α[k, a, o, c]: (K, J, C)."""
-        if self.fast:
-            return self.W[None] * alpha.sum(axis=2) + self.D[None] * alpha[:, :, self.idx, self.idx]
-        return np.einsum("aoc,kaoc->kac", self.Pj, alpha)
 
 
 class ActiveRecognitionSolver:
@@ -168,11 +87,11 @@ class ActiveRecognitionSolver:
         n_c, n_v, n_j = problem.n_states, problem.n_viewpoints, problem.targets.size
         self.n_classes = problem.n_classes
         self.memory_gb = memory_gb
-        self.chunk = self._fit_chunk(chunk, n_v, n_j, n_c, cap_bytes(memory_gb))
+        self.chunk = fit_chunk(chunk, n_v, n_j, n_c, cap_bytes(memory_gb))
         self.cost = problem.move_cost()  # (V, J)
         self.cost_tt = self.cost[self.targets]  # (J, J): from a target to a target
         self.min_cost = self.cost.min(axis=1)  # (V,) a move costs at least this much
-        self.moves = _Moves(
+        self.moves = MoveChildren(
             np.ascontiguousarray(problem.observation_model[self.targets].transpose(0, 2, 1))
         )
         self.lam = problem.lambda_
@@ -191,90 +110,16 @@ class ActiveRecognitionSolver:
         self.visited_v: list[np.ndarray] = [np.array([problem.start_viewpoint])]
         self.clock: Callable[[], float] = time.process_time
         self.deadline = np.inf
-        self.max_resolution, grid_note = self._plan_grid()
-        self.max_vectors, self.max_points = self._plan_library()
+        shape = (n_v, n_c, n_j, problem.n_classes)
+        self.max_resolution, grid_note = plan_grid(shape, self.chunk, memory_gb, grid,
+                                                   grid_entries)
+        self.max_vectors, self.max_points = plan_library(shape, self.chunk, memory_gb,
+                                                         self.max_resolution)
         self.notes: list[str] = [grid_note]
 
-    # -- memory --------------------------------------------------------------------------
-    @staticmethod
-    def working_bytes(chunk: int, n_viewpoints: int, n_targets: int, n_classes: int) -> int:
-        """Bytes of the solver's fixed arrays and working blocks, before any library.
-
-        The problem's arrays (V·C² + 2·J·C² + 3·V·J + V²), one belief's children and their
-        plans (10 arrays of J·C²), eight blocks of ``chunk`` entries, the visited pairs kept
-        for pruning (3 copies of 20 000 × (C + 1)).
-        """
-        v, j, c = n_viewpoints, n_targets, n_classes
-        problem = v * c * c + 2 * j * c * c + 3 * v * j + v * v
-        children = 10 * j * c * c
-        visited = 3 * KEEP_PAIRS * (c + 1)
-        return ENTRY_BYTES * (problem + children + 8 * chunk + visited)
-
-    @classmethod
-    def _fit_chunk(cls, chunk: int, n_v: int, n_j: int, n_c: int, cap: float) -> int:
-        """``chunk`` or less so that the working arrays take at most half of the cap; refused
-        (:class:`MemoryCapError`) when even the smallest blocks do not fit."""
-        smallest = max(MIN_CHUNK, n_j * n_c * n_c)
-        fitted = int(chunk)
-        while fitted > smallest and cls.working_bytes(fitted, n_v, n_j, n_c) > cap / 2:
-            fitted = max(smallest, fitted // 2)
-        need = cls.working_bytes(fitted, n_v, n_j, n_c) + LIBRARY_MIN * ENTRY_BYTES * (
-            4 * n_c + n_v + n_j)
-        if need > cap:
-            raise MemoryCapError(
-                f"the active-recognition problem ({n_v} viewpoints x {n_c} classes, {n_j} move "
-                "targets)", need, cap)
-        return fitted
-
-    def _plan_grid(self) -> tuple[int, str]:
-        """The finest grid resolution whose structures fit in the memory left and in
-        ``grid_entries`` (0: no grid), and a note saying which bound was chosen and why."""
-        pb = self.problem
-        n_v, n_c, n_j = pb.n_viewpoints, pb.n_states, self.targets.size
-        n_o = pb.n_classes
-        if self.grid_option is False:
-            return 0, "upper bound: sawtooth only (grid turned off)"
-        cap = cap_bytes(self.memory_gb)
-        left = cap - self.working_bytes(self.chunk, n_v, n_j, n_c)
-        # the grid's share: at most half of what is left, the rest is the library's
-        budget = left / 2
-        extra = 6 * n_j * n_c * n_o * ENTRY_BYTES  # interpolating one belief's children
-        best, refusal = 0, ""
-        for res in self._resolutions():
-            entries = grid_entries(res, n_c, n_j, n_o)
-            if entries > self.grid_entries:
-                refusal = refusal or (f"resolution {res} has {entries:.3g} entries, over "
-                                      f"the {self.grid_entries:.3g} the time budget allows")
-                break
-            need = grid_bytes(res, n_c, n_v, n_j, n_o) + extra
-            if need > budget:
-                refusal = (f"resolution {res} needs {format_bytes(need)}, over the "
-                           f"{format_bytes(budget)} the {format_bytes(cap)} cap leaves it")
-                break
-            best = res
-        if best == 0:
-            return 0, f"upper bound: sawtooth only, grid skipped ({refusal})"
-        if refusal and "cap" in refusal:
-            return best, f"upper bound: grid up to resolution {best} + sawtooth ({refusal})"
-        return best, f"upper bound: grid up to resolution {best} + sawtooth"
-
-    def _plan_library(self) -> tuple[int, int]:
-        """Most lower-bound vectors and upper-bound points the memory left can hold."""
-        pb = self.problem
-        n_v, n_c, n_j = pb.n_viewpoints, pb.n_states, self.targets.size
-        left = cap_bytes(self.memory_gb) - self.working_bytes(self.chunk, n_v, n_j, n_c)
-        if self.max_resolution:
-            left -= grid_bytes(self.max_resolution, n_c, n_v, n_j, pb.n_classes)
-        left = max(left, 0.0)
-        per_vector = ENTRY_BYTES * (2 * n_c + 2 + n_v)  # β, slot, copies in pruning, scores
-        per_point = ENTRY_BYTES * (4 * n_c + n_v + n_j)  # b, 1/b, offset, values, a copy
-        return (max(LIBRARY_MIN, int(left / 2 / per_vector)),
-                max(LIBRARY_MIN, int(left / 2 / per_point)))
-
-    def _resolutions(self) -> list[int]:
-        if isinstance(self.grid_option, int) and not isinstance(self.grid_option, bool):
-            return [int(self.grid_option)]
-        return [2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80, 96, 128]
+    #: Bytes of the fixed arrays and working blocks before any library
+    #: (:func:`rapomdp.planning.ar_memory.working_bytes`).
+    working_bytes = staticmethod(working_bytes)
 
     # -- bounds --------------------------------------------------------------------------
     def lower_values(self, beliefs: np.ndarray) -> np.ndarray:
@@ -536,7 +381,7 @@ class ActiveRecognitionSolver:
         pb = self.problem
         n_c, n_j = pb.n_states, len(self.targets)
         last_cost, last_entries = 0.0, 0
-        for res in self._resolutions():
+        for res in grid_resolutions(self.grid_option):
             if res > self.max_resolution:
                 break
             entries = grid_entries(res, n_c, n_j, pb.n_classes)
