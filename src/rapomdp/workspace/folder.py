@@ -23,10 +23,12 @@ class WorkspaceFolder:
 
     @property
     def manifest_path(self) -> Path:
+        """``W/manifest.json``: every stage's record."""
         return self.root / MANIFEST
 
     @property
     def marker_path(self) -> Path:
+        """``W/.rapomdp-workspace``: the file that makes the folder a workspace."""
         return self.root / MARKER
 
     @property
@@ -40,9 +42,11 @@ class WorkspaceFolder:
 
     @property
     def config_path(self) -> Path:
+        """``W/config.yaml``: the configuration the artefacts were made with."""
         return self.root / CONFIG_FILE
 
     def stage_dir(self, name: str) -> Path:
+        """``W/name``, the folder of stage ``name`` (whether or not it has run)."""
         return self.root / name
 
     def _write_file(self, path: Path, text: str) -> None:

@@ -62,8 +62,35 @@ class WorkspaceLock(WorkspaceManifest):
     def check(self) -> str:
         """What the root is to a command that would write there, found without writing:
         ``"new"`` (a missing or empty folder), ``"workspace"`` (its marker) or ``"older"``
-        (the valid ``manifest.json`` of a workspace made before markers existed). Anything
-        else is a :class:`NotAWorkspaceError` naming it."""
+        (the valid ``manifest.json`` of a workspace made before markers existed).
+
+        Returns:
+            ``"new"``, ``"workspace"`` or ``"older"``.
+
+        Raises:
+            NotAWorkspaceError: Anything else (a file, a folder of other files, a workspace
+                of a newer format), named.
+
+        Example:
+            >>> import tempfile
+            >>> from pathlib import Path
+            >>> from rapomdp.workspace import Workspace
+            >>> tmp = tempfile.TemporaryDirectory()
+            >>> ws = Workspace(Path(tmp.name) / "ws")
+            >>> ws.check()
+            'new'
+            >>> ws.claim()  # makes the folder and its marker
+            False
+            >>> ws.check()
+            'workspace'
+            >>> (Path(tmp.name) / "notes.txt").write_text("mine")
+            4
+            >>> Workspace(tmp.name).check()  # doctest: +ELLIPSIS
+            Traceback (most recent call last):
+            ...
+            rapomdp.workspace.layout.NotAWorkspaceError: ...: not a rapomdp workspace ...
+            >>> tmp.cleanup()
+        """
         name = self._named()
         try:
             mode = os.stat(self.root).st_mode
@@ -104,8 +131,15 @@ class WorkspaceLock(WorkspaceManifest):
 
     def claim(self) -> bool:
         """:meth:`check` the root before anything is written there; a missing or empty folder
-        becomes a new workspace (the folder and its marker). Returns whether the marker is
-        still to be written (an older workspace: its next locked run writes it)."""
+        becomes a new workspace (the folder and its marker).
+
+        Returns:
+            Whether the marker is still to be written (an older workspace: its next locked
+            run writes it).
+
+        Raises:
+            NotAWorkspaceError: The root is not a workspace nor empty (:meth:`check`).
+        """
         state = self.check()
         if state == "new":
             self._create()
@@ -125,6 +159,20 @@ class WorkspaceLock(WorkspaceManifest):
         killed run left. The lock is the kernel's (flock): it ends with its process, even
         on SIGKILL. A read-only workspace is used unlocked: nothing can be written to it.
         A folder that is not a workspace is refused first (:meth:`claim`), its files untouched.
+        The same process may take the lock again inside (a nested run).
+
+        Raises:
+            WorkspaceBusyError: Another process holds the lock (the message names its pid).
+            NotAWorkspaceError: The root is not a workspace nor empty.
+
+        Example:
+            >>> import tempfile
+            >>> from rapomdp.workspace import Workspace
+            >>> tmp = tempfile.TemporaryDirectory()
+            >>> with Workspace(tmp.name).locked():
+            ...     print(sorted(p.name for p in Workspace(tmp.name).root.iterdir()))
+            ['.lock', '.rapomdp-workspace']
+            >>> tmp.cleanup()
         """
         needs_marker = self.claim()
         key = self.root.resolve()

@@ -24,7 +24,15 @@ class WorkspaceManifest(WorkspaceFolder):
     """The manifest and the stages' keys (a base of :class:`Workspace`)."""
 
     def manifest(self) -> dict[str, Any]:
-        """``manifest.json`` checked for its shape (a named ArtefactError when it is not one)."""
+        """``manifest.json`` checked for its shape.
+
+        Returns:
+            ``{"stages": {name: record}}``, each record with at least ``key`` and ``files``
+            (``{"stages": {}}`` for a workspace with none).
+
+        Raises:
+            ArtefactError: The file is not a rapomdp manifest, or a record is damaged.
+        """
         if not self.manifest_path.exists():
             return {"stages": {}}
         data = read_json(self.manifest_path)
@@ -80,7 +88,15 @@ class WorkspaceManifest(WorkspaceFolder):
     def config(self, default: Config | None = None) -> Config:
         """The configuration the workspace was run with: ``W/config.yaml``, validated.
 
-        When the file is missing: ``default`` if given, else a :class:`StageError` naming it.
+        Args:
+            default: What to return when the workspace records no configuration.
+
+        Returns:
+            The recorded configuration (rebuilt from the stage records when ``config.yaml``
+            is missing, :meth:`recorded_config`), else ``default``.
+
+        Raises:
+            StageError: Nothing is recorded and no ``default`` was given.
         """
         recorded = self.recorded_config()
         if recorded is not None:
@@ -91,11 +107,29 @@ class WorkspaceManifest(WorkspaceFolder):
                          f"holds the configuration it ran with")
 
     def inputs(self, stage: Stage) -> StageInputs:
-        """The folders of ``stage``'s inputs here, each a finished stage (:meth:`require`)."""
+        """The folders of ``stage``'s inputs here, each a finished stage (:meth:`require`).
+
+        Args:
+            stage: The stage about to run.
+
+        Returns:
+            One folder per stage of ``stage.inputs``, named after it.
+        """
         return StageInputs.of(stage.name, {name: self.require(name) for name in stage.inputs})
 
     def require(self, name: str) -> Path:
-        """The folder of a finished stage, or an error saying how to make it."""
+        """The folder of a finished stage, or an error saying how to make it.
+
+        Args:
+            name: The stage's name (``"dataset"``, ``"train"``, ...).
+
+        Returns:
+            ``W/name``, recorded in the manifest.
+
+        Raises:
+            StageError: The stage has not run here (the message names the command that
+                runs it).
+        """
         record = self.manifest()["stages"].get(name)
         path = self.stage_dir(name)
         if record is None or not path.is_dir():
@@ -117,6 +151,8 @@ class WorkspaceManifest(WorkspaceFolder):
         return stage_key(stage, config, upstream, external), upstream, external
 
     def key_of(self, stage: Stage, config: Config) -> str:
+        """The key ``stage`` would be recorded under here with ``config`` (its inputs' keys
+        from the manifest, :func:`~rapomdp.workspace.stage_key`): a hex SHA-256 string."""
         return self._key_parts(stage, config)[0]
 
     def staleness(self, stages: Sequence[Stage], config: Config,
@@ -126,6 +162,16 @@ class WorkspaceManifest(WorkspaceFolder):
         ``stages`` in pipeline order; a stage is stale when a section it reads changed, its
         code version changed, an input stage is stale or was redone since, or (``external``)
         the files it reads from outside changed. Stages without a record are left out.
+
+        Args:
+            stages: The stages to judge, in pipeline order.
+            config: The configuration a run would use.
+            external: Also read the fingerprints of the files each stage reads from outside
+                the workspace (a user's meshes).
+
+        Returns:
+            ``{stage: [reason, ...]}`` for the stale stages only, e.g.
+            ``{"train": ["train.epochs 25 -> 5"]}``.
         """
         records = self.manifest()["stages"]
         stale: dict[str, list[str]] = {}
@@ -164,7 +210,16 @@ class WorkspaceManifest(WorkspaceFolder):
 
     def status(self, stages: Sequence[Stage], config: Config) -> list[StageStatus]:
         """One :class:`StageStatus` per stage of ``stages`` (pipeline order), from the manifest
-        and :meth:`staleness` under ``config`` (input files included)."""
+        and :meth:`staleness` under ``config`` (input files included): what ``rapomdp status``
+        shows.
+
+        Args:
+            stages: The stages, in pipeline order.
+            config: The configuration to judge staleness against.
+
+        Returns:
+            One row per stage: ``current``, ``stale`` (with its reasons) or ``not run``.
+        """
         records = self.manifest()["stages"]
         stale = self.staleness(stages, config)
         rows = []
@@ -183,6 +238,8 @@ class WorkspaceManifest(WorkspaceFolder):
         return rows
 
     def is_current(self, stage: Stage, config: Config) -> bool:
+        """Whether ``stage``'s folder is here and recorded under the key ``config`` gives it
+        (a run would skip it)."""
         record = self.manifest()["stages"].get(stage.name)
         return (
             record is not None

@@ -25,12 +25,72 @@ from rapomdp.workspace.stages import Stage, StageResult
 
 
 class Workspace(WorkspaceLock):
-    """A folder of stage outputs plus ``manifest.json``."""
+    """A folder of stage outputs plus ``manifest.json``: the cache every pipeline stage runs in.
+
+    Each stage writes one folder ``W/STAGE``, recorded in ``W/manifest.json`` under a key that
+    hashes what made it (:func:`~rapomdp.workspace.stage_key`); a stage whose key is unchanged
+    is not run again. A run writes into ``W/.rapomdp-tmp`` and swaps the finished folder in,
+    so a failure or a kill leaves the earlier artefacts intact; one run at a time holds the
+    lock (:meth:`locked`). Making a ``Workspace`` touches nothing on disk: the folder is
+    claimed (made, with its marker) by the first method that writes.
+
+    The methods come from four layers, one concern each: the folder and its temporary files
+    (:class:`~rapomdp.workspace.folder.WorkspaceFolder`), the manifest and the keys
+    (:class:`~rapomdp.workspace.manifest.WorkspaceManifest`), the marker and the lock
+    (:class:`~rapomdp.workspace.lock.WorkspaceLock`), and running a stage (this class).
+
+    Args:
+        root: The workspace folder (made when missing; a folder that is neither a workspace
+            nor empty is refused when a command would write there).
+
+    Example:
+        A stage that writes the camera's size, run twice: the second run is cached.
+
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from rapomdp.config import Config
+        >>> from rapomdp.workspace import Stage, Workspace
+        >>> def write_size(config, inputs, out, context):
+        ...     (out / "size.txt").write_text(f"{config.camera.width}x{config.camera.height}")
+        >>> stage = Stage("size", write_size, sections=("camera",))
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> ws = Workspace(Path(tmp.name) / "ws")
+        >>> first = ws.run(stage, Config())
+        >>> (first.cached, first.files)
+        (False, ['size.txt'])
+        >>> ws.run(stage, Config()).cached
+        True
+        >>> (ws.stage_dir("size") / "size.txt").read_text()
+        '160x120'
+        >>> ws.staleness([stage], Config(camera={"width": 64, "height": 48}))
+        {'size': ['camera.height 120 -> 48, camera.width 160 -> 64']}
+        >>> tmp.cleanup()
+    """
 
     def run(self, stage: Stage, config: Config, force: bool = False,
             context: RunContext = RunContext()) -> StageResult:
         """Run ``stage`` unless its cached output is current (or ``force``), with ``context``'s
-        workers, threads and progress bars; a stage that ran is recorded in the manifest."""
+        workers, threads and progress bars; a stage that ran is recorded in the manifest.
+
+        The stage writes into a temporary folder that replaces ``W/STAGE`` only when it has
+        finished; ``W/config.yaml`` is then rewritten with ``config``. Call it holding the
+        lock (:meth:`locked`) when another run may use the workspace.
+
+        Args:
+            stage: The stage to run; its inputs must have run here (:meth:`require`).
+            config: The configuration; the sections ``stage.sections`` enter its key.
+            force: Run it even when its cached output is current.
+            context: Workers, threads, scheduler and progress bars of the run.
+
+        Returns:
+            What was done: ``cached`` (with the recorded files) or the files written and the
+            wall time in seconds.
+
+        Raises:
+            StageError: An input stage has not run here, or the stage's folder is not one
+                rapomdp made.
+            ArtefactError: The workspace cannot be written (its earlier artefacts intact).
+        """
         self.claim()
         key, upstream, external = self._key_parts(stage, config)
         if not force and self.is_current(stage, config):
@@ -81,6 +141,16 @@ class Workspace(WorkspaceLock):
         The files are hard links (a copy across file systems): a stage's artefacts are only
         ever replaced whole, never edited, so neither workspace can change the other's. The
         record keeps the source's key and notes ``shared_from``; its seconds count 0 here.
+        A study shares the stages its seeds have in common this way.
+
+        Args:
+            stage: The stage to take.
+            config: This workspace's configuration (its key must equal the source's record).
+            source: Another workspace holding the stage (the same one: None).
+
+        Returns:
+            The result (``cached``, ``shared_from`` the source's folder), or None when the
+            source holds no such artefacts.
         """
         if source.root.resolve() == self.root.resolve():
             return None

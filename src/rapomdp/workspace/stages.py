@@ -50,6 +50,18 @@ class StageInputs:
     stage can do without. ``stage`` names the reading stage in those errors. The pipeline
     builds one per stage from the stage graph (:meth:`Workspace.inputs`); a library caller
     names the folders it has: ``StageInputs("solve", observe_dir=..., robot_dir=...)``.
+
+    Example:
+        >>> from rapomdp.workspace import StageInputs
+        >>> inputs = StageInputs.of("solve", {"observe": "W/observe", "robot": "W/robot"})
+        >>> inputs
+        StageInputs('solve', robot_dir='W/robot', observe_dir='W/observe')
+        >>> inputs.observe.name
+        'observe'
+        >>> inputs.train  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        rapomdp.workspace.layout.StageError: stage 'solve' needs the folder of stage 'train', ...
     """
 
     stage: str = ""
@@ -116,7 +128,18 @@ class StageInputs:
 
 @dataclass(frozen=True)
 class Stage:
-    """One pipeline stage: reads ``inputs`` (earlier stages) and writes its own folder."""
+    """One pipeline stage: reads ``inputs`` (earlier stages) and writes its own folder.
+
+    Attributes:
+        name: The stage's name, its folder's name in the workspace.
+        run: ``run(config, inputs, out, context)`` writes the stage's artefacts into ``out``.
+        sections: The configuration sections it reads (they enter its key).
+        inputs: The names of the earlier stages it reads (their keys enter its key).
+        version: Its code's version: a new one makes every recorded run of it stale.
+        fingerprint: What it reads from outside the workspace, as a string (a user's mesh
+            folder's file sizes and times), or None.
+        description: One line for ``rapomdp status`` and the docs.
+    """
 
     name: str
     run: Callable[[Config, StageInputs, Path, RunContext], None]
@@ -130,7 +153,17 @@ class Stage:
 def stage_key(stage: Stage, config: Config, upstream: Mapping[str, str],
               external: str | None) -> str:
     """The cache key of ``stage``: its name and version, the configuration sections it reads,
-    its inputs' keys (``upstream``) and its external fingerprint."""
+    its inputs' keys (``upstream``) and its external fingerprint.
+
+    Args:
+        stage: The stage.
+        config: The configuration (only ``stage.sections`` are read).
+        upstream: ``{input stage: its recorded key}``.
+        external: The stage's fingerprint of its outside inputs, or None.
+
+    Returns:
+        A hex SHA-256 of the canonical JSON of those parts (64 characters).
+    """
     return stable_hash(
         {
             "stage": stage.name,
