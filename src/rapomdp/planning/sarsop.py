@@ -46,7 +46,16 @@ from rapomdp.planning.rules import (
 
 @dataclass(frozen=True)
 class Progress:
-    """One snapshot of an anytime solve: bounds at the initial belief and sizes."""
+    """One snapshot of an anytime solve: bounds at the initial belief and sizes.
+
+    Attributes:
+        elapsed: Seconds of the solver's clock since the solve began.
+        lower: The lower bound (a policy's guaranteed value) at the initial belief.
+        upper: The upper bound on the optimal value there.
+        n_alpha: Lower-bound vectors held.
+        n_points: Upper-bound points held.
+        iterations: Sampling rounds so far.
+    """
 
     elapsed: float
     lower: float
@@ -407,6 +416,29 @@ def solve_pomdp(
     **options: Any,
 ) -> SolveResult[AlphaVectorPolicy]:
     """Solve a flat POMDP with :class:`FlatSarsop` within ``timeout`` seconds of process CPU
-    time and ``memory_gb``; see :meth:`FlatSarsop.solve`."""
+    time and ``memory_gb``; see :meth:`FlatSarsop.solve`.
+
+    Args:
+        pomdp: The flat POMDP (:func:`~rapomdp.planning.io_pomdp.read_pomdp`).
+        precision: The gap between the bounds at the initial belief at which it stops.
+        timeout: Seconds of process CPU time.
+        callback: Called with each :class:`Progress` snapshot.
+        memory_gb: The memory cap in GB.
+        **options: More settings of :meth:`FlatSarsop.solve`.
+
+    Returns:
+        The alpha-vector policy, the bounds at the initial belief, the seconds, the
+        iterations, whether the gap closed and the history.
+
+    Raises:
+        MemoryCapError: The solver's arrays would exceed ``memory_gb``.
+
+    Example:
+        Tiger converges to the reference SARSOP's value (19.37) in well under a second::
+
+            result = solve_pomdp(read_pomdp("tests/planning/data/Tiger.pomdp"), precision=0.01)
+            result.converged, round(result.lower, 1)   # (True, 19.4)
+            result.policy.act([0.5, 0.5])  # 0: listen first
+    """
     check_budget(precision, timeout)
     return FlatSarsop(pomdp, memory_gb).solve(precision, timeout, callback, **options)
