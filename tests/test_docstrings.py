@@ -28,6 +28,9 @@ ENTRY_POINTS = {
     "rapomdp.planning.io_pomdp",  # parse_pomdp, format_pomdp
     "rapomdp.study.spec",  # StudySpec
     "rapomdp.study.bootstrap",  # hierarchical_bootstrap
+    "rapomdp.geometry.camera",
+    "rapomdp.geometry.viewsphere",
+    "rapomdp.geometry.voxels",
 }
 
 
