@@ -31,6 +31,10 @@ ENTRY_POINTS = {
     "rapomdp.geometry.camera",
     "rapomdp.geometry.viewsphere",
     "rapomdp.geometry.voxels",
+    "rapomdp.robot.energy",
+    "rapomdp.robot.arm",
+    "rapomdp.robot.ik",
+    "rapomdp.robot.scene",
 }
 
 
