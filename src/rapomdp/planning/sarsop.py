@@ -292,7 +292,27 @@ class FlatSarsop:
     ) -> SolveResult[AlphaVectorPolicy]:
         """Improve both bounds until U − L ≤ ``precision`` at b0 or ``timeout`` seconds of
         ``clock`` pass ("process": CPU time of this process, the default; or "wall"). Every
-        phase — initial bounds, trajectories, backups, sweeps — checks the deadline."""
+        phase — initial bounds, trajectories, backups, sweeps — checks the deadline.
+
+        Args:
+            precision: The gap U − L at b0 at which it stops.
+            timeout: Seconds of ``clock``.
+            callback: Called with each history entry.
+            report_every: Seconds between history entries.
+            max_depth: The longest sampled trajectory (steps).
+            gap_fraction: A trajectory's target gap, as a share of the current one.
+            max_iterations: Stop after this many trajectories (None: no limit).
+            sweep_every: Back up the lower bound at every sampled belief after this many
+                trajectories (0: never).
+            policy_trajectories: Alternate upper-bound-guided trajectories with ones that
+                follow the lower bound's policy.
+            seed: Seed of the sampled observations.
+            clock: ``"process"`` or ``"wall"``.
+
+        Returns:
+            The alpha-vector policy, the bounds at b0, the seconds, the trajectories, whether
+            the gap closed, the history, and a note when the memory cap stopped it.
+        """
         check_budget(precision, timeout)
         self.clock = CLOCKS[clock]
         start = self.clock()

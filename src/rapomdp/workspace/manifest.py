@@ -52,7 +52,11 @@ class WorkspaceManifest(WorkspaceFolder):
     def recorded_config(self) -> Config | None:
         """The configuration the workspace's artefacts were made with (``W/config.yaml``; when
         it is missing, the one the stage records hold, :meth:`records_config_data`), or None
-        for a new workspace."""
+        for a new workspace.
+
+        Raises:
+            ConfigError: The recorded configuration is not valid (named, with its key).
+        """
         if self.config_path.exists():
             return config_from_dict(read_config_data(self.config_path), str(self.config_path))
         data = self.records_config_data()
