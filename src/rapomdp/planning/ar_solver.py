@@ -72,21 +72,11 @@ LIBRARY_GROWTH, LIBRARY_SLACK = 2, 256
 class ActiveRecognitionSolver:
     """Point-based solver with one shared library of continuation vectors over the simplex.
 
-    The structure the module docstring describes (the class never changes, the viewpoint is
-    observed) lets one backup serve every viewpoint; every structure is sized against
-    ``memory_gb`` before it is allocated (:mod:`rapomdp.planning.ar_memory`).
-    :func:`solve_active_recognition` makes one and solves.
-
-    Args:
-        problem: The MOMDP (V viewpoints, S hidden states, J move targets).
-        chunk: Entries of one working block (smaller under a tight memory cap).
-        grid: The grid upper bound: True (the finest resolution that fits), False (none) or
-            one resolution.
-        grid_entries: The most grid entries the time budget allows.
-        memory_gb: The memory cap in GB every structure is sized against.
-
-    Raises:
-        MemoryCapError: Even the smallest working blocks exceed the cap.
+    One backup serves every viewpoint (the module docstring says why); every structure is
+    sized against ``memory_gb`` before it is allocated (:mod:`rapomdp.planning.ar_memory`).
+    :func:`solve_active_recognition` makes one, with the same arguments, and solves; a
+    problem whose smallest working blocks exceed the cap raises
+    :class:`~rapomdp.planning.memory.MemoryCapError`.
     """
 
     def __init__(

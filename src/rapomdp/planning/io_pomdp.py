@@ -445,58 +445,31 @@ def _is_float(text: str) -> bool:
 
 def parse_pomdp(text: str, source: str = "<string>", memory_gb: float = DEFAULT_MEMORY_GB,
                 solver_bytes: SizeEstimate | None = None) -> POMDP:
-    """Parse the text of a ``.pomdp`` file; raises :class:`PomdpParseError` on any error and
-    :class:`~rapomdp.planning.memory.MemoryCapError` (before allocating) when its dense arrays
-    — or ``solver_bytes(states, actions, observations)``, what the caller will need to solve
-    it — would exceed ``memory_gb``. Time and memory are linear in the file's size.
-
-    Cassandra's format, as the reference SARSOP reads it: named or counted states, actions
-    and observations; ``T``/``O``/``R`` entries, rows or matrices (``identity``,
-    ``uniform``, ``*`` wildcards); rewards R(s, a, s', o) folded into R(s, a).
+    """Parse the text of a ``.pomdp`` file (Cassandra's format, as the reference SARSOP reads
+    it); time and memory are linear in the text's size.
 
     Args:
         text: The file's text.
         source: The file's name in error messages.
         memory_gb: The memory cap in GB.
-        solver_bytes: ``(states, actions, observations) -> bytes`` the caller will also need.
+        solver_bytes: ``(states, actions, observations) -> bytes`` the caller will also need
+            to solve it (counted against the cap too).
 
     Returns:
-        The POMDP: T (A, S, S), Z (A, S, O), R (A, S), discount, initial belief and names.
+        The POMDP: T (A, S, S), Z (A, S, O), R (A, S) (rewards R(s, a, s', o) folded in),
+        discount, initial belief and names.
 
     Raises:
         PomdpParseError: A syntax or model error, with its line.
-        MemoryCapError: The arrays would exceed ``memory_gb``.
+        MemoryCapError: The arrays would exceed ``memory_gb`` (before any is allocated).
 
     Example:
-        The tiger problem (Kaelbling, Littman & Cassandra 1998):
-
-        >>> tiger = parse_pomdp('''
-        ... discount: 0.95
-        ... values: reward
-        ... states: left right
-        ... actions: listen open-left open-right
-        ... observations: hear-left hear-right
-        ... T: listen
-        ... identity
-        ... T: open-left
-        ... uniform
-        ... T: open-right
-        ... uniform
-        ... O: listen
-        ... 0.85 0.15
-        ... 0.15 0.85
-        ... O: open-left
-        ... uniform
-        ... O: open-right
-        ... uniform
-        ... R: listen : * : * : * -1
-        ... R: open-left : left : * : * -100
-        ... R: open-left : right : * : * 10
-        ... R: open-right : left : * : * 10
-        ... R: open-right : right : * : * -100
-        ... ''', "tiger.pomdp")
-        >>> tiger.T.shape, tiger.Z.shape, tiger.R.tolist()
-        ((3, 2, 2), (3, 2, 2), [[-1.0, -1.0], [-100.0, 10.0], [10.0, -100.0]])
+        >>> listen = parse_pomdp("discount: 0.95\\nvalues: reward\\nstates: left right\\n"
+        ...                      "actions: listen\\nobservations: hear-left hear-right\\n"
+        ...                      "T: listen\\nidentity\\nO: listen\\n0.85 0.15\\n0.15 0.85\\n"
+        ...                      "R: listen : * : * : * -1\\n")
+        >>> listen.T.shape, listen.Z[0].tolist(), listen.R.tolist()
+        ((1, 2, 2), [[0.85, 0.15], [0.15, 0.85]], [[-1.0, -1.0]])
         >>> parse_pomdp("discount: 0.9\\nstates: 2\\nactions: 1\\nobservations: 1\\n"
         ...             "T: 7 : 0 : 0 1\\n")
         Traceback (most recent call last):
@@ -518,18 +491,10 @@ def read_pomdp(path: str | os.PathLike[str], memory_gb: float = DEFAULT_MEMORY_G
     further than the memory cap allows): :class:`~rapomdp.planning.memory.MemoryCapError`.
 
     Args:
-        path: The ``.pomdp`` file.
-        memory_gb: The memory cap in GB.
-        solver_bytes: ``(states, actions, observations) -> bytes`` the caller will also need.
+        path: The ``.pomdp`` file; ``memory_gb`` and ``solver_bytes`` as :func:`parse_pomdp`'s.
 
     Returns:
-        The POMDP (:func:`parse_pomdp`).
-
-    Example:
-        ::
-
-            pomdp = read_pomdp("tests/planning/data/Hallway.pomdp")
-            pomdp.n_states, pomdp.n_actions, pomdp.n_observations  # (60, 5, 21)
+        The POMDP. Example: ``read_pomdp("tests/planning/data/Hallway.pomdp").n_states`` is 60.
     """
     path = Path(path)
     limit = int(cap_bytes(memory_gb) // READ_BYTES_PER_BYTE)
@@ -576,11 +541,7 @@ def format_pomdp(pomdp: POMDP) -> str:
     T and O are written per action as rows or, when sparse, as single entries; an O that is
     the same for every action is written once with ``*``.
 
-    Args:
-        pomdp: The POMDP.
-
-    Returns:
-        The text, which :func:`parse_pomdp` reads back to the same arrays.
+    The text :func:`parse_pomdp` reads back to the same arrays.
 
     Example:
         >>> import numpy as np
@@ -620,13 +581,6 @@ def format_pomdp(pomdp: POMDP) -> str:
 
 
 def write_pomdp(pomdp: POMDP, path: str | os.PathLike[str]) -> Path:
-    """Write a flat POMDP as a ``.pomdp`` file (atomically, :func:`format_pomdp`'s text).
-
-    Args:
-        pomdp: The POMDP.
-        path: The file to write (replaced whole, never left half-written).
-
-    Returns:
-        ``path``.
-    """
+    """Write ``pomdp`` as a ``.pomdp`` file at ``path`` (replaced whole, atomically:
+    :func:`format_pomdp`'s text); returns ``path``."""
     return write_text_atomic(Path(path), format_pomdp(pomdp))
