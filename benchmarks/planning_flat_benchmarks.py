@@ -1,7 +1,7 @@
 """Bounds against time on the classic .pomdp problems, against the reference SARSOP.
 
-For each problem in ../shared/pomdp-benchmarks/: the bounds at b0 at a few times, and the time
-at which the lower bound first comes within 1 % of the reference's lower bound listed in the
+For each problem in tests/planning/data/: the bounds at b0 at a few times, and the time at
+which the lower bound first comes within 1 % of the reference's lower bound listed in the
 README there (and when it reaches that bound itself).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/planning_flat_benchmarks.py [--seconds 60]
@@ -33,8 +33,8 @@ def first_time(history: list[Progress], threshold: float) -> float | None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--folder", default=str(Path(__file__).resolve().parents[2] / "shared"
-                                            / "pomdp-benchmarks"))
+    ap.add_argument("--folder", default=str(Path(__file__).resolve().parents[1] / "tests"
+                                            / "planning" / "data"))
     ap.add_argument("--seconds", type=float, default=60.0)
     args = ap.parse_args()
     print(f"flat SARSOP-style solver, one core, precision 1e-3, timeout {args.seconds:g} s")

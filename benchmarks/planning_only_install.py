@@ -9,7 +9,7 @@ then checks that
 - none of torch, roboticstoolbox-python, trimesh and embreex is installed, nor imported by
   ``import rapomdp.planning``, and the pipeline (``rapomdp.config``) is absent;
 - ``rapomdp-pomdp solve Tiger.pomdp`` converges to the reference SARSOP's value (19.3711,
-  ../shared/pomdp-benchmarks/README.md) within 0.01;
+  tests/planning/data/README.md) within 0.01;
 - ``rapomdp-pomdp export --benchmark`` writes a .pomdpx and ``export --workspace`` says it needs
   the full distribution;
 
@@ -33,8 +33,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = REPO / "packages" / "rapomdp-planning"
-TIGER = REPO.parent / "shared" / "pomdp-benchmarks" / "Tiger.pomdp"
-#: The reference SARSOP's lower bound on Tiger (../shared/pomdp-benchmarks/README.md).
+TIGER = REPO / "tests" / "planning" / "data" / "Tiger.pomdp"
+#: The reference SARSOP's lower bound on Tiger (tests/planning/data/README.md).
 TIGER_VALUE = 19.3711
 #: Distributions (pip names) and modules the planning-only environment must not hold.
 FORBIDDEN_DISTRIBUTIONS = ("torch", "roboticstoolbox-python", "trimesh", "embreex")

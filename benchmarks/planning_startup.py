@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-TIGER = REPO.parent / "shared" / "pomdp-benchmarks" / "Tiger.pomdp"
+TIGER = REPO / "tests" / "planning" / "data" / "Tiger.pomdp"
 
 
 def first_bound_s(src: Path, problem: Path) -> tuple[float, float, float]:

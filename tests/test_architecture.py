@@ -170,7 +170,8 @@ def test_the_graph_tool_sees_lazy_and_relative_imports(tmp_path: Path) -> None:
     graph = import_graph()
     # ``pipeline`` imports every stage at module level; the CLI imports some lazily.
     assert "rapomdp.awareness.stage" in graph["rapomdp.pipeline"]
-    assert "rapomdp.data.dataset" in graph["rapomdp.cli"]  # inside dataset_preview
+    assert "rapomdp.data.dataset" in graph["rapomdp.cli.dataset"]  # inside _write_preview
+    assert "rapomdp.cli.stages" in graph["rapomdp.cli"]  # the app registers them
     assert level_of("rapomdp.io") == FOUNDATION
     assert level_of("rapomdp.planning.cli") == "planning"
     assert level_of("rapomdp.pipeline") == "study"  # the study runs the pipeline; cli both

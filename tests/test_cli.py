@@ -44,12 +44,20 @@ def test_version_and_command_names_are_the_stage_names() -> None:
 
     group = typer.main.get_command(app)
     shown = {name for name, command in group.commands.items() if not command.hidden}
-    assert set(STAGE_NAMES) <= shown
+    assert set(STAGE_NAMES) - {"crossfit"} <= shown  # the crossfit stage is retired
+    assert "crossfit" not in group.commands
     # the former spelling still runs the same command, but is not listed
     assert group.commands["evaluate-classifier"].hidden
     alias, command = group.commands["evaluate-classifier"], group.commands["classifier_eval"]
     assert alias.callback.__wrapped__ is command.callback.__wrapped__
     assert "evaluate-classifier" not in runner.invoke(app, ["--help"]).stdout
+
+
+def test_the_retired_crossfit_command_is_an_unknown_command(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["crossfit", "-w", str(tmp_path / "ws")])
+    assert result.exit_code == 2
+    assert "No such command 'crossfit'" in result.output
+    assert not (tmp_path / "ws").exists()
 
 
 def test_force_is_a_flag_everywhere_and_redo_names_a_stage(tmp_path: Path) -> None:

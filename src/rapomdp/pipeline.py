@@ -256,40 +256,46 @@ def run_pipeline(
     context: RunContext = RunContext(),
     share_from: Sequence[Workspace] = (),
 ) -> list[StageResult]:
-    """Run every stage (or those ``until`` needs) in order, skipping current ones.
+    """Run every stage (or those ``until`` needs) in order, skipping current ones; a stage that
+    a workspace of ``share_from`` already made with the same key is taken from it instead.
+
+    The library's ``rapomdp run``: the whole pipeline from the meshes to Table 1, cached stage by
+    stage in ``workspace`` (a stage whose configuration sections and inputs are unchanged is
+    not run again), holding the workspace's lock for the whole run.
 
     Args:
-        config: the run's configuration (``load_config`` or ``config_from_dict``).
-        workspace: the folder the stages write to and their keys are recorded in.
-        until: the last stage to run (with the stages it needs); None: every stage.
-        force: stages to redo even if current.
-        on_result: called after each stage with its ``StageResult``.
-        context: worker processes, threads, progress bars and scheduler; no artefact
-            depends on it.
-        share_from: workspaces whose stages made with the same key are taken as hard
-            links instead of rerun (what a study does between seeds).
+        config: The configuration (:class:`~rapomdp.config.Config`; ``Config()`` is the
+            default, the embedded procedural dataset).
+        workspace: Where the artefacts go; a new or empty folder becomes a workspace.
+        until: Stop after this stage (and the stages it needs); None runs them all.
+        force: Names of stages to redo even when cached.
+        on_result: Called with each stage's result as soon as it is known (a progress line).
+        context: Workers, threads, scheduler and progress bars of the run.
+        share_from: Workspaces whose identical artefacts (the same key) are taken as hard links
+            instead of running the stage (a study's other seeds).
 
     Returns:
-        One ``StageResult`` per stage considered, in order: its ``name``, ``key``, whether
-        it was ``cached``, its ``seconds`` and ``files``.
+        One result per stage run or skipped, in pipeline order: its name, its key, whether it
+        was cached (or shared) and its wall time in seconds.
 
     Raises:
-        StageError: a stage failed (the message names the file and what went wrong); the
-            earlier stages' artefacts stay intact.
+        KeyError: ``force`` names a stage that does not exist (with the nearest name).
+        StageError: A stage cannot run (a missing input, bad data it names).
+        WorkspaceBusyError: Another run holds the workspace.
 
-    Examples:
-        >>> import tempfile
-        >>> from rapomdp.config import config_from_dict
-        >>> from rapomdp.context import RunContext
-        >>> from rapomdp.workspace import Workspace
-        >>> config = config_from_dict({"dataset": {"classes": ["mug", "cup"]}})
-        >>> with tempfile.TemporaryDirectory() as folder:
-        ...     done = run_pipeline(config, Workspace(folder), until="dataset",
-        ...                         context=RunContext(progress=False))
-        ...     again = run_pipeline(config, Workspace(folder), until="dataset",
-        ...                          context=RunContext(progress=False))
-        >>> [(r.name, r.cached) for r in done + again]
-        [('dataset', False), ('dataset', True)]
+    Example:
+        The dataset stage of the default configuration (seconds), then again (cached)::
+
+            from rapomdp.config import Config
+            from rapomdp.pipeline import run_pipeline
+            from rapomdp.workspace import Workspace
+
+            ws = Workspace("runs/demo")
+            results = run_pipeline(Config(), ws, until="dataset")
+            [(r.name, r.cached) for r in results]  # [('dataset', False)]
+            [(r.name, r.cached) for r in run_pipeline(Config(), ws, until="dataset")]
+            # [('dataset', True)]
+            run_pipeline(Config(), ws)  # every stage: Table 1 in runs/demo/evaluate/table1.md
     """
     force = set(force)
     unknown = force - set(STAGE_NAMES)

@@ -1,24 +1,17 @@
-"""Shared fixtures for the planning tests: the benchmark folder and the Tiger problem."""
+"""Shared fixtures for the planning tests: the classic ``.pomdp`` problems they read."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-
-
-def benchmark_dir() -> Path:
-    """``../shared/pomdp-benchmarks`` beside the repository, or $RAPOMDP_POMDP_BENCHMARKS."""
-    env = os.environ.get("RAPOMDP_POMDP_BENCHMARKS")
-    return Path(env) if env else REPO.parent / "shared" / "pomdp-benchmarks"
+#: Tiger, Hallway and Hallway2, kept in the repository (their origin and licence:
+#: ``data/README.md``), so that the tests that read them run on a fresh clone.
+DATA = Path(__file__).resolve().parent / "data"
 
 
 @pytest.fixture(scope="session")
 def benchmarks() -> Path:
-    folder = benchmark_dir()
-    if not folder.is_dir():
-        pytest.skip(f"benchmark problems not found at {folder}")
-    return folder
+    """The folder of the classic ``.pomdp`` problems (:data:`DATA`)."""
+    return DATA

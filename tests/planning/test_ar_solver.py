@@ -8,12 +8,8 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from rapomdp.planning.ar_solver import (
-    ActiveRecognitionSolver,
-    _Moves,
-    min_ratio,
-    solve_active_recognition,
-)
+from rapomdp.planning.ar_children import MoveChildren, min_ratio
+from rapomdp.planning.ar_solver import ActiveRecognitionSolver, solve_active_recognition
 from rapomdp.planning.memory import MemoryCapError
 from rapomdp.planning.momdp import benchmark_problem, update_beliefs
 from tests.planning.planning_fixtures import grid_value
@@ -134,7 +130,7 @@ def threshold_policy_return(problem, tau: float, runs: int, seed: int) -> tuple[
 def test_structured_children_match_the_plain_ones():
     problem = benchmark_problem(5, 4, seed=3)
     Pj = np.ascontiguousarray(problem.observation_model.transpose(0, 2, 1))
-    fast, plain = _Moves(Pj), _Moves(Pj)
+    fast, plain = MoveChildren(Pj), MoveChildren(Pj)
     plain.fast = False
     assert fast.fast
     rng = np.random.default_rng(1)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import re
 import time
 
@@ -34,8 +35,21 @@ def test_reads_every_benchmark(benchmarks, name, shape):
 
 def test_benchmark_folder_is_fully_covered(benchmarks):
     files = sorted(f.stem for f in benchmarks.glob("*.pomdp"))
+    assert files == ["Hallway", "Hallway2", "Tiger"]  # inside the repository: never skipped
     for f in files:
         assert read_pomdp(benchmarks / f"{f}.pomdp").n_states >= 2
+
+
+def test_the_benchmark_files_are_the_copies_their_readme_names(benchmarks):
+    """Each file's size and SHA-256 are those ``data/README.md`` records with its origin."""
+    rows = re.findall(r"^\| (\w+\.pomdp) \|.*\| ([\d,]+) \| `([0-9a-f]{64})` \|$",
+                      (benchmarks / "README.md").read_text(), flags=re.M)
+    assert sorted(name for name, _, _ in rows) == sorted(
+        f.name for f in benchmarks.glob("*.pomdp"))
+    for name, size, digest in rows:
+        data = (benchmarks / name).read_bytes()
+        assert len(data) == int(size.replace(",", "")) < 100_000, name
+        assert hashlib.sha256(data).hexdigest() == digest, name
 
 
 def test_hallway_rewards_on_reaching_the_goal(benchmarks):

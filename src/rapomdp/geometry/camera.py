@@ -23,7 +23,23 @@ XTION_HFOV_DEG = 58.0
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """Pinhole intrinsics in pixels for an image of ``width`` x ``height``."""
+    """Pinhole intrinsics in pixels for an image of ``width`` x ``height``.
+
+    Attributes:
+        width: Image width in pixels.
+        height: Image height in pixels.
+        fx: Horizontal focal length in pixels.
+        fy: Vertical focal length in pixels.
+        cx: Principal point's column (pixel centres at integers).
+        cy: Principal point's row.
+
+    Example:
+        >>> camera = Intrinsics(64, 48, fx=57.7, fy=57.7, cx=31.5, cy=23.5)
+        >>> [round(angle, 1) for angle in camera.fov_deg]
+        [58.0, 45.2]
+        >>> camera.scaled(128, 96).fx
+        115.4
+    """
 
     width: int
     height: int
@@ -71,6 +87,20 @@ def xtion_intrinsics(width: int = XTION_WIDTH_PX, height: int = XTION_HEIGHT_PX)
 
     At 640x480 the focal length is 320 / tan(29 deg) = 577.3 px, which gives a 45.1 deg
     vertical field of view (the specification says 45 deg). Other resolutions scale it.
+
+    Args:
+        width: Image width in pixels (the configuration's ``camera.width``).
+        height: Image height in pixels.
+
+    Returns:
+        The intrinsics at that resolution, the same field of view.
+
+    Example:
+        >>> camera = xtion_intrinsics()
+        >>> round(camera.fx, 1), [round(angle, 1) for angle in camera.fov_deg]
+        (577.3, [58.0, 45.1])
+        >>> xtion_intrinsics(64, 48).cx
+        31.5
     """
     f = float((XTION_WIDTH_PX / 2.0) / np.tan(np.radians(XTION_HFOV_DEG / 2.0)))
     native = Intrinsics(
@@ -96,6 +126,24 @@ def look_at_many(
     reached by a camera approaching the pole from azimuth 0 (the +X side): image right is world
     +Y and image up is world -X. So the pose is well defined there and continuous along that
     meridian.
+
+    Args:
+        eyes: (n, 3) camera centres in metres.
+        target: (3,) the point every camera looks at (default the origin).
+        up: (3,) the world's up direction (default +Z).
+
+    Returns:
+        (n, 4, 4) camera-to-world transforms: columns image-right, image-down, optical axis,
+        centre (OpenCV convention).
+
+    Raises:
+        ValueError: A camera sits at the target.
+
+    Example:
+        >>> import numpy as np
+        >>> poses = look_at_many(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
+        >>> poses.shape, bool(np.allclose(poses[0, :3, 2], [-1.0, 0.0, 0.0]))  # axis to 0
+        ((2, 4, 4), True)
     """
     eyes = np.atleast_2d(np.asarray(eyes, dtype=np.float64))
     target = np.zeros(3) if target is None else np.asarray(target, dtype=np.float64)
@@ -124,12 +172,32 @@ def look_at_many(
 
 
 def look_at(eye: np.ndarray, target: np.ndarray | None = None) -> np.ndarray:
-    """One camera-to-world pose (4, 4); see :func:`look_at_many`."""
+    """One camera-to-world pose (4, 4); see :func:`look_at_many`.
+
+    Args:
+        eye: (3,) the camera centre in metres.
+        target: (3,) the point it looks at (default the origin).
+
+    Returns:
+        (4, 4) the camera-to-world transform.
+
+    Example:
+        >>> import numpy as np
+        >>> pose = look_at(np.array([0.0, 0.0, 1.0]))  # at the pole, looking down
+        >>> bool(np.allclose(pose[:3, 2], [0.0, 0.0, -1.0])), pose[:3, 3].tolist()
+        (True, [0.0, 0.0, 1.0])
+    """
     return look_at_many(np.asarray(eye, dtype=np.float64)[None], target)[0]
 
 
 def camera_centres(poses: np.ndarray) -> np.ndarray:
-    """Camera centres (n, 3) of poses (n, 4, 4)."""
+    """Camera centres (n, 3) of poses (n, 4, 4) (their translation column), in metres.
+
+    Example:
+        >>> import numpy as np
+        >>> camera_centres(look_at_many(np.array([[1.0, 0.0, 0.0]]))).tolist()
+        [[1.0, 0.0, 0.0]]
+    """
     return np.asarray(poses)[..., :3, 3]
 
 
@@ -138,6 +206,18 @@ def pixel_directions(intrinsics: Intrinsics) -> np.ndarray:
 
     With z = 1 the ray parameter at a hit equals the hit's z-depth, so a ray caster that
     returns the parameter returns the depth image directly.
+
+    Args:
+        intrinsics: The camera.
+
+    Returns:
+        (height·width, 3) directions ((u − cx)/fx, (v − cy)/fy, 1), pixel (u, v) at row
+        v·width + u.
+
+    Example:
+        >>> rays = pixel_directions(Intrinsics(4, 2, fx=2.0, fy=2.0, cx=1.5, cy=0.5))
+        >>> rays.shape, rays[0].tolist()
+        ((8, 3), [-0.75, -0.25, 1.0])
     """
     u, v = np.meshgrid(
         np.arange(intrinsics.width, dtype=np.float64),
@@ -155,6 +235,23 @@ def project(
 
     ``points`` is (n, 3); ``poses`` (4, 4) or (m, 4, 4). Returns pixel coordinates (..., n, 2)
     as (u, v) and z-depths (..., n); points behind a camera have depth <= 0.
+
+    Args:
+        points: (n, 3) world points in metres.
+        poses: (4, 4) or (m, 4, 4) camera-to-world transforms.
+        intrinsics: The camera.
+
+    Returns:
+        ``(uv, depth)``: (n, 2) or (m, n, 2) pixel coordinates and (n,) or (m, n) z-depths
+        in metres.
+
+    Example:
+        >>> import numpy as np
+        >>> camera = xtion_intrinsics(64, 48)
+        >>> uv, depth = project(np.array([[0.0, 0.0, 0.0]]), look_at(np.array([1.0, 0.0, 0.0])),
+        ...                     camera)
+        >>> uv.tolist(), depth.tolist()  # the target lands on the principal point, 1 m away
+        ([[31.5, 23.5]], [1.0])
     """
     points = np.asarray(points, dtype=np.float64)
     poses = np.asarray(poses, dtype=np.float64)
@@ -178,6 +275,24 @@ def back_project(depth: np.ndarray, poses: np.ndarray, intrinsics: Intrinsics) -
 
     Pixels without depth (0) give the camera centre plus a zero-length ray; select them with
     ``depth > 0``.
+
+    Args:
+        depth: (..., height, width) z-depths in metres.
+        poses: (..., 4, 4) each image's camera-to-world transform.
+        intrinsics: The camera.
+
+    Returns:
+        (..., height, width, 3) world points in metres.
+
+    Raises:
+        ValueError: The images' size is not the intrinsics'.
+
+    Example:
+        >>> import numpy as np
+        >>> camera = Intrinsics(3, 3, fx=3.0, fy=3.0, cx=1.0, cy=1.0)
+        >>> points = back_project(np.ones((3, 3)), look_at(np.array([1.0, 0.0, 0.0])), camera)
+        >>> points.shape, (points[1, 1] + 0.0).tolist()  # the centre pixel sees the origin
+        ((3, 3, 3), [0.0, 0.0, 0.0])
     """
     depth = np.asarray(depth, dtype=np.float64)
     poses = np.asarray(poses, dtype=np.float64)

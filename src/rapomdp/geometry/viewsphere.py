@@ -18,6 +18,23 @@ def fibonacci_directions(count: int, hemisphere: bool = False) -> np.ndarray:
     With ``hemisphere`` the points cover the upper half (z >= 0, the object stands on the floor);
     the first point is the one nearest the pole. Equal steps in z give equal areas, so the
     lattice is uniform in area on the sphere and on the hemisphere alike.
+
+    Args:
+        count: How many directions (at least 1).
+        hemisphere: Cover only the upper half (z ≥ 0).
+
+    Returns:
+        (count, 3) unit vectors, the first nearest the pole (+Z).
+
+    Raises:
+        ValueError: ``count`` < 1.
+
+    Example:
+        >>> directions = fibonacci_directions(4, hemisphere=True)
+        >>> directions.shape, bool((directions[:, 2] > 0).all())
+        ((4, 3), True)
+        >>> directions[:, 2].tolist()  # equal steps in z: equal areas
+        [0.875, 0.625, 0.375, 0.125]
     """
     if count < 1:
         raise ValueError(f"viewpoint count must be at least 1, got {count}")
@@ -45,7 +62,28 @@ def viewpoints(
     hemisphere: bool = False,
     centre: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Camera positions, shape (count, 3), in metres on the viewsphere around ``centre``."""
+    """Camera positions, shape (count, 3), in metres on the viewsphere around ``centre``.
+
+    The training viewsphere and the test viewpoints X_rho are made this way.
+
+    Args:
+        count: How many viewpoints.
+        radius_m: The viewsphere's radius in metres (> 0).
+        hemisphere: Only the upper half (the object stands on the floor).
+        centre: (3,) the sphere's centre in metres (default the origin).
+
+    Returns:
+        (count, 3) positions in metres (:func:`fibonacci_directions` scaled and shifted).
+
+    Raises:
+        ValueError: ``radius_m`` ≤ 0 or ``count`` < 1.
+
+    Example:
+        >>> import numpy as np
+        >>> positions = viewpoints(3, 0.5, hemisphere=True, centre=np.array([0.0, 0.0, 0.1]))
+        >>> np.linalg.norm(positions - [0.0, 0.0, 0.1], axis=1).round(6).tolist()
+        [0.5, 0.5, 0.5]
+    """
     if radius_m <= 0:
         raise ValueError(f"viewsphere radius must be positive, got {radius_m} m")
     centre = np.zeros(3) if centre is None else np.asarray(centre, dtype=np.float64)
@@ -57,6 +95,22 @@ def geodesic_distance_matrix(points: np.ndarray, radius_m: float | None = None) 
 
     ``points`` may be unit directions or positions relative to the sphere's centre; the
     distance is the angle times ``radius_m`` (by default the points' mean norm).
+
+    Args:
+        points: (count, 3) directions or positions (none at the centre).
+        radius_m: The sphere's radius in metres, or None for the points' mean norm.
+
+    Returns:
+        (count, count) symmetric distances in metres, 0 on the diagonal.
+
+    Raises:
+        ValueError: A point lies at the centre.
+
+    Example:
+        >>> import numpy as np
+        >>> points = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+        >>> geodesic_distance_matrix(points, radius_m=2.0).round(4).tolist()
+        [[0.0, 3.1416, 6.2832], [3.1416, 0.0, 3.1416], [6.2832, 3.1416, 0.0]]
     """
     points = np.asarray(points, dtype=np.float64)
     norms = np.linalg.norm(points, axis=1)
@@ -77,6 +131,25 @@ def k_nearest(distances: np.ndarray, k: int, allowed: np.ndarray | None = None) 
 
     ``allowed`` (bool, count) removes viewpoints from the candidates (e.g. unreachable ones);
     a row with fewer than k allowed neighbours is padded with -1.
+
+    Args:
+        distances: (count, count) distances (:func:`geodesic_distance_matrix`).
+        k: Neighbours per viewpoint (at least 1).
+        allowed: (count,) bool: the viewpoints that may be neighbours (None: all).
+
+    Returns:
+        (count, k) indices, nearest first, -1 where there are fewer than k.
+
+    Raises:
+        ValueError: ``distances`` is not square, or ``k`` < 1.
+
+    Example:
+        >>> import numpy as np
+        >>> distances = np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 1.5], [2.0, 1.5, 0.0]])
+        >>> k_nearest(distances, 1).tolist()
+        [[1], [0], [1]]
+        >>> k_nearest(distances, 2, allowed=np.array([True, False, True])).tolist()
+        [[2, -1], [0, 2], [0, -1]]
     """
     distances = np.asarray(distances, dtype=np.float64)
     n = distances.shape[0]

@@ -9,7 +9,24 @@ import numpy as np
 
 @dataclass(frozen=True)
 class VoxelGrid:
-    """Axis-aligned cubic voxels of edge ``voxel_size_m``; ``origin`` is the grid's min corner."""
+    """Axis-aligned cubic voxels of edge ``voxel_size_m``; ``origin`` is the grid's min corner.
+
+    The grid of the 3D saliency volume. :meth:`around` fits one to a bounding box.
+
+    Attributes:
+        origin: (x, y, z) of the grid's min corner in metres.
+        voxel_size_m: The voxels' edge in metres.
+        shape: Voxels along x, y and z.
+
+    Example:
+        >>> import numpy as np
+        >>> grid = VoxelGrid.around(np.zeros(3), np.ones(3), resolution=4)
+        >>> grid.voxel_size_m, grid.shape, grid.count
+        (0.25, (5, 5, 5), 125)
+        >>> indices, inside = grid.points_to_indices(np.array([[0.5, 0.5, 0.5], [2.0, 2.0, 2.0]]))
+        >>> indices[0].tolist(), inside.tolist(), grid.indices_to_centres(indices[:1]).tolist()
+        ([2, 2, 2], [True, False], [[0.5, 0.5, 0.5]])
+    """
 
     origin: tuple[float, float, float]
     voxel_size_m: float

@@ -38,19 +38,17 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.planning.grid_bound import (
-    GridUpperBound,
-    grid_bytes,
-    grid_entries,
-    grid_upper_bound,
+from rapomdp.planning.ar_children import MoveChildren, min_ratio
+from rapomdp.planning.ar_memory import (
+    KEEP_PAIRS,
+    fit_chunk,
+    grid_resolutions,
+    plan_grid,
+    plan_library,
+    working_bytes,
 )
-from rapomdp.planning.memory import (
-    DEFAULT_MEMORY_GB,
-    ENTRY_BYTES,
-    MemoryCapError,
-    cap_bytes,
-    format_bytes,
-)
+from rapomdp.planning.grid_bound import GridUpperBound, grid_entries, grid_upper_bound
+from rapomdp.planning.memory import DEFAULT_MEMORY_GB, cap_bytes
 from rapomdp.planning.momdp import ActiveRecognitionProblem
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.rules import (
@@ -65,93 +63,21 @@ from rapomdp.planning.rules import (
 )
 from rapomdp.planning.sarsop import CLOCKS, Progress, ProgressCallback, SolveResult, check_budget
 
-#: Visited (belief, viewpoint) pairs kept for pruning the library.
-KEEP_PAIRS = 20_000
-#: Smallest working block (entries) the memory cap may shrink ``chunk`` to.
-MIN_CHUNK = 65_536
-#: Vectors and points the library can always hold (the memory check reserves them).
-LIBRARY_MIN = 1_000
 #: Prune schedule: first after this many iterations, then at iteration ⌊1.3·it⌋ + 4, and
 #: whenever the library has grown past 2 × its size after the last pruning + 256 vectors.
 FIRST_PRUNE, PRUNE_GROWTH, PRUNE_STEP = 8, 1.3, 4
 LIBRARY_GROWTH, LIBRARY_SLACK = 2, 256
 
 
-def min_ratio(u: np.ndarray, inv: np.ndarray, off: np.ndarray) -> np.ndarray:
-    """min_c (u[..., c] inv[i, c] + off[i, c]) for every point i: (..., N) from u (..., C) and
-    inv, off (N, C) (off: 0 on a point's support, +inf elsewhere).
-
-    The sawtooth ratio φ_i. A running minimum over the classes, each step one product over
-    (..., N), instead of a (..., N, C) temporary reduced over its short last axis: the same
-    products and an order-free minimum, so the same bits, several times faster."""
-    u = np.asarray(u)
-    by_class = np.moveaxis(u, -1, 0)  # (C, ...)
-    inv_t, off_t = np.ascontiguousarray(inv.T), np.ascontiguousarray(off.T)  # (C, N)
-    has_off = np.isinf(off_t).any(axis=1)
-    out = np.full(u.shape[:-1] + (inv.shape[0],), np.inf)
-    term = np.empty_like(out)
-    for c in range(u.shape[-1]):
-        np.multiply(by_class[c][..., None], inv_t[c], out=term)
-        if has_off[c]:
-            term += off_t[c]
-        np.minimum(out, term, out=out)
-    return out
-
-
-class _Moves:
-    """Children of class beliefs under every move target a and label o.
-
-    ``Pj[a, o, c]`` = P(o | c, targets[a]). With the structure P = w_j(c) off the diagonal
-    and a_j(c) on it, the products use it (``fast``).
-    """
-
-    def __init__(self, Pj: np.ndarray) -> None:
-        self.Pj = Pj
-        n_j, n_o, n_c = Pj.shape
-        self.fast = False
-        self.idx = np.arange(n_c)
-        if n_o == n_c:
-            diag = Pj[:, self.idx, self.idx]  # (J, C)
-            off = Pj.copy()
-            off[:, self.idx, self.idx] = np.nan
-            hi, lo = np.nanmax(off, axis=1), np.nanmin(off, axis=1)  # (J, C) over wrong o
-            if np.all(hi - lo <= EQUAL_TOL):
-                self.fast = True
-                self.A, self.W, self.D = diag, lo, diag - lo
-
-    def unnormalised(self, B: np.ndarray) -> np.ndarray:
-        """u[k, a, o, c] = B[k, c] P(o | c, a): (K, J, O, C)."""
-        return B[:, None, None, :] * self.Pj[None]
-
-    def dots(self, B: np.ndarray, betas: np.ndarray) -> np.ndarray:
-        """u[k, a, o] · β_m: (K, J, O, M)."""
-        if self.fast:
-            first = (B[:, None, :] * self.W[None]) @ betas.T  # (K, J, M)
-            bump = B[:, None, :] * self.D[None]  # (K, J, O)
-            return first[:, :, None, :] + bump[..., None] * betas.T[None, None]
-        return self.unnormalised(B) @ betas.T
-
-    def phi(self, B: np.ndarray, inv: np.ndarray, off: np.ndarray) -> np.ndarray:
-        """min_c u[k, a, o, c] inv_i(c) (+inf off the point's support): (K, J, O, N)."""
-        if self.fast:
-            x = (B[:, None, :] * self.W[None])[:, :, None, :] * inv[None, None] + off
-            part = np.partition(x, 1, axis=-1)  # (K, J, N, C)
-            m1, m2 = part[..., 0], part[..., 1]
-            arg = x.argmin(axis=-1)
-            y = (B[:, None, :] * self.A[None])[:, :, None, :] * inv[None, None] + off
-            excl = np.where(arg[..., None] == self.idx, m2[..., None], m1[..., None])
-            return np.minimum(y, excl).transpose(0, 1, 3, 2)
-        return min_ratio(self.unnormalised(B), inv, off)
-
-    def backup(self, alpha: np.ndarray) -> np.ndarray:
-        """Σ_o P(o | c, a) α[k, a, o, c]: (K, J, C)."""
-        if self.fast:
-            return self.W[None] * alpha.sum(axis=2) + self.D[None] * alpha[:, :, self.idx, self.idx]
-        return np.einsum("aoc,kaoc->kac", self.Pj, alpha)
-
-
 class ActiveRecognitionSolver:
-    """Point-based solver with one shared library of continuation vectors over the simplex."""
+    """Point-based solver with one shared library of continuation vectors over the simplex.
+
+    One backup serves every viewpoint (the module docstring says why); every structure is
+    sized against ``memory_gb`` before it is allocated (:mod:`rapomdp.planning.ar_memory`).
+    :func:`solve_active_recognition` makes one, with the same arguments, and solves; a
+    problem whose smallest working blocks exceed the cap raises
+    :class:`~rapomdp.planning.memory.MemoryCapError`.
+    """
 
     def __init__(
         self,
@@ -168,11 +94,11 @@ class ActiveRecognitionSolver:
         n_c, n_v, n_j = problem.n_states, problem.n_viewpoints, problem.targets.size
         self.n_classes = problem.n_classes
         self.memory_gb = memory_gb
-        self.chunk = self._fit_chunk(chunk, n_v, n_j, n_c, cap_bytes(memory_gb))
+        self.chunk = fit_chunk(chunk, n_v, n_j, n_c, cap_bytes(memory_gb))
         self.cost = problem.move_cost()  # (V, J)
         self.cost_tt = self.cost[self.targets]  # (J, J): from a target to a target
         self.min_cost = self.cost.min(axis=1)  # (V,) a move costs at least this much
-        self.moves = _Moves(
+        self.moves = MoveChildren(
             np.ascontiguousarray(problem.observation_model[self.targets].transpose(0, 2, 1))
         )
         self.lam = problem.lambda_
@@ -191,90 +117,16 @@ class ActiveRecognitionSolver:
         self.visited_v: list[np.ndarray] = [np.array([problem.start_viewpoint])]
         self.clock: Callable[[], float] = time.process_time
         self.deadline = np.inf
-        self.max_resolution, grid_note = self._plan_grid()
-        self.max_vectors, self.max_points = self._plan_library()
+        shape = (n_v, n_c, n_j, problem.n_classes)
+        self.max_resolution, grid_note = plan_grid(shape, self.chunk, memory_gb, grid,
+                                                   grid_entries)
+        self.max_vectors, self.max_points = plan_library(shape, self.chunk, memory_gb,
+                                                         self.max_resolution)
         self.notes: list[str] = [grid_note]
 
-    # -- memory --------------------------------------------------------------------------
-    @staticmethod
-    def working_bytes(chunk: int, n_viewpoints: int, n_targets: int, n_classes: int) -> int:
-        """Bytes of the solver's fixed arrays and working blocks, before any library.
-
-        The problem's arrays (V·C² + 2·J·C² + 3·V·J + V²), one belief's children and their
-        plans (10 arrays of J·C²), eight blocks of ``chunk`` entries, the visited pairs kept
-        for pruning (3 copies of 20 000 × (C + 1)).
-        """
-        v, j, c = n_viewpoints, n_targets, n_classes
-        problem = v * c * c + 2 * j * c * c + 3 * v * j + v * v
-        children = 10 * j * c * c
-        visited = 3 * KEEP_PAIRS * (c + 1)
-        return ENTRY_BYTES * (problem + children + 8 * chunk + visited)
-
-    @classmethod
-    def _fit_chunk(cls, chunk: int, n_v: int, n_j: int, n_c: int, cap: float) -> int:
-        """``chunk`` or less so that the working arrays take at most half of the cap; refused
-        (:class:`MemoryCapError`) when even the smallest blocks do not fit."""
-        smallest = max(MIN_CHUNK, n_j * n_c * n_c)
-        fitted = int(chunk)
-        while fitted > smallest and cls.working_bytes(fitted, n_v, n_j, n_c) > cap / 2:
-            fitted = max(smallest, fitted // 2)
-        need = cls.working_bytes(fitted, n_v, n_j, n_c) + LIBRARY_MIN * ENTRY_BYTES * (
-            4 * n_c + n_v + n_j)
-        if need > cap:
-            raise MemoryCapError(
-                f"the active-recognition problem ({n_v} viewpoints x {n_c} classes, {n_j} move "
-                "targets)", need, cap)
-        return fitted
-
-    def _plan_grid(self) -> tuple[int, str]:
-        """The finest grid resolution whose structures fit in the memory left and in
-        ``grid_entries`` (0: no grid), and a note saying which bound was chosen and why."""
-        pb = self.problem
-        n_v, n_c, n_j = pb.n_viewpoints, pb.n_states, self.targets.size
-        n_o = pb.n_classes
-        if self.grid_option is False:
-            return 0, "upper bound: sawtooth only (grid turned off)"
-        cap = cap_bytes(self.memory_gb)
-        left = cap - self.working_bytes(self.chunk, n_v, n_j, n_c)
-        # the grid's share: at most half of what is left, the rest is the library's
-        budget = left / 2
-        extra = 6 * n_j * n_c * n_o * ENTRY_BYTES  # interpolating one belief's children
-        best, refusal = 0, ""
-        for res in self._resolutions():
-            entries = grid_entries(res, n_c, n_j, n_o)
-            if entries > self.grid_entries:
-                refusal = refusal or (f"resolution {res} has {entries:.3g} entries, over "
-                                      f"the {self.grid_entries:.3g} the time budget allows")
-                break
-            need = grid_bytes(res, n_c, n_v, n_j, n_o) + extra
-            if need > budget:
-                refusal = (f"resolution {res} needs {format_bytes(need)}, over the "
-                           f"{format_bytes(budget)} the {format_bytes(cap)} cap leaves it")
-                break
-            best = res
-        if best == 0:
-            return 0, f"upper bound: sawtooth only, grid skipped ({refusal})"
-        if refusal and "cap" in refusal:
-            return best, f"upper bound: grid up to resolution {best} + sawtooth ({refusal})"
-        return best, f"upper bound: grid up to resolution {best} + sawtooth"
-
-    def _plan_library(self) -> tuple[int, int]:
-        """Most lower-bound vectors and upper-bound points the memory left can hold."""
-        pb = self.problem
-        n_v, n_c, n_j = pb.n_viewpoints, pb.n_states, self.targets.size
-        left = cap_bytes(self.memory_gb) - self.working_bytes(self.chunk, n_v, n_j, n_c)
-        if self.max_resolution:
-            left -= grid_bytes(self.max_resolution, n_c, n_v, n_j, pb.n_classes)
-        left = max(left, 0.0)
-        per_vector = ENTRY_BYTES * (2 * n_c + 2 + n_v)  # β, slot, copies in pruning, scores
-        per_point = ENTRY_BYTES * (4 * n_c + n_v + n_j)  # b, 1/b, offset, values, a copy
-        return (max(LIBRARY_MIN, int(left / 2 / per_vector)),
-                max(LIBRARY_MIN, int(left / 2 / per_point)))
-
-    def _resolutions(self) -> list[int]:
-        if isinstance(self.grid_option, int) and not isinstance(self.grid_option, bool):
-            return [int(self.grid_option)]
-        return [2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80, 96, 128]
+    #: Bytes of the fixed arrays and working blocks before any library
+    #: (:func:`rapomdp.planning.ar_memory.working_bytes`).
+    working_bytes = staticmethod(working_bytes)
 
     # -- bounds --------------------------------------------------------------------------
     def lower_values(self, beliefs: np.ndarray) -> np.ndarray:
@@ -536,7 +388,7 @@ class ActiveRecognitionSolver:
         pb = self.problem
         n_c, n_j = pb.n_states, len(self.targets)
         last_cost, last_entries = 0.0, 0
-        for res in self._resolutions():
+        for res in grid_resolutions(self.grid_option):
             if res > self.max_resolution:
                 break
             entries = grid_entries(res, n_c, n_j, pb.n_classes)
@@ -590,6 +442,27 @@ class ActiveRecognitionSolver:
 
         ``checkpoints`` (seconds) force a history entry as soon as each is passed. Up to
         ``grid_share`` of the time goes to the grid upper bound (where affordable).
+
+        Args:
+            precision: The gap upper − lower at the start at which it stops (value units:
+                metres of movement energy, as λ).
+            timeout: Seconds of ``clock``.
+            callback: Called with each history entry.
+            report_every: Seconds between history entries.
+            max_depth: The longest sampled trajectory (steps).
+            gap_fraction: A trajectory's target gap, as a share of the current one.
+            max_iterations: Stop after this many sampling rounds (None: no limit).
+            policy_trajectories: Alternate bound-guided trajectories with batches of episodes
+                of the policy in hand.
+            seed: Seed of the sampled classes and labels.
+            checkpoints: Seconds at which a history entry is forced.
+            clock: ``"process"`` (CPU time of this process) or ``"wall"``.
+            grid_share: The share of ``timeout`` the grid upper bound may take.
+            policy_runs: Episodes per policy batch.
+
+        Returns:
+            The lower-bound policy, the final bounds at the start, the seconds, the sampling
+            rounds, whether the gap closed, the history and the note on the bounds used.
         """
         check_budget(precision, timeout)
         self.clock = CLOCKS[clock]
@@ -672,43 +545,54 @@ def solve_active_recognition(
     memory_gb: float = DEFAULT_MEMORY_GB,
     **options: Any,
 ) -> SolveResult[ActiveRecognitionPolicy]:
-    """Solve the active-recognition MOMDP (point-based, in the manner of SARSOP).
+    """Solve the MOMDP with :class:`ActiveRecognitionSolver`; ``result.policy`` is an
+    :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`. ``chunk``, ``grid`` (False: no
+    grid bound; an int: that resolution), ``grid_entries`` and ``memory_gb`` (the cap every
+    structure is sized against, default 4) go to the constructor, ``options`` to
+    :meth:`ActiveRecognitionSolver.solve` (``clock``, ``checkpoints``, ``max_iterations``, …).
+    ``result.note`` says which bounds the cap and the budget left in use.
+
+    The planner of the RA-POMDP: from the start viewpoint and belief, where to move next or
+    which class to declare, trading movement energy against the cost λ of a wrong
+    declaration (paper Eqs. 1-5).
 
     Args:
-        problem: from ``build_active_recognition_problem``.
-        precision: stop when the gap between the bounds at the start belief is below this.
-        timeout: the budget in seconds of process CPU time (time waiting does not count).
-        callback: called with the bounds as they improve (``Progress``).
-        chunk: entries of the working blocks (halved when the cap is small).
-        grid: the grid upper bound: True (the finest resolution that fits), False (none) or
-            a resolution.
-        grid_entries: the most entries the grid may have.
-        memory_gb: the cap every structure is sized against before it is allocated.
-        **options: ``ActiveRecognitionSolver.solve``'s (``clock``, ``checkpoints``,
-            ``max_iterations``, ...).
+        problem: The MOMDP (:func:`~rapomdp.planning.momdp.build_active_recognition_problem`).
+        precision: The gap between the bounds at the start at which it stops.
+        timeout: Seconds of process CPU time (``clock="wall"``: wall time).
+        callback: Called with each :class:`~rapomdp.planning.sarsop.Progress` snapshot.
+        chunk: Entries of one working block.
+        grid: The grid upper bound: True (the finest that fits), False (none) or a resolution.
+        grid_entries: The most grid entries the time budget allows.
+        memory_gb: The memory cap in GB.
+        **options: More settings of :meth:`ActiveRecognitionSolver.solve`.
 
     Returns:
-        ``lower`` and ``upper``, bounds on the value at the start belief; ``policy``, an
-        ``ActiveRecognitionPolicy`` (``act``, ``lookahead_act``, ``save``); ``note``, which
-        bounds the cap and the budget left in use.
+        The policy, the lower and upper bounds on the optimal value at the start (a negative
+        expected cost, in the units of the energy and λ), the seconds, the rounds, whether the
+        gap closed, the history and a note.
 
     Raises:
-        MemoryCapError: the problem cannot fit in ``memory_gb``, said before allocating.
+        MemoryCapError: The problem does not fit ``memory_gb``.
+        ValueError: ``precision`` or ``timeout`` is not a positive finite number.
 
-    Examples:
+    Example:
+        Two viewpoints: one informative, the start barely so. Moving (1 m) and then declaring
+        is worth −1 + 0.95 · (−8 · 0.15) = −2.14, better than declaring now (−4):
+
         >>> import numpy as np
         >>> from rapomdp.planning import build_active_recognition_problem
-        >>> P = np.full((4, 2, 2), 0.5)                    # viewpoint 0 tells nothing
-        >>> P[1:] = [[0.9, 0.1], [0.1, 0.9]]               # viewpoints 1-3: right 9 times in 10
-        >>> E = np.full((4, 4), 0.2)                       # 0.2 m between any two viewpoints
-        >>> np.fill_diagonal(E, 0.0)
-        >>> problem = build_active_recognition_problem(P, E, lambda_=8.0)
-        >>> from rapomdp.planning import solve_active_recognition
-        >>> result = solve_active_recognition(problem, timeout=5)
-        >>> bool(result.lower <= result.upper)
-        True
-        >>> result.policy.act(0, np.array([0.5, 0.5]))    # look from an informative view
-        ARAction(kind='move', target=1)
+        >>> P = np.array([[[0.9, 0.1], [0.2, 0.8]],   # viewpoint 0: informative
+        ...               [[0.6, 0.4], [0.4, 0.6]]])  # viewpoint 1: barely
+        >>> E = np.array([[0.0, 1.0], [1.0, 0.0]])     # moving costs 1 m
+        >>> problem = build_active_recognition_problem(P, E, lambda_=8.0, start_viewpoint=1)
+        >>> result = solve_active_recognition(problem, precision=1e-3)
+        >>> result.converged, round(result.lower, 2), round(result.upper, 2)
+        (True, -2.14, -2.14)
+        >>> result.policy.act(1, problem.start_belief)
+        ARAction(kind='move', target=0)
+        >>> result.policy.act(0, np.array([0.9, 0.1]))
+        ARAction(kind='declare', target=0)
     """
     solver = ActiveRecognitionSolver(problem, chunk, grid, grid_entries, memory_gb)
     return solver.solve(precision, timeout, callback, **options)

@@ -445,10 +445,37 @@ def _is_float(text: str) -> bool:
 
 def parse_pomdp(text: str, source: str = "<string>", memory_gb: float = DEFAULT_MEMORY_GB,
                 solver_bytes: SizeEstimate | None = None) -> POMDP:
-    """Parse the text of a ``.pomdp`` file; raises :class:`PomdpParseError` on any error and
-    :class:`~rapomdp.planning.memory.MemoryCapError` (before allocating) when its dense arrays
-    — or ``solver_bytes(states, actions, observations)``, what the caller will need to solve
-    it — would exceed ``memory_gb``. Time and memory are linear in the file's size."""
+    """Parse the text of a ``.pomdp`` file (Cassandra's format, as the reference SARSOP reads
+    it); time and memory are linear in the text's size.
+
+    Args:
+        text: The file's text.
+        source: The file's name in error messages.
+        memory_gb: The memory cap in GB.
+        solver_bytes: ``(states, actions, observations) -> bytes`` the caller will also need
+            to solve it (counted against the cap too).
+
+    Returns:
+        The POMDP: T (A, S, S), Z (A, S, O), R (A, S) (rewards R(s, a, s', o) folded in),
+        discount, initial belief and names.
+
+    Raises:
+        PomdpParseError: A syntax or model error, with its line.
+        MemoryCapError: The arrays would exceed ``memory_gb`` (before any is allocated).
+
+    Example:
+        >>> listen = parse_pomdp("discount: 0.95\\nvalues: reward\\nstates: left right\\n"
+        ...                      "actions: listen\\nobservations: hear-left hear-right\\n"
+        ...                      "T: listen\\nidentity\\nO: listen\\n0.85 0.15\\n0.15 0.85\\n"
+        ...                      "R: listen : * : * : * -1\\n")
+        >>> listen.T.shape, listen.Z[0].tolist(), listen.R.tolist()
+        ((1, 2, 2), [[0.85, 0.15], [0.15, 0.85]], [[-1.0, -1.0]])
+        >>> parse_pomdp("discount: 0.9\\nstates: 2\\nactions: 1\\nobservations: 1\\n"
+        ...             "T: 7 : 0 : 0 1\\n")
+        Traceback (most recent call last):
+        ...
+        rapomdp.planning.io_pomdp.PomdpParseError: <string>:5: action index 7 is out of range ...
+    """
     try:
         return _Parser(text, source, memory_gb, solver_bytes).parse()
     except PomdpParseError:
@@ -459,35 +486,15 @@ def parse_pomdp(text: str, source: str = "<string>", memory_gb: float = DEFAULT_
 
 def read_pomdp(path: str | os.PathLike[str], memory_gb: float = DEFAULT_MEMORY_GB,
                solver_bytes: SizeEstimate | None = None) -> POMDP:
-    """Read a Cassandra ``.pomdp`` file (see ``parse_pomdp``).
+    """Read a ``.pomdp`` file; a missing or undecodable file is a :class:`PomdpParseError`;
+    see :func:`parse_pomdp`. The file is sized before it is read (a device or pipe is read no
+    further than the memory cap allows): :class:`~rapomdp.planning.memory.MemoryCapError`.
 
     Args:
-        path: the file.
-        memory_gb: the cap the file is sized against before it is read (a device or pipe is
-            read no further than the cap allows).
-        solver_bytes: also count what a solver of the problem will need.
+        path: The ``.pomdp`` file; ``memory_gb`` and ``solver_bytes`` as :func:`parse_pomdp`'s.
 
     Returns:
-        The flat ``POMDP`` (transition, observation and reward arrays, start belief).
-
-    Raises:
-        PomdpParseError: a missing, undecodable or malformed file (the message names the
-            line).
-        MemoryCapError: the problem cannot fit in ``memory_gb``.
-
-    Examples:
-        >>> import tempfile
-        >>> from pathlib import Path
-        >>> import numpy as np
-        >>> from rapomdp.planning import (build_active_recognition_problem, read_pomdp,
-        ...                               to_flat_pomdp, write_pomdp)
-        >>> P = np.full((2, 2, 2), 0.5)
-        >>> problem = build_active_recognition_problem(P, np.array([[0.0, 0.2], [0.2, 0.0]]))
-        >>> with tempfile.TemporaryDirectory() as folder:
-        ...     path = write_pomdp(to_flat_pomdp(problem), Path(folder) / "ar.pomdp")
-        ...     pomdp = read_pomdp(path)
-        >>> pomdp.n_states                                 # (viewpoint, class) and the end
-        5
+        The POMDP. Example: ``read_pomdp("tests/planning/data/Hallway.pomdp").n_states`` is 60.
     """
     path = Path(path)
     limit = int(cap_bytes(memory_gb) // READ_BYTES_PER_BYTE)
@@ -533,6 +540,17 @@ def format_pomdp(pomdp: POMDP) -> str:
 
     T and O are written per action as rows or, when sparse, as single entries; an O that is
     the same for every action is written once with ``*``.
+
+    The text :func:`parse_pomdp` reads back to the same arrays.
+
+    Example:
+        >>> import numpy as np
+        >>> from rapomdp.planning import POMDP
+        >>> pomdp = POMDP.from_arrays(np.array([np.eye(2)]), np.array([[[0.8, 0.2], [0.3, 0.7]]]),
+        ...                           np.array([[1.0, 0.0]]), 0.9, np.array([0.5, 0.5]))
+        >>> again = parse_pomdp(format_pomdp(pomdp))
+        >>> bool(np.array_equal(again.Z, pomdp.Z) and np.array_equal(again.R, pomdp.R))
+        True
     """
 
     def names(items: list[str], n: int) -> str:
@@ -563,5 +581,6 @@ def format_pomdp(pomdp: POMDP) -> str:
 
 
 def write_pomdp(pomdp: POMDP, path: str | os.PathLike[str]) -> Path:
-    """Write a flat POMDP as a ``.pomdp`` file (atomically)."""
+    """Write ``pomdp`` as a ``.pomdp`` file at ``path`` (replaced whole, atomically:
+    :func:`format_pomdp`'s text); returns ``path``."""
     return write_text_atomic(Path(path), format_pomdp(pomdp))

@@ -27,7 +27,18 @@ def _num(x: float) -> str:
 
 
 def format_pomdpx(problem: ActiveRecognitionProblem, description: str = "") -> str:
-    """The ``.pomdpx`` text of an active-recognition problem."""
+    """The ``.pomdpx`` text of an active-recognition problem.
+
+    The viewpoint is a fully observed variable (SARSOP's MOMDP mode), the class a hidden one;
+    the reference ``pomdpsol`` solves the file.
+
+    Args:
+        problem: The MOMDP.
+        description: A line for the file's ``<Description>``.
+
+    Returns:
+        The XML text.
+    """
     n_v, n_c = problem.n_viewpoints, problem.n_classes
     views = [f"v{v}" for v in range(n_v)]
     classes = [f"c{c}" for c in range(n_c)]
@@ -122,5 +133,14 @@ def format_pomdpx(problem: ActiveRecognitionProblem, description: str = "") -> s
 def write_pomdpx(
     problem: ActiveRecognitionProblem, path: str | os.PathLike[str], description: str = ""
 ) -> Path:
-    """Write the problem as ``.pomdpx`` (atomically)."""
+    """Write the problem as ``.pomdpx`` (atomically, :func:`format_pomdpx`'s text).
+
+    Args:
+        problem: The MOMDP.
+        path: The file to write.
+        description: A line for the file's ``<Description>``.
+
+    Returns:
+        ``path``.
+    """
     return write_text_atomic(Path(path), format_pomdpx(problem, description))

@@ -40,7 +40,22 @@ BENCHMARK_LAMBDA = 10.0
 
 @dataclass
 class ActiveRecognitionProblem:
-    """The MOMDP's parts as arrays; see the module docstring for shapes."""
+    """The MOMDP's parts as arrays; see the module docstring for shapes.
+
+    Validated when made (shapes, distributions, energies);
+    :func:`build_active_recognition_problem` makes one from the stages' arrays.
+
+    Attributes:
+        observation_model: (V, S, C) P(label | hidden state, viewpoint).
+        move_energy: (V, V) finite energies E_M in metres.
+        reachable: (V,) bool: the move targets.
+        lambda_: The cost of a wrong declaration (metres).
+        discount: The discount factor.
+        start_viewpoint: The first image's viewpoint.
+        start_belief: (S,) the first belief (empty: uniform).
+        allow_stay: Whether moving to the current viewpoint is an action.
+        class_names: The classes' names.
+    """
 
     observation_model: np.ndarray
     move_energy: np.ndarray
@@ -152,7 +167,26 @@ def update_beliefs(
 ) -> np.ndarray:
     """Vectorised Eq. 5 over a batch: beliefs (..., S) over the hidden states (the classes, or
     (type, class) pairs), viewpoints and labels broadcastable; ``observation_model`` (V, S, O).
-    The one belief update of the package: the closed loop's beliefs and the planners'."""
+    The one belief update of the package: the closed loop's beliefs and the planners'.
+
+    Args:
+        observation_model: (V, S, O) = P(label o | hidden state s, viewpoint v).
+        beliefs: (..., S) beliefs, each summing to 1.
+        viewpoints: The viewpoint of each image (broadcast against ``beliefs[..., 0]``).
+        labels: The predicted label of each image (broadcast alike).
+
+    Returns:
+        (..., S) the posteriors b'(s) ∝ P[v, s, o] b(s).
+
+    Raises:
+        ValueError: An observation has probability 0 under its belief.
+
+    Example:
+        >>> import numpy as np
+        >>> P = np.array([[[0.9, 0.1], [0.2, 0.8]]])
+        >>> update_beliefs(P, np.array([0.5, 0.5]), 0, 1).round(4).tolist()
+        [0.1111, 0.8889]
+    """
     like = observation_model[viewpoints, :, labels]  # (..., C)
     post = beliefs * like
     total = post.sum(axis=-1, keepdims=True)
@@ -180,38 +214,34 @@ def build_active_recognition_problem(
     negative energy is refused.
 
     Args:
-        observation_model: (V, C, C), P(o | class, viewpoint) at ``[v, c, o]``, each row
-            summing to 1; or (V, T·C, C) with T instance types.
-        move_energy: (V, V), E_M of moving from viewpoint v to j, metres (Eq. 3).
-        reachable: (V,) bool, the viewpoints the arm reaches (all when omitted).
-        lambda_: the cost of a wrong declaration, metres of energy (Eq. 1).
-        discount: the discount factor γ of the MOMDP.
-        start_viewpoint: where the episode starts.
-        start_belief: over the hidden states (uniform when omitted; a typed model's is the
-            observe stage's prior over types).
-        allow_stay: whether "move to where you are" is an action.
-        class_names: the classes' names, for exports.
+        observation_model: (V, C, C) or (V, T·C, C) probabilities, rows summing to 1.
+        move_energy: (V, V) energies E_M in metres (+inf allowed to or from an unreachable
+            viewpoint).
+        reachable: (V,) bool, or None for all.
+        lambda_: The cost of a wrong declaration, in the energy's units (metres).
+        discount: The discount factor in (0, 1].
+        start_viewpoint: The viewpoint index of the first image.
+        start_belief: (S,) the belief over the hidden states, or None for uniform.
+        allow_stay: Whether moving to the current viewpoint is an action.
+        class_names: The classes' names (for export and messages).
 
     Returns:
-        The problem: ``n_viewpoints``, ``n_classes``, the move ``targets`` and
-        ``update(belief, viewpoint, label)`` (Eq. 5).
+        The validated problem.
 
     Raises:
-        ValueError: shapes that disagree, rows that do not sum to 1, or a NaN, negative or
-            infinite energy between reachable viewpoints.
+        ValueError: A shape, a probability or an energy is invalid (named).
 
-    Examples:
+    Example:
         >>> import numpy as np
         >>> from rapomdp.planning import build_active_recognition_problem
-        >>> P = np.full((4, 2, 2), 0.5)                    # viewpoint 0 tells nothing
-        >>> P[1:] = [[0.9, 0.1], [0.1, 0.9]]               # viewpoints 1-3: right 9 times in 10
-        >>> E = np.full((4, 4), 0.2)                       # 0.2 m between any two viewpoints
-        >>> np.fill_diagonal(E, 0.0)
-        >>> problem = build_active_recognition_problem(P, E, lambda_=8.0)
-        >>> problem.n_viewpoints, problem.n_classes
-        (4, 2)
-        >>> problem.update(np.array([0.5, 0.5]), 1, 0)    # label 0 seen from viewpoint 1
-        array([0.9, 0.1])
+        >>> P = np.array([[[0.9, 0.1], [0.2, 0.8]],   # viewpoint 0: informative
+        ...               [[0.6, 0.4], [0.4, 0.6]]])  # viewpoint 1: barely
+        >>> E = np.array([[0.0, 1.0], [1.0, 0.0]])     # moving costs 1 m
+        >>> problem = build_active_recognition_problem(P, E, lambda_=8.0, start_viewpoint=1)
+        >>> problem.n_viewpoints, problem.n_classes, problem.targets.tolist()
+        (2, 2, [0, 1])
+        >>> problem.start_belief.tolist()
+        [0.5, 0.5]
     """
     P = np.asarray(observation_model, dtype=np.float64)
     reach = np.asarray(np.ones(P.shape[0], dtype=bool) if reachable is None else reachable,
@@ -288,6 +318,23 @@ def benchmark_problem(
     0 / −λ; the label is right with probability 0.3 + 0.6·f_c(j), else uniform over the other
     labels, where f_c is the larger of two von Mises bumps exp(κ(μ·v − 1)), κ ~ U[3, 8] and μ
     uniform on the hemisphere, drawn per class.
+
+    Args:
+        n_viewpoints: V.
+        n_classes: C.
+        seed: Seed of the class bumps.
+        lambda_: The cost of a wrong declaration.
+        discount: The discount factor.
+        memory_gb: The memory cap in GB.
+
+    Returns:
+        The problem: (V, C, C) observation model, (V, V) move energy, every viewpoint
+        reachable, staying allowed.
+
+    Example:
+        >>> problem = benchmark_problem(8, 3, seed=0)
+        >>> problem.observation_model.shape, problem.move_energy.shape
+        ((8, 3, 3), (8, 8))
     """
     # the distance matrix and its temporaries (V x V), the observation model (V x C x C)
     check_memory(f"the benchmark problem {n_viewpoints}x{n_classes}",
@@ -331,6 +378,24 @@ def to_flat_pomdp(problem: ActiveRecognitionProblem,
     terminal state. Actions: move to each target, then declare each class. Observations
     (v, o) at v·C + o (the arrival viewpoint is observed with the label), then "done" in the
     terminal state. A forbidden stay costs ``FORBIDDEN_REWARD``.
+
+    Args:
+        problem: The MOMDP.
+        memory_gb: The memory cap in GB.
+
+    Returns:
+        The flat POMDP with V·S + 1 states, J + C actions and V·C + 1 observations.
+
+    Example:
+        >>> import numpy as np
+        >>> from rapomdp.planning import build_active_recognition_problem
+        >>> P = np.array([[[0.9, 0.1], [0.2, 0.8]],   # viewpoint 0: informative
+        ...               [[0.6, 0.4], [0.4, 0.6]]])  # viewpoint 1: barely
+        >>> E = np.array([[0.0, 1.0], [1.0, 0.0]])     # moving costs 1 m
+        >>> problem = build_active_recognition_problem(P, E, lambda_=8.0, start_viewpoint=1)
+        >>> flat = to_flat_pomdp(problem)
+        >>> flat.n_states, flat.action_names
+        (5, ['move0', 'move1', 'declare_class0', 'declare_class1'])
     """
     P, n_v, n_c = problem.observation_model, problem.n_viewpoints, problem.n_classes
     n_h = problem.n_states
@@ -409,6 +474,28 @@ def simulate_policy(
     The true hidden state (class, or type and class) is drawn from the start belief; each
     step the policy moves (the label is drawn from P[j, s, :]) or declares. An episode still
     running after ``max_steps`` counts as a wrong declaration then.
+
+    Args:
+        problem: The MOMDP the episodes run on.
+        policy: An :class:`~rapomdp.planning.policy.ActiveRecognitionPolicy`.
+        n_runs: Episodes.
+        seed: Seed of the classes and labels drawn.
+        max_steps: The most moves of an episode.
+
+    Returns:
+        Per episode: the discounted and plain returns, whether the declaration was right and
+        the moves made (``summary()`` gives their means).
+
+    Raises:
+        TypeError: ``policy`` is not an ActiveRecognitionPolicy.
+
+    Example:
+        A policy's simulated return is close to its lower bound (the toy problem of
+        :func:`~rapomdp.planning.ar_solver.solve_active_recognition`)::
+
+            result = solve_active_recognition(problem)
+            simulate_policy(problem, result.policy, n_runs=2000).summary()
+            # {'mean_discounted_return': -2.09, ..., 'accuracy': 0.857, 'mean_steps': 1.0}
     """
     from rapomdp.planning.policy import ActiveRecognitionPolicy
 

@@ -55,22 +55,39 @@ def _load(path: str | os.PathLike[str], expected: str) -> dict[str, np.ndarray]:
 
 @dataclass(frozen=True)
 class AlphaVectorPolicy:
-    """Max over alpha vectors (N, S); each vector's action is the policy's choice there."""
+    """Max over alpha vectors (N, S); each vector's action is the policy's choice there.
+
+    What :func:`~rapomdp.planning.sarsop.solve_pomdp` returns; saved as a ``.npz``.
+
+    Attributes:
+        alphas: (N, S) alpha vectors; the value at a belief b is max_n alphas[n]·b.
+        actions: (N,) the action of each vector.
+        discount: The problem's discount.
+
+    Example:
+        >>> import numpy as np
+        >>> policy = AlphaVectorPolicy(np.array([[1.0, 0.0], [0.0, 2.0]]), np.array([0, 1]))
+        >>> policy.value(np.array([0.5, 0.5])), policy.act(np.array([0.9, 0.1])), len(policy)
+        (1.0, 0, 2)
+    """
 
     alphas: np.ndarray
     actions: np.ndarray
     discount: float = 0.95
 
     def value(self, belief: np.ndarray) -> float:
+        """The lower bound at ``belief`` (S,): max over the vectors of alpha·b."""
         return float((self.alphas @ np.asarray(belief)).max())
 
     def act(self, belief: np.ndarray) -> int:
+        """The action of the best vector at ``belief`` (S,)."""
         return int(self.actions[int(np.argmax(self.alphas @ np.asarray(belief)))])
 
     def __len__(self) -> int:
         return self.alphas.shape[0]
 
     def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the policy as a ``.npz`` (atomically); returns its path."""
         return save_npz_atomic(
             path,
             format=np.array(FORMAT_FLAT),
@@ -81,6 +98,7 @@ class AlphaVectorPolicy:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> AlphaVectorPolicy:
+        """Read a policy :meth:`save` wrote (a ValueError naming another file's format)."""
         a = _load(path, FORMAT_FLAT)
         return cls(a["alphas"], a["actions"].astype(np.int64), float(a["discount"]))
 
@@ -108,6 +126,25 @@ class ActiveRecognitionPolicy:
     −λ(1 − b_k), b_k the belief's class marginal. The policy takes the best of all of them.
     ``upper_points`` (N, S) with ``upper_values`` (N, V) give the sawtooth upper bound
     (corners: 0, the state known). ``classes``: the declarable classes (0: as many as states).
+
+    What :func:`~rapomdp.planning.ar_solver.solve_active_recognition` returns and the solve
+    stage saves (``.npz``); the closed loop asks it :meth:`act` at every step.
+
+    Example:
+        A hand-made policy over two viewpoints and two classes: one plan, "move to viewpoint
+        0", worth β·b − E[v, 0]; declaring costs λ = 8 per unit of doubt.
+
+        >>> import numpy as np
+        >>> policy = ActiveRecognitionPolicy(
+        ...     betas=np.array([[-1.2, -1.2]]), targets=np.array([0]),
+        ...     move_energy=np.array([[0.0, 1.0], [1.0, 0.0]]), lambda_=8.0, discount=0.95,
+        ...     upper_points=np.zeros((0, 2)), upper_values=np.zeros((0, 2)))
+        >>> policy.act(1, np.array([0.5, 0.5]))  # −1.2 − 1 beats declaring (−4)
+        ARAction(kind='move', target=0)
+        >>> policy.act(1, np.array([0.95, 0.05]))  # declaring costs 0.4
+        ARAction(kind='declare', target=0)
+        >>> round(policy.value(1, np.array([0.5, 0.5])), 2)
+        -2.2
     """
 
     betas: np.ndarray
@@ -318,6 +355,7 @@ class ActiveRecognitionPolicy:
         return float(min(0.0, (phi * self.upper_values[:, viewpoint]).min()))
 
     def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the policy as a ``.npz`` (atomically); returns its path."""
         return save_npz_atomic(
             path,
             format=np.array(FORMAT_AR),
@@ -335,6 +373,7 @@ class ActiveRecognitionPolicy:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> ActiveRecognitionPolicy:
+        """Read a policy :meth:`save` wrote (a ValueError naming another file's format)."""
         a = _load(path, FORMAT_AR)
         return cls(
             a["betas"],

@@ -64,7 +64,28 @@ class RewardModel:
 def belief_update(
     T: np.ndarray, Z: np.ndarray, belief: np.ndarray, action: int, observation: int
 ) -> np.ndarray:
-    """Eq. 5, vectorised: the posterior after ``action`` and ``observation``."""
+    """Eq. 5, vectorised: the posterior after ``action`` and ``observation``.
+
+    Args:
+        T: (A, S, S) transition probabilities T[a, s, s'].
+        Z: (A, S, O) observation probabilities Z[a, s', o].
+        belief: (S,) the belief before.
+        action: The action taken.
+        observation: The observation received.
+
+    Returns:
+        (S,) b'(s') ∝ Z[a, s', o] Σ_s b(s) T[a, s, s'].
+
+    Raises:
+        ValueError: The observation has probability 0 after the action.
+
+    Example:
+        >>> import numpy as np
+        >>> T = np.array([np.eye(2)])                     # listening leaves the state
+        >>> Z = np.array([[[0.85, 0.15], [0.15, 0.85]]])  # and hears it right 85 % of the time
+        >>> belief_update(T, Z, np.array([0.5, 0.5]), action=0, observation=0).tolist()
+        [0.85, 0.15]
+    """
     unnorm = (belief @ T[action]) * Z[action, :, observation]
     total = unnorm.sum()
     if total <= 0:
@@ -74,7 +95,21 @@ def belief_update(
 
 @dataclass
 class POMDP:
-    """A flat discrete POMDP: (S, A, T, R, Ω, O), discount and initial belief."""
+    """A flat discrete POMDP: (S, A, T, R, Ω, O), discount and initial belief.
+
+    Validated when made: shapes agree, T and O rows and the initial belief are distributions,
+    the discount is in [0, 1). :meth:`from_arrays` builds one from plain arrays;
+    :func:`~rapomdp.planning.io_pomdp.read_pomdp` from a ``.pomdp`` file.
+
+    Example:
+        >>> import numpy as np
+        >>> pomdp = POMDP.from_arrays(T=np.array([np.eye(2)]),
+        ...                           Z=np.array([[[0.85, 0.15], [0.15, 0.85]]]),
+        ...                           R=np.array([[-1.0, -1.0]]), discount=0.95,
+        ...                           initial_belief=np.array([0.5, 0.5]))
+        >>> pomdp.n_states, pomdp.n_actions, pomdp.n_observations
+        (2, 1, 2)
+    """
 
     transition: TransitionModel
     observation: ObservationModel

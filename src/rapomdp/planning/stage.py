@@ -169,7 +169,29 @@ def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path, model:
 
 def run_solve_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
-    """Solve the workspace's active-recognition problem once per observation model."""
+    """Solve the workspace's active-recognition problem once per observation model.
+
+    The solve stage: the observe stage's observation models and the robot stage's movement
+    energy make one MOMDP per model (λ, discount and budget from the ``solve`` section);
+    each is solved by :func:`~rapomdp.planning.ar_solver.solve_active_recognition`.
+
+    Args:
+        config: The configuration (its ``solve`` section, the start viewpoint's rule).
+        inputs: The folders of the observe and robot stages (and vptree's, when its model
+            is evaluated).
+        out: The stage's folder: ``policy_<model>.npz`` per model and ``solve_summary.json``
+            (bounds, CPU seconds, policy size, the memory plan's note).
+        context: Workers and scheduler the solves are spread over.
+
+    Raises:
+        StageError: A problem does not fit ``solve.memory_gb``.
+
+    Example:
+        The stage as the pipeline runs it (``rapomdp solve -w W``)::
+
+            from rapomdp.pipeline import run_pipeline
+            run_pipeline(config, Workspace("runs/demo"), until="solve")
+    """
     models, energy, reachable, classes = workspace_arrays(config, inputs.observe,
                                                          inputs.robot, inputs.vptree_dir)
     try:

@@ -89,6 +89,39 @@ def solve_workspace_problems(
     the Dask ``scheduler`` when one is named. Writes ``out_dir/policy_<name>.npz`` (atomically)
     and ``out_dir/solve_summary.json`` with the bounds reached, the time, the policy size and
     the memory plan's note.
+
+    Args:
+        observation_models: ``{name: (V, S, C) P(label | hidden state, viewpoint)}``.
+        move_energy: (V, V) E_M in metres (+inf to or from unreachable viewpoints).
+        reachable: (V,) bool, or None for all.
+        out_dir: Where the policies and the summary go.
+        lambda_: The cost of a wrong declaration, metres.
+        discount: The discount factor.
+        start_viewpoint: The first image's viewpoint.
+        precision: The gap at the start at which a solve stops.
+        timeout: CPU seconds per solve.
+        allow_stay: Whether moving to the current viewpoint is an action.
+        class_names: The classes' names.
+        callback: Progress of each solve (solves run in this process then).
+        max_iterations: Sampling rounds per solve (None: until precision or timeout).
+        workers: Processes to spread the models over.
+        memory_gb: The memory cap per solve, GB.
+        scheduler: A Dask scheduler address, or None.
+        start_beliefs: ``{name: (S,) start belief}`` (absent or None: uniform).
+        pool: A pool of worker processes to reuse.
+
+    Returns:
+        ``{name: path of its policy .npz}``.
+
+    Example:
+        Two models of one problem: a sharp one and a blurred one (seconds)::
+
+            P = benchmark_problem(16, 4).observation_model
+            E = benchmark_problem(16, 4).move_energy
+            blurred = 0.5 * P + 0.5 / 4
+            paths = solve_workspace_problems({"sharp": P, "blurred": blurred}, E, None, "out",
+                                             max_iterations=50)
+            ActiveRecognitionPolicy.load(paths["sharp"])
     """
     out = Path(out_dir)
     names = list(observation_models)

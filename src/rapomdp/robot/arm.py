@@ -41,14 +41,46 @@ def _panda() -> Any:
 
 
 def manipulability_from_jacobians(jacobians: np.ndarray) -> np.ndarray:
-    """Yoshikawa's measure sqrt(det(J J^T)) of Jacobians (..., 6, n); 0 at a singularity."""
+    """Yoshikawa's measure sqrt(det(J J^T)) of Jacobians (..., 6, n); 0 at a singularity.
+
+    Args:
+        jacobians: (..., 6, n) geometric Jacobians (metres and radians per radian).
+
+    Returns:
+        (...) manipulabilities ≥ 0.
+
+    Example:
+        >>> import numpy as np
+        >>> jacobian = np.hstack([np.eye(6), np.zeros((6, 1))])  # seven joints, one idle
+        >>> float(manipulability_from_jacobians(jacobian))
+        1.0
+        >>> float(manipulability_from_jacobians(np.zeros((6, 7))))  # singular
+        0.0
+    """
     jacobians = np.asarray(jacobians, dtype=np.float64)
     gram = jacobians @ np.swapaxes(jacobians, -1, -2)
     return np.sqrt(np.clip(np.linalg.det(gram), 0.0, None))
 
 
 class CameraArm:
-    """The Panda placed in the world, with the camera of ``scene`` as its end effector."""
+    """The Panda placed in the world, with the camera of ``scene`` as its end effector.
+
+    Loading the model imports roboticstoolbox (seconds, once per process).
+
+    Args:
+        scene: Where the arm's base, the object and the camera mount are.
+
+    Example:
+        The test viewpoints' reachability, as the robot stage finds it (seconds)::
+
+            from rapomdp.config import Config
+            from rapomdp.robot import CameraArm, Scene, solve_viewpoints
+
+            scene = Scene.from_config(Config().robot)
+            arm = CameraArm(scene)
+            solutions = solve_viewpoints(arm, scene.viewpoints_world(16, 0.5))
+            solutions.reachable.sum(), solutions.manipulability  # (16,) NaN where unreachable
+    """
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene

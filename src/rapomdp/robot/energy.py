@@ -30,6 +30,25 @@ def singularity_penalty(
 
     ``inverse``: reference/m - 1 (-> inf at a singularity); ``log``: -ln(m/reference) (-> inf,
     gentler); ``linear``: 1 - m/reference (bounded by 1, the scale of the paper's raw term).
+
+    Args:
+        manipulability: (n,) Yoshikawa manipulabilities (≥ 0).
+        reference: The manipulability that costs nothing (> 0), the most manipulable
+            reachable viewpoint's.
+        form: ``inverse``, ``log`` or ``linear``.
+
+    Returns:
+        (n,) penalties, dimensionless (the energy weighs them by κ in metres).
+
+    Raises:
+        ValueError: ``reference`` ≤ 0 or an unknown ``form``.
+
+    Example:
+        >>> import numpy as np
+        >>> singularity_penalty(np.array([0.1, 0.05, 0.0]), reference=0.1).tolist()
+        [0.0, 1.0, inf]
+        >>> singularity_penalty(np.array([0.1, 0.05]), reference=0.1, form="linear").tolist()
+        [0.0, 0.5]
     """
     if not reference > 0:
         raise ValueError(f"reference manipulability must be positive, got {reference}")
@@ -45,7 +64,19 @@ def singularity_penalty(
 
 
 def joint_distance_matrix(q_rad: np.ndarray) -> np.ndarray:
-    """Euclidean joint-space distances (n, n), radians, between configurations (n, joints)."""
+    """Euclidean joint-space distances (n, n), radians, between configurations (n, joints).
+
+    Args:
+        q_rad: (n, joints) joint angles in radians.
+
+    Returns:
+        (n, n) distances in radians (NaN where a configuration holds NaN).
+
+    Example:
+        >>> import numpy as np
+        >>> joint_distance_matrix(np.array([[0.0, 0.0], [3.0, 4.0]])).tolist()
+        [[0.0, 5.0], [5.0, 0.0]]
+    """
     q_rad = np.asarray(q_rad, dtype=np.float64)
     return np.linalg.norm(q_rad[:, None, :] - q_rad[None, :, :], axis=-1)
 
@@ -63,6 +94,30 @@ def movement_energy(
 
     ``distance_m`` is the geodesic matrix of all n viewpoints, ``manipulability`` (n,) and
     ``reachable`` (n,) come from IK; ``q_rad`` (n, joints) is needed only for the joint term.
+
+    Args:
+        distance_m: (n, n) geodesic distances between the viewpoints, metres.
+        manipulability: (n,) manipulability at each viewpoint's IK solution.
+        reachable: (n,) bool: the viewpoints IK reached.
+        kappa_m: The singularity penalty's weight κ in metres.
+        penalty: The penalty's form (:func:`singularity_penalty`).
+        q_rad: (n, joints) the IK solutions, for the joint term only.
+        joint_weight_m_per_rad: The joint term's weight, metres per radian (0: none).
+
+    Returns:
+        (n, n) E_M in metres: 0 on the diagonal, +inf to or from an unreachable viewpoint.
+
+    Raises:
+        ValueError: Shapes disagree, nothing is reachable, a negative weight, or the joint
+            term without ``q_rad``.
+
+    Example:
+        >>> import numpy as np
+        >>> distance = np.array([[0.0, 0.3, 0.5], [0.3, 0.0, 0.4], [0.5, 0.4, 0.0]])
+        >>> energy = movement_energy(distance, np.array([0.1, 0.05, 0.08]),
+        ...                          np.array([True, True, False]), kappa_m=0.1)
+        >>> energy.round(3).tolist()  # moving to the less dexterous viewpoint 1 costs 0.1 more
+        [[0.0, 0.4, inf], [0.3, 0.0, inf], [inf, inf, 0.0]]
     """
     distance_m = np.asarray(distance_m, dtype=np.float64)
     reachable = np.asarray(reachable, dtype=bool)

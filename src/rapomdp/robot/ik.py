@@ -25,7 +25,19 @@ SOLVER_TOLERANCE = 1e-10
 
 @dataclass(frozen=True)
 class IKSettings:
-    """How hard to search; see :class:`~rapomdp.config.RobotConfig`."""
+    """How hard to search; see :class:`~rapomdp.config.RobotConfig`.
+
+    Attributes:
+        roll_samples: Rolls about the optical axis tried per viewpoint (the roll is free).
+        restarts: IK starts per roll (the ready pose, then seeded draws).
+        iterations: Levenberg-Marquardt iterations per start.
+        position_tolerance_m: The largest camera position error accepted, metres.
+        angle_tolerance_rad: The largest camera rotation error accepted, radians.
+        floor_clearance_m: How far above the floor every link must stay (None: unchecked).
+        object_clearance_m: How far from the object's centroid the links must stay (None:
+            unchecked).
+        seed: Seed of the random starts.
+    """
 
     roll_samples: int = 8
     restarts: int = 4
@@ -46,7 +58,12 @@ class IKSettings:
 
 @dataclass(frozen=True)
 class ViewpointSolutions:
-    """IK for n viewpoints; rows of unreachable viewpoints hold NaN."""
+    """IK for n viewpoints; rows of unreachable viewpoints hold NaN.
+
+    What :func:`solve_viewpoints` returns: per viewpoint, whether it is reachable, the joint
+    angles (radians), the manipulability there, the chosen roll, the camera pose reached and
+    its errors (metres, radians), and how many IK tries converged.
+    """
 
     reachable: np.ndarray  # (n,) bool
     q_rad: np.ndarray  # (n, joints) joint angles, NaN where unreachable
@@ -82,6 +99,21 @@ def camera_targets(eyes_world: np.ndarray, centroid_world: np.ndarray, rolls_rad
     """Target camera poses (n, rolls, 4, 4): centre at each eye, optical axis on the centroid.
 
     Built from :func:`~rapomdp.geometry.camera.look_at_many` turned about its own z axis.
+
+    Args:
+        eyes_world: (n, 3) camera centres in metres.
+        centroid_world: (3,) the point every camera looks at.
+        rolls_rad: (rolls,) turns about the optical axis, radians.
+
+    Returns:
+        (n, rolls, 4, 4) camera-to-world poses.
+
+    Example:
+        >>> import numpy as np
+        >>> poses = camera_targets(np.array([[0.5, 0.0, 0.3]]), np.array([0.5, 0.0, 0.0]),
+        ...                        np.array([0.0, np.pi / 2]))
+        >>> poses.shape, bool(np.allclose(poses[0, 1, :3, 2], [0.0, 0.0, -1.0]))
+        ((1, 2, 4, 4), True)
     """
     base = look_at_many(eyes_world, centroid_world)
     cos, sin = np.cos(rolls_rad), np.sin(rolls_rad)
@@ -104,7 +136,23 @@ def solve_viewpoints(
     arm: CameraArm, eyes_world: np.ndarray, settings: IKSettings | None = None,
     progress: bool = True,
 ) -> ViewpointSolutions:
-    """Solve every viewpoint of ``eyes_world`` (n, 3); the camera looks at the scene centroid."""
+    """Solve every viewpoint of ``eyes_world`` (n, 3); the camera looks at the scene centroid.
+
+    Each viewpoint tries ``settings.roll_samples`` rolls from ``settings.restarts`` starts
+    and keeps the most manipulable solution that passes the tolerance and clearance checks.
+
+    Args:
+        arm: The arm (:class:`~rapomdp.robot.arm.CameraArm`).
+        eyes_world: (n, 3) camera centres in metres.
+        settings: The search (default :class:`IKSettings`).
+        progress: Show a progress bar.
+
+    Returns:
+        One row per viewpoint, NaN where it is unreachable.
+
+    Example:
+        See :class:`~rapomdp.robot.arm.CameraArm` (roboticstoolbox takes seconds to load).
+    """
     settings = settings or IKSettings()
     eyes_world = np.atleast_2d(np.asarray(eyes_world, dtype=np.float64))
     n, joints = len(eyes_world), arm.joint_count

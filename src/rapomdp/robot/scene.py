@@ -52,6 +52,17 @@ class Scene:
 
     ``base_world`` maps robot-base coordinates to the world; ``mount`` maps camera coordinates
     to the flange (``panda_link8``) frame.
+
+    Attributes:
+        base_world: (4, 4) robot base to world.
+        centroid_world: (3,) the object's centroid in the world, metres.
+        mount: (4, 4) camera to flange.
+
+    Example:
+        >>> from rapomdp.config import Config
+        >>> scene = Scene.from_config(Config().robot)
+        >>> scene.centroid_world.tolist(), scene.viewpoints_world(4, radius_m=0.5).shape
+        ([0.0, 0.0, 0.2], (4, 3))
     """
 
     base_world: np.ndarray

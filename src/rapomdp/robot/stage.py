@@ -88,6 +88,21 @@ def solve_robot(config: Config, progress: bool = True) -> RobotResult:
     """IK, manipulability, distances and movement energy for the configured X_rho.
 
     Raises :class:`UnreachableError`, naming the placement, when no viewpoint is reachable.
+
+    Args:
+        config: The configuration (its ``robot`` and ``viewpoints`` sections).
+        progress: Show the IK's progress bar.
+
+    Returns:
+        Per viewpoint of X_rho: reachability, joint angles, manipulability, and the (V, V)
+        geodesic distances and movement energy E_M in metres, with a summary.
+
+    Example:
+        The default arm placement over the default X_rho (seconds: roboticstoolbox loads)::
+
+            from rapomdp.config import Config
+            result = solve_robot(Config())
+            result.summary["reachable"]  # how many viewpoints the arm reaches
     """
     scene = Scene.from_config(config.robot)
     arm = CameraArm(scene)
@@ -181,7 +196,17 @@ def plot_result(result: RobotResult, config: Config, path: str | Path, arms: int
 
 def run_robot_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
-    """The pipeline stage: writes robot.npz, robot.json and robot.png into ``out``."""
+    """The pipeline stage: writes robot.npz, robot.json and robot.png into ``out``.
+
+    Args:
+        config: The configuration (its ``robot`` and ``viewpoints`` sections).
+        inputs: Unused: the robot stage reads only the configuration.
+        out: The stage's folder.
+        context: Its progress setting.
+
+    Raises:
+        UnreachableError: The arm reaches no viewpoint of X_rho (the placement is named).
+    """
     del inputs  # the robot stage reads only the configuration
     result = solve_robot(config, context.progress)
     out = Path(out)

@@ -64,6 +64,32 @@ def hierarchical_bootstrap(seeds: Sequence[SeedClusters], resamples: int = 10_00
 
     ``crossed``: resample one set of test models for every seed (they are the same models);
     None decides it from the ids (every seed lists the same models).
+
+    Args:
+        seeds: Each seed's test models: ids, summed paired differences and pair counts.
+        resamples: Bootstrap resamples.
+        seed: Seed of the resampling.
+        level: The interval's coverage (0.95: the 2.5th and 97.5th percentiles).
+        crossed: Whether the seeds share their test models (None: from the ids).
+
+    Returns:
+        The mean over seeds of each seed's ratio sum(d) / sum(n), its interval, the number
+        of seeds and whether models were crossed with seeds.
+
+    Raises:
+        ValueError: No seed, ``resamples`` < 1, or ``crossed`` with different models.
+
+    Example:
+        >>> import numpy as np
+        >>> from rapomdp.study.bootstrap import SeedClusters, hierarchical_bootstrap
+        >>> models, pairs = np.array([0, 1, 2]), np.array([4, 4, 4])
+        >>> seeds = [SeedClusters(models, np.array([1.0, 0.0, 2.0]), pairs),
+        ...          SeedClusters(models, np.array([2.0, 1.0, 1.0]), pairs)]
+        >>> pooled = hierarchical_bootstrap(seeds, resamples=2000)
+        >>> round(pooled.estimate, 4), pooled.low <= pooled.estimate <= pooled.high
+        (0.2917, True)
+        >>> pooled.crossed  # the same test models in both seeds
+        True
     """
     if not seeds:
         raise ValueError("a pooled interval needs at least one seed")

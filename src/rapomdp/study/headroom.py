@@ -374,7 +374,31 @@ def run_headroom(workspace: str | Path | Workspace, out: str | Path | None = Non
     note when a class has fewer than two test models) on a finished workspace, its policies
     solved as the solve stage solves (``solve`` settings, λ, start viewpoint) over
     ``context``'s workers; writes ``headroom.md|csv|json`` into ``out`` (default
-    ``W/headroom/``)."""
+    ``W/headroom/``).
+
+    How far estimation, belief and planning each fall short: each row reruns the evaluate
+    stage's RA-POMDP episodes (the same pairs, seeds and solver settings) with another
+    observation model, an oracle read off the test models themselves (an upper bound that
+    never feeds a choice).
+
+    Args:
+        workspace: A workspace whose evaluate stage has finished.
+        out: The folder of the tables (default ``W/headroom/``).
+        context: Workers, threads and progress bars.
+        rows: The rows to compute (names of :data:`ROWS`); None: all.
+
+    Returns:
+        The rows (accuracy, energy in metres, moves, overconfidence per row) and what they
+        were built from.
+
+    Example:
+        On a finished demo workspace (a minute)::
+
+            from rapomdp.study.headroom import run_headroom
+
+            result = run_headroom("runs/demo")
+            print(headroom_markdown(result.rows))
+    """
     with pooled(context) as shared:
         return _headroom(workspace, out, shared, rows)
 

@@ -215,7 +215,27 @@ def reported_confidence(seeds: Sequence[SeedResult]) -> str:
 def write_study_report(spec: StudySpec, root: str | Path,
                        resamples: int = 10_000) -> StudyReport:
     """``S/report/``: report.md and .html, table1_pooled.csv, table1_seeds.csv,
-    tradeoff_pooled.csv and one ``tradeoff_<configuration>.png``."""
+    tradeoff_pooled.csv and one ``tradeoff_<configuration>.png``.
+
+    Table 1 pooled over the seeds of each configuration: accuracy is the mean over seeds,
+    each paired difference's 95 % interval a two-stage bootstrap over seeds and test models
+    (:func:`~rapomdp.study.bootstrap.hierarchical_bootstrap`).
+
+    Args:
+        spec: The study's specification (its seeds must have finished their evaluate stage).
+        root: The study folder.
+        resamples: Bootstrap resamples of each interval.
+
+    Returns:
+        The paths of report.html and report.md, and each configuration's sentence of who
+        wins.
+
+    Example:
+        After :func:`~rapomdp.study.runner.run_study` (seconds)::
+
+            report = write_study_report(StudySpec(seeds=(0, 1, 2)), "runs/study")
+            report.html  # PosixPath('runs/study/report/report.html')
+    """
     root = Path(root)
     out = root / REPORT_DIR
     out.mkdir(parents=True, exist_ok=True)

@@ -93,26 +93,37 @@ def _seed_task(config_json: str, root: str, dataset: str, seed: int, sources: li
 def run_study(spec: StudySpec, root: str | Path, context: RunContext = RunContext(),
               on_result: Callable[[str, int, StageResult], None] | None = None
               ) -> list[SeedRun]:
-    """Run every (configuration, seed) of ``spec`` under ``root``, in order.
+    """Every (configuration, seed) of ``spec`` under ``root``, in order; ``spec`` is recorded
+    as the study's (``S/study.yaml``) before anything runs.
 
-    Each is a workspace ``root/<configuration>/seed-<seed>``, cached and resumable; a stage
-    another seed or configuration already made with the same key is shared as hard links.
-    ``spec`` is recorded as the study's (``S/study.yaml``) before anything runs.
+    Each seed is a normal cached, resumable workspace ``S/CONFIGURATION/seed-N``; a stage whose
+    key another seed or configuration already holds is taken from it as hard links (so
+    ``vary: train`` trains only the classifiers again). With ``context.scheduler`` the shared
+    stages run here first, then each seed is one Dask task.
 
     Args:
-        spec: the configurations, seeds and what a seed varies.
-        root: the study folder.
-        context: worker processes, threads, progress bars and scheduler (with a scheduler,
-            one Dask task per seed).
-        on_result: called with (configuration, seed, ``StageResult``) after each stage.
+        spec: The configurations and seeds.
+        root: The study folder (new, empty, or a study: another folder is refused).
+        context: Workers, threads, scheduler and progress bars.
+        on_result: Called with (configuration, seed, stage result) as each stage finishes.
 
     Returns:
-        One ``SeedRun`` per (configuration, seed): its workspace and what each stage did.
+        One record per (configuration, seed), in order: its workspace and stage results.
 
     Raises:
-        ConfigError: ``root`` is neither a study folder nor empty (a study never writes
-            among a user's files).
-        StageError: a stage failed (the message names it); finished stages stay cached.
+        ConfigError: ``root`` is neither a study nor empty.
+
+    Example:
+        Three seeds of the default configuration, then the pooled report (minutes)::
+
+            from rapomdp.study.report import write_study_report
+            from rapomdp.study.runner import run_study
+            from rapomdp.study.spec import StudySpec
+
+            spec = StudySpec(seeds=(0, 1, 2))
+            runs = run_study(spec, "runs/study")
+            report = write_study_report(spec, "runs/study")
+            print(report.stories["default"])  # who wins, pooled over the seeds
     """
     root = Path(root)
     check_study_folder(root)

@@ -40,22 +40,35 @@ class StudyDataset:
 
 @dataclass(frozen=True)
 class StudySpec:
-    """Configurations × seeds: what a study runs.
+    """Configurations × seeds; ``vary``: ``all`` (the run seed) or ``train`` (the classifier's
+    seed only).
 
-    Attributes:
-        datasets: the configurations, each a ``StudyDataset`` (a name and the configuration
-            mapping; ``StudyDataset.from_file("my.yaml")`` reads one, named by its stem).
-        seeds: the seeds every configuration runs at, distinct, in [0, 2^32).
-        vary: ``all`` (the run's seed: split, models, classifier, starts) or ``train`` (the
-            classifier's seed only; the same dataset, test models and starts).
+    What ``rapomdp study`` runs, recorded as ``S/study.yaml``. Every seed's configuration is
+    validated when the specification is made, before anything runs.
+
+    Args:
+        datasets: The configurations, each named (a file's stem; ``default``: the embedded one).
+        seeds: The seeds, distinct integers in [0, 2^32).
+        vary: ``all`` (a seed sets the run seed: split, models, classifier, starts) or
+            ``train`` (only the classifier's seed: the same models and starts).
 
     Raises:
-        ConfigError: no configuration or seed, a repeated or out-of-range seed, an unknown
-            ``vary``.
+        ConfigError: No configuration or seed, repeated seeds or names, an unknown ``vary``,
+            or an invalid configuration at a seed.
 
-    Examples:
-        >>> StudySpec(seeds=(0, 1), vary="train").datasets[0].name
-        'default'
+    Example:
+        >>> from rapomdp.study.spec import StudySpec
+        >>> spec = StudySpec(seeds=(3, 4), vary="train")
+        >>> config = spec.config(spec.datasets[0], 4)
+        >>> (config.seed, config.train.seed)  # vary train: the classifier's seed only
+        (0, 4)
+        >>> print(spec.to_yaml(), end="")
+        seeds:
+        - 3
+        - 4
+        vary: train
+        datasets:
+          default: {}
     """
 
     datasets: tuple[StudyDataset, ...] = (StudyDataset(DEFAULT_DATASET),)
@@ -84,7 +97,15 @@ class StudySpec:
             self.config(dataset, self.seeds[0])
 
     def config(self, dataset: StudyDataset, seed: int) -> Config:
-        """The configuration of ``dataset`` at one seed of the study."""
+        """The configuration of ``dataset`` at one seed of the study.
+
+        Args:
+            dataset: One of :attr:`datasets`.
+            seed: The seed (``vary: all`` sets ``seed``, ``vary: train`` ``train.seed``).
+
+        Returns:
+            The validated configuration of that workspace.
+        """
         data = copy.deepcopy(dataset.data)
         if self.vary == "all":
             data["seed"] = seed
@@ -122,7 +143,17 @@ def study_file(root: str | Path) -> Path:
 
 
 def read_study(root: str | Path) -> StudySpec | None:
-    """The specification a study folder holds, or None for a new study."""
+    """The specification a study folder holds, or None for a new study.
+
+    Args:
+        root: The study folder.
+
+    Returns:
+        The recorded ``S/study.yaml`` as a :class:`StudySpec`, or None when there is none.
+
+    Raises:
+        ConfigError: The file is not a study specification.
+    """
     path = study_file(root)
     if not path.exists():
         return None
