@@ -418,7 +418,7 @@ def dataset_build(
                               models_per_class=models, seed=seed))
     except DatasetBuildError as exc:
         raise _fail(str(exc)) from None
-    console.print(escape(text), highlight=False)
+    console.print(escape(text), highlight=False, soft_wrap=True)
 
 
 #: The tile widths `dataset preview --width` accepts, in pixels.
