@@ -442,7 +442,7 @@ def test_dataset_build_help_says_what_each_builder_needs() -> None:
     result = runner.invoke(app, ["dataset", "build", "--help"], terminal_width=200)
     assert result.exit_code == 0
     text = " ".join(result.output.split())
-    assert "real-cad: 12 classes of electronic components" in text
+    assert "real-cad: electronic components from Debian's kicad-packages3d" in text
     assert "Needs apt-get and dpkg-deb" in text and "about a minute a set" in text
-    assert "mesh-set: 11 classes composed of primitives" in text and "a few seconds" in text
+    assert "mesh-set: objects composed of primitives" in text and "Takes seconds" in text
     assert "sweethome3d*: refused by name" in text

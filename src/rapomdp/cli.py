@@ -383,8 +383,9 @@ def dataset(
 def _dataset_build_help() -> str:
     from rapomdp.data.build import describe
 
-    return ("Write a dataset's mesh folder (`<class>/<model>` files) for `dataset: {source: "
-            "folder}`. Never from a held-back source (sweethome3d*: refused by name).\n\n"
+    return ("Write a dataset's mesh folder (one folder a class, one mesh file a model) for "
+            "`dataset: {source: folder}`. Never from a held-back source (sweethome3d*: refused "
+            "by name).\n\n"
             + describe())
 
 
