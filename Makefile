@@ -63,7 +63,7 @@ bench: $(STAMP)
 	$(PY) benchmarks/artefact_hashes.py --compare benchmarks/results/artefact_hashes_main.json
 	$(VENV)/bin/rapomdp run --workspace $(BENCH_W)
 	$(PY) benchmarks/episode_loop.py --workspace $(BENCH_W)
-	$(PY) benchmarks/vptree_baseline.py --workspace $(BENCH_W) | tee benchmarks/results/vptree_baseline.txt
+	$(PY) benchmarks/vptree_baseline.py --workspace $(BENCH_W)
 	$(PY) benchmarks/dataset_difficulty.py --workspace $(BENCH_W)
 	$(PY) benchmarks/env_check.py $(BENCH_W) | tee benchmarks/results/env_check.txt
 	$(PY) benchmarks/evidence_ceiling.py -w $(BENCH_W) | tee benchmarks/results/evidence_ceiling_demo.txt
