@@ -47,8 +47,9 @@ TINY: dict = {
 #: Record fields that measure time or name the machine, not the result.
 TIMING_KEYS = {"seconds", "finished", "wall_s", "elapsed_s", "time_s", "seconds_per_episode",
                "train_seconds", "images_per_second", "timed_out"}
-#: Files whose text holds wall time (stage.json records, the report that quotes them).
-SKIP = {"manifest.json"}
+#: Files that are not results: the manifest holds wall time; ``.lock`` is the workspace's lock
+#: file, there whether or not a run holds it.
+SKIP = {"manifest.json", ".lock"}
 
 
 def _scrub(value: object) -> object:

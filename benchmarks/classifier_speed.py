@@ -27,6 +27,7 @@ from rapomdp.data.procedural import generate_model
 from rapomdp.data.renderer import DepthRenderer
 from rapomdp.data.training_views import model_poses
 from rapomdp.geometry.camera import xtion_intrinsics
+from rapomdp.io import write_text_atomic
 from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
 from rapomdp.recognition.preprocess import preprocess
@@ -128,7 +129,7 @@ def main() -> None:
         "rows": rows,
     }
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(result, indent=2) + "\n")
+    write_text_atomic(RESULTS, json.dumps(result, indent=2) + "\n")
     print(f"load average at the end: {load:.2f} on {os.cpu_count()} CPUs; wrote {RESULTS}")
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from rapomdp.config import config_from_dict
 from rapomdp.context import RunContext
-from rapomdp.io import load_npz, read_json
+from rapomdp.io import load_npz, read_json, write_text_atomic
 from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.workspace import Workspace
 
@@ -143,7 +143,7 @@ def main() -> None:
     ]
     text = "\n".join(lines) + "\n"
     sys.stdout.write(text)
-    RESULTS.write_text(text)
+    write_text_atomic(RESULTS, text)
     if differ:
         sys.exit(1)
 

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.data.procedural import CLASSES
-from rapomdp.io import load_npz, read_json
+from rapomdp.io import load_npz, read_json, write_text_atomic
 
 RESULTS = Path(__file__).parent / "results" / "dataset_difficulty.txt"
 
@@ -143,7 +143,7 @@ def main() -> None:
         out(f"| {k} | {random_acc:.3f} | {best_class[k - 1].mean():.3f} | "
             f"{best_model[k - 1].mean():.3f} |")
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("\n".join(lines) + "\n")
+    write_text_atomic(args.out, "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ import torch
 
 from rapomdp.context import default_workers
 from rapomdp.experiment.evaluation import ClosedLoop
+from rapomdp.io import write_text_atomic
 from rapomdp.pipeline import get_stage
 from rapomdp.workspace import Workspace
 
@@ -75,7 +76,7 @@ def main() -> None:
                  "steps/s on one core")
     text = "\n".join(lines)
     print(text)
-    RESULTS.write_text(text + "\n")
+    write_text_atomic(RESULTS, text + "\n")
 
 
 if __name__ == "__main__":

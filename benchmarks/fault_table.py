@@ -24,6 +24,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from rapomdp.io import write_text_atomic  # noqa: E402
 from tests.faults.cases import CASES  # noqa: E402
 from tests.faults.harness import Case, Outcome, files_outside  # noqa: E402
 
@@ -103,7 +104,7 @@ def main() -> None:
     text = "\n".join(lines) + "\n"
     sys.stdout.write(text)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(text)
+    write_text_atomic(RESULTS, text)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from rapomdp.awareness.saliency import MaskParams, PerturbationMask
+from rapomdp.io import write_text_atomic
 from rapomdp.recognition.stage import load_workspace_classifier
 
 RESULTS = Path(__file__).parent / "results" / "mask_convergence.json"
@@ -63,9 +64,9 @@ def main() -> None:
               f" deleted {s['deleted_fraction']:.3f}, p_class clean {clean.mean():.3f} -> "
               f"perturbed {s['perturbed_p']:.3f}")
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({"class": args.class_name, "views": int(x.shape[0]),
-                                   "clean_p": float(clean.mean()), "iterations": stats},
-                                  indent=2) + "\n")
+    record = {"class": args.class_name, "views": int(x.shape[0]),
+              "clean_p": float(clean.mean()), "iterations": stats}
+    write_text_atomic(RESULTS, json.dumps(record, indent=2) + "\n")
 
 
 if __name__ == "__main__":

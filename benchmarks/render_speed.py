@@ -9,6 +9,7 @@ rays/s to a raw ``EmbreeScene.run`` on the same precomputed rays, all measured i
 
 from __future__ import annotations
 
+import argparse
 import time
 
 import numpy as np
@@ -81,4 +82,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    argparse.ArgumentParser(description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
     main()

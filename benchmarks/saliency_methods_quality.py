@@ -26,6 +26,7 @@ from rapomdp.awareness.stage import (
     saliency_maps,
 )
 from rapomdp.awareness.volume import object_grid, saliency_volume
+from rapomdp.io import write_text_atomic
 from rapomdp.recognition.stage import load_workspace_classifier
 from rapomdp.workspace import Workspace
 
@@ -73,7 +74,7 @@ def main() -> None:
               f"{rc['log_likelihood']:.3f} Brier {rc['brier']:.3f} AUC {rc['auc']:.3f}",
               flush=True)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(results, indent=2, default=float) + "\n")
+    write_text_atomic(RESULTS, json.dumps(results, indent=2, default=float) + "\n")
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ from rapomdp.data.procedural import generate_model
 from rapomdp.data.renderer import DepthRenderer
 from rapomdp.geometry.camera import look_at_many, xtion_intrinsics
 from rapomdp.geometry.viewsphere import viewpoints
+from rapomdp.io import write_text_atomic
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
 from rapomdp.recognition.preprocess import PreprocessParams, preprocess
 
@@ -88,7 +89,7 @@ def main() -> None:
         print(f"{method}: {args.views} views in {seconds:.2f} s = "
               f"{args.views / seconds:.1f} maps/s")
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(result, indent=2) + "\n")
+    write_text_atomic(RESULTS, json.dumps(result, indent=2) + "\n")
 
 
 if __name__ == "__main__":

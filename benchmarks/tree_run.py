@@ -1,9 +1,13 @@
 """Run a snippet with another source tree's ``rapomdp`` and read back what it printed: the
 before/after benchmarks (solve_speed, train_speed, stage_speed) measure two trees this way, each
-in a fresh process, so neither tree's modules leak into the other's run."""
+in a fresh process, so neither tree's modules leak into the other's run.
+
+    python benchmarks/tree_run.py --src /tmp/before/src "print('{}')"
+"""
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -21,3 +25,17 @@ def run_json(src: Path, code: str, *args: str, threads: int = 1) -> dict[str, ob
     out = subprocess.run([sys.executable, "-c", code, *args], env=tree_env(src, threads),
                          check=True, capture_output=True, text=True).stdout
     return dict(json.loads(out.strip().splitlines()[-1]))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--src", type=Path, required=True, help="the source tree (its src/)")
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("code", help="Python code that prints a JSON object on its last line")
+    args = parser.parse_args()
+    print(json.dumps(run_json(args.src, args.code, threads=args.threads)))
+
+
+if __name__ == "__main__":
+    main()

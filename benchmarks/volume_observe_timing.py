@@ -19,6 +19,7 @@ from pathlib import Path
 import torch
 
 from rapomdp.awareness.stage import XrhoOutcomes, class_volume, observe, xrho_outcomes
+from rapomdp.io import write_text_atomic
 from rapomdp.recognition.stage import load_workspace_classifier
 from rapomdp.workspace import Workspace
 
@@ -64,7 +65,7 @@ def main() -> None:
               f"{result.seconds['total_s']:.2f} s; RA on test models: log-lik "
               f"{ra['log_likelihood']:.3f}, Brier {ra['brier']:.3f}, AUC {ra['auc']:.3f}")
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(results, indent=2, default=float) + "\n")
+    write_text_atomic(RESULTS, json.dumps(results, indent=2, default=float) + "\n")
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ import yaml
 from rapomdp.config import Config, config_from_dict
 from rapomdp.data.test_views import load_xrho_views
 from rapomdp.data.training_views import load_training_views
+from rapomdp.io import write_text_atomic
 from rapomdp.recognition.vptree_stage import fit_vptree, xrho_predictions
 
 RESULTS = Path(__file__).parent / "results" / "vptree_baseline.txt"
@@ -118,7 +119,7 @@ def main() -> None:
     text = "\n".join(lines) + "\n"
     print(text, end="")
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
+    write_text_atomic(args.out, text)
 
 
 if __name__ == "__main__":

@@ -420,3 +420,37 @@ def test_make_demo_runs_the_demo_command() -> None:
     recipe = makefile.split("\ndemo: ")[1].split("\n\n")[0]
     assert "rapomdp demo --workspace $(DEMO_WORKSPACE)" in recipe
     assert "rapomdp run" not in recipe and "dataset preview" not in recipe
+
+
+def test_dataset_build_writes_the_mesh_set_and_refuses_what_it_cannot_build(
+        tmp_path: Path) -> None:
+    out = tmp_path / "mesh-set"
+    result = runner.invoke(app, ["dataset", "build", "mesh-set", "--out", str(out),
+                                 "--models", "2", "--seed", "3"])
+    assert result.exit_code == 0, result.output
+    assert "wrote 22 meshes of 11 classes" in result.output
+    assert sorted(p.name for p in out.iterdir())[:3] == ["arch", "bench", "dumbbell"]
+    assert len(list(out.rglob("*.stl"))) == 22
+    refusals = {
+        "held back": ["real-cad", "--out", str(tmp_path / "x"), "--source",
+                      str(tmp_path / "sweethome3d-models")],
+        "does not take --set": ["mesh-set", "--out", str(tmp_path / "x"), "--set", "second"],
+        "no dataset builder 'modelnet'": ["modelnet", "--out", str(tmp_path / "x")],
+        "--set must be one of first, second": ["real-cad", "--out", str(tmp_path / "x"),
+                                               "--set", "third", "--source", str(tmp_path)],
+    }
+    for message, args in refusals.items():
+        refused = runner.invoke(app, ["dataset", "build", *args])
+        assert refused.exit_code == 2, (args, refused.output)
+        assert message in refused.output
+    assert not (tmp_path / "x").exists()
+
+
+def test_dataset_build_help_says_what_each_builder_needs() -> None:
+    result = runner.invoke(app, ["dataset", "build", "--help"], terminal_width=200)
+    assert result.exit_code == 0
+    text = " ".join(result.output.split())
+    assert "real-cad: electronic components from Debian's kicad-packages3d" in text
+    assert "Needs apt-get and dpkg-deb" in text and "about a minute a set" in text
+    assert "mesh-set: objects composed of primitives" in text and "Takes seconds" in text
+    assert "sweethome3d*: refused by name" in text

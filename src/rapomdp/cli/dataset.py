@@ -48,6 +48,48 @@ def dataset(
     _run(config, workspace, "dataset", ["dataset"] if force else [], None, None, reconfigure)
 
 
+def _dataset_build_help() -> str:
+    from rapomdp.data.build import describe
+
+    return ("Write a dataset's mesh folder (one folder a class, one mesh file a model) for "
+            "`dataset: {source: folder}`. Never from a held-back source (sweethome3d*: refused "
+            "by name).\n\n"
+            + describe())
+
+
+@dataset_app.command("build", help=_dataset_build_help())
+def dataset_build(
+    name: Annotated[str, typer.Argument(help="real-cad or mesh-set.", metavar="NAME")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="The mesh folder to (re)build; "
+                                      "replaced whole when done.", metavar="FOLDER")],
+    which: Annotated[str | None, typer.Option("--set", help="real-cad: first (default) or "
+                                              "second.")] = None,
+    cache: Annotated[Path | None, typer.Option(help="real-cad: where the .deb and its "
+                                               "extraction are kept (default "
+                                               "runs/real-cad-dev/cache).")] = None,
+    deb: Annotated[Path | None, typer.Option(help="real-cad: a downloaded .deb of "
+                                             "kicad-packages3d (no apt-get).")] = None,
+    source: Annotated[Path | None, typer.Option(help="real-cad: the package already "
+                                                "unpacked (no apt-get, no dpkg-deb).")] = None,
+    max_per_class: Annotated[int | None, typer.Option(help="real-cad: models kept a class, "
+                                                      "0 for all (default 16).")] = None,
+    models: Annotated[int | None, typer.Option(help="mesh-set: models a class (default "
+                                               "11).")] = None,
+    seed: Annotated[int | None, typer.Option(help="mesh-set: the set's seed (default 7).")
+                    ] = None,
+) -> None:
+    from rapomdp.data.build import DatasetBuildError, build
+
+    console.print(f"building {escape(name)} into {escape(str(out))} ...", highlight=False)
+    try:
+        text = _guard(partial(build, name, out, which=which, cache=cache, deb=deb,
+                              source=source, max_per_class=max_per_class,
+                              models_per_class=models, seed=seed))
+    except DatasetBuildError as exc:
+        raise _fail(str(exc)) from None
+    console.print(escape(text), highlight=False, soft_wrap=True)
+
+
 #: The tile widths `dataset preview --width` accepts, in pixels.
 MIN_TILE_PX, MAX_TILE_PX = 8, 2048
 
