@@ -10,7 +10,7 @@
 * the train stage's wall seconds.
 
     OMP_NUM_THREADS=1 python benchmarks/train_recipe.py -w W1 [W2 ...] \\
-        --variant current: --variant cosine:train.lr_schedule=cosine ...
+        --variant current: --variant wide:train.width=0.5 ...
 
 A variant is ``LABEL:KEY=VALUE,KEY=VALUE`` (no overrides: the workspace's own recipe, retrained
 with this tree's code so every row is timed in the same session). The first row of each
