@@ -39,10 +39,13 @@ def test_default_has_the_papers_values() -> None:
         == (3, 1, 1)
     assert paper.evaluate.starts_per_model == 5 and paper.dataset.classes is None
     assert cfg.render.noise.enabled is False
-    # the POMDPs act by a one-step lookahead (depth 2 measured held out, docs/awareness.md §4.5)
-    assert cfg.evaluate.lookahead and cfg.evaluate.lookahead_depth == 1
-    with pytest.raises(ConfigError, match="lookahead_depth"):
-        config_from_dict({"evaluate": {"lookahead_depth": 3}})
+    # retired keys stay in the evaluate and learn keys at their one behaviour
+    assert {k: Config().section("evaluate")[k] for k in (
+        "lookahead", "lookahead_depth", "lookahead_width", "declared_confidence",
+        "declared_fit")} == {"lookahead": True, "lookahead_depth": 1, "lookahead_width": 4,
+                             "declared_confidence": "calibrated", "declared_fit": "closed_loop"}
+    assert "declared_form" not in Config().section("evaluate")
+    assert Config().section("learn")["declare"] == "map"
 
 
 def test_every_shipped_configuration_loads_and_the_folder_sets_name_their_mesh_folders() -> None:

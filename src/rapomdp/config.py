@@ -487,9 +487,18 @@ class RandomWalkConfig(Section):
 
 
 class EvaluateConfig(Section):
-    """The closed-loop evaluation (paper Sec. 5.2): every test model x start x method."""
+    """The closed-loop evaluation (paper Sec. 5.2): every test model x start x method.
 
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("declared_form",)
+    The POMDP methods act by a one-step lookahead on their solved value (one backup at the
+    belief reached); Random and the POMDP methods report the belief they act on ** a,
+    renormalised, a fitted where each method's own held-out closed loop stops (Random's where
+    the observe stage's held-out walks stop at its threshold); docs/awareness.md.
+    """
+
+    #: The retired keys at their one behaviour, in the key as before.
+    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = (
+        ("lookahead", True), ("lookahead_depth", 1), ("lookahead_width", 4),
+        ("declared_confidence", "calibrated"), ("declared_fit", "closed_loop"))
 
     methods: list[str] = Field(
         ["static", "random", "vptree", "classifier", "ra"],
@@ -504,43 +513,6 @@ class EvaluateConfig(Section):
     revisit: bool = Field(
         False, description="let the POMDP methods move back to a viewpoint they have seen "
         "(the noiseless sensor would show the same image, counted as new evidence)")
-    lookahead: bool = Field(
-        True, description="the POMDP methods act by a one-step lookahead on their solved "
-        "value (one backup at the belief reached); false: by the solved plans' first moves. "
-        "Chosen on held-out objects: more accurate at less energy and steadier under small "
-        "model changes, a little less calibrated (the figures: docs/awareness.md §4.5)")
-    lookahead_depth: int = Field(
-        1, ge=1, le=2, description="views the lookahead looks ahead: 1, or 2 (the "
-        "lookahead_width moves of best one-step value valued again with the one-step "
-        "lookahead's value at every child; naive or nuisance beliefs only)")
-    lookahead_width: int = Field(
-        4, ge=1, le=4096, description="moves a depth-2 lookahead values two views deep")
-    declared_confidence: Literal["calibrated", "belief"] = Field(
-        "calibrated", description="what Random and the POMDP methods report after their "
-        "views: calibrated (the belief they act on ** a, renormalised, a fitted per "
-        "observation model where held-out walks stop, by the observe and vptree stages; "
-        "Random's at its own stop belief), or belief (the belief itself). The actions are the "
-        "same either way; Static and the learned baseline report as before. Chosen on "
-        "held-out objects (docs/awareness.md §4.8)")
-    declared_fit: Literal["walks", "closed_loop", "closed_loop_per_fold"] = Field(
-        "closed_loop", description="where the POMDP methods' a (declared_confidence: "
-        "calibrated) is fitted: walks (the observe and vptree stages' held-out random walks "
-        "stopped at belief thresholds); closed_loop (the method's own held-out closed loop: "
-        "each volume group's models run from 4 starts on their recorded labels, the belief "
-        "and the lookahead by the model fitted without the group, the plan the solve "
-        "stage's; seconds, a naive belief only); closed_loop_per_fold (the same with each "
-        "fold's model solved too: no plan saw the group, one solve a method and group). "
-        "The closed loop fits the learned baseline's a too (1 with walks); Random keeps the "
-        "walks' a. closed_loop chosen on held-out objects by a rule written "
-        "first (docs/awareness.md §4.8)")
-    declared_form: Literal["scalar", "views", "auto"] = Field(
-        "scalar", description="the declared confidence's temperature with declared_fit "
-        "closed_loop: scalar (one a per method) or views (a(n) = s * n**-beta after n images, "
-        "(s, beta) fitted on the method's held-out closed-loop stops: a long episode means "
-        "the object's labels disagreed; Random's fitted on its own held-out closed loop too); "
-        "auto: per method, the form whose fit on the other held-out groups declares each "
-        "group's stops better (Random's scalar: the walks' a; one held-out group: scalar). "
-        "The actions are the same either way (docs/awareness.md §4.8, rounds five and six)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "
@@ -579,30 +551,19 @@ class EvaluateConfig(Section):
             raise ValueError("every stop belief must be in (0, 1]")
         return values
 
-    @model_validator(mode="after")
-    def _views_form_on_the_closed_loop(self) -> EvaluateConfig:
-        if self.declared_form != "scalar" and (self.declared_fit == "walks"
-                                               or self.declared_confidence != "calibrated"):
-            raise ValueError(f"evaluate.declared_form {self.declared_form!r} is fitted on the "
-                             "held-out closed loop: it needs declared_confidence "
-                             "'calibrated' and declared_fit "
-                             f"'closed_loop' or 'closed_loop_per_fold' (got "
-                             f"{self.declared_confidence!r}, {self.declared_fit!r})")
-        return self
-
 
 class LearnConfig(Section):
     """The learned baseline ``learned`` (sb3-contrib's MaskablePPO on the recorded evidence of
-    the held-out models; see docs/experiment.md); trained only when evaluate.methods lists it."""
+    the held-out models; see docs/experiment.md); trained only when evaluate.methods lists it.
+    The policy chooses a move or to stop, and stopping declares the belief's most likely class
+    (as Random and the POMDPs declare)."""
+
+    #: The retired ``declare`` at its one behaviour, in the key as before.
+    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = (("declare", "map"),)
 
     observation_model: str = Field(
         "ra", description="the observation model of the belief the policy sees (an observe "
         "model; ra: RA-POMDP's)")
-    declare: Literal["map", "any"] = Field(
-        "map", description="map: the policy chooses a move or to stop, and stopping declares "
-        "the belief's most likely class (as Random and the POMDPs declare); any: it chooses "
-        "the declared class itself among V + C actions. Chosen on held-out models "
-        "(docs/experiment.md)")
     timesteps: int = Field(
         300_000, ge=1, description="environment steps of training per wrong-declaration cost "
         "λ (the training curves show the plateau: docs/experiment.md)")

@@ -21,8 +21,8 @@ from rapomdp.experiment.episode_table import EPISODES_FILE, SUMMARY_FILE, Episod
 from rapomdp.experiment.held_out import load_held_out_comparison
 from rapomdp.experiment.metrics import (
     CALIBRATED_ECE_NOTE,
+    REPORTED_BELIEF_NOTE,
     belief_calibration_cells,
-    reported_belief_note,
     table1_story,
 )
 from rapomdp.experiment.report import (
@@ -115,11 +115,9 @@ def results_markdown(workspace: Workspace, figures_link: str, seed: int = 0) -> 
                   "(test model, start) pairs):", "", _read(evaluate / "tradeoff.md"), "",
                   f"![Accuracy against energy]({figures_link}/demo_tradeoff.png)", ""]
     if episodes is not None:
-        ran = workspace.config(default=Config()).evaluate
         lines += ["**Calibration of the final belief** (confidence: the belief in the declared "
                   "class, which a calibrated belief's accuracy equals; ECE over 10 bins). "
-                  + reported_belief_note(ran.declared_confidence, ran.declared_fit,
-                                           ran.declared_form) + " " + CALIBRATED_ECE_NOTE, "",
+                  + REPORTED_BELIEF_NOTE + " " + CALIBRATED_ECE_NOTE, "",
                   markdown_table(*belief_calibration_cells(episodes)).strip(), ""]
     lines += ["**Self-awareness** (observation models on the test models):", "",
               _read(workspace.require("observe") / "quality.md"), "",
