@@ -1,5 +1,5 @@
-"""Wall time of the evaluate stage's held-out closed loop (``evaluate.declared_fit:
-closed_loop``) with one worker process and with ``--workers`` (the same fits, checked).
+"""Wall time of the evaluate stage's held-out closed loop (where the declared confidence is
+fitted) with one worker process and with ``--workers`` (the same fits, checked).
 
     python benchmarks/held_out_loop_speed.py -w W [--workers 2]
 """
