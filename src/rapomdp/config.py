@@ -191,7 +191,8 @@ class AugmentConfig(Section):
 
 class TrainConfig(Section):
     """The depth classifier and its training (paper Sec. 5.1.1: Adam, weight decay 5e-4, batch
-    128; its lr 1e-4 fine-tuned a pretrained network, from scratch 1e-3 measured far better)."""
+    128; its lr 1e-4 fine-tuned a pretrained network, from scratch 1e-3 measured far better).
+    The network sees the depth and its surface normals and keeps its last epoch's weights."""
 
     width: float = Field(0.25, gt=0, le=4, description="channel multiplier of AlexNet's widths")
     dropout: float = Field(0.5, ge=0, lt=1)
