@@ -1,8 +1,8 @@
 """Two study configurations side by side in the evaluate stage's held-out closed loop only
 (``evaluate/held_out/declared_fit.json``: each volume group by the models and policies fitted
 without it; no test episode is read): each method's accuracy, energy and declared ECE per seed
-and their means. Unlike ``batch_norm_held_out.py`` the two may be different configurations, or
-datasets, of different studies: the seeds are not paired objects, so only means are compared.
+and their means. The two may be different configurations, or datasets, of different studies:
+the seeds are not paired objects, so only means are compared.
 
     python benchmarks/held_out_study_pairs.py --first runs/study-5seeds/learned \\
         --second runs/study-instances/more-instances [--seeds 0 1 2] [--methods ra classifier]
@@ -11,13 +11,25 @@ datasets, of different studies: the seeds are not paired objects, so only means 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from batch_norm_held_out import FIGURES, held_out_figures  # noqa: E402
+from rapomdp.experiment.held_out import load_declared_fit
+
+FIGURES = ("accuracy", "energy", "declared_ece")
+
+
+def held_out_figures(workspace: Path, method: str) -> dict[str, float]:
+    """One method's held-out closed-loop accuracy, energy (m) and declared ECE."""
+    record = load_declared_fit(workspace / "evaluate")
+    if record is None:
+        raise SystemExit(f"{workspace}: no held-out closed loop (run the evaluate stage first)")
+    fit = record["methods"].get(method)
+    if fit is None:
+        raise SystemExit(f"{workspace}: no method {method!r} in the held-out closed loop")
+    return {"accuracy": float(fit["accuracy"]), "energy": float(fit["energy"]),
+            "declared_ece": float(fit["declared_confidence"]["declared_ece"])}
 
 
 def main() -> None:
