@@ -287,12 +287,23 @@ class HeldOutRun:
 def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str],
                   context: RunContext = RunContext()
                   ) -> tuple[dict[str, HeldOutRun], dict[str, str]]:
-    """Every method of ``methods`` run on each held-out volume group: the belief (and a
-    POMDP's lookahead) by its observation model fitted without the group, a POMDP by the solve
-    stage's plan; the learned baseline by the learn stage's policy at Table
+    """Every method of ``methods`` run on each held-out volume group.
+
+    The belief (and a POMDP's lookahead) by its observation model fitted without the group, a
+    POMDP by the solve stage's plan; the learned baseline by the learn stage's policy at Table
     1's λ; Random walking at Table 1's threshold on its observation model's folds; Static
-    declaring its start view's label (on RA-POMDP's folds). Returns the
-    runs and, for each method without held-out folds, why (:func:`closed_loop_skipped`)."""
+    declaring its start view's label (on RA-POMDP's folds).
+
+    Args:
+        config: the workspace's configuration.
+        inputs: the evaluate stage's input folders.
+        methods: the method keys to run (of ``evaluate.methods``).
+        context: the run's workers and progress.
+
+    Returns:
+        Each run method's :class:`HeldOutRun`, by key, and for each method without held-out
+        folds, why (:func:`closed_loop_skipped`).
+    """
     model_of = {name: name for name in methods}
     if "random" in methods:
         model_of["random"] = config.evaluate.random.observation_model

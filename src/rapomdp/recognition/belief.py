@@ -456,6 +456,7 @@ def declared_belief(belief: np.ndarray, temperature: float) -> np.ndarray:
         The declared beliefs, of ``belief``'s shape.
 
     Example:
+        >>> import numpy as np
         >>> declared_belief(np.array([0.8, 0.2]), 0.5).round(3).tolist()
         [0.667, 0.333]
     """
