@@ -1,12 +1,12 @@
 """Time of one closed-loop step of a workspace's solved RA-POMDP policy, one core: the belief
 update (``BayesBelief.update``, Eq. 5) and the one-step lookahead action (``lookahead_act``,
-``evaluate.lookahead``) against the previous lookahead (every move valued exactly; kept here as
+how the POMDP methods act) against the previous lookahead (every move valued exactly; kept here as
 the reference) and the solved plans' first move (``act``), on recorded cases: beliefs after one
 to four random labels with random visited sets. It counts the cases where the lookahead returns
 the reference's action (kind and target); the speed issue asks for all of them.
 
     OMP_NUM_THREADS=1 python benchmarks/lookahead_speed.py --workspace W [--repeats 400] \
-        [--models ra classifier vptree] [--rounds 5] [--two-step N]
+        [--models ra classifier vptree] [--rounds 5]
 
 Times are medians over ``--rounds`` interleaved passes over the cases (the machine may be
 shared), wall time with CPU time in brackets, per call.
@@ -27,7 +27,7 @@ from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.methods import BayesBelief
 from rapomdp.io import load_npz
 from rapomdp.planning.momdp import update_beliefs
-from rapomdp.planning.policy import LOOKAHEAD_WIDTH, ActiveRecognitionPolicy
+from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import Workspace
@@ -76,7 +76,7 @@ def median_times(calls: dict[str, Callable[[], None]], count: int, rounds: int
     return {name: (float(np.median(wall[name])), float(np.median(cpu[name]))) for name in calls}
 
 
-def report(workspace: Path, name: str, repeats: int, rounds: int, two_step: int = 0) -> None:
+def report(workspace: Path, name: str, repeats: int, rounds: int) -> None:
     """Print the identical-action count and the times of one solved model's policy."""
     model, policy, reachable, cases = recorded_cases(workspace, repeats, name)
     n_o = model.shape[2]
@@ -118,16 +118,6 @@ def report(workspace: Path, name: str, repeats: int, rounds: int, two_step: int 
           f"{ms('lookahead_act')} ({ratio[0]:.2f}x, {ratio[1]:.2f}x CPU), act {ms('act')}, "
           f"belief update {ms('update')}; update + lookahead_act {1e3 * step[0]:.3f} ms "
           f"({1e3 * step[1]:.3f} CPU)")
-    if two_step:
-        few = cases[:two_step]
-        deep = [policy.lookahead_act(v, b, model, reachable, vis, depth=2) for v, b, vis in few]
-        differ = sum(a != b for a, b in zip(deep, got[:two_step], strict=True))
-        t = median_times({"depth 2": lambda: [policy.lookahead_act(v, b, model, reachable, vis,
-                                                                   depth=2)
-                                              for v, b, vis in few]}, len(few), rounds)
-        print(f"  depth 2 (evaluate.lookahead_depth, width {LOOKAHEAD_WIDTH}) on the first "
-              f"{len(few)} cases: {1e3 * t['depth 2'][0]:.1f} ms ({1e3 * t['depth 2'][1]:.1f} "
-              f"CPU) a call; its action differs from depth 1's in {differ}/{len(few)}")
 
 
 def main() -> None:
@@ -136,11 +126,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=400)
     parser.add_argument("--models", nargs="+", default=["ra"])
     parser.add_argument("--rounds", type=int, default=5)
-    parser.add_argument("--two-step", type=int, default=0, metavar="N",
-                        help="also time the depth-2 lookahead on the first N cases")
     args = parser.parse_args()
     for name in args.models:
-        report(Path(args.workspace), name, args.repeats, args.rounds, args.two_step)
+        report(Path(args.workspace), name, args.repeats, args.rounds)
 
 
 if __name__ == "__main__":

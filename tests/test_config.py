@@ -39,10 +39,13 @@ def test_default_has_the_papers_values() -> None:
         == (3, 1, 1)
     assert paper.evaluate.starts_per_model == 5 and paper.dataset.classes is None
     assert cfg.render.noise.enabled is False
-    # the POMDPs act by a one-step lookahead (depth 2 measured held out, docs/awareness.md §4.5)
-    assert cfg.evaluate.lookahead and cfg.evaluate.lookahead_depth == 1
-    with pytest.raises(ConfigError, match="lookahead_depth"):
-        config_from_dict({"evaluate": {"lookahead_depth": 3}})
+    # retired keys stay in the evaluate and learn keys at their one behaviour
+    assert {k: Config().section("evaluate")[k] for k in (
+        "lookahead", "lookahead_depth", "lookahead_width", "declared_confidence",
+        "declared_fit")} == {"lookahead": True, "lookahead_depth": 1, "lookahead_width": 4,
+                             "declared_confidence": "calibrated", "declared_fit": "closed_loop"}
+    assert "declared_form" not in Config().section("evaluate")
+    assert Config().section("learn")["declare"] == "map"
 
 
 def test_every_shipped_configuration_loads_and_the_folder_sets_name_their_mesh_folders() -> None:
@@ -59,31 +62,18 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
     """``train.ensemble`` 1 is what every workspace before the option trained: left out of the
     section (so of every stage key); any other value is in it, and in the YAML either way."""
     assert "ensemble" not in Config().section("train")
-    assert {k: v for k, v in Config().section("train").items() if k != "augment"} == {
+    assert {k: v for k, v in Config().section("train").items()
+            if k not in ("augment", "input_features")} == {
         k: v for k, v in Config().train.model_dump(mode="json").items()
-        if k not in ("ensemble", "lr_schedule", "keep", "norm", "augment")}
+        if k not in ("ensemble", "augment")}
     assert config_from_dict({"train": {"ensemble": 3}}).section("train")["ensemble"] == 3
     assert yaml.safe_load(Config().to_yaml())["train"]["ensemble"] == 1
-    assert "lr_schedule" not in Config().section("train")
-    assert config_from_dict({"train": {"lr_schedule": "cosine"}}).section(
-        "train")["lr_schedule"] == "cosine"
-    assert "norm" not in Config().section("train")
-    assert config_from_dict({"train": {"norm": "batch"}}).section("train")["norm"] == "batch"
-    # an option whose default changed: out of the key at the value workspaces had before it
-    assert Config().train.input_features == "depth_normals"
+    # a retired key in the key at its one behaviour: workspaces before the retirement keep
+    # their train key and their checkpoint's recorded hash
+    assert "input_features" not in Config().train.model_dump()
     assert Config().section("train")["input_features"] == "depth_normals"
-    depth = config_from_dict({"train": {"input_features": "depth"}})
-    assert "input_features" not in depth.section("train")
-    assert {k: v for k, v in depth.section("train").items()} == {
-        k: v for k, v in Config().section("train").items() if k != "input_features"}
-    # nested: train.augment's options added later, out of the key at their default
     assert Config().section("train")["augment"] == {"shift": 0.05, "scale": 0.1, "noise": False}
-    on = config_from_dict({"train": {"augment": {"flip": True, "aspect": 0.15}}})
-    assert on.section("train")["augment"] == {"shift": 0.05, "scale": 0.1, "noise": False,
-                                             "flip": True, "aspect": 0.15}
-    assert "auto_volume_models" not in Config().section("dataset")
-    assert config_from_dict({"dataset": {"auto_volume_models": 6}}).section(
-        "dataset")["auto_volume_models"] == 6
+    assert Config().section("dataset") == Config().dataset.model_dump(mode="json")
     assert "discount_walks" not in Config().section("observe")
     mixed = {"belief": "similarity", "discount_walks": "mixed"}
     assert config_from_dict({"observe": mixed}).section("observe")["discount_walks"] == "mixed"
@@ -102,14 +92,6 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
         config_from_dict({"observe": {"belief": "nuisance"}})
     assert config_from_dict({"observe": {"belief": "nuisance", "ra_model": "auto"}}).section(
         "observe")["belief"] == "nuisance"
-
-
-def test_auto_volume_models_needs_split_auto_and_at_least_three() -> None:
-    with pytest.raises(ConfigError, match="auto_volume_models applies to split: auto only"):
-        config_from_dict({"dataset": {"split": {"train": 4, "volume": 3, "test": 4},
-                                      "auto_volume_models": 6}})
-    with pytest.raises(ConfigError, match="greater than or equal to 3"):
-        config_from_dict({"dataset": {"auto_volume_models": 2}})
 
 
 def test_yaml_round_trip(tmp_path: Path) -> None:

@@ -60,8 +60,7 @@ class SplitConfig(Section):
 
 def _keyed(value: BaseModel) -> dict[str, Any]:
     """``value``'s JSON data less the fields its (and its nested sections')
-    ``hash_omits_default`` names while at their default and ``hash_omits_value`` names while
-    at the value given there."""
+    ``hash_omits_default`` names while at their default, plus its ``hash_keeps_retired``."""
     data = value.model_dump(mode="json")
     for key in type(value).model_fields:
         nested = getattr(value, key)
@@ -69,11 +68,10 @@ def _keyed(value: BaseModel) -> dict[str, Any]:
             data[key] = _keyed(nested)
     if not isinstance(value, Section):
         return data
-    omitted = [(key, type(value).model_fields[key].default) for key in value.hash_omits_default]
-    for key, old in [*omitted, *value.hash_omits_value]:
-        if getattr(value, key) == old:
+    for key in value.hash_omits_default:
+        if getattr(value, key) == type(value).model_fields[key].default:
             data.pop(key)
-    return data
+    return {**data, **dict(value.hash_keeps_retired)}
 
 
 def _split_kind(value: Any) -> str:
@@ -84,8 +82,6 @@ def _split_kind(value: Any) -> str:
 
 class DatasetConfig(Section):
     """Where the meshes come from and how they are normalised and split."""
-
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("auto_volume_models",)
 
     source: Literal["procedural", "folder"] = "procedural"
     path: Path | None = Field(None, description="mesh folder (source: folder)")
@@ -109,10 +105,6 @@ class DatasetConfig(Section):
     too_few_models: Literal["error", "drop"] = Field(
         "error", description="a class with fewer models than the split needs: an error "
         "naming it, or drop: the class left out (one warning line)")
-    auto_volume_models: int = Field(
-        3, ge=3, description="split: auto's most volume models a class: the models beyond "
-        "4 / 3 / 4 go to volume and train in turn until the volume role holds this many (3: "
-        "every one trained on; measured: docs/awareness.md §4.1)")
 
     @field_validator("classes")
     @classmethod
@@ -134,9 +126,6 @@ class DatasetConfig(Section):
                 f"models_per_class ({self.models_per_class}) is below the split's total "
                 f"({self.split.total})"
             )
-        if isinstance(self.split, SplitConfig) and self.auto_volume_models != 3:
-            raise ValueError("auto_volume_models applies to split: auto only; with fixed "
-                             "counts set split.volume")
         return self
 
 
@@ -193,49 +182,28 @@ class PreprocessConfig(Section):
 
 
 class AugmentConfig(Section):
-    """Training augmentation: random crop shifts and scales, optional mirroring, aspect
-    changes and Xtion depth noise."""
+    """Training augmentation: random crop shifts and scales and Xtion depth noise."""
 
     shift: float = Field(0.05, ge=0, le=0.5, description="max crop shift, fraction of its side")
     scale: float = Field(0.1, ge=0, lt=1, description="max relative change of the crop size")
     noise: bool = Field(False, description="add axial + quantisation noise (render.noise model)")
-    flip: bool = Field(False, description="mirror half the inputs left-right (a mirrored view "
-                       "is a view of the mirrored object)")
-    aspect: float = Field(0.0, ge=0, lt=1, description="max relative change of the crop's "
-                          "width against its height (an instance a little wider or taller)")
-
-    #: Off, what every workspace before the options trained: out of the stage keys.
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("flip", "aspect")
 
 
 class TrainConfig(Section):
     """The depth classifier and its training (paper Sec. 5.1.1: Adam, weight decay 5e-4, batch
-    128; its lr 1e-4 fine-tuned a pretrained network, from scratch 1e-3 measured far better)."""
+    128; its lr 1e-4 fine-tuned a pretrained network, from scratch 1e-3 measured far better).
+    The network sees the depth and its surface normals and keeps its last epoch's weights."""
 
     width: float = Field(0.25, gt=0, le=4, description="channel multiplier of AlexNet's widths")
     dropout: float = Field(0.5, ge=0, lt=1)
-    norm: Literal["none", "batch"] = Field(
-        "none", description="normalisation after each convolution: none (AlexNet's), or batch "
-        "normalisation (docs/recognition.md)")
-    input_features: Literal["depth", "depth_normals"] = Field(
-        "depth_normals", description="what the first convolution sees: the preprocessed "
-        "depth and its unit surface normal, computed from it by a fixed layer of the network "
-        "(chosen on held-out objects: docs/recognition.md), or depth alone (AlexNet's one "
-        "channel, the default before 2026-12-05)")
     epochs: int = Field(25, ge=1)
     batch_size: int = Field(128, ge=1)
     learning_rate: float = Field(
         1e-3, gt=0, description="Adam's; chosen on validation accuracy (docs/recognition.md)")
     weight_decay: float = Field(5e-4, ge=0)
-    lr_schedule: Literal["constant", "cosine"] = Field(
-        "constant", description="the learning rate over the run: constant, or decayed to 0 "
-        "along a half cosine over every step (the last epochs settle; docs/recognition.md)")
     validation_fraction: float = Field(
         0.1, ge=0, lt=1, description="training views held out per model for validation"
     )
-    keep: Literal["last", "best_validation"] = Field(
-        "last", description="which epoch's weights a network keeps: the last, or the one of "
-        "best validation accuracy (ties: the later; needs validation_fraction > 0)")
     device: Literal["auto", "cpu", "cuda"] = "auto"
     seed: int | None = Field(
         None, ge=0, lt=2**32, description="the classifier's own seed (weights, batch order, "
@@ -248,17 +216,11 @@ class TrainConfig(Section):
     preprocess: PreprocessConfig = PreprocessConfig()
     augment: AugmentConfig = AugmentConfig()
 
-    #: At their defaults, what every workspace before the options trained: out of the keys.
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "lr_schedule", "keep", "norm")
-    #: Every workspace before the option trained on depth alone: its keys stay as they were.
-    hash_omits_value: ClassVar[tuple[tuple[str, Any], ...]] = (("input_features", "depth"),)
-
-    @model_validator(mode="after")
-    def _keep_needs_validation(self) -> TrainConfig:
-        if self.keep == "best_validation" and self.validation_fraction == 0:
-            raise ValueError("train.keep best_validation needs training views to validate "
-                             "on: set train.validation_fraction above 0, or keep 'last'")
-        return self
+    #: At its default, what every workspace before the option trained: out of the keys.
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble",)
+    #: The retired ``input_features`` at its one behaviour, in the key as before.
+    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = (
+        ("input_features", "depth_normals"),)
 
 
 class SaliencyConfig(Section):
@@ -526,9 +488,18 @@ class RandomWalkConfig(Section):
 
 
 class EvaluateConfig(Section):
-    """The closed-loop evaluation (paper Sec. 5.2): every test model x start x method."""
+    """The closed-loop evaluation (paper Sec. 5.2): every test model x start x method.
 
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("declared_form",)
+    The POMDP methods act by a one-step lookahead on their solved value (one backup at the
+    belief reached); Random and the POMDP methods report the belief they act on ** a,
+    renormalised, a fitted where each method's own held-out closed loop stops (Random's where
+    the observe stage's held-out walks stop at its threshold); docs/awareness.md.
+    """
+
+    #: The retired keys at their one behaviour, in the key as before.
+    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = (
+        ("lookahead", True), ("lookahead_depth", 1), ("lookahead_width", 4),
+        ("declared_confidence", "calibrated"), ("declared_fit", "closed_loop"))
 
     methods: list[str] = Field(
         ["static", "random", "vptree", "classifier", "ra"],
@@ -543,43 +514,6 @@ class EvaluateConfig(Section):
     revisit: bool = Field(
         False, description="let the POMDP methods move back to a viewpoint they have seen "
         "(the noiseless sensor would show the same image, counted as new evidence)")
-    lookahead: bool = Field(
-        True, description="the POMDP methods act by a one-step lookahead on their solved "
-        "value (one backup at the belief reached); false: by the solved plans' first moves. "
-        "Chosen on held-out objects: more accurate at less energy and steadier under small "
-        "model changes, a little less calibrated (the figures: docs/awareness.md §4.5)")
-    lookahead_depth: int = Field(
-        1, ge=1, le=2, description="views the lookahead looks ahead: 1, or 2 (the "
-        "lookahead_width moves of best one-step value valued again with the one-step "
-        "lookahead's value at every child; naive or nuisance beliefs only)")
-    lookahead_width: int = Field(
-        4, ge=1, le=4096, description="moves a depth-2 lookahead values two views deep")
-    declared_confidence: Literal["calibrated", "belief"] = Field(
-        "calibrated", description="what Random and the POMDP methods report after their "
-        "views: calibrated (the belief they act on ** a, renormalised, a fitted per "
-        "observation model where held-out walks stop, by the observe and vptree stages; "
-        "Random's at its own stop belief), or belief (the belief itself). The actions are the "
-        "same either way; Static and the learned baseline report as before. Chosen on "
-        "held-out objects (docs/awareness.md §4.8)")
-    declared_fit: Literal["walks", "closed_loop", "closed_loop_per_fold"] = Field(
-        "closed_loop", description="where the POMDP methods' a (declared_confidence: "
-        "calibrated) is fitted: walks (the observe and vptree stages' held-out random walks "
-        "stopped at belief thresholds); closed_loop (the method's own held-out closed loop: "
-        "each volume group's models run from 4 starts on their recorded labels, the belief "
-        "and the lookahead by the model fitted without the group, the plan the solve "
-        "stage's; seconds, a naive belief only); closed_loop_per_fold (the same with each "
-        "fold's model solved too: no plan saw the group, one solve a method and group). "
-        "The closed loop fits the learned baseline's a too (1 with walks); Random keeps the "
-        "walks' a. closed_loop chosen on held-out objects by a rule written "
-        "first (docs/awareness.md §4.8)")
-    declared_form: Literal["scalar", "views", "auto"] = Field(
-        "scalar", description="the declared confidence's temperature with declared_fit "
-        "closed_loop: scalar (one a per method) or views (a(n) = s * n**-beta after n images, "
-        "(s, beta) fitted on the method's held-out closed-loop stops: a long episode means "
-        "the object's labels disagreed; Random's fitted on its own held-out closed loop too); "
-        "auto: per method, the form whose fit on the other held-out groups declares each "
-        "group's stops better (Random's scalar: the walks' a; one held-out group: scalar). "
-        "The actions are the same either way (docs/awareness.md §4.8, rounds five and six)")
     lambdas: list[float] = Field(
         [0.5, 2.0, 8.0], description="accuracy against energy: wrong-declaration costs λ (m) "
         "each POMDP method is also solved and run at (solve.wrong_declaration_cost_m, Table "
@@ -618,30 +552,19 @@ class EvaluateConfig(Section):
             raise ValueError("every stop belief must be in (0, 1]")
         return values
 
-    @model_validator(mode="after")
-    def _views_form_on_the_closed_loop(self) -> EvaluateConfig:
-        if self.declared_form != "scalar" and (self.declared_fit == "walks"
-                                               or self.declared_confidence != "calibrated"):
-            raise ValueError(f"evaluate.declared_form {self.declared_form!r} is fitted on the "
-                             "held-out closed loop: it needs declared_confidence "
-                             "'calibrated' and declared_fit "
-                             f"'closed_loop' or 'closed_loop_per_fold' (got "
-                             f"{self.declared_confidence!r}, {self.declared_fit!r})")
-        return self
-
 
 class LearnConfig(Section):
     """The learned baseline ``learned`` (sb3-contrib's MaskablePPO on the recorded evidence of
-    the held-out models; see docs/experiment.md); trained only when evaluate.methods lists it."""
+    the held-out models; see docs/experiment.md); trained only when evaluate.methods lists it.
+    The policy chooses a move or to stop, and stopping declares the belief's most likely class
+    (as Random and the POMDPs declare)."""
+
+    #: The retired ``declare`` at its one behaviour, in the key as before.
+    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = (("declare", "map"),)
 
     observation_model: str = Field(
         "ra", description="the observation model of the belief the policy sees (an observe "
         "model; ra: RA-POMDP's)")
-    declare: Literal["map", "any"] = Field(
-        "map", description="map: the policy chooses a move or to stop, and stopping declares "
-        "the belief's most likely class (as Random and the POMDPs declare); any: it chooses "
-        "the declared class itself among V + C actions. Chosen on held-out models "
-        "(docs/experiment.md)")
     timesteps: int = Field(
         300_000, ge=1, description="environment steps of training per wrong-declaration cost "
         "λ (the training curves show the plateau: docs/experiment.md)")
@@ -738,9 +661,9 @@ class Config(Section):
     def section(self, name: str) -> Any:
         """A section's values as plain JSON-able data (for hashing and records); the fields a
         section's ``hash_omits_default`` names are left out at their default (options added
-        after workspaces existed, whose default is what those workspaces did), and those
-        ``hash_omits_value`` names at the value given there (an option whose default
-        changed later)."""
+        after workspaces existed, whose default is what those workspaces did), and the
+        retired keys its ``hash_keeps_retired`` names are in at their one value (so the keys
+        of workspaces made before the retirement stay)."""
         value = getattr(self, name)
         if not isinstance(value, BaseModel):
             return value

@@ -47,10 +47,10 @@ class Section(BaseModel):
     #: Fields added after workspaces existed, whose default is what those workspaces did:
     #: left out of ``Config.section`` (so of every stage key) while at that default.
     hash_omits_default: ClassVar[tuple[str, ...]] = ()
-    #: Fields added after workspaces existed whose default later changed: (name, value) pairs,
-    #: each left out of the keys while at ``value``, what those workspaces did, so they stay
-    #: cached and a run at the new default makes its own artefacts.
-    hash_omits_value: ClassVar[tuple[tuple[str, Any], ...]] = ()
+    #: Retired keys (:mod:`rapomdp.retired`) that were in the stage keys at the value that is
+    #: now their only behaviour: (name, value) pairs still written into ``Config.section``, so
+    #: the workspaces and checkpoints made before the retirement keep their keys.
+    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = ()
 
     @field_validator("*", mode="before")
     @classmethod

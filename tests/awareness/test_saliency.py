@@ -200,8 +200,8 @@ def test_the_mask_of_an_ensemble_of_copies_is_the_mask_of_the_network():
         member.load_state_dict(network.state_dict())
     inputs = torch.randn(2, 1, 32, 32, generator=torch.Generator().manual_seed(5))
     target = torch.tensor([0, 2])
-    params = MaskParams.scaled(32, iterations=10)
+    params = MaskParams.scaled(32, iterations=3)  # a mask still moving, not at its bound
     alone = PerturbationMask(network, params, seed=1).attribute(inputs, target)
     together = PerturbationMask(ensemble, params, seed=1).attribute(inputs, target)
-    assert float(alone.max()) > 0
+    assert float(alone.max()) > 0.1
     torch.testing.assert_close(together, alone, atol=1e-4, rtol=0)

@@ -304,8 +304,6 @@ def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(wor
     loaded = paper_config.observe
     assert (loaded.evidence, loaded.ra_model, loaded.belief_correction) == (
         "volume", "paper", "none")
-    assert paper_config.evaluate.lookahead is False  # the solved plans, as the paper acts
-    assert load_config(None).evaluate.lookahead is True  # the default: chosen held out
     config = config_from_dict({**TINY, "observe": {**TINY["observe"],
                                                    **loaded.model_dump(include={
                                                        "evidence", "ra_model",

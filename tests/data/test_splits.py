@@ -1,10 +1,9 @@
 import pytest
 
-from rapomdp.config import DatasetConfig, SplitConfig
+from rapomdp.config import SplitConfig
 from rapomdp.data.splits import (
     AUTO_FULL_MODELS,
     AUTO_MIN_MODELS,
-    AUTO_VOLUME_MODELS,
     TooFewModelsError,
     auto_counts,
     split_models,
@@ -92,25 +91,3 @@ def test_auto_split_uses_every_model_and_matches_the_fixed_default_from_eleven()
                        "needs at least 5 a class \\(3 train, 1 volume, 1 test\\)"):
         split_models({**models, "e": list(range(4))}, None, seed=2)
 
-
-def test_a_larger_auto_volume_adds_groups_without_moving_test_models_or_earlier_groups() -> None:
-    models = {"a": list(range(11)), "b": list(range(13)), "c": list(range(16)),
-              "d": list(range(20))}
-    base = split_models(models, None, seed=3).roles
-    wide = split_models(models, None, seed=3, auto_volume=6).roles
-    sizes = {name: [len(wide[name][r]) for r in ("train", "volume", "test")] for name in models}
-    # beyond 11 models: volume, train, volume, train, volume, then train
-    assert sizes == {"a": [4, 3, 4], "b": [5, 4, 4], "c": [6, 6, 4], "d": [10, 6, 4]}
-    for name, items in models.items():
-        assert wide[name]["test"] == base[name]["test"]
-        assert wide[name]["volume"][:3] == base[name]["volume"]  # groups 0-2 unchanged
-        assert set(wide[name]["train"]) <= set(base[name]["train"])
-        assert sorted(sum((wide[name][r] for r in ("train", "volume", "test")), [])) == items
-    # fixed counts ignore it; below the default it is an error
-    fixed = {"train": 4, "volume": 3, "test": 4}
-    assert (split_models(models, fixed, seed=3, auto_volume=6).roles
-            == split_models(models, fixed, seed=3).roles)
-    with pytest.raises(ValueError, match="auto_volume must be at least 3, got 2"):
-        split_models(models, None, seed=3, auto_volume=2)
-    # the configuration's default is the rule's: every model beyond 11 trained on
-    assert DatasetConfig().auto_volume_models == AUTO_VOLUME_MODELS == 3

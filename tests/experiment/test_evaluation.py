@@ -166,21 +166,17 @@ def test_actions_do_not_depend_on_the_label(workspace) -> None:
         assert np.array_equal(a.episode.beliefs, b.episode.beliefs)
 
 
-def test_the_pomdp_methods_act_by_the_lookahead_unless_configured_off(workspace) -> None:
+def test_the_pomdp_methods_look_ahead_over_the_reachable_viewpoints(workspace) -> None:
     from rapomdp.experiment.methods import POMDPPolicy
 
     ws, config = workspace
     reachable = np.load(ws.require("robot") / "robot.npz")["reachable"]
-    assert config.evaluate.lookahead  # the default, chosen held out (docs/awareness.md §4.5)
-    on = ClosedLoop.load(config, _inputs(ws))
-    off_config = config.model_copy(update={
-        "evaluate": config.evaluate.model_copy(update={"lookahead": False})})
-    off = ClosedLoop.load(off_config, _inputs(ws))
-    pomdps = [k for k, m in on.methods.items() if isinstance(m, POMDPPolicy)]
+    assert 0 < reachable.sum() < reachable.size
+    loop = ClosedLoop.load(config, _inputs(ws))
+    pomdps = [k for k, m in loop.methods.items() if isinstance(m, POMDPPolicy)]
     assert sorted(pomdps) == ["classifier", "ra", "vptree"]
     for key in pomdps:
-        assert np.array_equal(on.methods[key].lookahead_over, reachable)
-        assert off.methods[key].lookahead_over is None
+        assert np.array_equal(loop.methods[key].lookahead_over, reachable)
 
 
 def test_same_seed_same_table_and_workers_do_not_matter(workspace, tmp_path) -> None:
@@ -307,14 +303,14 @@ def test_calibrated_declarations_change_what_is_reported_and_no_action(workspace
     from rapomdp.experiment.methods import StaticPolicy
 
     ws, config = workspace
-    assert config.evaluate.declared_confidence == "calibrated"  # chosen held out (§4.8)
-    assert config.evaluate.declared_fit == "closed_loop"  # chosen held out (§4.8, round 3)
     # one volume model a class: no closed loop to fit on, every method keeps the walks' a
     assert read_json(ws.require("evaluate") / "evaluate.json")["declared_fit"] == {
         "kind": "closed_loop", "closed_loop": {}}
-    plain_config = config.model_copy(update={
-        "evaluate": config.evaluate.model_copy(update={"declared_confidence": "belief"})})
-    plain = ClosedLoop.load(plain_config, _inputs(ws), sweep_dir=ws.require("evaluate") / "sweep")
+    # every a 1: the belief itself
+    monkeypatch.setattr(evaluation, "declared_temperatures",
+                        lambda observe, offered, vptree, stop_threshold=None:
+                        dict.fromkeys(offered, 1.0))
+    plain = ClosedLoop.load(config, _inputs(ws), sweep_dir=ws.require("evaluate") / "sweep")
     fitted = {"classifier": 0.5, "ra": 0.25, "vptree": 0.8}
 
     def fake(observe, offered, vptree, stop_threshold=None):  # Random: its threshold's a

@@ -3,8 +3,6 @@ three-class workspace with two volume models a class (two groups to hold out).""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -12,8 +10,7 @@ from rapomdp.cli import run_summary_lines
 from rapomdp.config import METHOD_NAMES, Config, config_from_dict
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import class_ranks, load_dataset
-from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
-from rapomdp.experiment.evaluation import ClosedLoop, run_evaluate_stage
+from rapomdp.experiment.evaluation import ClosedLoop
 from rapomdp.experiment.held_out import (
     DECLARED_FIT_FILE,
     HELD_OUT_DIR,
@@ -28,11 +25,9 @@ from rapomdp.experiment.held_out import (
     held_out_runs,
     load_declared_fit,
     load_held_out_comparison,
-    random_walks_temperature,
 )
 from rapomdp.experiment.report import (
     closed_loop_cells,
-    declared_choices_sentence,
     held_out_comparison_cells,
     held_out_comparison_story,
 )
@@ -40,7 +35,6 @@ from rapomdp.io import read_json
 from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.planning.stage import declared_temperatures
 from rapomdp.recognition.artefacts import load_volume_probabilities
-from rapomdp.recognition.belief import choose_declared_form
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT
@@ -54,7 +48,7 @@ HELD_OUT_TINY = {
     "train": {**TINY["train"], "epochs": 8},  # a classifier whose labels differ by model
     "learn": LEARNED_TINY["learn"],
     "evaluate": {**TINY["evaluate"], "methods": ["random", *FITTED], "lambdas": [],
-                 "random_thresholds": [], "declared_fit": "closed_loop"},
+                 "random_thresholds": []},
 }
 
 
@@ -128,8 +122,7 @@ def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace)
     # those of the episodes rerun with the a (same actions, same beliefs before the report)
     model = loop.dataset.with_role("test")[0]
     saved = {(r.method, r.start): r for r in loop.run_model(model)}
-    plain = ClosedLoop.load(config.model_copy(update={"evaluate": config.evaluate.model_copy(
-        update={"declared_confidence": "belief"})}), _inputs(ws))
+    plain = ClosedLoop.load(config, _inputs(ws), declared_fit={name: 1.0 for name in FITTED})
     for episode_record in plain.run_model(model):
         if episode_record.method in FITTED:
             t = a[episode_record.method]
@@ -145,20 +138,6 @@ def test_the_fit_does_not_depend_on_the_number_of_workers(workspace, tmp_path):
                                 RunContext(workers=2, progress=False))
     for name, fit in fits.items():
         assert fit.to_dict() == record["methods"][name], name
-
-
-def test_per_fold_plans_are_solved_for_every_method_and_group(workspace, tmp_path):
-    ws, config = workspace
-    fits = closed_loop_declared(config, _inputs(ws), ["classifier", "ra"], tmp_path,
-                                TEST_CONTEXT, per_fold=True)
-    assert set(fits) == {"classifier", "ra"}
-    for g in (0, 1):
-        assert {p.name for p in (tmp_path / f"group_{g}").glob("policy_*.npz")} == \
-            {"policy_classifier.npz", "policy_ra.npz"}
-    record = read_json(tmp_path / DECLARED_FIT_FILE)
-    assert record["plans"] == "per fold"
-    assert record["methods"]["ra"]["declared_confidence"]["temperature"] == \
-        fits["ra"].declared.temperature
 
 
 def test_a_belief_without_refitted_folds_keeps_the_walks_a_and_the_record_says_why(
@@ -208,117 +187,9 @@ def test_the_report_shows_the_closed_loop_fit_and_says_what_was_reported(workspa
         assert 0.0 < floor < 1.0 and row[-2] == f"{floor:.3f}"
     report = (ws.require("report") / "report.md").read_text()
     assert "The POMDP methods' and the learned baseline's declared confidence, fitted at " \
-           "their own held-out closed-loop stops (evaluate.declared_fit: closed_loop)" in report
+           "their own held-out closed-loop stops: each volume group's models" in report
     assert "the others' where their own held-out closed loop stops" in report
     assert rows[0][1] in report
-
-
-def test_the_views_form_fits_random_too_and_reports_each_step_with_its_own_a(workspace,
-                                                                              tmp_path):
-    ws, config = workspace
-    views = config.model_copy(update={"evaluate": config.evaluate.model_copy(
-        update={"declared_form": "views"})})
-    fits = closed_loop_declared(views, _inputs(ws), ["random", *FITTED], tmp_path,
-                                form="views")
-    assert set(fits) == {"random", *FITTED}
-    record = read_json(tmp_path / DECLARED_FIT_FILE)
-    assert record["form"] == "views"
-    for name, fit in fits.items():
-        d = fit.declared
-        assert d.form == "views" and len(d.held_out_views_exponents) == 2, name
-        assert record["methods"][name]["declared_confidence"]["views_exponent"] == \
-            d.views_exponent
-        # an episode takes its first image, then one a move, within the step budget
-        assert fit.images.min() >= 1 and fit.images.max() <= views.evaluate.max_moves + 1
-        assert sorted(set(fit.groups.tolist())) == [0, 1]
-    header, rows = closed_loop_cells(record)  # the report names β beside a
-    assert header[:3] == ["Method", "a", "β"]
-    ra_row = next(row for row in rows if row[0] == METHOD_NAMES["ra"])
-    assert ra_row[2] == f"{fits['ra'].declared.views_exponent:.3f}"
-    readout = {name: fit.declared.readout for name, fit in fits.items()}
-    loop = ClosedLoop.load(views, _inputs(ws), declared_fit=readout)
-    for name in ["random", *FITTED]:
-        assert loop.methods[name]._bayes.declared_readout == readout[name], name
-    # each recorded step reports the belief after n images raised to its own a(n)
-    model = loop.dataset.with_role("test")[0]
-    saved = {(r.method, r.start): r for r in loop.run_model(model)}
-    plain = ClosedLoop.load(config.model_copy(update={"evaluate": config.evaluate.model_copy(
-        update={"declared_confidence": "belief"})}), _inputs(ws))
-    for episode_record in plain.run_model(model):
-        a = readout[episode_record.method] if episode_record.method in readout else None
-        if a is None:
-            continue
-        beliefs = episode_record.episode.beliefs
-        t = a.at(np.arange(1, len(beliefs) + 1))[:, None]
-        expected = beliefs ** t / (beliefs ** t).sum(axis=1, keepdims=True)
-        np.testing.assert_allclose(
-            saved[(episode_record.method, episode_record.start)].episode.beliefs, expected,
-            atol=1e-9)
-
-
-def test_the_auto_form_chooses_per_method_by_the_held_out_criterion(workspace, tmp_path):
-    ws, config = workspace
-    auto = config.model_copy(update={"evaluate": config.evaluate.model_copy(
-        update={"declared_form": "auto"})})
-    inputs = _inputs(ws)
-    runs = held_out_runs(auto, inputs, ["random", *FITTED], tmp_path)
-    fits = closed_loop_declared(auto, inputs, ["random", *FITTED], tmp_path, form="auto",
-                                runs=runs)
-    record = read_json(tmp_path / DECLARED_FIT_FILE)
-    assert record["form"] == "auto" and set(record["choices"]) == {"random", *FITTED}
-    walks_a = random_walks_temperature(auto, inputs)
-    walk = auto.evaluate.random  # the a Random reports with under scalar
-    assert walks_a == declared_temperatures(inputs.observe, [walk.observation_model],
-                                            inputs.vptree_dir, walk.belief_threshold
-                                            )[walk.observation_model]
-    for name, choice in record["choices"].items():
-        stops, groups = runs[0][name].stops, runs[0][name].groups
-        # the same choice as the library's on the method's stops (Random: the walks' a)
-        expected = choose_declared_form(stops.log_beliefs, stops.truth, groups, stops.images,
-                                        fixed_scalar=walks_a if name == "random" else None)
-        assert choice["form"] == expected.form, name
-        assert choice["held_out_loss"] == pytest.approx(expected.held_out_loss), name
-        loss = choice["held_out_loss"]
-        assert choice["form"] == ("views" if loss["views"] < loss["scalar"] else "scalar")
-        # a method that chose views reports with a(n); one that chose scalar with one a,
-        # Random's scalar being the walks' a it keeps (left out of the fits)
-        if name == "random" and choice["form"] == "scalar":
-            assert name not in fits
-        else:
-            assert fits[name].declared.form == choice["form"], name
-    report_sentence = declared_choices_sentence(record["choices"])
-    assert all(f"{METHOD_NAMES[n]} {c['form']} (" in report_sentence
-               for n, c in record["choices"].items())
-
-
-def test_the_evaluate_stage_with_the_auto_form_reports_each_method_as_it_chose(workspace,
-                                                                               tmp_path):
-    ws, config = workspace
-    auto = config.model_copy(update={"evaluate": config.evaluate.model_copy(
-        update={"declared_form": "auto"})})
-    run_evaluate_stage(auto, _inputs(ws), tmp_path, TEST_CONTEXT)
-    record = read_json(tmp_path / HELD_OUT_DIR / DECLARED_FIT_FILE)
-    assert set(record["choices"]) == {"random", *FITTED}  # Random chooses too
-    fitted = read_json(tmp_path / "evaluate.json")["declared_fit"]["closed_loop"]
-    kept = {n for n, c in record["choices"].items() if n == "random" and c["form"] == "scalar"}
-    assert set(fitted) == {"random", *FITTED} - kept
-    for name, fit in fitted.items():  # each reports in the form it chose
-        chosen = record["choices"][name]["form"]
-        assert fit["declared_confidence"].get("form", "scalar") == chosen, name
-    # the actions are the stage's with one a: only what the methods report differs
-    mine = EpisodeTable.load(tmp_path / EPISODES_FILE)
-    theirs = EpisodeTable.load(ws.require("evaluate") / EPISODES_FILE)
-    np.testing.assert_array_equal(mine.step_viewpoints, theirs.step_viewpoints)
-    np.testing.assert_array_equal(mine.correct, theirs.correct)
-
-
-def test_the_views_form_needs_the_closed_loop():
-    for form in ("views", "auto"):
-        with pytest.raises(ValueError, match=f"evaluate.declared_form '{form}' is fitted on "
-                                             "the held-out closed loop"):
-            config_from_dict({"evaluate": {"declared_form": form, "declared_fit": "walks"}})
-    with pytest.raises(ValueError, match="form must be one of scalar, views, auto"):
-        closed_loop_declared(Config(), StageInputs("evaluate"), ["ra"], Path("x"), form="n")
 
 
 def test_every_method_runs_on_the_held_out_objects_paired_with_ra(workspace):
@@ -355,7 +226,7 @@ def test_every_method_runs_on_the_held_out_objects_paired_with_ra(workspace):
 
 def test_static_declares_its_start_views_label_on_the_held_out_objects(workspace, tmp_path):
     ws, config = workspace
-    runs, skipped = held_out_runs(config, _inputs(ws), ["static", "ra"], tmp_path)
+    runs, skipped = held_out_runs(config, _inputs(ws), ["static", "ra"])
     assert skipped == {}
     static, ra = runs["static"], runs["ra"]
     label_at = {(f.group, int(c)): f.predicted[r]
@@ -399,7 +270,7 @@ def test_without_ra_held_out_the_comparison_says_why(workspace, tmp_path):
     ws, config = workspace
     nuisance = config.model_copy(update={"observe": config.observe.model_copy(
         update={"belief": "nuisance", "ra_model": "auto"})})
-    runs, skipped = held_out_runs(nuisance, _inputs(ws), ["random", "ra", "vptree"], tmp_path)
+    runs, skipped = held_out_runs(nuisance, _inputs(ws), ["random", "ra", "vptree"])
     assert set(runs) == {"vptree"} and set(skipped) == {"random", "ra"}
     record = held_out_comparison(runs, skipped=skipped)
     assert record["paired"] == {} and list(record["methods"]) == ["vptree"]

@@ -85,7 +85,7 @@ def test_a_policy_per_lambda_loads_and_acts_within_the_mask(learned_workspace) -
         assert (spec.lambda_, spec.max_moves, spec.revisit, spec.hidden) == (lam, 6, False,
                                                                               (16,))
         assert spec.inputs == 3 + 2 * 16 and spec.actions == 16 + 1  # moves, then stop
-        assert spec.declare == "map"
+        assert spec.to_dict()["declare"] == "map"
         policy = LearnedPolicy(network, spec, models["ra"], motion.reachable)
         for m in range(evidence.models):
             for start in np.flatnonzero(motion.reachable)[:4]:

@@ -42,8 +42,8 @@ def _problem(seed: int = 0) -> tuple[RecordedEvidence, np.ndarray, Motion]:
     return evidence, model, Motion(energy, energy, reachable)
 
 
-def _spec(max_moves: int = 3, declare: str = "any") -> PolicySpec:
-    return PolicySpec(C, V, (8,), "ra", 2.0, max_moves, False, declare)
+def _spec(max_moves: int = 3) -> PolicySpec:
+    return PolicySpec(C, V, (8,), "ra", 2.0, max_moves, False)
 
 
 def test_the_network_is_sb3s_actor_layer_for_layer() -> None:
@@ -53,7 +53,7 @@ def test_the_network_is_sb3s_actor_layer_for_layer() -> None:
     from rapomdp.experiment.learn_stage import network_of
 
     evidence, model, motion = _problem()
-    env = RecordedRecognitionEnv(evidence, model, motion, 2.0, 3, seed=0)
+    env = MapDeclaration(RecordedRecognitionEnv(evidence, model, motion, 2.0, 3, seed=0))
     ppo = MaskablePPO("MlpPolicy", env, n_steps=32, batch_size=16, seed=0, device="cpu",
                       policy_kwargs={"net_arch": [8], "activation_fn": torch.nn.Tanh})
     ppo.learn(64)
@@ -80,6 +80,13 @@ def test_save_and_load_round_trip_and_refuse_altered_weights(tmp_path) -> None:
     torch.testing.assert_close(again(x), network(x))
     meta = json.loads(path.with_suffix(".json").read_text())
     assert meta["format"] == "rapomdp.learned-policy.v1" and meta["timesteps"] == 64
+    assert meta["spec"]["declare"] == "map" and spec.actions == V + 1
+    # a policy that chose the declared class itself (V + C actions) is no longer run
+    any_path = path.with_suffix(".json")
+    any_path.write_text(json.dumps({**meta, "spec": {**meta["spec"], "declare": "any"}}))
+    with pytest.raises(ArtefactError, match="declare 'any' is no longer run .*0018"):
+        load_learned_policy(tmp_path, 2.0)
+    any_path.write_text(json.dumps(meta))
     path.write_bytes(path.read_bytes()[:-3] + b"abc")
     with pytest.raises(ArtefactError, match="do not match the SHA-256"):
         load_learned_policy(tmp_path, 2.0)
@@ -87,20 +94,19 @@ def test_save_and_load_round_trip_and_refuse_altered_weights(tmp_path) -> None:
         load_learned_policy(tmp_path, 8.0)
 
 
-@pytest.mark.parametrize("declare", ["any", "map"])
-def test_the_closed_loop_method_acts_as_in_the_training_environment(declare: str) -> None:
+def test_the_closed_loop_method_acts_as_in_the_training_environment() -> None:
     """run_episode with the recorded outputs as its memo and the environment (wrapped by
-    MapDeclaration with ``map``), driven by the same network, take the same actions and hold
-    the same beliefs (one input rule, one mask rule)."""
+    MapDeclaration), driven by the same network, take the same actions and hold the same
+    beliefs (one input rule, one mask rule)."""
     evidence, model, motion = _problem(1)
     torch.manual_seed(3)
-    spec = _spec(max_moves=3, declare=declare)
+    spec = _spec(max_moves=3)
     network = PolicyNetwork.of(spec)
     with torch.no_grad():
         network.head.bias[:V] += 2.0  # prefer moving, so the episodes reach the budget
     env = RecordedRecognitionEnv(evidence, model, motion, spec.lambda_, spec.max_moves)
-    driven = MapDeclaration(env) if declare == "map" else env
-    assert driven.action_space.n == spec.actions == V + (1 if declare == "map" else C)
+    driven = MapDeclaration(env)
+    assert driven.action_space.n == spec.actions == V + 1
     policy = LearnedPolicy(network, spec, model, motion.reachable)
     budget_reached = 0
     for m in range(evidence.models):
@@ -111,8 +117,7 @@ def test_the_closed_loop_method_acts_as_in_the_training_environment(declare: str
                 mask = driven.action_masks()
                 action = network.best_action(obs, mask)
                 assert mask[action]
-                actions.append(closed_loop_action(action, env.belief, V) if declare == "map"
-                               else action)
+                actions.append(closed_loop_action(action, env.belief, V))
                 obs, _, done, cut, info = driven.step(action)
                 if done or cut:
                     break
@@ -126,8 +131,8 @@ def test_the_closed_loop_method_acts_as_in_the_training_environment(declare: str
             assert not episode.exhausted and episode.moves <= spec.max_moves
             budget_reached += episode.moves == spec.max_moves
             assert len(set(episode.viewpoints.tolist())) == episode.viewpoints.size
-            if declare == "map":  # stopping declares the belief's most likely class
-                assert episode.declared == int(np.argmax(episode.beliefs[-1]))
+            # stopping declares the belief's most likely class
+            assert episode.declared == int(np.argmax(episode.beliefs[-1]))
     assert budget_reached > 0
 
 
@@ -153,7 +158,7 @@ def test_the_method_refuses_a_model_of_another_shape() -> None:
 def test_a_declared_temperature_changes_what_it_reports_and_no_action() -> None:
     evidence, model, motion = _problem(1)
     torch.manual_seed(4)
-    spec = _spec(max_moves=3, declare="map")
+    spec = _spec(max_moves=3)
     network = PolicyNetwork.of(spec)
     plain = LearnedPolicy(network, spec, model, motion.reachable)
     sharp = LearnedPolicy(network, spec, model, motion.reachable, declared_temperature=1.5)

@@ -70,10 +70,12 @@ def solved() -> tuple[np.ndarray, object]:
 
 
 @pytest.mark.parametrize("revisit", [True, False])
-def test_pomdp_method_acts_as_its_policy_on_its_own_belief(motion: Motion, solved,
-                                                           revisit: bool) -> None:
+def test_pomdp_method_acts_by_its_policys_lookahead_on_its_own_belief(motion: Motion, solved,
+                                                                       revisit: bool) -> None:
     P, policy = solved
     method = POMDPPolicy(policy, P, "RA-POMDP", revisit=revisit)
+    everywhere = np.ones(V, dtype=bool)  # no lookahead_over: every viewpoint
+    assert np.array_equal(method.lookahead_over, everywhere)
     revisits = 0
     for seed in range(6):
         labels = np.random.default_rng(seed).integers(0, C, size=V)
@@ -85,7 +87,8 @@ def test_pomdp_method_acts_as_its_policy_on_its_own_belief(motion: Motion, solve
             belief = update_beliefs(P, belief, view, labels[view])
             visited[view] = True
             assert np.allclose(episode.beliefs[t], belief)
-            expected = policy.act(int(view), belief, None if revisit else visited)
+            expected = policy.lookahead_act(int(view), belief, P, everywhere,
+                                            None if revisit else visited)
             assert episode.actions[t] == expected
         revisits += episode.viewpoints.size - np.unique(episode.viewpoints).size
     if not revisit:
@@ -222,30 +225,6 @@ def test_a_pomdp_method_with_lookahead_acts_by_it():
     visited[0] = True
     assert method.act(0) == policy.lookahead_act(0, method.belief, problem.observation_model,
                                                  allowed, visited)
-
-
-def test_a_pomdp_method_looks_two_views_ahead_when_asked_and_never_with_a_view_discount():
-    from rapomdp.planning.momdp import benchmark_problem
-    from rapomdp.recognition.belief import ViewDiscount
-
-    problem = benchmark_problem(6, 3, seed=5, lambda_=30.0)
-    policy = solve_active_recognition(problem, precision=1e-2, timeout=1e6,
-                                      max_iterations=10).policy
-    allowed = np.ones(6, dtype=bool)
-    method = POMDPPolicy(policy, problem.observation_model, "ra", lookahead_over=allowed,
-                         lookahead_depth=2, lookahead_width=3)
-    visited = np.zeros(6, dtype=bool)
-    visited[0] = True
-    for label in range(3):
-        method.reset(0, np.random.default_rng(0))
-        method.observe(0, np.eye(3)[label])
-        assert method.act(0) == policy.lookahead_act(
-            0, method.belief, problem.observation_model, allowed, visited, depth=2, width=3)
-    with pytest.raises(ValueError, match="depth-2 lookahead needs a belief whose model does "
-                                         "not change"):
-        POMDPPolicy(policy, problem.observation_model, "ra", lookahead_over=allowed,
-                    prior=None, discount=ViewDiscount(0.8, 1.0), similarity=np.eye(6),
-                    lookahead_depth=2)
 
 
 def test_random_walk_stops_on_its_belief_and_reports_the_declared_one(motion: Motion) -> None:

@@ -112,69 +112,6 @@ def test_the_lookahead_is_the_brute_force_backup_whatever_the_order_of_the_plans
     assert kinds == {"move", "declare"}  # both branches were exercised
 
 
-def _brute_force_two_step(policy, problem, viewpoint, belief, allowed):
-    """Q₂ of every allowed move: each child valued by the brute-force one-step lookahead from
-    the viewpoint it was seen at (that viewpoint then excluded) or by declaring."""
-    P, E, lam = problem.observation_model, problem.move_energy, policy.lambda_
-    q = {}
-    for j in np.flatnonzero(allowed):
-        if j == viewpoint:
-            continue
-        later = allowed.copy()
-        later[[viewpoint, j]] = False
-        total = 0.0
-        for o in range(P.shape[2]):
-            joint = belief * P[j, :, o]
-            p_o = joint.sum()
-            if p_o > 0:
-                child = joint / p_o
-                inner = _brute_force_lookahead(policy, problem, int(j), child, later)
-                total += p_o * max([-lam * (1.0 - child.max()), *inner.values()])
-        q[int(j)] = -E[viewpoint, j] + policy.discount * total
-    return q
-
-
-def test_the_depth_two_lookahead_is_the_brute_force_two_step_backup():
-    lam = 30.0
-    problem = benchmark_problem(6, 3, seed=5, lambda_=lam)
-    policy = solve_active_recognition(problem, precision=1e-2, timeout=1e6,
-                                      max_iterations=10).policy
-    allowed = np.ones(6, dtype=bool)
-    rng = np.random.default_rng(4)
-    kinds, differ = set(), 0
-    for viewpoint in range(6):
-        for _ in range(6):
-            belief = rng.dirichlet(np.full(3, 0.7))
-            expected = _best_action(
-                _brute_force_two_step(policy, problem, viewpoint, belief, allowed), belief, lam)
-            # width 5: every move of the 6 viewpoints is valued two views deep
-            assert policy.lookahead_act(viewpoint, belief, problem.observation_model, allowed,
-                                        depth=2, width=5) == expected
-            kinds.add(expected.kind)
-            q1 = _brute_force_lookahead(policy, problem, viewpoint, belief, allowed)
-            differ += policy.lookahead_act(viewpoint, belief, problem.observation_model,
-                                           allowed) != expected
-            # width 1: the one-step lookahead's best move, moved only if its Q₂ beats declaring
-            one = max(q1, key=q1.__getitem__)
-            narrow = policy.lookahead_act(viewpoint, belief, problem.observation_model,
-                                          allowed, depth=2, width=1)
-            assert narrow in (ARAction("move", one), ARAction("declare", int(np.argmax(belief))))
-    assert kinds == {"move", "declare"}
-    assert differ > 0  # looking one view further changes some actions
-
-
-def test_the_lookahead_depth_and_width_are_checked():
-    problem = benchmark_problem(4, 3, seed=0)
-    policy = solve_active_recognition(problem, precision=1e-2, timeout=1e6,
-                                      max_iterations=5).policy
-    allowed = np.ones(4, dtype=bool)
-    with pytest.raises(ValueError, match="depth must be 1 or 2, got 3"):
-        policy.lookahead_act(0, problem.start_belief, problem.observation_model, allowed, depth=3)
-    with pytest.raises(ValueError, match="width must be at least 1, got 0"):
-        policy.lookahead_act(0, problem.start_belief, problem.observation_model, allowed,
-                             depth=2, width=0)
-
-
 TWIN, TWIN_OF = 15, 8  # two viewpoints with the same rows, energies and plans: moves tie
 
 

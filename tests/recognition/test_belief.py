@@ -10,21 +10,15 @@ from scipy.special import logsumexp
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.recognition.belief import (
     DECLARED_STOP_THRESHOLDS,
-    DeclaredTemperature,
     belief_log_loss,
     calibrated_ece,
     calibrated_ece_draws,
-    choose_declared_form,
-    clustered_standard_error,
     declared_belief,
     declared_confidence,
-    declared_log_beliefs,
     expected_calibration_error,
     fit_declared_temperature,
-    fit_declared_views,
     fit_temperature,
     fold_of_rows,
-    held_out_declared_losses,
     held_out_groups,
     held_out_walks,
     random_walks,
@@ -352,141 +346,12 @@ def test_a_policys_own_stops_fit_the_declared_confidence_held_out_by_group():
     assert calibrated.temperature == pytest.approx(1.0, abs=0.12)  # Bayes: left as it is
     alone = stops_declared_confidence(final, true, np.zeros(len(true), np.int64))
     assert alone.groups == () and np.isnan(alone.declared_ece)
-
-
-def _stops_overconfident_by_length(rng: np.random.Generator, factor: np.ndarray
-                                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Calibrated posteriors stopped after n ∈ 1..8 images each, then raised to
-    ``factor[n − 1]``: a belief whose overconfidence depends on how long the episode ran."""
-    log_belief, true = _posterior_walks(rng, walks=4000)
-    steps = rng.integers(0, log_belief.shape[1], len(true))
-    images = steps + 1
-    final = factor[steps][:, None] * log_belief[np.arange(len(true)), steps]
-    return final - logsumexp(final, axis=1, keepdims=True), true, images
-
-
-def test_the_form_is_chosen_by_the_held_out_groups_where_the_length_matters():
-    rng = np.random.default_rng(23)
-    n = np.arange(1, 9)
-    final, true, images = _stops_overconfident_by_length(rng, 1.5 * np.sqrt(n))
-    groups = np.arange(len(true)) % 3
-    choice = choose_declared_form(final, true, groups, images)
-    assert choice.form == "views" and choice.declared is not None
-    assert choice.declared.form == "views"
-    assert choice.held_out_loss["views"] < choice.held_out_loss["scalar"] - 0.005
-    # each loss is the held-out criterion of that form's fit: every group by the others'
-    scalar = stops_declared_confidence(final, true, groups)
-    per_stop = held_out_declared_losses(scalar, final, true, groups)
-    assert per_stop.shape == true.shape
-    assert choice.held_out_loss["scalar"] == pytest.approx(per_stop.mean())
-    rest = groups != 0
-    a = fit_declared_temperature(final[rest], true[rest])
-    assert scalar.held_out_readouts[0].scale == pytest.approx(a)
-    # beside the held-out ECE, what sampling alone would give those declared confidences
-    held_out = np.empty(len(true))
-    for g, a in scalar.held_out_readouts.items():
-        held_out[groups == g] = np.exp(declared_log_beliefs(final[groups == g],
-                                                            a.at(1)).max(axis=1))
-    assert scalar.declared_ece_if_calibrated == calibrated_ece(held_out)
-    assert scalar.to_dict()["declared_ece_if_calibrated"] == scalar.declared_ece_if_calibrated
-    # asked to win by more standard errors than it does, views gives way to one a
-    gain = (held_out_declared_losses(scalar, final, true, groups)
-            - held_out_declared_losses(choice.declared, final, true, groups, images))
-    z = gain.mean() / clustered_standard_error(gain, np.arange(len(gain)))
-    assert choose_declared_form(final, true, groups, images, margin_se=0.9 * z).form == "views"
-    assert choose_declared_form(final, true, groups, images, margin_se=1.1 * z).form == "scalar"
-    # no length effect: a(n) finds nothing one a does not, and the two score alike
-    final, true, images = _stops_overconfident_by_length(rng, np.full(8, 3.0))
-    even = choose_declared_form(final, true, groups, images)
-    assert abs(even.held_out_loss["views"] - even.held_out_loss["scalar"]) < 2e-3
-    # one group: nothing to score, one a, and the choice says why
-    one = choose_declared_form(final, true, np.zeros(len(true)), images)
-    assert one.form == "scalar" and "too little evidence" in one.reason
-    assert np.isnan(one.declared.declared_ece_if_calibrated)  # nothing held out to score
-    assert np.isnan(one.held_out_loss["views"])
-    assert one.to_dict()["form"] == "scalar"
-
-
-def test_a_fixed_scalar_competes_as_it_is_and_is_kept_where_it_wins():
-    rng = np.random.default_rng(26)
-    final, true, images = _stops_overconfident_by_length(rng, np.full(8, 2.0))
-    final, true, images = final[:90], true[:90], images[:90]
-    groups = np.arange(len(true)) % 3
-    # the calibrating a (1/2), fixed, against a(n) fitted on 60 stops at a time (it follows
-    # their noise): the fixed a is scored on every stop as it is, and kept
-    kept = choose_declared_form(final, true, groups, images, fixed_scalar=0.5)
-    assert kept.form == "scalar" and kept.declared is None
-    right = declared_log_beliefs(final, 0.5).argmax(axis=1) == true
-    confidence = np.exp(declared_log_beliefs(final, 0.5).max(axis=1))
-    assert kept.held_out_loss["scalar"] == pytest.approx(
-        -np.mean(np.where(right, np.log(confidence), np.log1p(-confidence))))
-    assert kept.held_out_loss["views"] > kept.held_out_loss["scalar"] + 0.01
-    # a wrong fixed a (sharpening an overconfident belief) loses to the fitted a(n)
-    lost = choose_declared_form(final, true, groups, images, fixed_scalar=2.0)
-    assert lost.form == "views" and lost.declared is not None
-    assert lost.held_out_loss["scalar"] > lost.held_out_loss["views"] + 0.05
-
-
-def test_the_declared_temperature_by_images_is_a_power_of_the_images_taken():
-    a = DeclaredTemperature(0.8, 0.5)
-    assert np.allclose(a.at(np.array([1, 4, 0])), [0.8, 0.4, 0.8])  # n < 1 counts as 1
-    assert float(DeclaredTemperature(0.7).at(9)) == 0.7  # exponent 0: one a for every n
-    with pytest.raises(ValueError, match="positive scale"):
-        DeclaredTemperature(0.0)
-
-
-def test_the_views_fit_recovers_an_overconfidence_that_grows_with_the_images_taken():
-    rng = np.random.default_rng(21)
-    n = np.arange(1, 9)
-    # planted: after n images the belief counts its evidence 1.5·√n times over, so the
-    # calibrating a(n) = (1 / 1.5) · n^(−1/2)
-    final, true, images = _stops_overconfident_by_length(rng, 1.5 * np.sqrt(n))
-    fitted = fit_declared_views(final, true, images)
-    assert fitted.scale == pytest.approx(1 / 1.5, abs=0.12)
-    assert fitted.views_exponent == pytest.approx(0.5, abs=0.12)
-    groups = np.arange(len(true)) % 3
-    views = stops_declared_confidence(final, true, groups, images=images)
-    scalar = stops_declared_confidence(final, true, groups)
-    assert views.form == "views" and views.readout == fitted
-    assert len(views.held_out_views_exponents) == 3
-    # each group's held-out readout is the fit on the other groups' stops
-    rest = groups != 0
-    assert views.held_out_readouts[0] == fit_declared_views(final[rest], true[rest],
-                                                            images[rest])
-    assert scalar.held_out_readouts[0].views_exponent == 0.0
-    assert views.declared_ece < 0.03 and views.declared_ece < 0.6 * scalar.declared_ece
-    record = views.to_dict()
-    assert record["form"] == "views" and record["views_exponent"] == fitted.views_exponent
-    assert "form" not in scalar.to_dict()  # a scalar fit's record is as before
-    # a steeper planted growth (a(n) = 1/n: the evidence after n images is worth one image)
-    # is found too: the search leaves its start at β = 0
-    final, true, images = _stops_overconfident_by_length(rng, n.astype(float))
-    steep = fit_declared_views(final, true, images)
-    assert steep.views_exponent == pytest.approx(1.0, abs=0.15)
-    assert steep.scale == pytest.approx(1.0, abs=0.2)
-
-
-def test_the_views_fit_keeps_one_a_where_the_overconfidence_does_not_depend_on_length():
-    rng = np.random.default_rng(22)
-    final, true, images = _stops_overconfident_by_length(rng, np.full(8, 3.0))
-    fitted = fit_declared_views(final, true, images)
-    assert fitted.views_exponent == pytest.approx(0.0, abs=0.1)
-    assert fitted.scale == pytest.approx(1 / 3, abs=0.06)
-    # one length for every stop: β says nothing and stays 0, s is the scalar fit
-    same = fit_declared_views(final, true, np.full(len(true), 4))
-    assert same.views_exponent == 0.0
-    assert same.scale == pytest.approx(fit_declared_temperature(final, true), abs=2e-3)
-    with pytest.raises(ValueError, match="one image count per stop"):
-        fit_declared_views(final, true, images[:-1])
-
-
-def test_the_clustered_standard_error_counts_a_cluster_of_copies_once():
-    values = np.random.default_rng(5).normal(size=50)
-    alone = clustered_standard_error(values, np.arange(50))
-    assert alone == pytest.approx(values.std() / np.sqrt(50))
-    twice = np.repeat(values, 2)  # each value twice, both copies one cluster
-    assert clustered_standard_error(twice, np.repeat(np.arange(50), 2)) == pytest.approx(alone)
-    assert clustered_standard_error(twice, np.arange(100)) == pytest.approx(alone / np.sqrt(2))
+    # the record: the fit, its held-out scores, per threshold (none here) and the floor
+    assert list(fit.to_dict()) == [
+        "temperature", "criterion", "groups", "held_out_temperatures", "stops", "accuracy",
+        "confidence", "ece", "declared_confidence", "declared_ece", "thresholds",
+        "threshold_temperatures", "threshold_ece", "threshold_declared_ece",
+        "threshold_own_ece", "declared_ece_if_calibrated"]
 
 
 def test_the_ece_of_a_calibrated_reporter_is_what_sampling_alone_gives():

@@ -59,20 +59,17 @@ def test_an_ensemble_checkpoint_loads_as_the_same_ensemble(tmp_path, intrinsics,
     np.testing.assert_array_equal(loaded.predict(depth), classifier.predict(depth))
 
 
-def test_a_batch_normed_checkpoint_loads_with_its_running_statistics(tmp_path, intrinsics,
-                                                                     render_model):
-    torch.manual_seed(0)
-    network = DepthAlexNet(NetworkSpec(len(CLASSES), 32, width=0.125, norm="batch"))
-    network.train()
-    network(torch.randn(8, 1, 32, 32))  # running statistics away from their initial values
-    classifier = Classifier(network, CLASSES, PARAMS, intrinsics.fx, intrinsics.fy)
-    classifier.save(tmp_path, config_hash="abc123")
-    assert json.loads((tmp_path / META_FILE).read_text())["network"]["norm"] == "batch"
-    loaded = Classifier.load(tmp_path, classes=CLASSES, device="cpu")
-    assert isinstance(loaded.network, DepthAlexNet) and loaded.network.spec.norm == "batch"
-    assert not loaded.network.training
-    depth = render_model("cup", np.array([[0.6, 0.0, 0.1], [0.0, -0.6, 0.2]]))
-    np.testing.assert_array_equal(loaded.predict(depth), classifier.predict(depth))
+def test_a_checkpoint_of_a_retired_network_is_refused_naming_its_decision(saved):
+    """A depth-only network (a checkpoint before the normals) or a batch-normed one is no
+    longer built: the load says so and names the decision page."""
+    _, folder = saved
+    meta = json.loads((folder / META_FILE).read_text())
+    assert meta["network"]["input_features"] == "depth_normals"
+    for change in ({"input_features": "depth"}, {"norm": "batch"}):
+        (folder / META_FILE).write_text(json.dumps(
+            {**meta, "network": {**meta["network"], **change}}))
+        with pytest.raises(CheckpointError, match="no longer built .*0019-surface-normals"):
+            Classifier.load(folder)
 
 
 def test_a_checkpoint_written_before_ensembles_loads_as_one_network(saved):

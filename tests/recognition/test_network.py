@@ -1,6 +1,6 @@
 """DepthAlexNet's pooling: the separable inference path gives PyTorch's values bit for bit; an
-ensemble is the mean of its members' probabilities; batch normalisation sits after each
-convolution; the surface-normal input layer gives a known surface's normal."""
+ensemble is the mean of its members' probabilities; the surface-normal input layer gives a
+known surface's normal."""
 
 from __future__ import annotations
 
@@ -121,43 +121,6 @@ def test_build_network_refuses_no_members() -> None:
         DepthEnsemble(NetworkSpec(classes=3, input_size_px=32, members=1))
 
 
-def test_batch_norm_follows_every_convolution_and_the_spec_records_it() -> None:
-    plain = DepthAlexNet(NetworkSpec(classes=5))
-    normed = DepthAlexNet(NetworkSpec(classes=5, norm="batch"))
-    kinds = [type(m).__name__ for m in normed.features]
-    assert kinds.count("BatchNorm2d") == 5 == kinds.count("Conv2d")
-    for i, layer in enumerate(normed.features):
-        if isinstance(layer, nn.Conv2d):  # conv, its normalisation, then the ReLU
-            norm = normed.features[i + 1]
-            assert isinstance(norm, nn.BatchNorm2d) and norm.num_features == layer.out_channels
-            assert isinstance(normed.features[i + 2], nn.ReLU)
-    assert not any(isinstance(m, nn.BatchNorm2d) for m in plain.features)
-    # Grad-CAM's layer is the last convolution either way; the feature map keeps its shape
-    assert normed.last_conv is normed.features[14] and plain.last_conv is plain.features[10]
-    assert normed.feature_shape == plain.feature_shape == (64, 3, 3)
-    # a checkpoint's record of a network without it is what it was before the option
-    assert "norm" not in NetworkSpec(classes=5).to_dict()
-    assert NetworkSpec(**normed.spec.to_dict()) == normed.spec
-    with pytest.raises(ValueError, match="norm must be one of none, batch, got 'layer'"):
-        NetworkSpec(classes=5, norm="layer")  # type: ignore[arg-type]
-
-
-def test_a_batch_normed_network_infers_with_its_running_statistics() -> None:
-    torch.manual_seed(0)
-    network = DepthAlexNet(NetworkSpec(classes=4, norm="batch"))
-    x = torch.randn(6, 1, 64, 64, generator=torch.Generator().manual_seed(2))
-    network.train()
-    network(x)  # one training step's statistics update the running ones
-    norm = network.features[1]
-    assert isinstance(norm, nn.BatchNorm2d) and int(norm.num_batches_tracked) == 1
-    network.eval()
-    with torch.inference_mode():
-        alone = network(x[:1])
-        together = network(x)
-    # in evaluation an image's output does not depend on the batch it is in
-    torch.testing.assert_close(alone, together[:1], rtol=1e-5, atol=1e-5)
-
-
 def test_surface_normals_of_a_known_ramp_and_zero_at_the_silhouette() -> None:
     """A ramp v = a·u (near side to the right) has the normal (−k·a, 0, 1) / √(1 + k²a²) inside;
     the normal's channels are 0 on the background and on the pixels next to it; the depth
@@ -186,10 +149,9 @@ def test_surface_normals_of_a_known_ramp_and_zero_at_the_silhouette() -> None:
 
 def test_a_normals_network_keeps_one_input_channel_and_its_gradient() -> None:
     """The input stays the depth channel (preprocessing and saliency unchanged); the first
-    convolution sees four channels; the input gradient saliency reads exists; the spec is
-    recorded only when not the default, and a wrong value is named."""
-    spec = NetworkSpec(classes=3, input_size_px=32, width=0.125,
-                       input_features="depth_normals", normal_scale=25.6)
+    convolution sees four channels; the input gradient saliency reads exists; the checkpoint's
+    record names the input and rebuilds the spec; a record of a retired network is refused."""
+    spec = NetworkSpec(classes=3, input_size_px=32, width=0.125, normal_scale=25.6)
     network = DepthAlexNet(spec).eval()
     assert isinstance(network.input_layer, SurfaceNormals)
     assert network.input_layer.scale == 25.6 and network.input_layer.background == -1.0
@@ -200,12 +162,15 @@ def test_a_normals_network_keeps_one_input_channel_and_its_gradient() -> None:
     x.requires_grad_(True)
     network(x)[:, 0].sum().backward()
     assert x.grad is not None and x.grad.abs().sum() > 0
-    plain = DepthAlexNet(NetworkSpec(classes=3, input_size_px=32, width=0.125))
-    assert isinstance(plain.input_layer, nn.Identity) and plain.features[0].in_channels == 1
-    # no parameters or buffers: a plain network's checkpoint keys are what they were
-    assert set(plain.state_dict()) == set(network.state_dict())
-    assert "input_features" not in plain.spec.to_dict()
-    assert "normal_scale" not in plain.spec.to_dict()
-    assert NetworkSpec(**spec.to_dict()) == spec
-    with pytest.raises(ValueError, match="input_features must be one of depth, depth_normals"):
-        NetworkSpec(classes=3, input_features="rgb")  # type: ignore[arg-type]
+    # the normals layer has no parameters or buffers: the checkpoint holds the convolutions'
+    assert all(key.startswith(("features.", "classifier.")) for key in network.state_dict())
+    record = spec.to_dict()
+    assert record == {"classes": 3, "input_size_px": 32, "width": 0.125, "dropout": 0.5,
+                      "members": 1, "input_features": "depth_normals", "normal_scale": 25.6,
+                      "input_background": -1.0}
+    assert NetworkSpec.from_dict(record) == spec
+    for retired in ({**record, "input_features": "depth"}, {**record, "norm": "batch"}):
+        with pytest.raises(ValueError, match="is no longer built .*; retrain it"):
+            NetworkSpec.from_dict(retired)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'colour'"):
+        NetworkSpec.from_dict({**record, "colour": 1})

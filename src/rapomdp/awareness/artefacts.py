@@ -39,7 +39,7 @@ DISCOUNT_PREFIX = "view_discount_"
 DISCOUNT_KERNEL = "view_discount_kernel"
 #: A model's declared-confidence temperature (a scalar; absent: 1, the belief as it is) in
 #: :data:`OBSERVATION_FILE`: what a policy reports is its belief ** a, renormalised, a fitted
-#: where held-out walks stop (``evaluate.declared_confidence``).
+#: where held-out walks stop.
 DECLARED_PREFIX = "declared_temperature_"
 #: The stop thresholds the declared confidence was also fitted at one by one (T,), and each
 #: model's a at each (``declared_threshold_temperatures_<name>``, (T,)): a policy that stops at

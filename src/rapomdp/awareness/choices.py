@@ -232,7 +232,7 @@ def held_out_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes:
     if ra in discounts:
         discounts["ra"] = discounts[ra]
     # what a policy reports after its views: its belief ** a, a fitted where held-out walks
-    # stop (evaluate.declared_confidence); the belief it acts on is unchanged
+    # stop; the belief it acts on is unchanged
     declared = held_out_declared_confidence(
         evidence, belief_folds, temperatures, corrections, directions,
         TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,

@@ -219,7 +219,7 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
         up_axis = LAYOUT_UP_AXIS[layout] if cfg.up_axis == "auto" else cfg.up_axis
 
     drawn = split_models(candidates, counts, config.seed, cfg.too_few_models,
-                         "train" if auto else cfg.split.extra, cfg.auto_volume_models)
+                         "train" if auto else cfg.split.extra)
     split = drawn.roles
 
     jobs = [(c, role, item) for c, roles in split.items() for role in ROLES for item in roles[role]]

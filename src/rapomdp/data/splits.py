@@ -5,11 +5,9 @@ Two rules (``dataset.split``):
 * ``auto`` (the default): every model of a class is used. A class of :data:`AUTO_MIN_MODELS`
   models gets the paper's 3 / 1 / 1; each further model goes to the next role of
   :data:`AUTO_FILL` (test, volume, test, train, volume, test), reaching 4 / 3 / 4 at
-  :data:`AUTO_FULL_MODELS`; beyond that every model goes to training, or, with a larger
-  ``auto_volume`` (``dataset.auto_volume_models``), to volume and train in turn (volume first)
-  until the volume role holds that many. Test and volume come first because one model a role
-  gives no spread: intervals resample test models, and the observe stage's
-  leave-one-group-out choice needs two or more volume models a class.
+  :data:`AUTO_FULL_MODELS`; beyond that every model goes to training. Test and volume come
+  first because one model a role gives no spread: intervals resample test models, and the
+  observe stage's leave-one-group-out choice needs two or more volume models a class.
 * fixed counts (``{train: 4, volume: 3, test: 4}``): every class gets the same counts, the
   models beyond them trained on or left out (``extra``).
 
@@ -35,9 +33,6 @@ AUTO_BASE = {"train": 3, "volume": 1, "test": 1}
 AUTO_FILL = ("test", "volume", "test", "train", "volume", "test")
 AUTO_MIN_MODELS = sum(AUTO_BASE.values())
 AUTO_FULL_MODELS = AUTO_MIN_MODELS + len(AUTO_FILL)
-#: the volume models a class ``split: auto`` gives at :data:`AUTO_FULL_MODELS`, and its default
-#: cap beyond it (every further model trained on)
-AUTO_VOLUME_MODELS = 3
 
 
 class TooFewModelsError(ValueError):
@@ -92,7 +87,6 @@ def split_models(
     seed: int,
     too_few: str = "error",
     extra: str = "train",
-    auto_volume: int = AUTO_VOLUME_MODELS,
 ) -> ModelSplit[T]:
     """Draw each class's models for every role, deterministic from the seed.
 
@@ -103,14 +97,10 @@ def split_models(
     and test roles keep their counts, so every class is evaluated alike. A class with too few
     models is one :class:`TooFewModelsError` naming every such class, or with
     ``too_few="drop"`` it is left out (:attr:`ModelSplit.dropped`). Under ``split: auto`` the
-    models beyond :data:`AUTO_FULL_MODELS` go to volume and train in turn until the volume
-    role holds ``auto_volume``, then to train; the first 11 keep their roles, so a larger
-    ``auto_volume`` adds volume groups without moving a test model or an earlier group.
+    models beyond :data:`AUTO_FULL_MODELS` are trained on.
     """
     if extra not in ("train", "drop"):
         raise ValueError(f"unknown rule for extra models '{extra}'; use 'train' or 'drop'")
-    if auto_volume < AUTO_VOLUME_MODELS:
-        raise ValueError(f"auto_volume must be at least {AUTO_VOLUME_MODELS}, got {auto_volume}")
     if counts is None:
         extra = "train"
     least = sum((counts or AUTO_BASE).values())
@@ -136,10 +126,7 @@ def split_models(
             split[name][role] = picked[start : start + wanted[role]]
             start += wanted[role]
         if extra == "train":
-            for turn, i in enumerate(order[need:]):
-                to_volume = (counts is None and turn % 2 == 0
-                             and len(split[name]["volume"]) < auto_volume)
-                split[name]["volume" if to_volume else "train"].append(items[i])
+            split[name]["train"].extend(items[i] for i in order[need:])
     if not split:
         raise TooFewModelsError(f"no class has enough models for the split: "
                                 f"{too_few_message(short, counts)}")

@@ -21,9 +21,8 @@ number of workers). Writes into the stage folder:
   classifier's recorded labels, each observation model fitted without the object's group):
   accuracy, energy and the paired difference to RA-POMDP resampling held-out objects, what
   held-out objects say about the methods on this dataset before any test model is read;
-- ``held_out/declared_fit.json`` (``evaluate.declared_fit`` closed_loop): where the POMDP
-  methods and the learned baseline stop in their held-out closed loop and the a fitted there
-  (:mod:`rapomdp.experiment.held_out`);
+- ``held_out/declared_fit.json``: where the POMDP methods and the learned baseline stop in
+  their held-out closed loop and the a fitted there (:mod:`rapomdp.experiment.held_out`);
 - ``evaluate.json``: counts, timing, images per second of the episode loop.
 """
 
@@ -71,9 +70,7 @@ from rapomdp.experiment.episode_table import (
 from rapomdp.experiment.held_out import (
     COMPARISON_FILE,
     HELD_OUT_DIR,
-    NOT_HELD_OUT,
     NOT_POMDP,
-    ClosedLoopFit,
     closed_loop_declared,
     held_out_comparison,
     held_out_runs,
@@ -95,7 +92,7 @@ from rapomdp.recognition.artefacts import (
     XrhoProbabilities,
     load_xrho_probabilities,
 )
-from rapomdp.recognition.belief import DeclaredTemperature, ViewDiscount
+from rapomdp.recognition.belief import ViewDiscount
 from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
@@ -141,7 +138,7 @@ class ClosedLoop:
     @classmethod
     def load(cls, config: Config, inputs: StageInputs, threads: int | None = None,
              sweep_dir: Path | None = None,
-             declared_fit: Mapping[str, float | DeclaredTemperature] | None = None
+             declared_fit: Mapping[str, float] | None = None
              ) -> ClosedLoop:
         """The closed loop of a workspace's stage folders; the CNN uses ``threads`` threads.
 
@@ -149,9 +146,8 @@ class ClosedLoop:
         accuracy-energy sweep's settings run alongside Table 1's methods. ``declared_fit``:
         the declared-confidence a of POMDP methods and of the learned baseline fitted on their
         held-out closed loop (:func:`~rapomdp.experiment.held_out.closed_loop_declared`), in
-        place of the walks' (the learned baseline's: 1); Random's there too with
-        ``evaluate.declared_form: views`` (at Table 1's threshold; the sweep's other
-        thresholds keep the walks' a).
+        place of the walks' (the learned baseline's: 1). Random reports with the a the observe
+        stage fitted on held-out walks stopped at its belief threshold.
         """
         dataset = load_dataset(inputs.dataset)
         robot = load_robot(inputs.robot)
@@ -163,21 +159,13 @@ class ClosedLoop:
         discounts = {name: ViewDiscount(float(d[0]), float(d[1]))
                      for name, d in discount_arrays.items()}
         cfg = config.evaluate
-        # what each belief reports after its views (evaluate.declared_confidence); Random
-        # stops at a belief threshold, so it reports with the a fitted at its threshold
-        calibrated = cfg.declared_confidence == "calibrated"
-        pooled = (declared_temperatures(inputs.observe, observation, inputs.vptree_dir)
-                  if calibrated else {})
+        # what each belief reports after its views: Random stops at a belief threshold, so it
+        # reports with the a fitted at its threshold
+        pooled = declared_temperatures(inputs.observe, observation, inputs.vptree_dir)
 
-        def declared(name: str, stop_threshold: float | None = None
-                     ) -> float | DeclaredTemperature:
-            if not calibrated:
-                return 1.0
+        def declared(name: str, stop_threshold: float | None = None) -> float:
             if stop_threshold is None:
                 return (declared_fit or {}).get(name, pooled[name])
-            if "random" in (declared_fit or {}) and \
-                    np.isclose(stop_threshold, cfg.random.belief_threshold):
-                return (declared_fit or {})["random"]  # Random's own held-out closed loop
             return declared_temperatures(inputs.observe, {name: observation[name]},
                                          inputs.vptree_dir, stop_threshold)[name]
 
@@ -195,8 +183,7 @@ class ClosedLoop:
                                      METHOD_NAMES[key], first_view_model=first_view[name],
                                      prior=priors[name], discount=discounts.get(name),
                                      similarity=discount_kernel,
-                                     declared_temperature=(declared_fit or {}).get(LEARNED, 1.0)
-                                     if calibrated else 1.0)
+                                     declared_temperature=(declared_fit or {}).get(LEARNED, 1.0))
             if key == "static":
                 return StaticPolicy(METHOD_NAMES[key],
                                     softmax_temperature=load_softmax_temperature(inputs.observe))
@@ -275,7 +262,7 @@ class ClosedLoop:
 
 
 def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | None,
-                     declared_fit: dict[str, float | DeclaredTemperature] | None,
+                     declared_fit: dict[str, float] | None,
                      model_files: list[str],
                      report: Callable[[int], None] | None = None) -> list[list[EpisodeRecord]]:
     """A worker's task: load the closed loop once, run each of its test models (``report``:
@@ -293,7 +280,7 @@ def _run_models_task(config_json: str, inputs: StageInputs, sweep_dir: Path | No
 
 def run_episodes(config: Config, inputs: StageInputs,
                  context: RunContext = RunContext(), sweep_dir: Path | None = None,
-                 declared_fit: dict[str, float | DeclaredTemperature] | None = None
+                 declared_fit: dict[str, float] | None = None
                  ) -> tuple[list[EpisodeRecord], Dataset]:
     """Every test model x start x method (and sweep setting, with ``sweep_dir``; the
     declared confidence of the methods in ``declared_fit`` by it: see :meth:`ClosedLoop.load`), over
@@ -452,31 +439,23 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
         solve_sweep(config, inputs, sweep_dir, context)
     solved_s = time.perf_counter() - began
     cfg = config.evaluate
-    fitting = cfg.declared_fit != "walks" and cfg.declared_confidence == "calibrated"
     # every method on the held-out volume models, compared before any test model is read
-    # (the learned baseline, not held out for itself, only where its declared fit reads it)
-    runs = held_out_runs(config, inputs, [m for m in cfg.methods
-                                          if fitting or m not in NOT_HELD_OUT],
-                         out / HELD_OUT_DIR, context,
-                         per_fold=cfg.declared_fit == "closed_loop_per_fold")
+    # (the learned baseline, not held out for itself, for its declared fit)
+    runs = held_out_runs(config, inputs, list(cfg.methods), context)
     ran, without_folds = runs
     if ran:
         write_json_atomic(out / HELD_OUT_DIR / COMPARISON_FILE,
                           held_out_comparison(ran, PAIRED_REFERENCE, seed=config.seed,
                                               skipped=without_folds))
-    fits: dict[str, ClosedLoopFit] = {}
-    if fitting:
-        # the POMDPs' declared confidence, fitted where they stop on held-out objects
-        # (Random's too when its a depends on the images taken: evaluate.declared_form)
-        skipped = ("static",) if cfg.declared_form != "scalar" else ("static", "random")
-        fits = closed_loop_declared(config, inputs, [m for m in cfg.methods
-                                                     if m not in skipped],
-                                    out / HELD_OUT_DIR, context,
-                                    per_fold=cfg.declared_fit == "closed_loop_per_fold",
-                                    form=cfg.declared_form, runs=runs)
+    # the POMDPs' (and the learned baseline's) declared confidence, fitted where they stop on
+    # held-out objects
+    fits = closed_loop_declared(config, inputs, [m for m in cfg.methods
+                                                 if m not in ("static", "random")],
+                                out / HELD_OUT_DIR, context, runs=runs)
     held_out_s = time.perf_counter() - began - solved_s
     records, dataset = run_episodes(config, inputs, context, sweep_dir,
-                                    {name: fit.declared.readout for name, fit in fits.items()})
+                                    {name: fit.declared.temperature
+                                     for name, fit in fits.items()})
     episodes_s = time.perf_counter() - began - solved_s - held_out_s
     methods = list(config.evaluate.methods)
     sweep = [r for r in records if r.method not in methods]
@@ -516,7 +495,7 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
         "workers": min(context.worker_count, len(dataset.with_role("test"))),
         "tradeoff_points": len(points),
         "sweep_episodes": len(sweep),
-        "declared_fit": {"kind": cfg.declared_fit,
+        "declared_fit": {"kind": "closed_loop",
                          "closed_loop": {name: fit.to_dict() for name, fit in fits.items()}},
         "seconds": {"sweep_solve_wall": solved_s, "held_out_wall": held_out_s,
                     "episodes_wall": episodes_s,

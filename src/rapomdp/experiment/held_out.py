@@ -4,8 +4,8 @@ For every volume group g (the g-th volume model of every class), a method's mode
 fitted without g (as the observe or vptree stage fitted it for its held-out walks), tempered by
 the belief's own t, solved at λ and run from seeded starts on each of g's models, its views
 the labels the classifier gave that model at X_rho (recorded by the stages: an episode is
-exact). Where these episodes stop is where the method itself stops on unseen objects, so the
-declared confidence of ``evaluate.declared_fit: closed_loop`` is fitted there
+exact). Where these episodes stop is where the method itself stops on unseen objects, so its
+declared confidence is fitted there
 (:func:`~rapomdp.recognition.belief.stops_declared_confidence`). Only volume models and their
 recorded labels are read, never the test models.
 """
@@ -15,12 +15,12 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple, get_args
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from rapomdp.awareness.evidence import RecordedObservation
-from rapomdp.config import Config, EvaluateConfig
+from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode import Motion, Policy, run_episode
@@ -32,12 +32,9 @@ from rapomdp.io import load_npz, read_json, write_json_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.stage import declared_temperatures, start_viewpoint
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
 from rapomdp.recognition.belief import (
     DeclaredConfidence,
-    DeclaredFormChoice,
-    choose_declared_form,
     stops_declared_confidence,
     temper,
 )
@@ -47,12 +44,6 @@ from rapomdp.workspace import StageError, StageInputs
 
 HELD_OUT_STARTS = 4
 """Seeded reachable starts per held-out model (each group's models × starts are the stops)."""
-
-DECLARED_FORMS: tuple[str, ...] = get_args(EvaluateConfig.model_fields["declared_form"].annotation)
-"""``evaluate.declared_form``: one declared temperature a per method, a(n) by the images n
-an episode took (:class:`~rapomdp.recognition.belief.DeclaredTemperature`), or either, chosen
-per method on its held-out stops (``auto``,
-:func:`~rapomdp.recognition.belief.choose_declared_form`)."""
 
 HELD_OUT_DIR = "held_out"
 """The evaluate stage's folder of the held-out closed loop (its solves and record)."""
@@ -123,7 +114,7 @@ def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
     if "vptree" in methods:
         vptree = load_npz(inputs.vptree / VPTREE_OBSERVATION_FILE)
         if "volume_predictions" not in vptree:
-            raise StageError("evaluate.declared_fit closed_loop: the vptree stage predates "
+            raise StageError("the held-out closed loop: the vptree stage predates "
                              "the saved volume labels: rapomdp run -w W --redo vptree")
         labels, predicted = vptree["volume_labels"], vptree["volume_predictions"]
         groups, t = vptree["volume_groups"], float(vptree["temperature"])
@@ -184,8 +175,8 @@ def held_out_stops(config: Config, policy: Policy, fold: HeldOutFold, motion: Mo
 
 def load_declared_fit(evaluate_dir: Path) -> dict[str, Any] | None:
     """An evaluate stage's record of its held-out closed-loop fit (``held_out/
-    declared_fit.json``), None where it fitted none (``evaluate.declared_fit: walks``, one
-    held-out group, or a stage from before the option)."""
+    declared_fit.json``), None where it fitted none (one held-out group, or a stage from
+    before the fit)."""
     path = Path(evaluate_dir) / HELD_OUT_DIR / DECLARED_FIT_FILE
     return read_json(path) if path.is_file() else None
 
@@ -230,28 +221,6 @@ class ClosedLoopFit:
     def to_dict(self) -> dict[str, object]:
         return {"declared_confidence": self.declared.to_dict(), "accuracy": self.accuracy,
                 "energy": self.energy, "episodes": self.episodes}
-
-
-def solve_held_out_folds(config: Config, folds: dict[str, list[HeldOutFold]], robot_dir: Path,
-                         out: Path, context: RunContext = RunContext()) -> None:
-    """Solve every (method, group) fold model at ``solve.wrong_declaration_cost_m``, as the
-    solve stage solves the workspace's, into ``out/group_<g>/`` (one pool)."""
-    from rapomdp.planning.workspace import solve_problem_sets
-
-    robot = load_robot(robot_dir)
-    reachable = robot["reachable"].astype(bool)
-    solve = config.solve
-    groups = sorted({f.group for fs in folds.values() for f in fs})
-    sets = [(out / f"group_{g}", solve.wrong_declaration_cost_m,
-             {name: f.model for name, fs in folds.items() for f in fs if f.group == g})
-            for g in groups]
-    solve_problem_sets(
-        sets, robot["energy"], reachable, discount=solve.discount,
-        start_viewpoint=start_viewpoint(reachable), precision=solve.precision,
-        timeout=solve.timeout_s, max_iterations=solve.iterations,
-        workers=context.worker_count, allow_stay=False, memory_gb=solve.memory_gb,
-        scheduler=context.scheduler, description="evaluate: held-out closed loop, solves",
-        pool=context.pool)
 
 
 def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldOutFold,
@@ -315,16 +284,26 @@ class HeldOutRun:
         return np.char.add(np.char.add(self.objects(), "#"), self.stops.starts.astype(str))
 
 
-def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str], out: Path,
-                  context: RunContext = RunContext(), per_fold: bool = False
+def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str],
+                  context: RunContext = RunContext()
                   ) -> tuple[dict[str, HeldOutRun], dict[str, str]]:
-    """Every method of ``methods`` run on each held-out volume group: the belief (and a
-    POMDP's lookahead) by its observation model fitted without the group, a POMDP by the solve
-    stage's plan or, with ``per_fold``, the fold model's own (solved into ``out``,
-    :func:`solve_held_out_folds`); the learned baseline by the learn stage's policy at Table
+    """Every method of ``methods`` run on each held-out volume group.
+
+    The belief (and a POMDP's lookahead) by its observation model fitted without the group, a
+    POMDP by the solve stage's plan; the learned baseline by the learn stage's policy at Table
     1's λ; Random walking at Table 1's threshold on its observation model's folds; Static
-    declaring its start view's label (on RA-POMDP's folds). Returns the
-    runs and, for each method without held-out folds, why (:func:`closed_loop_skipped`)."""
+    declaring its start view's label (on RA-POMDP's folds).
+
+    Args:
+        config: the workspace's configuration.
+        inputs: the evaluate stage's input folders.
+        methods: the method keys to run (of ``evaluate.methods``).
+        context: the run's workers and progress.
+
+    Returns:
+        Each run method's :class:`HeldOutRun`, by key, and for each method without held-out
+        folds, why (:func:`closed_loop_skipped`).
+    """
     model_of = {name: name for name in methods}
     if "random" in methods:
         model_of["random"] = config.evaluate.random.observation_model
@@ -340,16 +319,13 @@ def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str], o
                for name in all_folds if name not in folds}
     if not folds:
         return {}, skipped
-    if per_fold:
-        solve_held_out_folds(config, {n: f for n, f in folds.items() if n not in NOT_POMDP},
-                             inputs.robot, out, context)
     pairs = [(name, fold) for name, fs in folds.items() for fold in fs]
     config_json = config.model_dump_json()
     tasks = []
     for name, fold in pairs:
         plans = None  # Static, Random; the learned baseline: the learn stage's policy
         if name not in NOT_POMDP:
-            path = (out / f"group_{fold.group}" if per_fold else inputs.solve) / policy_file(name)
+            path = inputs.solve / policy_file(name)
             if not path.is_file():
                 raise StageError(f"method '{name}' needs {path.name} from the solve stage for "
                                  f"its held-out closed loop: add '{name}' to solve.models")
@@ -371,58 +347,44 @@ def held_out_runs(config: Config, inputs: StageInputs, methods: Sequence[str], o
 
 def closed_loop_declared(config: Config, inputs: StageInputs, methods: Sequence[str],
                          out: Path, context: RunContext = RunContext(),
-                         per_fold: bool = False, form: str = "scalar",
                          runs: tuple[dict[str, HeldOutRun], dict[str, str]] | None = None
                          ) -> dict[str, ClosedLoopFit]:
-    """Fit each method's declared confidence on its held-out closed loop
-    (:func:`held_out_runs`, or ``runs`` already run for at least ``methods``) and write
-    ``out/declared_fit.json``. With ``form`` ``views`` the temperature depends on the images
-    an episode took (``evaluate.declared_form``); with ``auto`` each method's form is chosen
-    on its held-out stops (:func:`~rapomdp.recognition.belief.choose_declared_form`; Random's
-    scalar candidate is the walks' a at its threshold, and where it wins Random is left out of
-    the fits, keeping that a; the record's ``choices`` say which and why). Methods without
-    held-out folds are left out (they keep the walks' a; the record says why)."""
-    if form not in DECLARED_FORMS:
-        raise ValueError(f"form must be one of {', '.join(DECLARED_FORMS)}, got {form!r}")
+    """Fit each method's declared confidence on its held-out closed loop and record it.
+
+    Methods without held-out folds are left out (they keep the walks' a; the record says
+    why).
+
+    Args:
+        config: the workspace's configuration.
+        inputs: the evaluate stage's input folders.
+        methods: the method keys to fit (``evaluate.methods`` less Static and Random).
+        out: the folder ``declared_fit.json`` is written to (:data:`HELD_OUT_DIR`).
+        context: the run's workers and progress.
+        runs: :func:`held_out_runs`'s result for at least ``methods``, or None to run them.
+
+    Returns:
+        Each fitted method's :class:`ClosedLoopFit`, by key.
+    """
     if runs is None:
-        runs = held_out_runs(config, inputs, methods, out, context, per_fold)
+        runs = held_out_runs(config, inputs, methods, context)
     ran, skipped = runs
     if not any(name in ran for name in methods):
         return {}
     fits: dict[str, ClosedLoopFit] = {}
-    choices: dict[str, DeclaredFormChoice] = {}
     for name in methods:
         if name not in ran:
             continue
         stops = ran[name].stops
-        if form == "auto":
-            choices[name] = choice = choose_declared_form(
-                stops.log_beliefs, stops.truth, ran[name].groups, stops.images,
-                fixed_scalar=random_walks_temperature(config, inputs) if name == "random"
-                else None)
-            if choice.declared is not None:
-                fits[name] = ClosedLoopFit(choice.declared, ran[name])
-            continue
-        declared = stops_declared_confidence(stops.log_beliefs, stops.truth, ran[name].groups,
-                                             images=stops.images if form == "views" else None)
+        declared = stops_declared_confidence(stops.log_beliefs, stops.truth, ran[name].groups)
         fits[name] = ClosedLoopFit(declared, ran[name])
     write_json_atomic(out / DECLARED_FIT_FILE, {
         "lambda_m": config.solve.wrong_declaration_cost_m,
         "starts_per_model": HELD_OUT_STARTS,
-        "plans": "per fold" if per_fold else "solve stage",
-        "form": form,
+        "plans": "solve stage",
+        "form": "scalar",
         "methods": {name: fit.to_dict() for name, fit in fits.items()},
-        **({"choices": {name: c.to_dict() for name, c in choices.items()}} if choices else {}),
         "walks_kept": {name: why for name, why in skipped.items() if name in methods}})
     return fits
-
-
-def random_walks_temperature(config: Config, inputs: StageInputs) -> float:
-    """The declared-confidence a Random reports with under ``evaluate.declared_form: scalar``:
-    the one the observe stage fitted on held-out walks stopped at Random's belief threshold."""
-    name = config.evaluate.random.observation_model
-    return declared_temperatures(inputs.observe, [name], inputs.vptree_dir,
-                                 config.evaluate.random.belief_threshold)[name]
 
 
 COMPARISON_FILE = "comparison.json"

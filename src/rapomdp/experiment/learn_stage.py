@@ -206,12 +206,11 @@ def train_policy(config: Config, evidence: RecordedEvidence, observe_dir: Path,
 
     spec = PolicySpec(evidence.classes, evidence.viewpoints, tuple(cfg.hidden),
                       cfg.observation_model, lambda_, config.evaluate.max_moves,
-                      config.evaluate.revisit, cfg.declare)
+                      config.evaluate.revisit)
     models = belief_models(config, observe_dir)
 
     def environment() -> Any:
-        env = recorded_environment(config, evidence, models, motion, lambda_)
-        return MapDeclaration(env) if cfg.declare == "map" else env
+        return MapDeclaration(recorded_environment(config, evidence, models, motion, lambda_))
 
     envs = DummyVecEnv([environment for _ in range(cfg.envs)])
     threads = torch.get_num_threads()

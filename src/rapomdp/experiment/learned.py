@@ -40,7 +40,7 @@ from rapomdp.experiment.recorded_env import (
 from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import ArtefactError, read_json, write_bytes_atomic, write_json_atomic
 from rapomdp.planning.policy import ARAction
-from rapomdp.recognition.belief import DeclaredTemperature, ViewDiscount
+from rapomdp.recognition.belief import ViewDiscount
 
 FORMAT = "rapomdp.learned-policy.v1"
 #: The learn stage's summary: what was trained, for how long, its held-out scores.
@@ -62,8 +62,8 @@ def policy_stem(lambda_: float) -> str:
 @dataclass(frozen=True)
 class PolicySpec:
     """What a learned policy is: its input (``classes`` + 2 x ``viewpoints``), hidden widths,
-    actions (``viewpoints`` moves, then ``classes`` declarations, or with ``declare`` "map"
-    one stop that declares the belief's most likely class), and the setting it was trained
+    actions (``viewpoints`` moves, then one stop that declares the belief's most likely class,
+    :class:`~rapomdp.experiment.recorded_env.MapDeclaration`), and the setting it was trained
     for: the belief's ``observation_model``, ``lambda_``, ``max_moves`` and ``revisit``
     (evaluate's)."""
 
@@ -74,11 +74,6 @@ class PolicySpec:
     lambda_: float
     max_moves: int
     revisit: bool
-    declare: str = "map"
-
-    def __post_init__(self) -> None:
-        if self.declare not in ("map", "any"):
-            raise ValueError(f"declare must be 'map' or 'any', got {self.declare!r}")
 
     @property
     def inputs(self) -> int:
@@ -86,17 +81,33 @@ class PolicySpec:
 
     @property
     def actions(self) -> int:
-        return self.viewpoints + (1 if self.declare == "map" else self.classes)
+        return self.viewpoints + 1
 
     def to_dict(self) -> dict[str, Any]:
-        return {**asdict(self), "hidden": list(self.hidden)}
+        """The artefact's record: the fields and ``declare`` "map" (what its stop declares),
+        as every policy file records it."""
+        return {**asdict(self), "hidden": list(self.hidden), "declare": "map"}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PolicySpec:
+        """The spec of a policy file's record (:meth:`to_dict`).
+
+        Args:
+            data: the ``spec`` entry of a ``learned_lambda_<λ>.json``.
+
+        Returns:
+            The spec.
+
+        Raises:
+            ValueError: the policy chose the declared class itself (``declare`` "any"), an
+                action space this version no longer runs.
+        """
+        if data.get("declare", "map") != "map":
+            raise ValueError(f"a learned policy of declare {data['declare']!r} is no longer "
+                             "run (docs/decisions/0018-learned-declaration.md); retrain it")
         return cls(int(data["classes"]), int(data["viewpoints"]),
                    tuple(int(h) for h in data["hidden"]), str(data["observation_model"]),
-                   float(data["lambda_"]), int(data["max_moves"]), bool(data["revisit"]),
-                   str(data["declare"]))
+                   float(data["lambda_"]), int(data["max_moves"]), bool(data["revisit"]))
 
 
 class PolicyNetwork(nn.Module):
@@ -178,16 +189,16 @@ def load_learned_policy(folder: str | Path, lambda_: float) -> tuple[PolicyNetwo
 
 class LearnedPolicy:
     """A learned policy in the closed loop: Eq. 5 with its observation model, then the
-    network's most likely valid action on (belief, viewpoint, visited); with ``declare`` "map"
-    its stop declares the belief's most likely class. It reports its belief raised to
-    ``declared_temperature`` (1: as it is; ``evaluate.declared_fit``), acting on the belief."""
+    network's most likely valid action on (belief, viewpoint, visited); its stop declares the
+    belief's most likely class. It reports its belief raised to ``declared_temperature`` (1: as
+    it is; the evaluate stage fits it on the held-out closed loop), acting on the belief."""
 
     def __init__(self, network: PolicyNetwork, spec: PolicySpec, observation_model: np.ndarray,
                  reachable: np.ndarray, name: str = "Learned (PPO)", recogniser: str = "cnn",
                  first_view_model: np.ndarray | None = None, prior: np.ndarray | None = None,
                  discount: ViewDiscount | None = None,
                  similarity: np.ndarray | None = None,
-                 declared_temperature: float | DeclaredTemperature = 1.0) -> None:
+                 declared_temperature: float = 1.0) -> None:
         shape = np.shape(observation_model)
         if len(shape) != 3 or (shape[0], shape[2]) != (spec.viewpoints, spec.classes):
             raise ValueError(f"{name}: the policy was trained on {spec.viewpoints} viewpoints "
@@ -223,11 +234,9 @@ class LearnedPolicy:
         belief = self._bayes.belief
         mask = valid_actions(self.reachable, viewpoint, self._visited, self._looks - 1,
                              spec.max_moves, spec.revisit, spec.classes)
-        if spec.declare == "map":
-            mask = map_mask(mask, spec.viewpoints)
+        mask = map_mask(mask, spec.viewpoints)
         action = self.network.best_action(policy_input(belief, viewpoint, self._visited), mask)
-        if spec.declare == "map":
-            action = closed_loop_action(action, belief, spec.viewpoints)
+        action = closed_loop_action(action, belief, spec.viewpoints)
         if action >= spec.viewpoints:
             return ARAction("declare", action - spec.viewpoints)
         return ARAction("move", action)

@@ -19,10 +19,9 @@ import numpy as np
 from rapomdp.config import EvaluateConfig
 from rapomdp.geometry.viewsphere import k_nearest
 from rapomdp.planning.momdp import update_beliefs
-from rapomdp.planning.policy import LOOKAHEAD_WIDTH, ActiveRecognitionPolicy, ARAction
+from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
 from rapomdp.planning.rules import class_marginal
 from rapomdp.recognition.belief import (
-    DeclaredTemperature,
     ViewDiscount,
     declared_belief,
     temper,
@@ -45,21 +44,18 @@ class BayesBelief:
     (:meth:`next_model`); P is then the solved policy's memoryless stand-in.
 
     ``declared`` is what a policy reports: the class belief raised to ``declared_temperature``
-    and renormalised (``evaluate.declared_confidence``, fitted where held-out walks stop); the
-    policy acts on ``belief`` and ``state``, which it leaves alone."""
+    and renormalised (fitted where held-out episodes stop); the policy acts on ``belief`` and
+    ``state``, which it leaves alone."""
 
     def __init__(self, observation_model: np.ndarray,
                  first_view_model: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
                  similarity: np.ndarray | None = None,
-                 declared_temperature: float | DeclaredTemperature = 1.0) -> None:
-        if not isinstance(declared_temperature, DeclaredTemperature):
-            if not declared_temperature > 0:
-                raise ValueError(f"the declared-confidence temperature must be positive, got "
-                                 f"{declared_temperature}")
-            declared_temperature = DeclaredTemperature(float(declared_temperature))
-        self.declared_readout = declared_temperature
-        self.declared_temperature = declared_temperature.scale
+                 declared_temperature: float = 1.0) -> None:
+        if not declared_temperature > 0:
+            raise ValueError(f"the declared-confidence temperature must be positive, got "
+                             f"{declared_temperature}")
+        self.declared_temperature = float(declared_temperature)
         self.observation_model = np.asarray(observation_model, dtype=np.float64)
         self.first_view_model = (self.observation_model if first_view_model is None
                                  else np.asarray(first_view_model, dtype=np.float64))
@@ -108,9 +104,9 @@ class BayesBelief:
 
     @property
     def declared(self) -> np.ndarray:
-        """The class belief as reported: ``belief`` ** a(n) after n images, renormalised (the
-        same argmax; a(n) is ``declared_temperature`` itself unless it depends on n)."""
-        return declared_belief(self.belief, float(self.declared_readout.at(self.updates)))
+        """The class belief as reported (C,): ``belief`` ** ``declared_temperature``,
+        renormalised (the same argmax)."""
+        return declared_belief(self.belief, self.declared_temperature)
 
     def reset(self) -> None:
         self.state = self.prior.copy()
@@ -165,8 +161,7 @@ class RandomWalkPolicy:
     The belief is updated with ``observation_model`` (Eq. 5). Stop rule: declare the most likely
     class once the belief's maximum reaches ``belief_threshold``, after ``max_moves`` moves, or
     when every neighbour has been visited. What it reports (``belief``) is that belief raised
-    to ``declared_temperature`` and renormalised (``evaluate.declared_confidence``); it stops
-    and declares by the belief itself.
+    to ``declared_temperature`` and renormalised; it stops and declares by the belief itself.
     """
 
     def __init__(self, observation_model: np.ndarray, distance_m: np.ndarray,
@@ -175,7 +170,7 @@ class RandomWalkPolicy:
                  first_view_model: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
                  similarity: np.ndarray | None = None,
-                 declared_temperature: float | DeclaredTemperature = 1.0) -> None:
+                 declared_temperature: float = 1.0) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
         if max_moves < 0:
@@ -218,13 +213,10 @@ class POMDPPolicy:
 
     With ``revisit`` False (the default) it never moves back to a viewpoint it has seen: the
     POMDP treats images from one viewpoint as independent draws, but a noiseless sensor sees
-    the same image again, which would count one piece of evidence twice. It then follows the
-    best plan whose first move goes somewhere new (or declares). With ``lookahead_over`` (V,)
-    bool, it acts by a lookahead on the policy's value over those viewpoints
-    (:meth:`ActiveRecognitionPolicy.lookahead_act`, ``evaluate.lookahead``), one view deep
-    or, with ``lookahead_depth`` 2, two (``evaluate.lookahead_depth``). It reports its belief
-    raised to ``declared_temperature`` and renormalised (``evaluate.declared_confidence``) and
-    acts on the belief itself.
+    the same image again, which would count one piece of evidence twice. It acts by a one-step
+    lookahead on the policy's value over the viewpoints ``lookahead_over`` (V,) bool (default:
+    every one; :meth:`ActiveRecognitionPolicy.lookahead_act`). It reports its belief raised to
+    ``declared_temperature`` and renormalised and acts on the belief itself.
     """
 
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
@@ -232,13 +224,8 @@ class POMDPPolicy:
                  first_view_model: np.ndarray | None = None,
                  lookahead_over: np.ndarray | None = None,
                  prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None, lookahead_depth: int = 1,
-                 lookahead_width: int = LOOKAHEAD_WIDTH,
-                 declared_temperature: float | DeclaredTemperature = 1.0) -> None:
-        if lookahead_depth > 1 and discount is not None:
-            raise ValueError(f"{name}: a depth-{lookahead_depth} lookahead needs a belief "
-                             "whose model does not change with the views taken (observe.belief "
-                             "naive or nuisance), not a view discount")
+                 similarity: np.ndarray | None = None,
+                 declared_temperature: float = 1.0) -> None:
         if observation_model.shape[0] != policy.n_viewpoints or \
                 observation_model.shape[1] != policy.n_states or \
                 observation_model.shape[2] != policy.n_classes:
@@ -249,8 +236,8 @@ class POMDPPolicy:
         self.name, self.recogniser, self.revisit = name, recogniser, revisit
         self.policy = policy
         self.observation_model = observation_model
-        self.lookahead_over = lookahead_over
-        self.lookahead_depth, self.lookahead_width = lookahead_depth, lookahead_width
+        self.lookahead_over = (np.ones(policy.n_viewpoints, dtype=bool) if lookahead_over is None
+                               else np.asarray(lookahead_over, dtype=bool))
         self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
                                   similarity, declared_temperature)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
@@ -259,14 +246,12 @@ class POMDPPolicy:
     def configured(cls, cfg: EvaluateConfig, policy: ActiveRecognitionPolicy,
                    observation_model: np.ndarray, name: str, reachable: np.ndarray,
                    recogniser: str = "cnn", **belief: Any) -> POMDPPolicy:
-        """The method as the evaluate stage configures it (``cfg``: its revisit rule, the
-        lookahead over the ``reachable`` viewpoints, its depth and width); ``belief``: the
-        belief's keyword arguments (``first_view_model``, ``prior``, ``discount``,
-        ``similarity``, ``declared_temperature``)."""
+        """The method as the evaluate stage configures it (``cfg``: its revisit rule; the
+        lookahead over the ``reachable`` viewpoints); ``belief``: the belief's keyword
+        arguments (``first_view_model``, ``prior``, ``discount``, ``similarity``,
+        ``declared_temperature``)."""
         return cls(policy, observation_model, name, recogniser, cfg.revisit,
-                   lookahead_over=reachable if cfg.lookahead else None,
-                   lookahead_depth=cfg.lookahead_depth, lookahead_width=cfg.lookahead_width,
-                   **belief)
+                   lookahead_over=reachable, **belief)
 
     def reset(self, start_viewpoint: int, rng: np.random.Generator) -> None:
         self._bayes.reset()
@@ -282,12 +267,9 @@ class POMDPPolicy:
 
     def act(self, viewpoint: int) -> ARAction:
         forbidden = None if self.revisit else self._visited
-        if self.lookahead_over is not None:
-            # the children of the next view as the belief will update (a view discount's
-            # weights after the views taken), valued by the solved policy
-            model = (self.observation_model if self._bayes.discount is None
-                     else self._bayes.next_model())
-            return self.policy.lookahead_act(viewpoint, self._bayes.state, model,
-                                             self.lookahead_over, forbidden,
-                                             self.lookahead_depth, self.lookahead_width)
-        return self.policy.act(viewpoint, self._bayes.state, forbidden)
+        # the children of the next view as the belief will update (a view discount's
+        # weights after the views taken), valued by the solved policy
+        model = (self.observation_model if self._bayes.discount is None
+                 else self._bayes.next_model())
+        return self.policy.lookahead_act(viewpoint, self._bayes.state, model,
+                                         self.lookahead_over, forbidden)

@@ -281,42 +281,12 @@ BELIEF_CALIBRATION_HEADER = ["Method", "Accuracy", "Belief in the true class", "
                              "Confidence − accuracy", "ECE", "ECE if calibrated (95 %)"]
 
 
-def reported_belief_note(declared_confidence: str, declared_fit: str = "walks",
-                         declared_form: str = "scalar") -> str:
-    """What the methods' final beliefs in the calibration table are, per
-    ``evaluate.declared_confidence``, ``evaluate.declared_fit`` and ``evaluate.declared_form``."""
-    if declared_confidence == "calibrated" and declared_form == "views":
-        return ("Random, the POMDP methods and the learned baseline report their belief "
-                "raised to a declared-confidence temperature that depends on the images the "
-                "episode took, a(n) = a · n^(−β), fitted where each method's own held-out "
-                "closed loop stops (their actions are the belief's: "
-                "evaluate.declared_confidence, evaluate.declared_fit, "
-                "evaluate.declared_form), Static the classifier's softmax at its held-out "
-                "temperature.")
-    if declared_confidence == "calibrated" and declared_form == "auto":
-        return ("Random, the POMDP methods and the learned baseline report their belief "
-                "raised to a declared-confidence temperature, per method one a or a(n) = "
-                "a · n^(−β) by the images the episode took, whichever form declared the "
-                "method's own held-out closed-loop stops better, each group by the other "
-                "groups' fit (Random's one a: the walks' at its stop belief; their actions "
-                "are the belief's: evaluate.declared_confidence, evaluate.declared_fit, "
-                "evaluate.declared_form), Static the classifier's softmax at its held-out "
-                "temperature.")
-    if declared_confidence == "calibrated" and declared_fit == "walks":
-        return ("Random and the POMDP methods report their belief raised to the declared-"
-                "confidence temperature of its model (fitted where held-out walks stop; their "
-                "actions are the belief's: evaluate.declared_confidence, "
-                "evaluate.declared_fit), Static the classifier's softmax at its held-out "
-                "temperature, the learned baseline its belief as it is.")
-    if declared_confidence == "calibrated":
-        return ("Random, the POMDP methods and the learned baseline report their belief "
-                "raised to a declared-confidence temperature (Random's fitted where held-out "
-                "walks reach its stop belief, the others' where their own held-out closed "
-                "loop stops; their actions are the belief's: evaluate.declared_confidence, "
-                "evaluate.declared_fit), Static the classifier's softmax at its held-out "
-                "temperature.")
-    return ("Every method reports the belief it acts on (evaluate.declared_confidence: "
-            "belief), Static the classifier's softmax at its held-out temperature.")
+REPORTED_BELIEF_NOTE = (
+    "Random, the POMDP methods and the learned baseline report their belief raised to a "
+    "declared-confidence temperature (Random's fitted where held-out walks reach its stop "
+    "belief, the others' where their own held-out closed loop stops; their actions are the "
+    "belief's), Static the classifier's softmax at its held-out temperature.")
+"""What the methods' final beliefs in the calibration tables are, for the text beside them."""
 
 
 def belief_calibration_cells(table: EpisodeTable) -> tuple[list[str], list[list[str]]]:

@@ -284,8 +284,8 @@ class RecordedRecognitionEnv(gymnasium.Env):
 
 class MapDeclaration(gymnasium.Wrapper):  # type: ignore[type-arg]
     """A policy's action space where declaring is one action, "stop": the environment then
-    declares the belief's most likely class, as Random and the POMDP methods declare
-    (``learn.declare: map``). Actions ``j < V`` move as before, ``V`` stops; the rewards and
+    declares the belief's most likely class, as Random and the POMDP methods declare.
+    Actions ``j < V`` move as before, ``V`` stops; the rewards and
     the episode are the wrapped environment's (a declaration of that class)."""
 
     def __init__(self, env: RecordedRecognitionEnv) -> None:

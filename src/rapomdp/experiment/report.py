@@ -46,7 +46,7 @@ from rapomdp.awareness.report import (
     floor_cell,
     write_fig1,
 )
-from rapomdp.config import METHOD_NAMES, Config, EvaluateConfig
+from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
 from rapomdp.experiment.episode_table import (
@@ -65,6 +65,7 @@ from rapomdp.experiment.learned import CURVES_FIGURE, LEARN_SUMMARY
 from rapomdp.experiment.metrics import (
     CALIBRATED_ECE_NOTE,
     PER_CLASS_NOTE,
+    REPORTED_BELIEF_NOTE,
     MethodSummary,
     PairedDifference,
     TradeoffPoint,
@@ -74,7 +75,6 @@ from rapomdp.experiment.metrics import (
     per_class,
     per_class_cells,
     read_tradeoff_csv,
-    reported_belief_note,
     standing_phrases,
     table1,
     table1_cells,
@@ -442,7 +442,7 @@ HELD_OUT_COMPARISON_NOTE = (
     "models, which the classifier never trained on, from the same seeded starts; each group's "
     "views are the labels the classifier gave them, its beliefs (and a POMDP's lookahead) use "
     "the observation models fitted without the group, and a POMDP's plan is the solve "
-    "stage's (each fold's own with evaluate.declared_fit: closed_loop_per_fold). A forecast "
+    "stage's. A forecast "
     "of Table 1's direction, with intervals as wide as the held-out objects are few (how "
     "often it has forecast it on the development sets: docs/experiment.md, \"The held-out "
     "comparison\"). Each fold's models are fitted on one group of volume models fewer than "
@@ -535,7 +535,7 @@ def _awareness(b: _Builder, config: Config, inputs: StageInputs, class_name: str
              "Calibration: the classifier's accuracy per viewpoint-score bin on the held-out "
              "evidence (which RA variant is RA-POMDP's model could not be read).",
              observe_how)
-    _self_awareness(b, inputs, class_name, observe_how, config.evaluate)
+    _self_awareness(b, inputs, class_name, observe_how)
 
 
 def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
@@ -618,8 +618,7 @@ def _identical_rows(observe: Path, choice: RAChoice | None) -> str:
     return ("Equal rows: " + "; ".join(parts) + ".") if parts else ""
 
 
-def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
-                    ran: EvaluateConfig) -> None:
+def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str) -> None:
     """Predicted vs observed P(correct), one class's hemispheres and the calibration of every
     method's final belief."""
     from rapomdp.awareness.report import AWARENESS_RELIABILITY, write_awareness_figures
@@ -640,71 +639,42 @@ def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str,
                        f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
     episodes = inputs.evaluate / EPISODES_FILE
     if episodes.exists():
-        _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate, ran)
+        _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate)
     vptree = b.root / "vptree"  # not an input of the report stage (as the VP-tree summary)
     header, rows = declared_confidence_cells(observe, vptree if vptree.is_dir() else None)
     if rows:
-        b.add(Paragraph("The declared confidence (evaluate.declared_confidence), fitted on "
-                        "held-out random walks stopped at belief thresholds 0.5 to 0.99: per "
-                        "model, a and, at those stops, the belief's and the declared belief's "
-                        "confidence and ECE, each held-out group scored by the a the other "
-                        "groups give (docs/awareness.md §4.8)" +
-                        ("." if ran.declared_confidence == "calibrated" else
-                         "; this run reported the belief itself.")))
+        b.add(Paragraph("The declared confidence, fitted on held-out random walks stopped at "
+                        "belief thresholds 0.5 to 0.99: per model, a and, at those stops, the "
+                        "belief's and the declared belief's confidence and ECE, each held-out "
+                        "group scored by the a the other groups give (docs/awareness.md)."))
         b.add(Table(header, rows))
     record = load_declared_fit(inputs.evaluate)
     if record is not None and record["methods"]:
-        plans = ("the solve stage's plan" if record["plans"] == "solve stage"
-                 else "each fold's own plan")
         whose = ("The POMDP methods' and the learned baseline's" if LEARNED in record["methods"]
                  else "The POMDP methods'")
         b.add(Paragraph(
             f"{whose} declared confidence, fitted at "
-            f"their own held-out closed-loop stops (evaluate.declared_fit: {ran.declared_fit}): "
+            f"their own held-out closed-loop stops: "
             f"each volume group's models run from {record['starts_per_model']} starts, the "
             "belief (and a POMDP's lookahead) by the model fitted without the group, a POMDP "
-            f"by {plans}, λ = {record['lambda_m']:g} m; per "
+            f"by the solve stage's plan, λ = {record['lambda_m']:g} m; per "
             "method a, the loop's accuracy and energy, and at its stops the belief's and the "
             "declared belief's confidence and ECE (each group by the a the other groups "
-            "give). These a are the ones the methods above reported with."
-            + (" With evaluate.declared_form views, a after n images is a · n^(−β): Random's "
-               "too, fitted on its own held-out closed loop."
-               if record.get("form", "scalar") == "views" else "")
-            + (" With evaluate.declared_form auto, each method's form (one a, or a · n^(−β) "
-               "after n images) is the one whose fit on the other groups declared each "
-               "held-out group's stops with the lower cross-entropy: "
-               + declared_choices_sentence(record["choices"])
-               if record.get("form", "scalar") == "auto" and record.get("choices") else "")))
+            "give). These a are the ones the methods above reported with."))
         b.add(Table(*closed_loop_cells(record)))
-
-
-def declared_choices_sentence(choices: dict[str, dict[str, Any]]) -> str:
-    """``evaluate.declared_form: auto``'s choice per method (``declared_fit.json: choices``):
-    the form and each form's held-out cross-entropy."""
-    parts = []
-    for name, choice in choices.items():
-        loss = choice["held_out_loss"]
-        scored = all(np.isfinite(v) for v in loss.values())
-        parts.append(f"{METHOD_NAMES.get(name, name)} {choice['form']}"
-                     + (f" ({loss['scalar']:.4f} one a against {loss['views']:.4f} a(n))"
-                        if scored else f" ({choice['reason']})"))
-    return "; ".join(parts) + "."
 
 
 def closed_loop_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
     """The held-out closed loop's record (``held_out/declared_fit.json``) as a table: per
     POMDP method a, the loop's accuracy and mean energy, the belief's and the declared
-    belief's (held out) confidence and ECE at its stops, and the stops; with
-    ``evaluate.declared_form`` views or auto, β of a(n) = a · n^(−β) after a (0: one a)."""
-    views = record.get("form", "scalar") != "scalar"
-    header = ["Method", "a", *(["β"] if views else []), "Accuracy", "Energy (m)",
+    belief's (held out) confidence and ECE at its stops, and the stops."""
+    header = ["Method", "a", "Accuracy", "Energy (m)",
               "Belief: confidence", "ECE", "Declared (held out): confidence", "ECE",
               "ECE if calibrated (95 %)", "Stops"]
     rows = []
     for name, fit in record["methods"].items():
         d = fit["declared_confidence"]
         rows.append([METHOD_NAMES.get(name, name), f"{d['temperature']:.3f}",
-                     *([f"{d.get('views_exponent', 0.0):.3f}"] if views else []),
                      f"{fit['accuracy']:.3f}", f"{fit['energy']:.2f}",
                      f"{d['confidence']:.3f}", f"{d['ece']:.3f}",
                      f"{d['declared_confidence']:.3f}", f"{d['declared_ece']:.3f}",
@@ -713,8 +683,7 @@ def closed_loop_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]
     return header, rows
 
 
-def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path,
-                        ran: EvaluateConfig) -> None:
+def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> None:
     """Every method's final belief against its accuracy (:func:`belief_calibration_cells`) and
     the reliability of its confidence."""
     from rapomdp.awareness.figures import reliability_figure
@@ -728,9 +697,7 @@ def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path,
                     "models: the mean belief in the true class; the confidence (the belief in "
                     "the declared class), which a calibrated belief's accuracy equals; ECE of "
                     "the confidence over 10 equal-width bins. "
-                    + reported_belief_note(ran.declared_confidence, ran.declared_fit,
-                                           ran.declared_form)
-                    + " " + CALIBRATED_ECE_NOTE))
+                    + REPORTED_BELIEF_NOTE + " " + CALIBRATED_ECE_NOTE))
     b.add(Table(*belief_calibration_cells(table)))
     figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
                                 xlabel="final belief in the declared class",

@@ -32,8 +32,6 @@ FORMAT_AR = "rapomdp.active-recognition-policy.v1"
 SCREEN_CHUNK = 4
 #: Absolute slack added to the screen's error bound (the float64 roundings of both paths).
 SCREEN_SLACK = 1e-9
-#: Moves a depth-2 lookahead values two views deep (those of best one-step value).
-LOOKAHEAD_WIDTH = 4
 
 
 def save_npz_atomic(path: str | os.PathLike[str], **arrays: np.ndarray) -> Path:
@@ -198,8 +196,7 @@ class ActiveRecognitionPolicy:
         return ARAction("declare", k)
 
     def lookahead_act(self, viewpoint: int, belief: np.ndarray, observation_model: np.ndarray,
-                      allowed: np.ndarray, forbidden: np.ndarray | None = None,
-                      depth: int = 1, width: int = LOOKAHEAD_WIDTH) -> ARAction:
+                      allowed: np.ndarray, forbidden: np.ndarray | None = None) -> ARAction:
         """One-step lookahead on the lower bound: the move j (``allowed``, not ``forbidden``)
         maximising −E[v, j] + γ Σ_o P(o | b, j) V(j, b_jo), V this policy's value and b_jo the
         Eq. 5 update, or declaring when no move beats it; ties go to declaring.
@@ -213,83 +210,44 @@ class ActiveRecognitionPolicy:
         unless one alone can be and it surely beats declaring), so the action is the one the
         exact values of every move give.
 
-        ``depth`` 2 looks one view further (:meth:`_two_step`): the ``width`` moves of best
-        one-step value are valued again with V replaced, at every child, by the one-step
-        lookahead's own value from j (j then visited too)."""
+        Args:
+            viewpoint: the camera's viewpoint index v.
+            belief: (S,) the belief over the hidden states.
+            observation_model: (V, S, O) P(o | s, x), the model the policy was solved on.
+            allowed: (V,) bool, the viewpoints it may move to.
+            forbidden: (V,) bool, viewpoints it may not move to (those seen), or None.
+
+        Returns:
+            The action: a move to a viewpoint, or the declaration of a class.
+        """
         b = np.asarray(belief, dtype=np.float64)
         ok = np.asarray(allowed, dtype=bool).copy()
         ok[viewpoint] = False
         if forbidden is not None:
             ok &= ~np.asarray(forbidden, dtype=bool)
-        if depth == 1:
-            return self._one_step(viewpoint, b, observation_model, ok)[0]
-        if depth == 2:
-            if width < 1:
-                raise ValueError(f"the lookahead's width must be at least 1, got {width}")
-            return self._two_step(viewpoint, b, observation_model, ok, width)
-        raise ValueError(f"the lookahead's depth must be 1 or 2, got {depth}")
-
-    def _one_step(self, viewpoint: int, b: np.ndarray, observation_model: np.ndarray,
-                  ok: np.ndarray, need_value: bool = False) -> tuple[ARAction, float]:
-        """The one-step lookahead's action over the moves ``ok`` (V,) and, with
-        ``need_value``, its value max(declare, best move) (else NaN where a shortcut decided
-        without valuing the move exactly)."""
         targets = np.flatnonzero(ok)
         dec = float(declare_value(b, self.lambda_, self.n_classes))
         declare = ARAction("declare", int(np.argmax(declare_values(b, self.lambda_,
                                                                     self.n_classes))))
         if targets.size == 0:
-            return declare, dec
+            return declare
         tables = self._lookahead
         steps = self.move_energy[viewpoint, targets]
         if tables.values_nonpositive and -steps.min() + SCREEN_SLACK <= dec + TIE_TOL:
-            return declare, dec  # every child is worth at most 0, so no move beats declaring
+            return declare  # every child is worth at most 0, so no move beats declaring
         if len(self.targets) and targets.size > 2:
             rough, error = self._screen_values(viewpoint, b, observation_model, targets)
             # (an infinite energy or a child of probability 0: every move exactly)
             if np.all(np.isfinite(rough)):
                 if (rough + error).max() <= dec + TIE_TOL:
-                    return declare, dec
+                    return declare
                 keep = rough + error >= (rough - error).max()
                 if keep.sum() == 1 and (rough - error)[keep][0] > dec + TIE_TOL:
-                    move = ARAction("move", int(targets[keep][0]))  # best, beats declaring
-                    if not need_value:
-                        return move, float("nan")
-                    q = self._lookahead_values(viewpoint, b, observation_model, targets[keep])
-                    return move, float(q[0])
+                    return ARAction("move", int(targets[keep][0]))  # best, beats declaring
                 targets = targets[keep]
         q = self._lookahead_values(viewpoint, b, observation_model, targets)
-        value, m = move_or_declare(q[None], np.asarray(dec)[None])
-        action = ARAction("move", int(targets[m[0]])) if m[0] >= 0 else declare
-        return action, float(value[0])
-
-    def _two_step(self, viewpoint: int, b: np.ndarray, observation_model: np.ndarray,
-                  ok: np.ndarray, width: int) -> ARAction:
-        """Depth-2 lookahead: each of the ``width`` moves j of best one-step value is worth
-        −E[v, j] + γ Σ_o P(o | b, j) V₁(j, b_jo), V₁ the one-step lookahead's value from j
-        over the moves still allowed; declaring when none beats it (ties to declaring)."""
-        dec = float(declare_value(b, self.lambda_, self.n_classes))
-        declare = ARAction("declare", int(np.argmax(declare_values(b, self.lambda_,
-                                                                    self.n_classes))))
-        targets = np.flatnonzero(ok)
-        if targets.size == 0:
-            return declare
-        one_step = self._lookahead_values(viewpoint, b, observation_model, targets)
-        order = np.argsort(-one_step, kind="stable")[:width]
-        candidates = targets[order]
-        q = np.empty(candidates.size)
-        for i, j in enumerate(candidates):
-            u = b[None, :] * observation_model[j].T  # (O, S): the unnormalised children
-            prob = u.sum(axis=1)
-            later = ok.copy()
-            later[j] = False
-            child_values = [self._one_step(int(j), u[o] / prob[o], observation_model, later,
-                                           need_value=True)[1] if prob[o] > 0 else 0.0
-                            for o in range(prob.size)]
-            q[i] = self.discount * float(prob @ np.asarray(child_values)) \
-                - float(self.move_energy[viewpoint, j])
         _, m = move_or_declare(q[None], np.asarray(dec)[None])
-        return ARAction("move", int(candidates[m[0]])) if m[0] >= 0 else declare
+        return ARAction("move", int(targets[m[0]])) if m[0] >= 0 else declare
 
     @cached_property
     def _lookahead(self) -> _LookaheadTables:

@@ -17,10 +17,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
+from scipy.optimize import minimize_scalar
 from scipy.special import logsumexp
 
 TEMPERATURE_BOUNDS = (0.05, 2.0)
@@ -443,32 +442,24 @@ def declared_log_beliefs(log_beliefs: np.ndarray, temperature: float | np.ndarra
     return scaled - logsumexp(scaled, axis=-1, keepdims=True)
 
 
-@dataclass(frozen=True)
-class DeclaredTemperature:
-    """The declared confidence's temperature after n images: a(n) = ``scale`` ·
-    n ** −``views_exponent`` (``evaluate.declared_form``). Exponent 0 is one a for every
-    episode (``scalar``); a positive one flattens the report of a long episode more, since an
-    object whose labels kept the policy looking is more often one the classifier gets wrong."""
-
-    scale: float = 1.0
-    views_exponent: float = 0.0
-
-    def __post_init__(self) -> None:
-        if not self.scale > 0 or not np.isfinite(self.views_exponent):
-            raise ValueError(f"the declared-confidence temperature needs a positive scale and "
-                             f"a finite views exponent, got {self.scale}, "
-                             f"{self.views_exponent}")
-
-    def at(self, images: int | np.ndarray) -> np.ndarray:
-        """a(n) for ``images`` n (one or an array; n < 1 counts as 1)."""
-        n = np.maximum(np.asarray(images, dtype=np.float64), 1.0)
-        return self.scale * n ** -self.views_exponent
-
-
 def declared_belief(belief: np.ndarray, temperature: float) -> np.ndarray:
-    """The belief reported for a class belief (C,) (or beliefs (..., C)) after its views:
-    b ** t renormalised (t = 1: the belief itself). The policy acts on the belief; only what
-    it reports is calibrated (:func:`fit_declared_temperature`)."""
+    """The belief reported for a class belief after its views: b ** a renormalised.
+
+    The policy acts on the belief; only what it reports is calibrated
+    (:func:`fit_declared_temperature`). The argmax stays the belief's.
+
+    Args:
+        belief: a class belief (C,), or beliefs (..., C), each summing to 1.
+        temperature: the declared-confidence temperature a > 0 (1: the belief itself).
+
+    Returns:
+        The declared beliefs, of ``belief``'s shape.
+
+    Example:
+        >>> import numpy as np
+        >>> declared_belief(np.array([0.8, 0.2]), 0.5).round(3).tolist()
+        [0.667, 0.333]
+    """
     b = np.asarray(belief, dtype=np.float64)
     if temperature == 1.0:
         return b
@@ -519,52 +510,6 @@ def fit_declared_temperature(log_beliefs: np.ndarray, true: np.ndarray,
     return float(result.x)
 
 
-VIEWS_SCALE_BOUNDS = (0.05, 4.0)
-"""The interval the scale s of a(n) = s · n ** −β is searched in."""
-VIEWS_EXPONENT_BOUNDS = (-1.0, 2.0)
-"""The interval the views exponent β is searched in (0: one a for every episode)."""
-VIEWS_EXPONENT_STARTS = (-0.5, 0.0, 0.5, 1.0, 1.5)
-"""The β the search starts from the best of (each with its best s)."""
-
-
-def fit_declared_views(log_beliefs: np.ndarray, true: np.ndarray, images: np.ndarray,
-                       criterion: str = DECLARED_CRITERION) -> DeclaredTemperature:
-    """The (s, β) of a(n) = s · n ** −β that minimise ``criterion`` of the declared beliefs
-    b' ∝ b ** a(n) over stopped beliefs ``log_beliefs`` (M, C) of true classes ``true`` (M,),
-    each after ``images`` (M,) images (a simplex search from the best of a few β, each with
-    its best s). The criterion is rugged at about 1e-3 (a confidently wrong stop's
-    log(1 − confidence) in floating point), so a fit is a minimum to about that."""
-    log_beliefs = np.asarray(log_beliefs, dtype=np.float64)
-    true = np.asarray(true)
-    log_n = np.log(np.maximum(np.asarray(images, dtype=np.float64), 1.0))
-    if log_n.shape != true.shape:
-        raise ValueError(f"one image count per stop: {log_n.shape} against {true.shape}")
-    if np.ptp(log_n) == 0:  # every stop after as many images: β says nothing
-        return DeclaredTemperature(
-            fit_declared_temperature(log_beliefs, true, VIEWS_SCALE_BOUNDS, criterion), 0.0)
-
-    def loss(x: np.ndarray) -> float:
-        return _declared_loss(np.exp(x[0] - x[1] * log_n), log_beliefs, true, criterion)
-
-    # each start β with its best s: a(n) · n^β is one a for every stop, so the 1-D fit on the
-    # beliefs raised to n^−β gives it (the a fitted on b^(n^−β) is s)
-    starts = []
-    for beta in VIEWS_EXPONENT_STARTS:
-        tilted = log_beliefs * np.exp(-beta * log_n)[:, None]
-        s = fit_declared_temperature(tilted, true, VIEWS_SCALE_BOUNDS, criterion)
-        x = np.array([np.log(s), beta])
-        starts.append((loss(x), x))
-    best_loss, x0 = min(starts, key=lambda pair: pair[0])
-    # a simplex 0.3 wide in log s and in β (scipy's default step from β = 0 is 0.00025, from
-    # which the search did not leave β = 0 on a workspace's stops)
-    simplex = np.array([x0, x0 + [0.3, 0.0], x0 + [0.0, 0.3]])
-    result = minimize(loss, x0, method="Nelder-Mead",
-                      bounds=[tuple(np.log(VIEWS_SCALE_BOUNDS)), VIEWS_EXPONENT_BOUNDS],
-                      options={"xatol": 1e-4, "fatol": 1e-9, "initial_simplex": simplex})
-    best = result.x if result.fun <= best_loss else x0
-    return DeclaredTemperature(float(np.exp(best[0])), float(best[1]))
-
-
 @dataclass(frozen=True)
 class DeclaredConfidence:
     """The declared-confidence temperature of one model and what held out says of it:
@@ -576,9 +521,6 @@ class DeclaredConfidence:
     that threshold's stops alone (``threshold_temperatures``) and, held out, the ECE at those
     stops of the belief, of the pooled fit and of the threshold's own fit (``threshold_ece``,
     ``threshold_declared_ece``, ``threshold_own_ece``). NaN where there are not two groups.
-    With ``form`` ``views`` the temperature depends on the images an episode took (its fit's
-    ``temperature`` is the scale s and ``views_exponent`` β of :class:`DeclaredTemperature`,
-    ``held_out_views_exponents`` the other groups' β); ``scalar`` records leave both out.
     ``declared_ece_if_calibrated``: what ``declared_ece`` would be from sampling alone."""
 
     temperature: float
@@ -596,30 +538,13 @@ class DeclaredConfidence:
     threshold_ece: tuple[float, ...] = ()
     threshold_declared_ece: tuple[float, ...] = ()
     threshold_own_ece: tuple[float, ...] = ()
-    form: str = "scalar"
-    views_exponent: float = 0.0
-    held_out_views_exponents: tuple[float, ...] = ()
     #: The ECE a calibrated reporter of the held-out declared confidences shows on as many
     #: stops from sampling alone, 95th percentile (:func:`calibrated_ece`); NaN as above.
     declared_ece_if_calibrated: float = float("nan")
 
-    @property
-    def readout(self) -> DeclaredTemperature:
-        """The temperature the fit reports with, after any number of images."""
-        return DeclaredTemperature(self.temperature, self.views_exponent)
-
-    @property
-    def held_out_readouts(self) -> dict[int, DeclaredTemperature]:
-        """Per held-out group, the temperature the other groups' stops fit."""
-        exponents = self.held_out_views_exponents or (0.0,) * len(self.groups)
-        return {g: DeclaredTemperature(s, b) for g, s, b in
-                zip(self.groups, self.held_out_temperatures, exponents, strict=True)}
-
     def to_dict(self) -> dict[str, object]:
-        views = ("form", "views_exponent", "held_out_views_exponents")
         return {name: (list(value) if isinstance(value, tuple) else value)
-                for name, value in self.__dict__.items()
-                if self.form != "scalar" or name not in views}
+                for name, value in self.__dict__.items()}
 
 
 def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
@@ -636,42 +561,44 @@ def declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.nd
 
 
 def stops_declared_confidence(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
-                              criterion: str = DECLARED_CRITERION,
-                              images: np.ndarray | None = None) -> DeclaredConfidence:
-    """The declared confidence fitted on stops a policy made itself (log beliefs (M, C) where
-    its held-out episodes declared, true classes ``true`` (M,), each episode's held-out group
-    ``groups`` (M,)) and scored leave-one-group-out, as :func:`declared_confidence` does for
-    walks; no thresholds (the policy's own stop rule made the stops). With ``images`` (M,),
-    the images each episode took, the temperature is a(n) (:func:`fit_declared_views`)."""
+                              criterion: str = DECLARED_CRITERION) -> DeclaredConfidence:
+    """The declared confidence fitted on stops a policy made itself, scored held out.
+
+    As :func:`declared_confidence` does for walks, but with no thresholds: the policy's own
+    stop rule made the stops. Each group's stops are scored by the a the other groups' fit.
+
+    Args:
+        log_beliefs: (M, C) log class beliefs where the policy's held-out episodes declared.
+        true: (M,) each episode's true class.
+        groups: (M,) each episode's held-out volume group.
+        criterion: what the fit minimises (:data:`DECLARED_CRITERIA`).
+
+    Returns:
+        The fit and its held-out scores.
+    """
     log_beliefs = np.asarray(log_beliefs, dtype=np.float64)
     return _declared_at_stops(log_beliefs, np.asarray(true), np.asarray(groups),
-                              np.zeros(len(log_beliefs), dtype=np.int64), (), criterion,
-                              None if images is None else np.asarray(images))
+                              np.zeros(len(log_beliefs), dtype=np.int64), (), criterion)
 
 
 def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.ndarray,
-                       at: np.ndarray, thresholds: Sequence[float], criterion: str,
-                       images: np.ndarray | None = None) -> DeclaredConfidence:
+                       at: np.ndarray, thresholds: Sequence[float], criterion: str
+                       ) -> DeclaredConfidence:
     """:func:`declared_confidence` on stopped log beliefs ``final`` (S, C) of true classes
-    ``labels``, groups ``stop_group`` and thresholds' indices ``at`` (S,) each; with
-    ``images`` (S,), the temperature is a(n) (``views``), else one a (a(n) with β = 0)."""
+    ``labels``, groups ``stop_group`` and thresholds' indices ``at`` (S,) each."""
     right = final.argmax(axis=1) == labels
     confidence = np.exp(final.max(axis=1))
     names = tuple(int(g) for g in np.unique(stop_group))
-    count = np.ones(len(labels)) if images is None else images
 
-    def fit(rows: np.ndarray) -> DeclaredTemperature:
-        if images is None:
-            return DeclaredTemperature(
-                fit_declared_temperature(final[rows], labels[rows], criterion=criterion))
-        return fit_declared_views(final[rows], labels[rows], count[rows], criterion)
+    def fit(rows: np.ndarray) -> float:
+        return fit_declared_temperature(final[rows], labels[rows], criterion=criterion)
 
-    def declare(rows: np.ndarray, a: DeclaredTemperature) -> np.ndarray:
-        return np.exp(declared_log_beliefs(final[rows], a.at(count[rows])).max(axis=1))
+    def declare(rows: np.ndarray, a: float) -> np.ndarray:
+        return np.exp(declared_log_beliefs(final[rows], a).max(axis=1))
 
     fitted = fit(np.ones(len(labels), dtype=bool))
-    own = tuple(fit(at == k).scale for k in range(len(thresholds)))
-    held: list[DeclaredTemperature] = []
+    own = tuple(fit(at == k) for k in range(len(thresholds)))
+    held: list[float] = []
     declared = np.full(len(labels), np.nan)
     declared_own = np.full(len(labels), np.nan)
     if len(names) >= 2:
@@ -691,104 +618,13 @@ def _declared_at_stops(final: np.ndarray, labels: np.ndarray, stop_group: np.nda
         return expected_calibration_error(values[rows], right[rows]) if ok else nan
 
     per_threshold = [at == k for k in range(len(thresholds))]
-    views: dict[str, Any] = {} if images is None else {
-        "form": "views", "views_exponent": fitted.views_exponent,
-        "held_out_views_exponents": tuple(h.views_exponent for h in held)}
     return DeclaredConfidence(
-        fitted.scale, criterion, names if ok else (), tuple(h.scale for h in held),
+        fitted, criterion, names if ok else (), tuple(held),
         int(len(labels)), float(right.mean()), float(confidence.mean()),
         expected_calibration_error(confidence, right),
         float(declared.mean()) if ok else nan, ece(declared),
         tuple(float(t) for t in thresholds), own,
         tuple(expected_calibration_error(confidence[r], right[r]) for r in per_threshold),
         tuple(ece(declared, r) for r in per_threshold),
-        tuple(ece(declared_own, r) for r in per_threshold), **views,
+        tuple(ece(declared_own, r) for r in per_threshold),
         declared_ece_if_calibrated=calibrated_ece(declared) if ok else nan)
-
-
-def held_out_declared_losses(declared: DeclaredConfidence, log_beliefs: np.ndarray,
-                             true: np.ndarray, groups: np.ndarray,
-                             images: np.ndarray | None = None) -> np.ndarray:
-    """Each stop's criterion (``declared.criterion``) of its declared confidence, each group's
-    stops (``groups``) declared by the fit on the other groups
-    (``declared.held_out_readouts``): how well the fit's form calibrates objects it did not
-    see (the mean is :func:`choose_declared_form`'s score). NaN where the fit had fewer than
-    two groups."""
-    readouts = declared.held_out_readouts
-    groups = np.asarray(groups)
-    if not readouts:
-        return np.full(len(groups), np.nan)
-    n = np.ones(len(groups)) if images is None else np.asarray(images, dtype=np.float64)
-    temperature = np.empty(len(groups))
-    for g, a in readouts.items():
-        mine = groups == g
-        temperature[mine] = a.at(n[mine])
-    return _declared_losses(temperature, np.asarray(log_beliefs, dtype=np.float64),
-                            np.asarray(true), declared.criterion)
-
-
-DECLARED_FORM_CHOICES = ("scalar", "views")
-"""The forms ``evaluate.declared_form: auto`` chooses between (:func:`choose_declared_form`)."""
-
-
-@dataclass(frozen=True)
-class DeclaredFormChoice:
-    """The declared confidence's form chosen for one method on its held-out stops: ``form``
-    (:data:`DECLARED_FORM_CHOICES`), its fit ``declared`` (None where the choice is a fixed
-    scalar a the caller keeps: Random's walks' a), each form's held-out criterion
-    (``held_out_loss``; NaN: not scored) and why (``reason``)."""
-
-    form: str
-    declared: DeclaredConfidence | None
-    held_out_loss: dict[str, float]
-    reason: str
-
-    def to_dict(self) -> dict[str, object]:
-        return {"form": self.form, "held_out_loss": dict(self.held_out_loss),
-                "reason": self.reason}
-
-
-def choose_declared_form(log_beliefs: np.ndarray, true: np.ndarray, groups: np.ndarray,
-                         images: np.ndarray, fixed_scalar: float | None = None,
-                         criterion: str = DECLARED_CRITERION, margin_se: float = 0.0,
-                         objects: np.ndarray | None = None) -> DeclaredFormChoice:
-    """Choose, on stops a policy made itself (:func:`stops_declared_confidence`'s inputs, with
-    each episode's ``images``), between one declared temperature (``scalar``) and a(n) =
-    s · n^−β (``views``): the form whose fit on the other groups declares each group's stops
-    with the lower mean ``criterion`` (:func:`held_out_declared_losses`); ties keep ``scalar``.
-    ``fixed_scalar``: the scalar candidate is this a, not fitted here (Random's walks' a, fitted
-    by the observe stage), scored on every stop. Fewer than two groups: nothing is scored and
-    the form is ``scalar`` (the reason says so). ``margin_se`` > 0 (measured, not a setting:
-    docs/awareness.md §4.8, round six) asks ``views`` to win by that many standard errors of
-    the mean difference, the stops clustered by ``objects`` (each stop its own without)."""
-    scalar = (None if fixed_scalar is not None else
-              stops_declared_confidence(log_beliefs, true, groups, criterion))
-    if np.unique(np.asarray(groups)).size < 2:
-        return DeclaredFormChoice("scalar", scalar, {f: float("nan") for f in
-                                                     DECLARED_FORM_CHOICES},
-                                  "too little evidence: fewer than two held-out groups")
-    views = stops_declared_confidence(log_beliefs, true, groups, criterion, images)
-    per_stop = {"scalar": (held_out_declared_losses(scalar, log_beliefs, true, groups)
-                           if scalar is not None else
-                           _declared_losses(fixed_scalar, np.asarray(log_beliefs,
-                                                                     dtype=np.float64),
-                                            np.asarray(true), criterion)),
-                "views": held_out_declared_losses(views, log_beliefs, true, groups, images)}
-    loss = {form: float(values.mean()) for form, values in per_stop.items()}
-    gain = per_stop["scalar"] - per_stop["views"]
-    if loss["views"] < loss["scalar"] and (
-            margin_se <= 0 or gain.mean() > margin_se * clustered_standard_error(
-                gain, np.arange(len(gain)) if objects is None else objects)):
-        return DeclaredFormChoice("views", views, loss,
-                                  "a(n) declares the held-out groups' stops better")
-    return DeclaredFormChoice("scalar", scalar, loss,
-                              "one a declares the held-out groups' stops as well or better")
-
-
-def clustered_standard_error(values: np.ndarray, clusters: np.ndarray) -> float:
-    """The standard error of the mean of ``values`` when those sharing a cluster (an object's
-    episodes) are dependent: the cluster-robust sandwich, √Σ_k (Σ_{i∈k} (v_i − v̄))² / N."""
-    values = np.asarray(values, dtype=np.float64)
-    _, cluster = np.unique(np.asarray(clusters), return_inverse=True)
-    sums = np.bincount(cluster, values - values.mean())
-    return float(np.sqrt((sums ** 2).sum()) / len(values))

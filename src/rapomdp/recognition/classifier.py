@@ -228,7 +228,7 @@ class Classifier:
         torch_device = configure_torch(device, threads) if threads else select_device(device)
         try:
             state = torch.load(io.BytesIO(data), map_location=torch_device, weights_only=True)
-            spec = NetworkSpec(**meta["network"])
+            spec = NetworkSpec.from_dict(meta["network"])
             network = build_network(spec)
             network.load_state_dict(state)
         except Exception as exc:  # any unpickling or shape error is a bad checkpoint

@@ -1,4 +1,4 @@
-"""DepthAlexNet: AlexNet's five convolutions on one depth channel, then one linear layer.
+"""DepthAlexNet: AlexNet's five convolutions on depth and its normals, then one linear layer.
 
 As in the paper (Sec. 5.1.1), AlexNet's three fully connected layers are replaced by a single
 linear layer from the flattened convolutional features to the classes. Two things differ from the
@@ -9,13 +9,11 @@ ImageNet network, because no pretrained weights can be used here and the input i
   stride 4, so a 64 px input keeps a 3x3 feature map after the third pooling (AlexNet: 6x6 from
   224 px).
 
-Dropout before the linear layer stands in for the dropout of the removed layers. With
-``norm="batch"`` every convolution is followed by batch normalisation (before its ReLU), which
-AlexNet predates: it steadies the optimisation of a small network trained from scratch. With
-``input_features="depth_normals"`` a fixed first layer (:class:`SurfaceNormals`) appends the
-unit surface normal computed from the depth input, so the convolutions see local shape
-explicitly; the network's input stays the one depth channel, so preprocessing and saliency
-are unchanged.
+Dropout before the linear layer stands in for the dropout of the removed layers. A fixed first
+layer (:class:`SurfaceNormals`) appends the unit surface normal computed from the depth input,
+so the convolutions see local shape explicitly (chosen on held-out objects:
+docs/decisions/0019-surface-normals.md); the network's input stays the one depth channel, so
+preprocessing and saliency see one channel.
 
 :class:`DepthEnsemble` averages the class probabilities of ``members`` such networks, each
 trained from its own seed (``train.ensemble``): the mean of independently trained networks is
@@ -25,17 +23,16 @@ more accurate and better calibrated on unseen objects than any one of them (docs
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, replace
-from typing import Literal, get_args
+from typing import Any
 
 import torch
 from torch import nn
 
 ALEXNET_CHANNELS = (64, 192, 384, 256, 256)
-Norm = Literal["none", "batch"]
-NORMS: tuple[str, ...] = get_args(Norm)
-InputFeatures = Literal["depth", "depth_normals"]
-INPUT_FEATURES: tuple[str, ...] = get_args(InputFeatures)
+#: What the first convolution sees, as a checkpoint records it: the depth and its normals.
+INPUT_FEATURES = "depth_normals"
 
 
 def _pair(value: int | tuple[int, ...]) -> tuple[int, int]:
@@ -97,8 +94,15 @@ class SurfaceNormals(nn.Module):
 class NetworkSpec:
     """Everything needed to rebuild the network; stored in the checkpoint.
 
-    ``normal_scale`` and ``input_background`` are read with ``input_features`` =
-    "depth_normals" only (:class:`SurfaceNormals`'s ``scale`` and ``background``).
+    Attributes:
+        classes: outputs of the last layer.
+        input_size_px: side S of the (1, S, S) depth input, pixels.
+        width: multiplier of AlexNet's channel counts.
+        dropout: probability of the dropout before the linear layer.
+        members: networks of the ensemble (1: one network).
+        normal_scale: :class:`SurfaceNormals`'s ``scale``, depth_range_m over the input
+            pixel's side in metres.
+        input_background: the input's background value (:class:`SurfaceNormals`'s).
     """
 
     classes: int
@@ -106,34 +110,45 @@ class NetworkSpec:
     width: float = 0.25
     dropout: float = 0.5
     members: int = 1
-    norm: Norm = "none"
-    input_features: InputFeatures = "depth"
     normal_scale: float = 1.0
     input_background: float = -1.0
 
-    def __post_init__(self) -> None:
-        if self.norm not in NORMS:
-            raise ValueError(f"norm must be one of {', '.join(NORMS)}, got {self.norm!r}")
-        if self.input_features not in INPUT_FEATURES:
-            raise ValueError(f"input_features must be one of {', '.join(INPUT_FEATURES)}, "
-                             f"got {self.input_features!r}")
-
     def to_dict(self) -> dict[str, float | int | str]:
-        """The fields; ``norm`` only when not "none" and the input's fields only when not
-        "depth", so a checkpoint's record of a network without them is what it was before
-        the options."""
-        fields = asdict(self)
-        if self.norm == "none":
-            del fields["norm"]
-        if self.input_features == "depth":
-            for name in ("input_features", "normal_scale", "input_background"):
-                del fields[name]
-        return fields
+        """The checkpoint's record: the fields, and ``input_features`` (what the first
+        convolution sees), as every checkpoint since the normals were added records them."""
+        fields: dict[str, float | int | str] = asdict(self)
+        scale, background = fields.pop("normal_scale"), fields.pop("input_background")
+        return {**fields, "input_features": INPUT_FEATURES, "normal_scale": scale,
+                "input_background": background}
+
+    @classmethod
+    def from_dict(cls, record: Mapping[str, Any]) -> NetworkSpec:
+        """The spec a checkpoint's record (:meth:`to_dict`) describes.
+
+        Args:
+            record: the ``network`` entry of a checkpoint's ``classifier.json``.
+
+        Returns:
+            The spec.
+
+        Raises:
+            ValueError: the record is of a network this version no longer builds (depth
+                alone, or batch normalisation), or has a field the spec lacks.
+        """
+        fields = dict(record)
+        features = fields.pop("input_features", "depth")
+        norm = fields.pop("norm", "none")
+        if features != INPUT_FEATURES or norm != "none":
+            raise ValueError(
+                f"a network of input_features {features!r} and norm {norm!r} is no longer "
+                f"built (only {INPUT_FEATURES!r} without normalisation: "
+                "docs/decisions/0019-surface-normals.md, 0013-batch-norm.md); retrain it")
+        return cls(**fields)
 
     @property
     def input_channels(self) -> int:
         """Channels the first convolution sees: the depth, and the normal's three."""
-        return 4 if self.input_features == "depth_normals" else 1
+        return 4
 
     @property
     def channels(self) -> tuple[int, ...]:
@@ -155,13 +170,10 @@ class DepthAlexNet(nn.Module):
             if spec.input_size_px >= 128
             else nn.Conv2d(inputs, c1, kernel_size=5, stride=2, padding=2)
         )
-        self.input_layer: nn.Module = (
-            SurfaceNormals(spec.normal_scale, spec.input_background)
-            if spec.input_features == "depth_normals" else nn.Identity())
+        self.input_layer = SurfaceNormals(spec.normal_scale, spec.input_background)
 
         def conv_block(conv: nn.Conv2d) -> list[nn.Module]:
-            norm = [nn.BatchNorm2d(conv.out_channels)] if spec.norm == "batch" else []
-            return [conv, *norm, nn.ReLU(inplace=True)]
+            return [conv, nn.ReLU(inplace=True)]
 
         self.features = nn.Sequential(
             *conv_block(first),
@@ -173,10 +185,9 @@ class DepthAlexNet(nn.Module):
             *conv_block(nn.Conv2d(c4, c5, kernel_size=3, padding=1)),
             MaxPool2d(kernel_size=3, stride=2),
         )
-        with torch.no_grad():  # in evaluation mode: the probe leaves no batch statistics
+        with torch.no_grad():
             probe = torch.zeros(1, inputs, spec.input_size_px, spec.input_size_px)
-            self.feature_shape = tuple(self.features.eval()(probe).shape[1:])
-        self.features.train()
+            self.feature_shape = tuple(self.features(probe).shape[1:])
         features = self.feature_shape[0] * self.feature_shape[1] * self.feature_shape[2]
         self.classifier = nn.Sequential(
             nn.Dropout(spec.dropout), nn.Linear(features, spec.classes)

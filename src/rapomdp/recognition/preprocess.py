@@ -123,8 +123,7 @@ def crop_boxes(
     """Crop boxes (n, 4) = (u, v, width, height) in pixels and reference depths (n,) in metres.
 
     ``shift`` (n, 2) moves a box by that fraction of its size; ``scale`` (n,) multiplies its
-    size, (n, 2) its width and height apart (augmentation). An image without object pixels
-    gets the whole image as its box.
+    size (augmentation). An image without object pixels gets the whole image as its box.
     ``extents``: the images' :func:`object_extents`, when already known.
     """
     depth = as_depth_batch(depth_m)
@@ -149,7 +148,7 @@ def crop_boxes(
         axis=1,
     )
     if scale is not None:
-        boxes[:, 2:] *= np.asarray(scale, dtype=np.float64).reshape(n, -1)
+        boxes[:, 2:] *= np.asarray(scale, dtype=np.float64).reshape(n, 1)
     if shift is not None:
         boxes[:, :2] += np.asarray(shift, dtype=np.float64).reshape(n, 2) * boxes[:, 2:]
     whole = np.array([(w - 1) / 2.0, (h - 1) / 2.0, float(w), float(h)])

@@ -184,7 +184,7 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
         "final_train_accuracy": float(np.mean([history.train_accuracy[i] for i in kept])),
         "final_validation_accuracy": _finite(val_accuracy),
         "member_validation_accuracy": [_finite(history.val_accuracy[i]) for i in kept],
-        "keep": config.train.keep,
+        "keep": "last",  # the epoch whose weights a network keeps
         "kept_epochs": [history.epoch[i] for i in kept],
         "wall_s": wall_s,
         "train_images_per_s": train_images / sum(history.seconds),

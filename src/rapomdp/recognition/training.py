@@ -101,14 +101,12 @@ def validation_mask(data: LabelledViews, fraction: float, rng: np.random.Generat
 
 
 class BatchAugmentation(NamedTuple):
-    """One batch's augmentation: its (noisy) ``depth`` (n, H, W), crop ``shift`` (n, 2), crop
-    ``scale`` ((n,) isotropic, or (n, 2) width and height apart with ``augment.aspect``) and
-    which inputs are ``mirrored`` (n,) left-right."""
+    """One batch's augmentation: its (noisy) ``depth`` (n, H, W) in metres, crop ``shift``
+    (n, 2) in fractions of the crop's side and crop ``scale`` (n,)."""
 
     depth: np.ndarray
     shift: np.ndarray
     scale: np.ndarray
-    mirrored: np.ndarray
 
 
 def augment_batch(
@@ -117,20 +115,24 @@ def augment_batch(
     noise: NoiseConfig,
     rng: np.random.Generator,
 ) -> BatchAugmentation:
-    """A batch's random augmentation. The generator draws for ``aspect`` and ``flip`` only
-    when they are on, so a run without them trains exactly as before they existed."""
+    """A batch's random augmentation.
+
+    Args:
+        depth: (n, H, W) depth images in metres.
+        augment: the augmentation's ranges (``train.augment``).
+        noise: the sensor noise model added when ``augment.noise`` is on.
+        rng: the generator of every draw (noise, then shifts, then scales).
+
+    Returns:
+        The batch's depth, crop shifts and crop scales.
+    """
     n = depth.shape[0]
     if augment.noise:
         # surface angles are unknown after rendering; 0 keeps axial + quantisation noise only
         depth = apply_sensor_noise(depth, np.zeros_like(depth), noise, rng)
     shift = rng.uniform(-augment.shift, augment.shift, size=(n, 2))
     scale = np.exp(rng.uniform(np.log1p(-augment.scale), np.log1p(augment.scale), size=n))
-    if augment.aspect > 0:
-        # width / height = aspect_ratio, the box's area kept: sqrt on each side
-        half = 0.5 * rng.uniform(np.log1p(-augment.aspect), np.log1p(augment.aspect), size=n)
-        scale = scale[:, None] * np.exp(np.stack([half, -half], axis=1))
-    mirrored = rng.random(n) < 0.5 if augment.flip else np.zeros(n, dtype=bool)
-    return BatchAugmentation(depth, shift, scale, mirrored)
+    return BatchAugmentation(depth, shift, scale)
 
 
 def augmented_inputs(depth: np.ndarray, augment: AugmentConfig, noise: NoiseConfig,
@@ -138,12 +140,10 @@ def augmented_inputs(depth: np.ndarray, augment: AugmentConfig, noise: NoiseConf
                      params: PreprocessParams, extents: ObjectExtents | None = None
                      ) -> np.ndarray:
     """A training batch's network inputs (n, 1, S, S): :func:`augment_batch`'s draw, then the
-    one :func:`preprocess`, then the mirrored inputs flipped left-right."""
+    one :func:`preprocess`."""
     batch = augment_batch(depth, augment, noise, rng)
-    inputs = preprocess(batch.depth, fx_px, fy_px, params, batch.shift, batch.scale,
-                        extents).images
-    inputs[batch.mirrored] = inputs[batch.mirrored, ..., ::-1]
-    return inputs
+    return preprocess(batch.depth, fx_px, fy_px, params, batch.shift, batch.scale,
+                      extents).images
 
 
 def evaluate_inputs(
@@ -170,8 +170,7 @@ def network_spec(classes: int, cfg: TrainConfig) -> NetworkSpec:
     normals' scale is the input's depth unit over its pixel's side at the crop's nominal
     size (docs/recognition.md)."""
     pre = cfg.preprocess
-    return NetworkSpec(classes, pre.input_size_px, cfg.width, cfg.dropout, norm=cfg.norm,
-                       input_features=cfg.input_features,
+    return NetworkSpec(classes, pre.input_size_px, cfg.width, cfg.dropout,
                        normal_scale=pre.depth_range_m * pre.input_size_px / pre.crop_size_m,
                        input_background=pre.background)
 
@@ -287,18 +286,8 @@ def validation_drop_note(history: History) -> str | None:
                          f"{accuracy[best]:.3f}")
     if not notes:
         return None
-    return ("train: " + "; ".join(notes) + ". A late swing of the learning rate; another seed, "
-            "or train.keep: best_validation, keeps a settled network (docs/recognition.md).")
-
-
-def learning_rate_schedule(optimiser: torch.optim.Optimizer, cfg: TrainConfig,
-                           batches: int) -> torch.optim.lr_scheduler.LRScheduler | None:
-    """``train.lr_schedule``'s scheduler, stepped once per batch: None for ``constant``; for
-    ``cosine``, the learning rate decays to 0 along a half cosine over the run's
-    ``cfg.epochs * batches`` steps, so the network saved is one the last steps barely moved."""
-    if cfg.lr_schedule == "constant":
-        return None
-    return torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, cfg.epochs * batches)
+    return ("train: " + "; ".join(notes) + ". A late swing of the learning rate; another seed "
+            "(train.seed) keeps a settled network (docs/recognition.md).")
 
 
 def _train_network(
@@ -314,8 +303,6 @@ def _train_network(
     optimiser = torch.optim.Adam(network.parameters(), lr=cfg.learning_rate,
                                  weight_decay=cfg.weight_decay)
     batches = -(-len(train) // cfg.batch_size)
-    schedule = learning_rate_schedule(optimiser, cfg, batches)
-    best_accuracy, best_weights, kept_row = -1.0, None, -1
     for epoch in range(1, cfg.epochs + 1):
         start_s = time.perf_counter()
         network.train()
@@ -333,8 +320,6 @@ def _train_network(
             optimiser.zero_grad(set_to_none=True)
             loss.backward()
             optimiser.step()
-            if schedule is not None:
-                schedule.step()
             loss_sum += float(loss.detach()) * len(idx)
             correct += int((logits.argmax(1) == y).sum())
             seen = min((b + 1) * cfg.batch_size, len(train))
@@ -351,17 +336,8 @@ def _train_network(
         history.val_loss.append(val_loss)
         history.val_accuracy.append(val_acc)
         history.seconds.append(time.perf_counter() - start_s)
-        history.kept.append(0)
+        history.kept.append(int(epoch == cfg.epochs))  # the network keeps its last epoch
         report(0, None, f"loss {loss_sum / len(train):.3f} acc {correct / len(train):.1%} "
                f"val {val_acc:.1%}")
-        if cfg.keep == "last":
-            kept_row = len(history.kept) - 1
-        elif val_acc >= best_accuracy:  # best_validation (ties: the later epoch)
-            best_accuracy, kept_row = val_acc, len(history.kept) - 1
-            best_weights = {k: v.detach().clone() for k, v in network.state_dict().items()}
-    # no finite validation accuracy (no validation views): the last epoch is kept
-    history.kept[kept_row if kept_row >= 0 else len(history.kept) - 1] = 1
-    if best_weights is not None:
-        network.load_state_dict(best_weights)
     network.eval()
     return network

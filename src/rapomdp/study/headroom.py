@@ -310,9 +310,7 @@ def _episodes_task(config_json: str, inputs: StageInputs,
     policies = {key: POMDPPolicy(ActiveRecognitionPolicy.load(path), model, evaluated.name,
                                  evaluated.recogniser, evaluated.revisit,
                                  first_view_model=first,
-                                 lookahead_over=evaluated.lookahead_over,
-                                 lookahead_depth=evaluated.lookahead_depth,
-                                 lookahead_width=evaluated.lookahead_width)
+                                 lookahead_over=evaluated.lookahead_over)
                 for key, (path, model, first) in arms.items()}
     by_file = {m.file: m for m in loop.dataset.with_role("test")}
     cnn = loop.recognisers[evaluated.recogniser]

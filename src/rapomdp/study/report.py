@@ -14,11 +14,11 @@ from rapomdp.config import METHOD_NAMES
 from rapomdp.experiment.figures import tradeoff
 from rapomdp.experiment.metrics import (
     CALIBRATED_ECE_NOTE,
-    reported_belief_note,
+    REPORTED_BELIEF_NOTE,
     standing_phrases,
 )
 from rapomdp.experiment.report import Block, Heading, Image, Paragraph, Table, to_html, to_markdown
-from rapomdp.io import read_json, read_text, write_text_atomic
+from rapomdp.io import read_text, write_text_atomic
 from rapomdp.study.pooled import (
     REFERENCE,
     HeldOutRow,
@@ -195,21 +195,9 @@ class StudyReport:
     stories: dict[str, str]
 
 
-def reported_confidence(seeds: Sequence[SeedResult]) -> str:
-    """What the confidence columns of a configuration's pooled table are: what its methods
-    reported (``evaluate.declared_confidence``, ``declared_fit`` and ``declared_form`` as each
-    seed's evaluate stage ran; absent: it predates the option, and reported the belief, fitted
-    on walks, or one a)."""
-    ran = {(str(e.get("declared_confidence", "belief")), str(e.get("declared_fit", "walks")),
-            str(e.get("declared_form", "scalar")))
-           for e in (read_json(r.workspace / "evaluate" / "stage.json")["config"]["evaluate"]
-                     for r in seeds)}
-    if len(ran) > 1:
-        return ("Confidence − accuracy and ECE: the seeds' evaluate stages reported differently "
-                f"(evaluate.declared_confidence, declared_fit, declared_form: "
-                f"{'; '.join(', '.join(v) for v in sorted(ran))}).")
-    return ("Confidence − accuracy and ECE: " + reported_belief_note(*ran.pop()) + " "
-            + CALIBRATED_ECE_NOTE)
+REPORTED_CONFIDENCE = ("Confidence − accuracy and ECE: " + REPORTED_BELIEF_NOTE + " "
+                       + CALIBRATED_ECE_NOTE)
+"""What the confidence columns of a configuration's pooled table are."""
 
 
 def write_study_report(spec: StudySpec, root: str | Path,
@@ -265,7 +253,7 @@ def write_study_report(spec: StudySpec, root: str | Path,
         blocks += [Heading(f"Configuration '{name}'"),
                    Paragraph(stories[name]),
                    Table(header, cells),
-                   Paragraph(reported_confidence(seeds))]
+                   Paragraph(REPORTED_CONFIDENCE)]
         held = held_out_table(seeds, resamples)
         if held:
             story = held_out_story(held, len(seeds))
