@@ -1,4 +1,5 @@
-"""Held-out fitting: planted calibration curves, the belief correction and variant choices."""
+"""Held-out fitting: planted calibration curves, the RA variants' fits, ra_transfer's kernel,
+the mixture and the wrong labels' shrinkage."""
 
 from __future__ import annotations
 
@@ -6,43 +7,39 @@ import numpy as np
 import pytest
 
 from rapomdp.awareness.evidence import (
-    CLASS_PRIOR_GRID,
-    CLASS_SHRINKAGES,
-    DEFAULT_TRANSFER_KERNEL,
     MIN_HELD_OUT_OBJECTS,
-    MIN_STABILITY_GROUPS,
-    ROBUST_RA_VARIANT,
-    SHRUNK_TRANSFER_KERNEL_GRID,
-    TRANSFER_KERNEL_GRID,
-    TRANSFER_PRIOR,
-    WRONG_LABEL_SHRINKAGES,
     Evidence,
-    TransferKernel,
-    check_variant_stability,
-    choose_belief_correction,
-    choose_class_shrinkage,
-    choose_ra_variant,
-    choose_transfer_kernel,
-    choose_wrong_label_shrinkage,
-    class_shrunk_folds,
-    fit_mixture_weights,
-    fit_observation_models,
-    leave_one_group_out,
-    ra_mixture_folds,
     recorded_evidence,
     recorded_scores,
-    recorded_transfer_kernel,
-    salient_view_similarity,
-    shrink_class_intercepts,
-    shrink_wrong_labels,
-    transfer_confusion,
     validation_quality,
+)
+from rapomdp.awareness.mixture import (
+    ROBUST_RA_VARIANT,
+    choose_ra_variant,
+    fit_mixture_weights,
+    ra_mixture_folds,
 )
 from rapomdp.awareness.observation import (
     ObservationModel,
     calibrate_correctness,
     calibrate_per_class,
 )
+from rapomdp.awareness.shrinkage import (
+    WRONG_LABEL_SHRINKAGES,
+    choose_wrong_label_shrinkage,
+    shrink_wrong_labels,
+)
+from rapomdp.awareness.transfer import (
+    DEFAULT_TRANSFER_KERNEL,
+    TRANSFER_KERNEL_GRID,
+    TRANSFER_PRIOR,
+    TransferKernel,
+    choose_transfer_kernel,
+    recorded_transfer_kernel,
+    salient_view_similarity,
+    transfer_confusion,
+)
+from rapomdp.awareness.variants import fit_observation_models, leave_one_group_out
 from rapomdp.config import ObserveConfig
 from rapomdp.geometry.viewsphere import fibonacci_directions
 
@@ -118,91 +115,28 @@ def _planted_area_evidence(groups: int, seed: int) -> tuple[Evidence, dict[str, 
     return Evidence(labels, predicted, np.tile(np.arange(groups), classes)), scores
 
 
-def test_the_held_out_chooser_picks_the_planted_informative_model() -> None:
+def test_the_mixture_records_every_variants_held_out_table_and_the_best() -> None:
     evidence, scores = _planted_area_evidence(4, 8)
     classes = ["a", "b", "c"]
     folds = leave_one_group_out(evidence, scores, classes, ObserveConfig())
-    choice = choose_ra_variant(evidence, folds, "auto", classes)
-    assert choice.rule == "best" and not choice.too_little_evidence
-    assert choice.variant in {"area", "class_area"}  # the score that carries correctness
+    choice = choose_ra_variant(evidence, folds, "mixture", classes)
+    assert (choice.variant, choice.rule) == ("mixture", "mixture")
+    assert not choice.too_little_evidence
+    assert choice.best in {"area", "class_area"}  # the score that carries correctness
     assert choice.objects_per_class == {"a": 4, "b": 4, "c": 4}
     robust = choice.held_out[ROBUST_RA_VARIANT]
     assert robust["difference_to_best"] < -robust["standard_error"] < 0  # beyond one SE
-    best = choice.held_out[choice.variant]
+    best = choice.held_out[choice.best]
     assert best["mean_log_likelihood"] == max(r["mean_log_likelihood"]
                                               for r in choice.held_out.values())
+    assert best["difference_to_best"] == 0.0
     # the per-object figures average to the pooled held-out table's
     pooled = {r["model"]: r for r in validation_quality(evidence, folds)}
     assert best["mean_log_likelihood"] == pytest.approx(
-        float(pooled[f"ra_{choice.variant}"]["log_likelihood"]), abs=1e-9)
-    assert "more than one standard error" in choice.reason
-
-
-def test_a_choice_every_group_supports_is_kept_and_records_the_choices_without_each() -> None:
-    evidence, scores = _planted_area_evidence(4, 8)
-    classes, cfg = ["a", "b", "c"], ObserveConfig()
-    choice = choose_ra_variant(evidence, leave_one_group_out(evidence, scores, classes, cfg),
-                               "auto", classes)
-    checked = check_variant_stability(choice, evidence, scores, classes, cfg, None)
-    assert (checked.variant, checked.rule, checked.reason) == (choice.variant, "best",
-                                                                choice.reason)
-    # made without each group it may pick the other informative variant, never the default
-    assert set(checked.without_each_group) == {"0", "1", "2", "3"}
-    assert set(checked.without_each_group.values()) <= {"area", "class_area"}
-    assert checked.to_dict()["without_each_group"] == checked.without_each_group
-
-
-def test_a_choice_that_rests_on_some_groups_falls_back_as_unstable() -> None:
-    """Planted: correctness follows the 'area' score on groups 0 and 1 only; on 2 and 3 it is
-    each class's rate. On all four groups 'area' wins; without any one of them it does not."""
-    rng = np.random.default_rng(0)
-    views, classes = 96, ["a", "b", "c"]
-    scores = {"mean": rng.random((3, views)), "area": rng.random((3, views))}
-    labels, groups = np.repeat(np.arange(3), 4), np.tile(np.arange(4), 3)
-    carries = np.isin(groups, [0, 1])[:, None]
-    p_right = _sigmoid(np.where(carries, -3.0 + 7.0 * scores["area"][labels], -1.5))
-    right = rng.random(p_right.shape) < p_right
-    predicted = np.where(right, labels[:, None], (labels[:, None] + 1) % 3)
-    evidence, cfg = Evidence(labels, predicted, groups), ObserveConfig()
-    choice = choose_ra_variant(evidence, leave_one_group_out(evidence, scores, classes, cfg),
-                               "auto", classes)
-    assert (choice.variant, choice.rule) == ("area", "best")
-    checked = check_variant_stability(choice, evidence, scores, classes, cfg, None)
-    assert (checked.variant, checked.rule) == (ROBUST_RA_VARIANT, "unstable")
-    assert checked.without_each_group == dict.fromkeys(["0", "1", "2", "3"], ROBUST_RA_VARIANT)
-    assert checked.best == "area" and checked.held_out == choice.held_out
-    assert checked.reason.startswith("'area' is the best held out, but made without group(s) "
-                                     "0, 1, 2, 3, the choice would be the robust default")
-
-
-def test_a_group_without_which_some_class_is_too_thin_to_choose_checks_nothing() -> None:
-    """Class c has two volume models (groups 0 and 1), the others four: without group 0 or 1,
-    c keeps one and no choice can be made; groups 2 and 3 still check the pick."""
-    evidence, scores = _planted_area_evidence(4, 8)
-    classes, cfg = ["a", "b", "c"], ObserveConfig()
-    uneven = evidence.subset((evidence.labels != 2) | (evidence.groups < 2))
-    choice = choose_ra_variant(uneven, leave_one_group_out(uneven, scores, classes, cfg),
-                               "auto", classes)
-    assert choice.rule == "best" and choice.objects_per_class["c"] == 2
-    checked = check_variant_stability(choice, uneven, scores, classes, cfg, None)
-    assert (checked.variant, checked.rule) == (choice.variant, "best")
-    assert set(checked.without_each_group) == {"2", "3"}
-    assert ROBUST_RA_VARIANT not in checked.without_each_group.values()
-
-
-def test_stability_is_checked_only_where_a_choice_can_be_made_without_a_group() -> None:
-    classes, cfg = ["a", "b", "c"], ObserveConfig()
-    evidence, scores = _planted_area_evidence(MIN_STABILITY_GROUPS - 1, 8)
-    choice = choose_ra_variant(evidence, leave_one_group_out(evidence, scores, classes, cfg),
-                               "auto", classes)
-    assert choice.rule == "best" and choice.variant != ROBUST_RA_VARIANT
-    assert check_variant_stability(choice, evidence, scores, classes, cfg, None) == choice
-    # a configured variant and the robust default are never second-guessed
-    evidence, scores = _planted_area_evidence(4, 8)
-    folds = leave_one_group_out(evidence, scores, classes, cfg)
-    configured = choose_ra_variant(evidence, folds, "paper", classes)
-    assert check_variant_stability(configured, evidence, scores, classes, cfg,
-                                   None) == configured
+        float(pooled[f"ra_{choice.best}"]["log_likelihood"]), abs=1e-9)
+    assert choice.reason == (f"the RA variants averaged with weights fitted on the held-out "
+                             f"labels (12 held-out objects; '{choice.best}' alone is the best)")
+    assert choice.to_dict()["without_each_group"] == {}
 
 
 def test_the_held_out_chooser_says_when_there_is_too_little_evidence() -> None:
@@ -210,7 +144,7 @@ def test_the_held_out_chooser_says_when_there_is_too_little_evidence() -> None:
     classes = ["a", "b", "c"]
     one = Evidence(evidence.labels, evidence.predicted, np.zeros_like(evidence.groups))
     choice = choose_ra_variant(one, leave_one_group_out(one, scores, classes, ObserveConfig()),
-                               "auto", classes)
+                               "mixture", classes)
     assert (choice.variant, choice.rule) == (ROBUST_RA_VARIANT, "too little evidence")
     assert choice.too_little_evidence and choice.objects_per_class == {"a": 0, "b": 0, "c": 0}
     assert choice.reason.startswith("too little held-out evidence to choose: class 'a' (0)")
@@ -218,7 +152,7 @@ def test_the_held_out_chooser_says_when_there_is_too_little_evidence() -> None:
     keep = (evidence.labels != 2) | (evidence.groups == 0)
     short = evidence.subset(keep)
     folds = leave_one_group_out(short, scores, classes, ObserveConfig())
-    choice = choose_ra_variant(short, folds, "auto", classes)
+    choice = choose_ra_variant(short, folds, "mixture", classes)
     assert choice.too_little_evidence and choice.variant == ROBUST_RA_VARIANT
     assert choice.objects_per_class["c"] < MIN_HELD_OUT_OBJECTS <= choice.objects_per_class["a"]
     assert "'c'" in choice.reason and "'a'" not in choice.reason
@@ -226,24 +160,8 @@ def test_the_held_out_chooser_says_when_there_is_too_little_evidence() -> None:
     assert recorded["too_little_evidence"] is True and recorded["robust_default"] == "class"
 
 
-def test_the_one_standard_error_rule_keeps_the_robust_default_on_a_near_tie() -> None:
-    """Correctness follows each class's rate alone: every per-class variant is as good."""
-    rng = np.random.default_rng(10)
-    views, classes = 64, 3
-    scores = {"mean": rng.random((classes, views)), "area": rng.random((classes, views))}
-    labels = np.repeat(np.arange(classes), 4)
-    right = rng.random((labels.size, views)) < np.array([0.9, 0.6, 0.3])[labels][:, None]
-    predicted = np.where(right, labels[:, None], (labels[:, None] + 1) % classes)
-    evidence = Evidence(labels, predicted, np.tile(np.arange(4), classes))
-    folds = leave_one_group_out(evidence, scores, ["a", "b", "c"], ObserveConfig())
-    choice = choose_ra_variant(evidence, folds, "auto", ["a", "b", "c"])
-    assert choice.variant == ROBUST_RA_VARIANT and choice.rule in {"best", "one standard error"}
-    robust = choice.held_out[ROBUST_RA_VARIANT]
-    assert robust["difference_to_best"] >= -robust["standard_error"]
-
-
 def test_viewpoint_evidence_is_stacked_on_other_groups_and_finds_a_bad_patch():
-    from rapomdp.awareness.evidence import fit_viewpoint_correctness, viewpoint_logit
+    from rapomdp.awareness.variants import fit_viewpoint_correctness, viewpoint_logit
 
     rng = np.random.default_rng(7)
     directions = fibonacci_directions(64, hemisphere=True)
@@ -270,9 +188,8 @@ def test_region_evidence_pools_the_classes_and_finds_a_patch_bad_for_every_class
     """A patch of viewpoints bad for every class, two objects a class: the pooled term sees it
     on every object and gives it the same logit for each class; the per-class term, counted on
     each class's own objects, is noisier there."""
-    from rapomdp.awareness.evidence import (
+    from rapomdp.awareness.variants import (
         REGION_METHOD,
-        fit_observation_models,
         fit_viewpoint_correctness,
         viewpoint_logit,
     )
@@ -312,7 +229,7 @@ def test_region_weight_is_not_misled_by_the_held_out_groups_levels():
     """Groups of objects far apart in accuracy (0.35 / 0.6 / 0.75), a mild region shared by
     all: the other groups' level falls as the held-out group's rises, which an uncentred term
     would fit as a falling weight; the centred one finds the region."""
-    from rapomdp.awareness.evidence import fit_viewpoint_correctness
+    from rapomdp.awareness.variants import fit_viewpoint_correctness
 
     rng = np.random.default_rng(5)
     directions = fibonacci_directions(64, hemisphere=True)
@@ -330,10 +247,10 @@ def test_region_weight_is_not_misled_by_the_held_out_groups_levels():
     assert fused.correct[:, bad].mean() < fused.correct[:, ~bad].mean() - 0.08
 
 
-def test_auto_never_chooses_a_configured_only_variant_but_a_configuration_may():
-    """A region bad for every class is ra_region's best case; it is still left out of auto's
-    comparison (its closed-loop rule failed), and chosen when named."""
-    from rapomdp.awareness.evidence import CONFIGURED_ONLY
+def test_the_mixture_never_weighs_a_reported_only_variant() -> None:
+    """A region bad for every class is ra_region's best case; it is fitted and reported, but
+    left out of the mixture's table (it is not selectable, docs/decisions/0006)."""
+    from rapomdp.awareness.variants import REPORTED_ONLY
 
     rng = np.random.default_rng(3)
     directions = fibonacci_directions(64, hemisphere=True)
@@ -347,11 +264,12 @@ def test_auto_never_chooses_a_configured_only_variant_but_a_configuration_may():
     names = [str(c) for c in range(classes)]
     folds = leave_one_group_out(evidence, {"mean": flat, "area": flat}, names, ObserveConfig(),
                                 directions)
-    assert "region" in CONFIGURED_ONLY and all("ra_region" in m for _, m in folds)
-    choice = choose_ra_variant(evidence, folds, "auto", names)
-    assert choice.variant != "region" and "region" not in choice.held_out
-    assert choice.variant == "viewpoint"  # the per-class region term finds it too
-    assert choose_ra_variant(evidence, folds, "region", names).variant == "region"
+    assert REPORTED_ONLY == {"region"} and all("ra_region" in m for _, m in folds)
+    choice = choose_ra_variant(evidence, folds, "mixture", names)
+    assert "region" not in choice.held_out
+    assert choice.best == "viewpoint"  # the per-class region term finds it too
+    weights, _ = ra_mixture_folds(evidence, folds, names)
+    assert "ra_region" not in weights and "ra_viewpoint" in weights
 
 
 def test_salient_view_similarity_is_one_for_the_same_parts_and_zero_for_disjoint_ones():
@@ -434,42 +352,12 @@ def _planted_kernel_evidence(structured: bool, seed: int,
 def test_transfer_kernel_choice_pools_widely_on_viewpoint_free_noise() -> None:
     evidence, similarity, directions = _planted_kernel_evidence(False, 31)
     kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0)
-    assert (kernel.bandwidth_deg, kernel.prior, kernel.class_prior) == (40.0, 8.0, 0.0)
+    assert (kernel.bandwidth_deg, kernel.prior) == (40.0, 8.0)
     assert len(table) == len(TRANSFER_KERNEL_GRID) == 64
     best = max(r["held_out_log_likelihood"] for r in table)
     narrowest = max(r["held_out_log_likelihood"] for r in table if r["bandwidth_deg"] == 5.0)
     assert narrowest < best
-    # the classes' own rates (0.5, 0.7, 0.9) transfer to their next objects: no shrinkage
-    kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0,
-                                           SHRUNK_TRANSFER_KERNEL_GRID)
-    assert len(table) == 64 * len(CLASS_PRIOR_GRID) and kernel.class_prior == 0.0
-    shrunk = max(r["held_out_log_likelihood"] for r in table if r["class_prior"] == 64.0)
-    assert shrunk < best
-
-
-def test_the_class_rows_shrink_to_the_pooled_accuracy_when_class_rates_do_not_transfer(
-) -> None:
-    """Every object's accuracy is its own (0.2 or 0.95, whatever its class): a class's rate
-    counted on other objects misleads, the pooled accuracy does not."""
-    evidence, similarity, directions = _planted_kernel_evidence(False, 35, object_rates=True)
-    kernel, table = choose_transfer_kernel(evidence, similarity, directions, 1.0,
-                                           SHRUNK_TRANSFER_KERNEL_GRID)
-    assert kernel.class_prior > 0.0
-    best = max(r["held_out_log_likelihood"] for r in table)
-    unshrunk = max(r["held_out_log_likelihood"] for r in table if r["class_prior"] == 0.0)
-    assert unshrunk < best
-    # the fitted rows' accuracy moves toward the pooled one by class_prior objects' worth
-    p = transfer_confusion(evidence, similarity, directions, 1.0,
-                           TransferKernel(0.0, 1e6, 1e9, 4.0))  # every row = the class row
-    own = transfer_confusion(evidence, similarity, directions, 1.0,
-                             TransferKernel(0.0, 1e6, 1e9, 0.0))
-    pooled = float(evidence.correct.mean())
-    idx = np.arange(3)
-    rate, unshrunk_rate = p[0, idx, idx], own[0, idx, idx]
-    objects = np.bincount(evidence.labels, minlength=3)  # 6 a class
-    weight = 4.0 / (objects + 4.0)
-    np.testing.assert_allclose(rate, (1 - weight) * unshrunk_rate + weight * pooled, atol=1e-6)
-    np.testing.assert_allclose(p.sum(axis=2), 1.0)
+    assert {r["class_prior"] for r in table} == {0.0}  # the retired shrinkage's record: none
 
 
 def test_transfer_kernel_choice_stays_local_on_per_viewpoint_structure() -> None:
@@ -521,7 +409,7 @@ def test_the_recorded_evidence_and_scores_are_what_a_refit_reads() -> None:
                 "scores": np.ones((2, 2)), "area_scores": np.zeros((2, 2)),
                 "view_similarity": np.eye(2, dtype=np.float32)[None].repeat(2, axis=0)}
     evidence = recorded_evidence(artefact)
-    assert evidence.labels.tolist() == [0, 1] and evidence.volume_mask.tolist() == [True, False]
+    assert evidence.labels.tolist() == [0, 1] and evidence.groups.tolist() == [0, 1]
     assert evidence.correct.tolist() == [[True, False], [True, True]]
     scores = recorded_scores(artefact)
     assert set(scores) == {"mean", "area", "similarity"}
@@ -530,34 +418,8 @@ def test_the_recorded_evidence_and_scores_are_what_a_refit_reads() -> None:
     assert set(recorded_scores(artefact)) == {"mean", "area"}
 
 
-def test_evidence_groups_volume_models_by_rank_and_folds_after_them():
-    from rapomdp.awareness.crossfit import CrossfitOutcomes
-    from rapomdp.awareness.stage import observation_evidence
-
-    labels = np.array([0, 0, 1, 1])
-    predicted = np.zeros((4, 3), np.int64)
-    rank = np.array([0, 1, 0, 1])
-    crossfit = CrossfitOutcomes(np.array(["m1", "m2"]), np.array([0, 1]), np.array([0, 1]),
-                                np.zeros((2, 3), np.int64), [])
-    both = observation_evidence("both", labels, predicted, crossfit, rank)
-    assert both.groups.tolist() == [0, 1, 0, 1, 2, 3]
-    assert both.volume_mask.tolist() == [True] * 4 + [False] * 2
-    volume = observation_evidence("volume", labels, predicted, None, rank)
-    assert volume.groups.tolist() == [0, 1, 0, 1] and volume.volume_mask.all()
-    assert volume.subset(np.array([False, True, True, False])).volume_mask.tolist() == [True,
-                                                                                       True]
-
-
-def test_belief_correction_auto_takes_the_least_held_out_loss():
-    report = {"log_loss_naive": 1.2, "log_loss_tempered": 1.0,
-              "after_first_log_loss_tempered": 0.9}
-    assert choose_belief_correction(report, "auto") == "after_first"
-    assert choose_belief_correction({**report, "log_loss_naive": 0.5}, "auto") == "none"
-    assert choose_belief_correction(report, "temperature") == "temperature"
-
-
 def test_softmax_temperature_recovers_a_planted_overconfidence():
-    from rapomdp.awareness.evidence import fit_softmax_temperature
+    from rapomdp.awareness.temperature import fit_softmax_temperature
 
     rng = np.random.default_rng(21)
     logits = rng.normal(size=(4000, 5)) * 2.0
@@ -609,7 +471,7 @@ def test_the_wrong_label_shrinkage_is_chosen_where_mistakes_do_not_transfer() ->
     evidence, scores = _planted_wrong_labels(per_object=True, seed=4)
     folds = leave_one_group_out(evidence, scores, names, ObserveConfig())
     for model in ("blackbox", "ra_class", "classifier"):
-        choice = choose_wrong_label_shrinkage(evidence, folds, model, "auto")
+        choice = choose_wrong_label_shrinkage(evidence, folds, model)
         assert choice.rule == "best" and choice.amount >= 0.75, (model, choice)
         row = choice.held_out[f"{choice.amount:g}"]
         assert row["difference_to_none"] > row["standard_error"] > 0
@@ -620,23 +482,20 @@ def test_the_wrong_label_shrinkage_is_chosen_where_mistakes_do_not_transfer() ->
     # mistakes every object of a class makes alike: the counted wrong labels are kept
     evidence, scores = _planted_wrong_labels(per_object=False, seed=4)
     folds = leave_one_group_out(evidence, scores, names, ObserveConfig())
-    choice = choose_wrong_label_shrinkage(evidence, folds, "blackbox", "auto")
+    choice = choose_wrong_label_shrinkage(evidence, folds, "blackbox")
     assert (choice.amount, choice.rule) == (0.0, "best")
     assert all(r["difference_to_none"] < 0 for a, r in choice.held_out.items() if a != "0")
     assert choice.to_dict()["grid"] == list(WRONG_LABEL_SHRINKAGES)
 
 
-def test_the_wrong_label_shrinkage_needs_held_out_objects_and_can_be_turned_off() -> None:
+def test_the_wrong_label_shrinkage_needs_held_out_objects() -> None:
     names = list("abcdefgh")
     evidence, scores = _planted_wrong_labels(per_object=True, seed=5)
     one = Evidence(evidence.labels, evidence.predicted, np.zeros_like(evidence.groups))
     none_held = leave_one_group_out(one, scores, names, ObserveConfig())
-    choice = choose_wrong_label_shrinkage(one, none_held, "blackbox", "auto")
-    assert (choice.amount, choice.rule) == (0.0, "too little evidence")
+    choice = choose_wrong_label_shrinkage(one, none_held, "blackbox")
+    assert (choice.amount, choice.rule, choice.held_out) == (0.0, "too little evidence", {})
     assert choice.reason.startswith("too little held-out evidence to choose")
-    folds = leave_one_group_out(evidence, scores, names, ObserveConfig())
-    off = choose_wrong_label_shrinkage(evidence, folds, "blackbox", "none")
-    assert (off.amount, off.rule, off.held_out) == (0.0, "configured", {})
 
 
 def test_a_gain_within_one_standard_error_keeps_the_counted_wrong_labels() -> None:
@@ -653,7 +512,7 @@ def test_a_gain_within_one_standard_error_keeps_the_counted_wrong_labels() -> No
     predicted = np.where(np.arange(10)[None] < 5, labels[:, None], wrong[:, None])
     evidence = Evidence(labels, predicted, np.array([0, 1, 0, 1, 0, 1]))
     folds = [(evidence.groups == g, {"m": model}) for g in (0, 1)]
-    choice = choose_wrong_label_shrinkage(evidence, folds, "m", "auto")
+    choice = choose_wrong_label_shrinkage(evidence, folds, "m")
     assert (choice.amount, choice.rule) == (0.0, "one standard error")
     best = max(choice.held_out.values(), key=lambda r: r["mean_log_likelihood"])
     assert 0 < best["difference_to_none"] <= best["standard_error"]
@@ -670,15 +529,15 @@ def test_a_model_some_folds_cannot_fit_is_chosen_on_the_folds_that_have_it() -> 
     names = list("abcdefgh")
     evidence, scores = _planted_wrong_labels(per_object=True, seed=4)
     folds = leave_one_group_out(evidence, scores, names, ObserveConfig())
-    full = choose_wrong_label_shrinkage(evidence, folds, "blackbox", "auto")
+    full = choose_wrong_label_shrinkage(evidence, folds, "blackbox")
     missing = [(held, {k: m for k, m in models.items() if k != "blackbox"}) if i == 0
                else (held, models) for i, (held, models) in enumerate(folds)]
-    fewer = choose_wrong_label_shrinkage(evidence, missing, "blackbox", "auto")
+    fewer = choose_wrong_label_shrinkage(evidence, missing, "blackbox")
     assert fewer.rule == "best" and fewer.amount >= 0.75
     assert fewer.held_out["1"] != full.held_out["1"]  # one group fewer scored
     none = [(held, {k: m for k, m in models.items() if k != "blackbox"})
             for held, models in folds]
-    assert choose_wrong_label_shrinkage(evidence, none, "blackbox", "auto").rule == \
+    assert choose_wrong_label_shrinkage(evidence, none, "blackbox").rule == \
         "too little evidence"
 
 
@@ -696,60 +555,9 @@ def _planted_class_rates(rates: list[float], seed: int, groups: int = 4, spread:
     return Evidence(labels, predicted, groups_of), scores
 
 
-def test_shrinking_class_intercepts_moves_them_toward_their_mean_and_keeps_the_rest() -> None:
-    evidence, scores = _planted_class_rates([0.9, 0.6, 0.3], 3)
-    model = fit_observation_models(evidence, scores, ["a", "b", "c"], ObserveConfig())["ra_class"]
-    a = model.calibration.intercepts  # type: ignore[attr-defined]
-    assert shrink_class_intercepts(model, 0.0) is model
-    half = shrink_class_intercepts(model, 0.5)
-    np.testing.assert_allclose(half.calibration.intercepts,  # type: ignore[attr-defined]
-                               a + 0.5 * (a.mean() - a))
-    idx = np.arange(3)
-    p, q = model.probabilities, half.probabilities
-    logit = np.log(q[:, idx, idx] / (1 - q[:, idx, idx])) - np.log(
-        p[:, idx, idx] / (1 - p[:, idx, idx]))
-    np.testing.assert_allclose(logit, np.broadcast_to(0.5 * (a.mean() - a), logit.shape),
-                               atol=1e-9)
-    np.testing.assert_allclose(q.sum(axis=2), 1.0)
-    wrong = ~np.eye(3, dtype=bool)
-    np.testing.assert_allclose(  # the wrong labels' proportions within each row are kept
-        (q / (1 - q[:, idx, idx])[:, :, None])[:, wrong],
-        (p / (1 - p[:, idx, idx])[:, :, None])[:, wrong], atol=1e-9)
-    one = shrink_class_intercepts(model, 1.0).calibration.intercepts  # type: ignore[attr-defined]
-    np.testing.assert_allclose(one, a.mean())
-    with pytest.raises(ValueError, match="per-class calibration"):
-        shrink_class_intercepts(ObservationModel(p, ["a", "b", "c"]), 0.5)
-
-
-def test_class_shrinkage_is_chosen_where_class_rates_do_not_transfer() -> None:
-    """Every class has the same rate, each object its own: a class's intercept counted on its
-    other objects misleads and the chooser shrinks; where the classes' rates differ far more
-    than their objects', it keeps them."""
-    names = [f"c{i}" for i in range(10)]
-    evidence, scores = _planted_class_rates([0.6] * 10, 0)
-    folds = leave_one_group_out(evidence, scores, names, ObserveConfig())
-    choice = choose_class_shrinkage(evidence, folds, "auto")
-    assert choice.rule == "best" and choice.amount > 0
-    assert choice.grid == CLASS_SHRINKAGES and choice.to_dict()["grid"] == list(CLASS_SHRINKAGES)
-    row = choice.held_out[f"{choice.amount:g}"]
-    assert row["difference_to_none"] > row["standard_error"] > 0
-    shrunk = class_shrunk_folds(folds, choice.amount)
-    assert all(m["classifier"] is f["classifier"] for (_, m), (_, f) in zip(shrunk, folds,
-                                                                             strict=True))
-    assert not np.allclose(shrunk[0][1]["ra_class"].probabilities,
-                           folds[0][1]["ra_class"].probabilities)
-    assert class_shrunk_folds(folds, 0.0) is folds
-    distinct = [0.95, 0.9, 0.8, 0.3, 0.15, 0.05]
-    evidence, scores = _planted_class_rates(distinct, 0, spread=0.3)
-    folds = leave_one_group_out(evidence, scores, names[:6], ObserveConfig())
-    assert choose_class_shrinkage(evidence, folds, "auto").amount == 0.0
-    off = choose_class_shrinkage(evidence, folds, "none")
-    assert (off.amount, off.rule) == (0.0, "configured")
-
-
 def test_shrunk_folds_shrink_the_named_models_wrong_labels_and_keep_the_rest():
-    from rapomdp.awareness.evidence import shrink_wrong_labels, shrunk_folds
     from rapomdp.awareness.observation import ObservationModel
+    from rapomdp.awareness.shrinkage import shrunk_folds
 
     rng = np.random.default_rng(3)
     p = rng.dirichlet(np.ones(3), size=(4, 3))
@@ -764,74 +572,18 @@ def test_shrunk_folds_shrink_the_named_models_wrong_labels_and_keep_the_rest():
     assert np.allclose(models["a"].probabilities[:, idx, idx], p[:, idx, idx])
 
 
-def _patch_evidence(rng: np.random.Generator) -> tuple[Evidence, list, np.ndarray, np.ndarray]:
-    """Planted evidence whose labels repeat within a patch of neighbouring viewpoints and are
-    independent between patches (12 patches of 96 viewpoints, 3 classes, right 0.7 a patch),
-    3 groups, one right-0.7 model per fold, and the similarity 'same patch'."""
-    from rapomdp.awareness.observation import ObservationModel
-
-    directions = fibonacci_directions(96, hemisphere=True)
-    patch = np.argmax(directions @ fibonacci_directions(12, hemisphere=True).T, axis=1)
-    rows, classes = 300, 3
-    labels = rng.integers(0, classes, rows)
-    right = rng.random((rows, 12)) < 0.7
-    wrong = (labels[:, None] + rng.integers(1, classes, (rows, 12))) % classes
-    predicted = np.where(right, labels[:, None], wrong)[:, patch]
-    groups = np.arange(rows) % 3
-    model = np.full((96, classes, classes), 0.15)
-    model[:, np.arange(classes), np.arange(classes)] = 0.7
-    folds = [(groups == g, {"m": ObservationModel(model, ["a", "b", "c"])}) for g in range(3)]
-    same = (patch[:, None] == patch[None, :]).astype(np.float64)
-    return Evidence(labels, predicted, groups), folds, directions, same
-
-
-def test_the_view_discount_on_walks_that_jump_sees_more_new_views():
-    """A repeat within a patch counts ~nothing and a view of a new patch in full, fitted on
-    neighbour walks or on walks that also jump; the jumping walks take more new views, so the
-    planner's stand-in (the mean later weight) is larger."""
-    from rapomdp.awareness.evidence import held_out_view_discounts
-
-    evidence, folds, directions, same = _patch_evidence(np.random.default_rng(3))
-    fits = {jump: held_out_view_discounts(evidence, folds, directions, same, 6, 16, 8,
-                                          np.random.default_rng(1), jump)
-            for jump in (0.0, 0.5)}
-    for discounts, _ in fits.values():
-        assert discounts["m"].scale > 0.85 and discounts["m"].redundancy > 0.9
-    assert fits[0.5][1]["m"] > fits[0.0][1]["m"] + 0.1
-
-
-def test_shift_level_moves_p_correct_by_one_shift_or_one_per_viewpoint():
-    from rapomdp.awareness.evidence import shift_level
-
-    rng = np.random.default_rng(2)
-    p = rng.dirichlet(np.ones(4), size=(5, 4))  # (V, C, C)
-    idx = np.arange(4)
-
-    def logit(q: np.ndarray) -> np.ndarray:
-        return np.log(q / (1 - q))
-
-    for shift in (0.7, np.array([-1.0, 0.0, 0.5, 2.0, -0.3])):
-        out = shift_level(p, shift)
-        assert np.allclose(out.sum(axis=2), 1.0)
-        moved = logit(out[:, idx, idx]) - logit(p[:, idx, idx])
-        assert np.allclose(moved, np.broadcast_to(np.reshape(shift, (-1, 1)), moved.shape))
-        wrong = ~np.eye(4, dtype=bool)
-        ratio = out[:, wrong].reshape(5, 4, 3) / p[:, wrong].reshape(5, 4, 3)
-        assert np.allclose(ratio, ratio[:, :, :1])  # the wrong labels keep their proportions
-    assert np.array_equal(shift_level(p, 0.0), p) and shift_level(p, np.zeros(5)) is not p
-
-
 def test_the_configured_kernel_is_the_grids_choice_or_the_default_without_similarity() -> None:
-    from rapomdp.awareness.evidence import configured_transfer_kernel
+    from rapomdp.awareness.transfer import configured_transfer_kernel
 
     evidence, similarity, directions = _planted_kernel_evidence(True, 1)
     scores = {"similarity": similarity}
     cfg = ObserveConfig()
-    assert configured_transfer_kernel(evidence, {}, cfg, directions) == (
+    pseudo = cfg.confusion_pseudo_count
+    assert configured_transfer_kernel(evidence, {}, directions, pseudo) == (
         DEFAULT_TRANSFER_KERNEL, [])
-    assert configured_transfer_kernel(evidence, scores, cfg, None) == (
+    assert configured_transfer_kernel(evidence, scores, None, pseudo) == (
         DEFAULT_TRANSFER_KERNEL, [])
-    kernel, table = configured_transfer_kernel(evidence, scores, cfg, directions)
+    kernel, table = configured_transfer_kernel(evidence, scores, directions, pseudo)
     expected = choose_transfer_kernel(evidence, similarity, directions,
                                       cfg.confusion_pseudo_count, TRANSFER_KERNEL_GRID)
     assert (kernel, table) == expected and len(table) == len(TRANSFER_KERNEL_GRID)
@@ -871,7 +623,7 @@ def test_each_folds_mixture_is_weighted_without_the_group_it_scores() -> None:
               "classifier": table(0.5)}
     folds = [(groups == g, dict(models)) for g in range(3)]
     weights, mixed = ra_mixture_folds(evidence, folds, classes)
-    assert set(weights) == {"ra_right", "ra_wrong"}  # RA variants auto compares only
+    assert set(weights) == {"ra_right", "ra_wrong"}  # the RA variants but the reported-only
     assert 0.5 < weights["ra_right"] < 0.8  # a third of the labels are misread
     fold_weights = [m["ra_mixture"].calibration.weights for _, m in mixed]
     assert fold_weights[0]["ra_right"] > 0.99  # fitted on groups 1-2: always right

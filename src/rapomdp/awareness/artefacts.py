@@ -5,8 +5,7 @@ report, the command line and later stages go through (NumPy and JSON only: no to
 ``W/volume/``: ``<class>.npz`` (:func:`volume_file`), :data:`VOLUME_FILE`.
 ``W/observe/``: :data:`OBSERVATION_FILE` (every observation model (V, C, C) by name, ``models``,
 ``classes``, ``scores``, ``directions``, ..., and per model ``first_view_<name>``: the model of
-the belief's first update, :data:`FIRST_VIEW_PREFIX`; a typed model (V, T·C, C) also its prior
-over (type, class), :data:`PRIOR_PREFIX`), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
+the belief's first update, :data:`FIRST_VIEW_PREFIX`), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
 self-awareness table, :func:`load_quality`), :data:`CALIBRATION_FILE`,
 :data:`CALIBRATION_FIGURE`, :data:`TIMING_FILE`.
 """
@@ -20,23 +19,15 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.config import Config
-from rapomdp.io import ArtefactError, load_npz, read_json, stable_hash
+from rapomdp.io import ArtefactError, load_npz, read_json
 from rapomdp.recognition.artefacts import TRAIN_SECTIONS, VPTREE_SUMMARY_FILE
 
 SALIENCY_FILE = "saliency.json"
 VOLUME_FILE = "volume.json"
 OBSERVATION_FILE = "observation_models.npz"
-#: Prefix of each model's first-update array in :data:`OBSERVATION_FILE` (the planner's model
-#: when every view is discounted alike; the single-view model with ``after_first``).
+#: Prefix of each model's first-update array in :data:`OBSERVATION_FILE` (the planner's model:
+#: every view, the first included, is tempered alike).
 FIRST_VIEW_PREFIX = "first_view_"
-#: Prefix of a typed model's prior over its hidden states (instance type, class) in
-#: :data:`OBSERVATION_FILE` (``observe.belief: nuisance``; absent: uniform over the classes).
-PRIOR_PREFIX = "prior_"
-#: With ``observe.belief: similarity``: a model's view discount (scale, redundancy) is
-#: ``view_discount_<name>`` and the viewpoints' similarity it reads (V, V) :data:`DISCOUNT_KERNEL`.
-DISCOUNT_PREFIX = "view_discount_"
-DISCOUNT_KERNEL = "view_discount_kernel"
 #: A model's declared-confidence temperature (a scalar; absent: 1, the belief as it is) in
 #: :data:`OBSERVATION_FILE`: what a policy reports is its belief ** a, renormalised, a fitted
 #: where held-out walks stop (``evaluate.declared_confidence``).
@@ -53,23 +44,13 @@ VALIDATION_MD = "validation.md"
 CALIBRATION_FILE = "calibration.json"
 CALIBRATION_FIGURE = "calibration.png"
 TIMING_FILE = "timing.json"
-#: The configuration sections the keys of the saliency, volume, observe and crossfit stages
+#: The configuration sections the keys of the saliency, volume and observe stages
 #: hash (here, with no torch, so that the stage graph is read without loading their code).
 SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency", "volume")
 VOLUME_SECTIONS = ("volume",)
 OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
-CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
 #: The self-awareness table's columns: the model's name, then its scores on the test models.
 QUALITY_COLUMNS = ("model", "log_likelihood", "brier", "auc", "mean_p_correct", "accuracy")
-
-
-def load_view_discounts(observe_dir: str | Path) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """The observe stage's view discounts: each model's (scale, redundancy) (2,) by name, and
-    the viewpoints' similarity (V, V) they read; empty without ``observe.belief: similarity``."""
-    data = load_npz(Path(observe_dir) / OBSERVATION_FILE)
-    discounts = {name.removeprefix(DISCOUNT_PREFIX): value for name, value in data.items()
-                 if name.startswith(DISCOUNT_PREFIX) and name != DISCOUNT_KERNEL}
-    return discounts, data.get(DISCOUNT_KERNEL, np.zeros((0, 0)))
 
 
 def saliency_map_file(class_name: str, model_id: str) -> Path:
@@ -144,21 +125,6 @@ def load_ra_choice(observe_dir: str | Path) -> RAChoice:
     except (KeyError, TypeError, AttributeError):
         raise ArtefactError(f"{path}: expected the key ra_model (the RA variant chosen) and "
                             f"variants by name") from None
-
-
-def crossfit_epochs(config: Config) -> int:
-    """The epochs of each fold's classifier: ``observe.crossfit_epochs``, or with null the
-    train stage's ``train.epochs`` (its full recipe)."""
-    epochs = config.observe.crossfit_epochs
-    return config.train.epochs if epochs is None else int(epochs)
-
-
-def crossfit_fingerprint(config: Config) -> str:
-    """The crossfit stage reads these ``observe`` keys only (the rest would retrain for
-    nothing); the full recipe (null epochs) keys as its epochs written out."""
-    cfg = config.observe
-    return stable_hash({"crossfit": cfg.evidence != "volume", "folds": cfg.crossfit_folds,
-                        "epochs": crossfit_epochs(config)})
 
 
 def load_declared_confidence(observe_dir: str | Path, vptree_dir: str | Path | None = None

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import load_softmax_temperature, load_view_discounts
+from rapomdp.awareness.artefacts import load_softmax_temperature
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
@@ -87,7 +87,6 @@ from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import (
     declared_temperatures,
     first_view_models,
-    observation_priors,
     offered_observation_models,
 )
 from rapomdp.recognition.artefacts import (
@@ -95,7 +94,7 @@ from rapomdp.recognition.artefacts import (
     XrhoProbabilities,
     load_xrho_probabilities,
 )
-from rapomdp.recognition.belief import DeclaredTemperature, ViewDiscount
+from rapomdp.recognition.belief import DeclaredTemperature
 from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
@@ -158,10 +157,6 @@ class ClosedLoop:
         motion = Motion.from_robot(robot)
         observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
         first_view = first_view_models(inputs.observe, observation)
-        priors = observation_priors(inputs.observe, observation)
-        discount_arrays, discount_kernel = load_view_discounts(inputs.observe)
-        discounts = {name: ViewDiscount(float(d[0]), float(d[1]))
-                     for name, d in discount_arrays.items()}
         cfg = config.evaluate
         # what each belief reports after its views (evaluate.declared_confidence); Random
         # stops at a belief threshold, so it reports with the a fitted at its threshold
@@ -193,8 +188,6 @@ class ClosedLoop:
                 # its a is fitted where its own held-out closed loop stops (else: 1)
                 return LearnedPolicy(network, spec, observation[name], motion.reachable,
                                      METHOD_NAMES[key], first_view_model=first_view[name],
-                                     prior=priors[name], discount=discounts.get(name),
-                                     similarity=discount_kernel,
                                      declared_temperature=(declared_fit or {}).get(LEARNED, 1.0)
                                      if calibrated else 1.0)
             if key == "static":
@@ -208,8 +201,7 @@ class ClosedLoop:
                 return RandomWalkPolicy(
                     observation[name], motion.distance_m, motion.reachable,
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
-                    METHOD_NAMES[key], first_view_model=first_view[name], prior=priors[name],
-                    discount=discounts.get(name), similarity=discount_kernel,
+                    METHOD_NAMES[key], first_view_model=first_view[name],
                     declared_temperature=declared(name, random_threshold))
             path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
@@ -218,7 +210,6 @@ class ClosedLoop:
             return POMDPPolicy.configured(
                 cfg, ActiveRecognitionPolicy.load(path), observation[key], METHOD_NAMES[key],
                 motion.reachable, recogniser, first_view_model=first_view[key],
-                prior=priors[key], discount=discounts.get(key), similarity=discount_kernel,
                 declared_temperature=declared(key))
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
@@ -390,8 +381,7 @@ def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
         precision=solve.precision, timeout=solve.timeout_s, max_iterations=solve.iterations,
         workers=context.worker_count, allow_stay=False, class_names=classes,
         memory_gb=solve.memory_gb, scheduler=context.scheduler, cost=gap,
-        description=f"evaluate: λ sweep ({sweep_lambdas} m)",
-        start_beliefs=observation_priors(inputs.observe, models), pool=context.pool)
+        description=f"evaluate: λ sweep ({sweep_lambdas} m)", pool=context.pool)
 
 
 def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],

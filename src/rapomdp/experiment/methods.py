@@ -23,26 +23,17 @@ from rapomdp.planning.policy import LOOKAHEAD_WIDTH, ActiveRecognitionPolicy, AR
 from rapomdp.planning.rules import class_marginal
 from rapomdp.recognition.belief import (
     DeclaredTemperature,
-    ViewDiscount,
     declared_belief,
     temper,
 )
 
 
 class BayesBelief:
-    """A distribution over the hidden states updated by Eq. 5 with an observation model P
-    (V, S, C): the recogniser's most likely class is the observation. The states are the
-    classes, or (instance type, class) pairs at τ·C + c (``observe.belief: nuisance``), from
-    the ``prior`` (S,) (default uniform); ``state`` is that distribution and ``belief`` its
-    class marginal. The first update of an episode uses ``first_view_model`` (default: P
-    itself) — the single-view model when the observe stage discounts only the views after the
-    first (``observe.belief_correction: after_first``); the planner plans every later update,
-    and plans it with P (and from the same prior).
-
-    With a ``discount`` (:class:`~rapomdp.recognition.belief.ViewDiscount`, ``observe.belief:
-    similarity``) and the viewpoints' ``similarity`` (V, V), an update uses the first-view
-    model tempered by the weight the discount gives that view after the views already taken
-    (:meth:`next_model`); P is then the solved policy's memoryless stand-in.
+    """A distribution over the classes updated by Eq. 5 with an observation model P
+    (V, C, C): the recogniser's most likely class is the observation. ``state`` is that
+    distribution from a uniform prior and ``belief`` the same (the class distribution). The
+    first update of an episode uses ``first_view_model`` (default: P itself; the observe
+    stage's ``first_view_<name>`` is P); the planner plans every update with P.
 
     ``declared`` is what a policy reports: the class belief raised to ``declared_temperature``
     and renormalised (``evaluate.declared_confidence``, fitted where held-out walks stop); the
@@ -50,8 +41,6 @@ class BayesBelief:
 
     def __init__(self, observation_model: np.ndarray,
                  first_view_model: np.ndarray | None = None,
-                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None,
                  declared_temperature: float | DeclaredTemperature = 1.0) -> None:
         if not isinstance(declared_temperature, DeclaredTemperature):
             if not declared_temperature > 0:
@@ -68,34 +57,15 @@ class BayesBelief:
                              f"differs from the observation model's "
                              f"{self.observation_model.shape}")
         n_s = self.observation_model.shape[1]
-        self.prior = (np.full(n_s, 1.0 / n_s) if prior is None
-                      else np.asarray(prior, dtype=np.float64))
-        if self.prior.shape != (n_s,) or np.any(self.prior < 0) or \
-                not np.isclose(self.prior.sum(), 1.0):
-            raise ValueError(f"the prior must be a distribution over the model's {n_s} states, "
-                             f"got shape {self.prior.shape}")
-        views = self.observation_model.shape[0]
-        if discount is not None and np.shape(similarity) != (views, views):
-            raise ValueError(f"a view discount needs the viewpoints' similarity ({views}, "
-                             f"{views}), got shape {np.shape(similarity)}")
-        self.discount = discount
-        self.similarity = None if similarity is None else np.asarray(similarity, np.float64)
+        self.prior = np.full(n_s, 1.0 / n_s)
         self.state = self.prior.copy()
         self.updates = 0
-        self.visited = np.zeros(views, dtype=bool)
-
-    def _weights(self) -> np.ndarray:
-        assert self.discount is not None and self.similarity is not None
-        return self.discount.weights(self.similarity, self.visited)
+        self.visited = np.zeros(self.observation_model.shape[0], dtype=bool)
 
     def next_model(self) -> np.ndarray:
-        """The model (V, S, C) the next update uses at each viewpoint: the first-view model
-        before the first view, then P — or, with a view discount, the first-view model
-        tempered by each viewpoint's weight after the views taken. The lookahead predicts its
-        children with it, so the belief and the next step's choice share one model."""
-        if self.discount is None:
-            return self.first_view_model if self.updates == 0 else self.observation_model
-        return temper(self.first_view_model, self._weights())
+        """The model (V, C, C) the next update uses at each viewpoint: the first-view model
+        before the first view, then P."""
+        return self.first_view_model if self.updates == 0 else self.observation_model
 
     @property
     def n_classes(self) -> int:
@@ -119,13 +89,7 @@ class BayesBelief:
 
     def update(self, viewpoint: int, output: np.ndarray) -> None:
         label = int(np.argmax(output))
-        if self.discount is None:
-            model = self.first_view_model if self.updates == 0 else self.observation_model
-            self.state = update_beliefs(model, self.state, viewpoint, label)
-        else:  # the view's own rows, tempered by its weight (next_model at one viewpoint)
-            row = temper(self.first_view_model[viewpoint:viewpoint + 1],
-                         self._weights()[viewpoint])
-            self.state = update_beliefs(row, self.state, 0, label)
+        self.state = update_beliefs(self.next_model(), self.state, viewpoint, label)
         self.visited[viewpoint] = True
         self.updates += 1
 
@@ -173,8 +137,6 @@ class RandomWalkPolicy:
                  reachable: np.ndarray, neighbours: int = 8, belief_threshold: float = 0.9,
                  max_moves: int = 10, name: str = "Random", recogniser: str = "cnn",
                  first_view_model: np.ndarray | None = None,
-                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None,
                  declared_temperature: float | DeclaredTemperature = 1.0) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
@@ -183,8 +145,7 @@ class RandomWalkPolicy:
         self.name, self.recogniser = name, recogniser
         self.neighbours = k_nearest(distance_m, neighbours, allowed=reachable)
         self.belief_threshold, self.max_moves = float(belief_threshold), int(max_moves)
-        self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity, declared_temperature)
+        self._bayes = BayesBelief(observation_model, first_view_model, declared_temperature)
         self._visited: set[int] = set()
         self._rng = np.random.default_rng()
 
@@ -230,15 +191,9 @@ class POMDPPolicy:
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
                  name: str, recogniser: str = "cnn", revisit: bool = False,
                  first_view_model: np.ndarray | None = None,
-                 lookahead_over: np.ndarray | None = None,
-                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None, lookahead_depth: int = 1,
+                 lookahead_over: np.ndarray | None = None, lookahead_depth: int = 1,
                  lookahead_width: int = LOOKAHEAD_WIDTH,
                  declared_temperature: float | DeclaredTemperature = 1.0) -> None:
-        if lookahead_depth > 1 and discount is not None:
-            raise ValueError(f"{name}: a depth-{lookahead_depth} lookahead needs a belief "
-                             "whose model does not change with the views taken (observe.belief "
-                             "naive or nuisance), not a view discount")
         if observation_model.shape[0] != policy.n_viewpoints or \
                 observation_model.shape[1] != policy.n_states or \
                 observation_model.shape[2] != policy.n_classes:
@@ -251,8 +206,7 @@ class POMDPPolicy:
         self.observation_model = observation_model
         self.lookahead_over = lookahead_over
         self.lookahead_depth, self.lookahead_width = lookahead_depth, lookahead_width
-        self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity, declared_temperature)
+        self._bayes = BayesBelief(observation_model, first_view_model, declared_temperature)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
     @classmethod
@@ -261,8 +215,7 @@ class POMDPPolicy:
                    recogniser: str = "cnn", **belief: Any) -> POMDPPolicy:
         """The method as the evaluate stage configures it (``cfg``: its revisit rule, the
         lookahead over the ``reachable`` viewpoints, its depth and width); ``belief``: the
-        belief's keyword arguments (``first_view_model``, ``prior``, ``discount``,
-        ``similarity``, ``declared_temperature``)."""
+        belief's keyword arguments (``first_view_model``, ``declared_temperature``)."""
         return cls(policy, observation_model, name, recogniser, cfg.revisit,
                    lookahead_over=reachable if cfg.lookahead else None,
                    lookahead_depth=cfg.lookahead_depth, lookahead_width=cfg.lookahead_width,
@@ -283,11 +236,9 @@ class POMDPPolicy:
     def act(self, viewpoint: int) -> ARAction:
         forbidden = None if self.revisit else self._visited
         if self.lookahead_over is not None:
-            # the children of the next view as the belief will update (a view discount's
-            # weights after the views taken), valued by the solved policy
-            model = (self.observation_model if self._bayes.discount is None
-                     else self._bayes.next_model())
-            return self.policy.lookahead_act(viewpoint, self._bayes.state, model,
+            # the children of the next view as the belief will update, valued by the policy
+            return self.policy.lookahead_act(viewpoint, self._bayes.state,
+                                             self.observation_model,
                                              self.lookahead_over, forbidden,
                                              self.lookahead_depth, self.lookahead_width)
         return self.policy.act(viewpoint, self._bayes.state, forbidden)

@@ -775,8 +775,8 @@ def _learned(b: _Builder, folder: Path | None, cmd: str) -> None:
         b.add(Paragraph(
             f"One policy per λ ({', '.join(f'{v:g}' for v in data['lambdas'])} m), each "
             f"trained for {data['timesteps']:,} environment steps on the recorded evidence of "
-            f"{evidence['models']} held-out models ({evidence['volume']} volume, "
-            f"{evidence['crossfit']} cross-fitted; no test model), its belief Eq. 5 with the "
+            f"{evidence['models']} held-out volume models (no test model), its belief Eq. 5 "
+            f"with the "
             f"'{data['observation_model']}' observation model. Training took "
             f"{seconds['train_wall']:.0f} s of wall time ({seconds['train_cpu']:.0f} s of CPU "
             f"over {data['workers']} process(es)); recording the evidence "

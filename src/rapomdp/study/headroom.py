@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import RecordedObservation
+from rapomdp.awareness.choices import RecordedObservation
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
