@@ -114,86 +114,6 @@ def test_bayes_belief_uses_the_first_view_model_once_per_episode() -> None:
         BayesBelief(planner, np.full((3, 2, 2), 0.5))
 
 
-def test_a_typed_belief_is_over_type_and_class_from_its_prior_and_reports_the_classes() -> None:
-    """Two classes, two instance types: an atypical object of class 0 looks like class 1."""
-    from rapomdp.experiment.methods import BayesBelief
-
-    typical = np.broadcast_to(np.array([[0.8, 0.2], [0.2, 0.8]]), (3, 2, 2))
-    atypical = np.broadcast_to(np.array([[0.3, 0.7], [0.2, 0.8]]), (3, 2, 2))
-    model = np.concatenate([typical, atypical], axis=1)  # (3, 4, 2), state tau * 2 + c
-    prior = np.array([0.4, 0.4, 0.1, 0.1])
-    belief = BayesBelief(model, prior=prior)
-    np.testing.assert_allclose(belief.belief, [0.5, 0.5])
-    label_1 = np.array([0.0, 1.0])
-    for view in range(3):  # three views say class 1
-        belief.update(view, label_1)
-    state = prior * np.array([0.2, 0.8, 0.7, 0.8]) ** 3
-    np.testing.assert_allclose(belief.state, state / state.sum())
-    np.testing.assert_allclose(belief.belief, [state[[0, 2]].sum(), state[[1, 3]].sum()]
-                               / state.sum())
-    # naive Bayes over the same views is surer of class 1 than the typed belief
-    naive = BayesBelief(typical)
-    for view in range(3):
-        naive.update(view, label_1)
-    assert naive.belief[1] > belief.belief[1] + 0.05
-    belief.reset()
-    np.testing.assert_allclose(belief.state, prior)
-    with pytest.raises(ValueError, match="distribution over the model's 4 states"):
-        BayesBelief(model, prior=np.array([0.5, 0.5]))
-
-
-def test_a_pomdp_method_on_a_typed_model_acts_on_its_state_belief() -> None:
-    from rapomdp.planning.ar_solver import solve_active_recognition
-    from rapomdp.planning.momdp import benchmark_problem, build_active_recognition_problem
-
-    base = benchmark_problem(4, 2, seed=2)
-    atypical = np.broadcast_to(np.array([[0.5, 0.5], [0.5, 0.5]]), (4, 2, 2))
-    model = np.concatenate([base.observation_model, atypical], axis=1)
-    prior = np.array([0.35, 0.35, 0.15, 0.15])
-    problem = build_active_recognition_problem(model, base.move_energy, None, 8.0, 0.95, 0,
-                                               prior)
-    policy = solve_active_recognition(problem, timeout=1e6, max_iterations=10, grid=4).policy
-    method = POMDPPolicy(policy, model, "typed", prior=prior,
-                         lookahead_over=np.ones(4, dtype=bool))
-    method.reset(0, np.random.default_rng(0))
-    method.observe(0, np.array([1.0, 0.0]))
-    state = prior * model[0, :, 0]
-    np.testing.assert_allclose(method.belief, [state[[0, 2]].sum(), state[[1, 3]].sum()]
-                               / state.sum())
-    action = method.act(0)
-    expected = policy.lookahead_act(0, state / state.sum(), model, np.ones(4, dtype=bool),
-                                    np.array([True, False, False, False]))
-    assert action == expected
-    with pytest.raises(ValueError, match="4 hidden states and 2 classes"):
-        POMDPPolicy(policy, base.observation_model, "untyped")
-
-
-def test_a_discounted_belief_tempers_each_view_by_its_likeness_to_the_views_taken() -> None:
-    from rapomdp.experiment.methods import BayesBelief
-    from rapomdp.recognition.belief import ViewDiscount, temper
-
-    single = np.broadcast_to(np.array([[0.8, 0.2], [0.3, 0.7]]), (3, 2, 2)).copy()
-    similarity = np.array([[1.0, 0.9, 0.0], [0.9, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    discount = ViewDiscount(0.8, 1.0)
-    planner = temper(single, 0.5)
-    belief = BayesBelief(planner, single, discount=discount, similarity=similarity)
-    np.testing.assert_allclose(belief.next_model(), single)  # the first view in full
-    label_0 = np.array([1.0, 0.0])
-    belief.update(0, label_0)
-    np.testing.assert_allclose(belief.belief, [0.8, 0.3] / np.float64(1.1))
-    weights = belief.discount.weights(similarity, belief.visited)
-    np.testing.assert_allclose(weights, [0.02, 0.8 * 0.1, 0.8])  # a taken view: the floor
-    np.testing.assert_allclose(belief.next_model(), temper(single, weights))
-    before = belief.state.copy()
-    belief.update(1, label_0)  # the near twin: barely counts
-    step = temper(single, 0.08)[1, :, 0]
-    np.testing.assert_allclose(belief.state, before * step / (before * step).sum())
-    belief.reset()
-    assert not belief.visited.any()
-    with pytest.raises(ValueError, match=r"similarity \(3, 3\)"):
-        BayesBelief(planner, single, discount=discount)
-
-
 def test_static_belief_is_the_output_temperature_scaled_and_declares_its_argmax() -> None:
     output = np.array([0.5, 0.3, 0.2])
     static = StaticPolicy(softmax_temperature=0.5)
@@ -224,9 +144,8 @@ def test_a_pomdp_method_with_lookahead_acts_by_it():
                                                  allowed, visited)
 
 
-def test_a_pomdp_method_looks_two_views_ahead_when_asked_and_never_with_a_view_discount():
+def test_a_pomdp_method_looks_two_views_ahead_when_asked():
     from rapomdp.planning.momdp import benchmark_problem
-    from rapomdp.recognition.belief import ViewDiscount
 
     problem = benchmark_problem(6, 3, seed=5, lambda_=30.0)
     policy = solve_active_recognition(problem, precision=1e-2, timeout=1e6,
@@ -241,11 +160,6 @@ def test_a_pomdp_method_looks_two_views_ahead_when_asked_and_never_with_a_view_d
         method.observe(0, np.eye(3)[label])
         assert method.act(0) == policy.lookahead_act(
             0, method.belief, problem.observation_model, allowed, visited, depth=2, width=3)
-    with pytest.raises(ValueError, match="depth-2 lookahead needs a belief whose model does "
-                                         "not change"):
-        POMDPPolicy(policy, problem.observation_model, "ra", lookahead_over=allowed,
-                    prior=None, discount=ViewDiscount(0.8, 1.0), similarity=np.eye(6),
-                    lookahead_depth=2)
 
 
 def test_random_walk_stops_on_its_belief_and_reports_the_declared_one(motion: Motion) -> None:

@@ -23,7 +23,7 @@ from tests.planning.planning_fixtures import TIGER
 
 #: Every stage's command, as a user runs it on a folder.
 STAGE_COMMANDS = ("dataset", "render", "xrho", "train", "classifier_eval", "saliency", "volume",
-                  "crossfit", "observe", "vptree", "robot", "solve", "learn", "evaluate")
+                  "observe", "vptree", "robot", "solve", "learn", "evaluate")
 
 
 def tree(root: Path) -> dict[str, str]:
