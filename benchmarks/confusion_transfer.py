@@ -51,15 +51,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import (
-    MIXTURE_VARIANT,
-    Evidence,
-    RecordedObservation,
-    fit_observation_models,
-    held_out_temperatures,
-    observed_probabilities,
-)
+from rapomdp.awareness.choices import RecordedObservation
+from rapomdp.awareness.evidence import Evidence, observed_probabilities
+from rapomdp.awareness.mixture import MIXTURE_VARIANT
 from rapomdp.awareness.observation import ObservationModel
+from rapomdp.awareness.temperature import held_out_temperatures
+from rapomdp.awareness.variants import fit_observation_models
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.methods import BayesBelief

@@ -33,8 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import load_declared_confidence
-from rapomdp.awareness.evidence import held_out_declared_confidence
-from rapomdp.awareness.stage import observe_inputs
+from rapomdp.awareness.observe_stage import observe_inputs
+from rapomdp.awareness.temperature import held_out_declared_confidence
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable

@@ -20,11 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import (
-    RecordedObservation,
-    fit_observation_models,
-    shrink_wrong_labels,
-)
+from rapomdp.awareness.choices import RecordedObservation
+from rapomdp.awareness.shrinkage import shrink_wrong_labels
+from rapomdp.awareness.variants import fit_observation_models
 from rapomdp.context import RunContext
 from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.held_out import (

@@ -30,15 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.choices import held_out_choices
-from rapomdp.awareness.evidence import (
-    ROBUST_RA_VARIANT,
-    Evidence,
-    RecordedObservation,
-    TransferKernel,
-    held_out_object_log_likelihoods,
-)
+from rapomdp.awareness.choices import RecordedObservation, held_out_choices
+from rapomdp.awareness.evidence import Evidence, held_out_object_log_likelihoods
+from rapomdp.awareness.mixture import ROBUST_RA_VARIANT
 from rapomdp.awareness.observation import ObservationModel
+from rapomdp.awareness.transfer import TransferKernel
 from rapomdp.config import ObserveConfig
 from rapomdp.experiment.metrics import cluster_bootstrap_difference
 from rapomdp.workspace import Workspace
@@ -63,9 +59,6 @@ def observe_choices(evidence: Evidence, scores: dict[str, np.ndarray], classes: 
                     cfg: ObserveConfig, directions: np.ndarray, seed: int) -> ObserveChoices:
     """The observe stage's choices on ``evidence`` (the naive belief on volume evidence, whose
     models the held-out closed loop replays)."""
-    if cfg.belief != "naive" or cfg.evidence != "volume":
-        raise SystemExit(f"nested choices repeat the naive belief on volume evidence; this "
-                         f"workspace has observe.belief {cfg.belief}, evidence {cfg.evidence}")
     chosen = held_out_choices(evidence, scores, classes, cfg, directions, seed)
     return ObserveChoices(
         f"ra_{chosen.variant}", chosen.choice.rule, chosen.kernel,

@@ -25,12 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import load_quality
-from rapomdp.awareness.evidence import (
-    MIXTURE_VARIANT,
-    RecordedObservation,
-    held_out_object_log_likelihoods,
-    ra_mixture_folds,
-)
+from rapomdp.awareness.choices import RecordedObservation
+from rapomdp.awareness.evidence import held_out_object_log_likelihoods
+from rapomdp.awareness.mixture import MIXTURE_VARIANT, ra_mixture_folds
 from rapomdp.awareness.observation import MixtureObservationModel, ObservationModel
 from rapomdp.awareness.quality import awareness_quality
 from rapomdp.awareness.report import single_view_models

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import RecordedObservation
+from rapomdp.awareness.choices import RecordedObservation
 from rapomdp.experiment.held_out import held_out_folds
 from rapomdp.pipeline import get_stage
 from rapomdp.recognition.belief import random_walks, temper

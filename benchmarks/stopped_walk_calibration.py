@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import RecordedObservation, leave_one_group_out
+from rapomdp.awareness.choices import RecordedObservation
+from rapomdp.awareness.variants import leave_one_group_out
 from rapomdp.data.splits import class_seed
 from rapomdp.recognition.belief import (
     fold_of_rows,

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import RecordedObservation, fit_observation_models
+from rapomdp.awareness.choices import RecordedObservation
+from rapomdp.awareness.variants import fit_observation_models
 from rapomdp.data.splits import class_seed
 from rapomdp.recognition.belief import fit_temperature, fold_of_rows, held_out_walks
 from rapomdp.workspace import Workspace

@@ -18,25 +18,22 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE, TIMING_FILE
-from rapomdp.awareness.evidence import (
+from rapomdp.awareness.evidence import observed_probabilities, recorded_evidence
+from rapomdp.awareness.quality import quality_from_probabilities
+from rapomdp.awareness.transfer import (
     DEFAULT_TRANSFER_KERNEL,
-    SHRUNK_TRANSFER_KERNEL_GRID,
     TRANSFER_KERNEL_GRID,
     TransferKernel,
     choose_transfer_kernel,
-    observed_probabilities,
-    recorded_evidence,
     transfer_confusion,
 )
-from rapomdp.awareness.quality import quality_from_probabilities
 from rapomdp.io import read_json
 from rapomdp.workspace import Workspace
 
 
 def _name(kernel: TransferKernel | dict[str, float]) -> str:
     k = kernel.to_dict() if isinstance(kernel, TransferKernel) else kernel
-    return (f"(power {k['power']:g}, {k['bandwidth_deg']:g}°, prior {k['prior']:g}, class prior "
-            f"{k.get('class_prior', 0.0):g})")
+    return f"(power {k['power']:g}, {k['bandwidth_deg']:g}°, prior {k['prior']:g})"
 
 
 def _axis(values: list[float]) -> str:
@@ -47,8 +44,6 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workspace", "-w", type=Path, required=True)
     parser.add_argument("--repeats", type=int, default=5, help="timed runs of the choice")
-    parser.add_argument("--shrinkage", action="store_true",
-                        help="the grid with the class rows' shrinkage (observe.transfer_shrinkage)")
     parser.add_argument("--pseudo-counts", type=float, nargs="*", default=[],
                         help="also the best held-out log-likelihood over the grid with each of "
                              "these confusion pseudo-counts (observe.confusion_pseudo_count, "
@@ -68,10 +63,10 @@ def main() -> None:
           f"in {np.unique(evidence.groups).size} groups, {views} viewpoints; "
           f"pseudo-count {pseudo_count:g}; OMP_NUM_THREADS="
           f"{os.environ.get('OMP_NUM_THREADS', 'unset')}")
-    grid = SHRUNK_TRANSFER_KERNEL_GRID if args.shrinkage else TRANSFER_KERNEL_GRID
+    grid = TRANSFER_KERNEL_GRID
     print(f"grid: power {_axis([k.power for k in grid])} x bandwidth "
           f"{_axis([k.bandwidth_deg for k in grid])}° x prior {_axis([k.prior for k in grid])}"
-          f" x class prior {_axis([k.class_prior for k in grid])} ({len(grid)} kernels)")
+          f" ({len(grid)} kernels)")
 
     seconds = []
     for _ in range(args.repeats):

@@ -33,12 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import (
-    RecordedObservation,
-    leave_one_group_out,
-    observed_probabilities,
-    recorded_evidence,
-)
+from rapomdp.awareness.choices import RecordedObservation
+from rapomdp.awareness.evidence import observed_probabilities, recorded_evidence
+from rapomdp.awareness.variants import leave_one_group_out
 from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeTable
 from rapomdp.geometry.viewsphere import azimuth_zenith, geodesic_distance_matrix
