@@ -185,17 +185,15 @@ def with_correct_probability(model: np.ndarray, correct: np.ndarray) -> np.ndarr
 
 
 def oracle_temperature(single_view: np.ndarray, labels: np.ndarray, predicted: np.ndarray,
-                       directions: np.ndarray, seed: int, after_first: bool) -> float:
+                       directions: np.ndarray, seed: int) -> float:
     """The belief temperature of ``single_view`` (V, C, C) fitted as the observe stage fits
     it — :func:`~rapomdp.recognition.belief.fit_temperature` on random walks of the project's
     length, count and neighbours — but on the test models' labels (``labels`` (N,),
-    ``predicted`` (N, V)): an oracle. ``after_first``: only the views after the first are
-    tempered (``observe.belief_correction: after_first``)."""
+    ``predicted`` (N, V)): an oracle."""
     row_model = np.zeros(len(labels), dtype=np.int64)
     walks, walk_row = held_out_walks(row_model, directions,
                                      class_seed(seed, "headroom/temperature"))
-    return fit_temperature([single_view], row_model, labels, predicted, walks, walk_row,
-                           first_temperature=1.0 if after_first else None)
+    return fit_temperature([single_view], row_model, labels, predicted, walks, walk_row)
 
 
 @dataclass
@@ -215,32 +213,29 @@ class RowModels:
 def row_models(rows: Sequence[str], files: Sequence[str], labels: np.ndarray,
                predicted: np.ndarray, halves: np.ndarray | None, classes: int,
                pseudo_count: float, learned: np.ndarray, learned_first: np.ndarray,
-               learned_temperature: float, correction: str, directions: np.ndarray,
+               learned_temperature: float, directions: np.ndarray,
                seed: int) -> RowModels:
     """The observation models of ``rows`` (keys of :data:`ROWS`) from the test models'
     ``files``, ``labels`` (N,) and ``predicted`` labels (N, V) at X_rho, the cross-object
     ``halves`` (N,) and the learned model as evaluated (``learned``, ``learned_first``,
-    tempered by ``learned_temperature`` under ``correction``). Counts use ``pseudo_count``."""
+    tempered by ``learned_temperature``). Counts use ``pseudo_count``."""
     if halves is None and set(rows) & set(CROSS_ROWS):
         raise ValueError("the cross-object rows need the halves (cross_object_halves)")
     single = temper(learned, 1.0 / learned_temperature)  # the single-view rows it tempers
     out = RowModels({"learned": learned}, {"learned": learned_first}, {"learned": ()},
                     {"learned": dict.fromkeys(files, "learned")}, {})
 
-    after_first = correction == "after_first"
-
-    def add(key: str, model: np.ndarray, on: np.ndarray, first_view: np.ndarray | None = None
-            ) -> None:
+    def add(key: str, model: np.ndarray, on: np.ndarray) -> None:
         out.models[key] = model
-        out.first_view[key] = model if first_view is None else first_view
+        out.first_view[key] = model
         out.counted_on[key] = tuple(f for f, used in zip(files, on, strict=True) if used)
 
     def add_oracle_correct(key: str, oracle: np.ndarray, on: np.ndarray) -> None:
         # the learned single-view rows with the oracle's P(correct), then the learned belief
-        # correction as evaluated (its temperature; the first view in full with after_first)
+        # correction as evaluated (its temperature)
         rows_of = with_correct_probability(single, np.diagonal(oracle, axis1=1, axis2=2))
         tempered = temper(rows_of, learned_temperature)
-        add(key, tempered, on, rows_of if after_first else tempered)
+        add(key, tempered, on)
 
     everything = np.ones(len(files), dtype=bool)
     in_sample = viewpoint_confusion(labels, predicted, classes, pseudo_count)
@@ -251,10 +246,10 @@ def row_models(rows: Sequence[str], files: Sequence[str], labels: np.ndarray,
     for row, rows_of in (("oracle_temperature", single),
                          ("oracle_in_sample_temperature", in_sample)):
         if row in rows:
-            t = oracle_temperature(rows_of, labels, predicted, directions, seed, after_first)
+            t = oracle_temperature(rows_of, labels, predicted, directions, seed)
             out.temperatures[row] = t
             tempered = temper(rows_of, t)
-            add(row, tempered, everything, rows_of if after_first else tempered)
+            add(row, tempered, everything)
     for row in rows:
         if row in out.models:
             out.assignment[row] = dict.fromkeys(files, row)
@@ -435,7 +430,7 @@ def _headroom(workspace: str | Path | Workspace, out: str | Path | None,
     built = row_models(wanted, files, labels, predicted, halves, len(classes),
                        config.observe.classifier_pseudo_count, learned,
                        first_view_models(inputs.observe, {METHOD: learned})[METHOD], t_learned,
-                       correction, np.asarray(recorded.arrays["directions"]), config.seed)
+                       np.asarray(recorded.arrays["directions"]), config.seed)
     models, first, assignment = built.models, built.first_view, built.assignment
     robot = load_robot(inputs.robot)
     motion = Motion.from_robot(robot)
