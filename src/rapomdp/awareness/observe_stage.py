@@ -99,6 +99,19 @@ class XrhoOutcomes:
 
 def xrho_outcomes(dataset: Dataset, model: ModelEntry, config: Config, classifier: Classifier,
                   purpose: str) -> XrhoOutcomes:
+    """One model rendered at every test viewpoint X_rho and classified.
+
+    Args:
+        dataset: the dataset.
+        model: the model.
+        config: the run's configuration (camera, viewpoints, sensor noise, seed).
+        classifier: the trained classifier.
+        purpose: the noise stream (``VOLUME_STREAM``, ``TEST_STREAM``).
+
+    Returns:
+        The clean depth images (V, H, W) in metres, the camera poses (V, 4, 4), the labels
+        (V,) and the classifier's output (V, C).
+    """
     clean, sensed, poses = xrho_renders(dataset, model, config, purpose)
     probabilities = classifier.predict(sensed)
     return XrhoOutcomes(clean, poses, probabilities.argmax(axis=1),
@@ -107,8 +120,19 @@ def xrho_outcomes(dataset: Dataset, model: ModelEntry, config: Config, classifie
 
 def stored_outcomes(xrho_dir: Path, classifier_eval_dir: Path, dataset: Dataset
                     ) -> Callable[[ModelEntry, str], XrhoOutcomes]:
-    """A model's outcomes at X_rho as the xrho stage rendered it and the classifier_eval
-    stage classified it (the same images and outputs :func:`xrho_outcomes` would make)."""
+    """A reader of the models' outcomes at X_rho as the xrho stage rendered them and the
+    classifier_eval stage classified them (the images and outputs :func:`xrho_outcomes` would
+    make).
+
+    Args:
+        xrho_dir: the xrho stage's folder.
+        classifier_eval_dir: the classifier_eval stage's folder.
+        dataset: the dataset.
+
+    Returns:
+        (model, noise stream) -> its :class:`XrhoOutcomes`; a stream other than the one the
+        model's role was rendered with raises :class:`~rapomdp.workspace.StageError`.
+    """
     images = load_xrho_views(xrho_dir, dataset)
     probabilities = load_xrho_probabilities(classifier_eval_dir)
 
@@ -289,8 +313,17 @@ def observe_inputs(config: Config, inputs: StageInputs, dataset: Dataset,
 
 def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
                       context: RunContext) -> None:
-    """Viewpoint scores, the RA variants / Classifier / black-box observation models fitted on
-    held-out evidence, their held-out validation and their quality on the test models."""
+    """The ``observe`` stage: viewpoint scores, the RA variants / Classifier / black-box
+    observation models fitted on held-out evidence, their held-out validation and their quality
+    on the test models (:func:`observe`).
+
+    Args:
+        config: the run's configuration (``observe``, ``viewpoints``, ``seed``).
+        inputs: the ``dataset``, ``train``, ``xrho``, ``classifier_eval`` and ``volume``
+            stage folders.
+        out: the stage's folder (the files listed in this module's docstring).
+        context: threads and progress bars.
+    """
     from rapomdp.awareness.figures import calibration_figure, calibration_score
 
     dataset = load_dataset(inputs.dataset)

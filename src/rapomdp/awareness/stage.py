@@ -36,8 +36,15 @@ from rapomdp.workspace import StageError, StageInputs
 
 
 def saliency_models(dataset: Dataset, per_class: int | None) -> list[ModelEntry]:
-    """The volume models whose saliency makes the class volumes: each class's first
-    ``per_class`` volume models (all with None)."""
+    """The volume models whose saliency makes the class volumes.
+
+    Args:
+        dataset: the dataset (its volume models are read, in order).
+        per_class: volume models per class (``volume.models_per_class``); None: all.
+
+    Returns:
+        Each class's first ``per_class`` volume models, in the dataset's order.
+    """
     seen: dict[str, int] = {}
     out = []
     for model in dataset.with_role("volume"):
@@ -112,9 +119,16 @@ def _saliency_task(config_json: str, render_dir: str, dataset_dir: str, train_di
 
 def run_saliency_stage(config: Config, inputs: StageInputs, out: Path,
                        context: RunContext) -> None:
-    """2D saliency maps of every class's volume model over the training viewsphere, one model
-    per task over worker processes (each model has its own seed: the maps do not depend on
-    the number of processes)."""
+    """The ``saliency`` stage: 2D saliency maps of every class's volume models over the
+    training viewsphere, one model per task over worker processes (each model has its own
+    seed, so the maps do not depend on the number of processes).
+
+    Args:
+        config: the run's configuration (``saliency``, ``volume.models_per_class``).
+        inputs: the ``dataset``, ``render`` and ``train`` stage folders.
+        out: the stage's folder: ``maps/<class>/<model>.npz`` and ``saliency.json``.
+        context: threads, worker processes and progress bars.
+    """
     dataset = load_dataset(inputs.dataset)
     cfg = config.saliency
     workers = context.worker_count
@@ -139,13 +153,31 @@ def run_saliency_stage(config: Config, inputs: StageInputs, out: Path,
 
 
 def load_saliency(saliency_dir: Path, model: ModelEntry) -> dict[str, np.ndarray]:
+    """One volume model's saliency maps: ``saliency`` (views, H, W) float16 in [0, 1],
+    ``probability`` and ``perturbed_probability`` (views,) (:func:`saliency_maps`)."""
     return load_npz(saliency_dir / saliency_map_file(model.class_name, model.id))
 
 
 def class_volume(dataset: Dataset, views: TrainingViews, saliency_dir: Path, class_name: str,
                  resolution: int, per_class: int | None = None) -> SaliencyVolume:
-    """The saliency volume of one class from its first ``per_class`` volume models' views and
-    saliency maps (all with None)."""
+    """The 3D dense saliency volume of one class: its volume models' saliency maps
+    back-projected along their depth images into a voxel grid around their meshes.
+
+    Args:
+        dataset: the dataset.
+        views: the training renders (depth images and camera poses).
+        saliency_dir: the saliency stage's folder.
+        class_name: the class.
+        resolution: voxels along the grid's longest side (``volume.resolution``).
+        per_class: the class's first ``per_class`` volume models (None: all).
+
+    Returns:
+        The class's :class:`~rapomdp.awareness.volume.SaliencyVolume` (voxel median; NaN:
+        empty).
+
+    Raises:
+        StageError: the class has no volume model.
+    """
     models = [m for m in saliency_models(dataset, per_class) if m.class_name == class_name]
     if not models:
         raise StageError(f"{dataset.root}: class '{class_name}' has no volume model")
@@ -165,7 +197,14 @@ def class_volume(dataset: Dataset, views: TrainingViews, saliency_dir: Path, cla
 
 def run_volume_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
-    """One 3D dense saliency volume per class (voxel median of back-projected saliency)."""
+    """The ``volume`` stage: one 3D dense saliency volume per class (:func:`class_volume`).
+
+    Args:
+        config: the run's configuration (``volume``).
+        inputs: the ``dataset``, ``render`` and ``saliency`` stage folders.
+        out: the stage's folder: ``<class>.npz`` and ``volume.json``.
+        context: progress bars.
+    """
     views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
     start = time.perf_counter()
