@@ -11,7 +11,7 @@ Array shapes (V viewpoints, C classes):
 
 - ``observation_model`` (V, C, C): ``P[v, c, o]`` = P(predicted label o | class c, viewpoint v),
   rows over o sum to 1 (the observation stage's output). With T instance types (a per-object
-  nuisance the belief models, ``observe.belief: nuisance``) the hidden state is (type, class)
+  nuisance: a hidden type every view of one object shares) the hidden state is (type, class)
   at index τ·C + c and the model is (V, T·C, C): every view of one object shares its type,
   so the views are independent given (class, type), not given the class. A declaration
   names a class and is right in each of its types' states (:mod:`rapomdp.planning.rules`).
@@ -177,8 +177,8 @@ def build_active_recognition_problem(
     ``observation_model`` (V, C, C) = P(o | class, viewpoint), or (V, T·C, C) with T instance
     types; ``move_energy`` (V, V) = E_M; ``reachable`` (V,) bool (all True when omitted);
     ``lambda_`` weighs a wrong declaration (Eq. 1); the episode starts at ``start_viewpoint``
-    with ``start_belief`` over the hidden states (uniform when omitted; a typed model's is
-    the observe stage's prior over types).
+    with ``start_belief`` over the hidden states (uniform when omitted; a typed model's: its
+    prior over (type, class)).
 
     ``move_energy`` may hold +inf for moves to or from an unreachable viewpoint, as the robot
     stage writes it: those moves are not actions, so the entries are replaced by the largest
