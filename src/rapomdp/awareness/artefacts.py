@@ -90,12 +90,11 @@ def load_softmax_temperature(observe_dir: str | Path) -> float:
 @dataclass(frozen=True)
 class RAChoice:
     """Which RA variant is RA-POMDP's model ``ra`` (calibration.json): ``variant`` (``ra`` is
-    the array of ``ra_<variant>``), the ``configured`` ``observe.ra_model`` (``auto``: chosen
-    on held-out objects) and ``method``, what the variant's fit is (``logistic``,
-    ``salient_view_transfer``, ``held_out_mixture``, ...); with ``auto`` or ``mixture``, the
-    choice's ``rule`` (``best``, ``one standard error``, ``too little evidence``, ``unstable``,
-    ``mixture``) and ``reason`` (calibration.json's ``ra_model_choice``; empty in a workspace
-    from before it); with the mixture, each variant's ``weights``."""
+    the array of ``ra_<variant>``), the ``configured`` ``observe.ra_model`` and ``method``, what
+    the variant's fit is (``logistic``, ``salient_view_transfer``, ``held_out_mixture``, ...);
+    the choice's ``rule`` (``configured``, ``mixture`` or ``too little evidence``) and
+    ``reason`` (calibration.json's ``ra_model_choice``; empty in a workspace from before it);
+    with the mixture, each variant's ``weights``."""
 
     variant: str
     configured: str
