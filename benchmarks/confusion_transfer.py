@@ -255,11 +255,11 @@ def recorded_temperature(held: Held, key: str) -> float:
     return float(arrays["temperatures"][names.index(key)])
 
 
-def fuse(model: np.ndarray, first: np.ndarray, viewpoints: np.ndarray, labels: np.ndarray,
+def fuse(model: np.ndarray, viewpoints: np.ndarray, labels: np.ndarray,
          offsets: np.ndarray) -> np.ndarray:
-    """Final beliefs (E, C) of episodes from a uniform prior, the first step by ``first``, the
-    later by ``model``: :class:`BayesBelief`, the closed loop's own update, on the labels."""
-    belief = BayesBelief(model, first)
+    """Final beliefs (E, C) of episodes from a uniform prior, every step by ``model``:
+    :class:`BayesBelief`, the closed loop's own update, on the labels."""
+    belief = BayesBelief(model)
     one_hot = np.eye(model.shape[2])
     finals = []
     for start, end in zip(offsets[:-1], offsets[1:], strict=True):
@@ -286,8 +286,8 @@ def episode_diagnostic(held: Held, root: Path, best: dict[str, float],
         labels = outputs.argmax(axis=1)
         truth = e["class_index"][which]
         # (a) the workspace's own belief, checked step by step against the record
-        model, first = arrays[key], arrays.get(f"first_view_{key}", arrays[key])
-        b = BayesBelief(model, first)
+        model = arrays[key]
+        b = BayesBelief(model)
         worst = 0.0
         for i, (s, t) in enumerate(zip(starts, ends, strict=True)):
             b.reset()
@@ -296,7 +296,7 @@ def episode_diagnostic(held: Held, root: Path, best: dict[str, float],
                 worst = max(worst, float(np.abs(b.belief - e["step_beliefs"][j]).max()))
             if int(np.argmax(b.belief)) != int(e["declared"][which[i]]):
                 raise SystemExit(f"{root}: episode {which[i]} does not reproduce")
-        own = fuse(model, first, views, labels, offsets)
+        own = fuse(model, views, labels, offsets)
         if not np.array_equal(own.argmax(axis=1), e["declared"][which]):
             raise SystemExit(f"{root}: the re-fused declarations differ from the record")
         t_rec = recorded_temperature(held, key)
@@ -307,22 +307,22 @@ def episode_diagnostic(held: Held, root: Path, best: dict[str, float],
             t_new, _ = held.temperature(key, alpha)
             for t, how in ((t_rec, f"T rec {t_rec:.3f}"), (t_new, f"T refit {t_new:.3f}")):
                 m = temper(shrunk, t)
-                f = fuse(m, m, views, labels, offsets)
+                f = fuse(m, views, labels, offsets)
                 rows.append((f"{label}, {how}", f, f.max(axis=1)))
         a, b_ = joint[key]
         m = shrink_correct(shrink_wrong_labels(held.full[key], a), b_)
         t_joint, _ = held.temperature(key, a, b_)
         m = temper(m, t_joint)
         rows.append((f"(f) LOO (a,b)=({a:g},{b_:g}), T {t_joint:.3f}",
-                     fuse(m, m, views, labels, offsets), None))
+                     fuse(m, views, labels, offsets), None))
         if key == "ra" and "ra_paper" in arrays and held.names["ra"] != "ra_paper":
             # one P(correct) calibration for every class (no per-class intercepts), recorded
             paper = arrays["ra_paper"]
-            rows.append(("(d) recorded ra_paper", fuse(paper, paper, views, labels, offsets),
+            rows.append(("(d) recorded ra_paper", fuse(paper, views, labels, offsets),
                          None))
             t_paper = recorded_temperature(held, "ra_paper")
             flat = temper(shrink_wrong_labels(temper(paper, 1.0 / t_paper), 1.0), t_paper)
-            rows.append(("(e) ra_paper a=1, T rec", fuse(flat, flat, views, labels, offsets),
+            rows.append(("(e) ra_paper a=1, T rec", fuse(flat, views, labels, offsets),
                          None))
         votes = np.add.reduceat(np.eye(outputs.shape[1])[labels], offsets[:-1], axis=0)
         mean_soft = np.add.reduceat(outputs, offsets[:-1], axis=0)

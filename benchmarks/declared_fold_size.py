@@ -51,7 +51,7 @@ def one_group_a(ws: Workspace, name: str) -> tuple[float, int]:
     amount = float(calibration.get("wrong_labels", {}).get(key, {}).get("amount", 0.0))
     motion = Motion.from_robot(load_robot(inputs.robot))
     plan = ActiveRecognitionPolicy.load(inputs.solve / policy_file(name))
-    groups = np.unique(evidence.groups[evidence.volume_mask])
+    groups = np.unique(evidence.groups)
     finals, truths, run_groups = [], [], []
     for k in groups:
         mine = evidence.groups == k
@@ -61,12 +61,11 @@ def one_group_a(ws: Workspace, name: str) -> tuple[float, int]:
                                         recorded.transfer_kernel, [key])[key].probabilities
         model = temper(shrink_wrong_labels(single, amount), t)
         for g in groups[groups != k]:
-            rows = (evidence.groups == g) & evidence.volume_mask
-            fold = HeldOutFold(int(g), evidence.labels[rows], evidence.predicted[rows],
-                               model, model)
+            rows = evidence.groups == g
+            fold = HeldOutFold(int(g), evidence.labels[rows], evidence.predicted[rows], model)
             log_b, truth, *_ = held_out_stops(
                 config, POMDPPolicy.configured(config.evaluate, plan, model, name,
-                                               motion.reachable, first_view_model=model),
+                                               motion.reachable),
                 fold, motion)
             finals.append(log_b)
             truths.append(truth)

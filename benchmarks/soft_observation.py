@@ -80,10 +80,10 @@ def workspace_figures(root: Path, rng: np.random.Generator) -> dict[str, np.ndar
     views = len(recorded.arrays["directions"])
     flat, _ = volume_outputs(root)  # the volume models' outputs, one row a view
     volume = flat.reshape(-1, views, flat.shape[1])  # (M, V, C)
-    if not np.array_equal(volume.argmax(axis=-1), evidence.predicted[evidence.volume_mask]):
+    if not np.array_equal(volume.argmax(axis=-1), evidence.predicted):
         raise ValueError(f"{root}: the volume outputs do not match the observe evidence")
-    groups = evidence.groups[evidence.volume_mask]
-    labels = evidence.labels[evidence.volume_mask]
+    groups = evidence.groups
+    labels = evidence.labels
     # softmax at temperature T: p ** (1 / T), renormalised
     soft = temper(volume, 1.0 / float(recorded.arrays["softmax_temperature"]))
     confidence, predicted = soft.max(axis=-1), volume.argmax(axis=-1)

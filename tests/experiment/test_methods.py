@@ -94,24 +94,21 @@ def test_pomdp_method_acts_as_its_policy_on_its_own_belief(motion: Motion, solve
         POMDPPolicy(policy, P[:5], "bad")
 
 
-def test_bayes_belief_uses_the_first_view_model_once_per_episode() -> None:
+def test_bayes_belief_updates_every_view_by_the_model_and_restarts_uniform() -> None:
     from rapomdp.experiment.methods import BayesBelief
 
-    planner = np.full((2, 2, 2), 0.5)
-    planner[:, 0] = [0.6, 0.4]  # a weak later view
-    single = np.full((2, 2, 2), 0.5)
-    single[:, 0] = [0.9, 0.1]  # a strong first view
-    belief = BayesBelief(planner, single)
+    model = np.full((2, 2, 2), 0.5)
+    model[:, 0] = [0.6, 0.4]
+    belief = BayesBelief(model)
+    np.testing.assert_allclose(belief.belief, [0.5, 0.5])
     output = np.array([1.0, 0.0])  # label 0
     belief.update(0, output)
-    assert np.allclose(belief.belief, np.array([0.9, 0.5]) / 1.4)
+    assert np.allclose(belief.belief, np.array([0.6, 0.5]) / 1.1)
     belief.update(1, output)
-    assert np.allclose(belief.belief, np.array([0.9 * 0.6, 0.5 * 0.5]) / (0.54 + 0.25))
+    assert np.allclose(belief.belief, np.array([0.36, 0.25]) / 0.61)
+    assert belief.updates == 2
     belief.reset()
-    belief.update(1, output)  # a new episode starts with the first-view model again
-    assert np.allclose(belief.belief, np.array([0.9, 0.5]) / 1.4)
-    with pytest.raises(ValueError, match="first-view model's shape"):
-        BayesBelief(planner, np.full((3, 2, 2), 0.5))
+    assert belief.updates == 0 and np.allclose(belief.belief, [0.5, 0.5])
 
 
 def test_static_belief_is_the_output_temperature_scaled_and_declares_its_argmax() -> None:

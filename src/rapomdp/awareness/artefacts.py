@@ -25,8 +25,10 @@ from rapomdp.recognition.artefacts import TRAIN_SECTIONS, VPTREE_SUMMARY_FILE
 SALIENCY_FILE = "saliency.json"
 VOLUME_FILE = "volume.json"
 OBSERVATION_FILE = "observation_models.npz"
-#: Prefix of each model's first-update array in :data:`OBSERVATION_FILE` (the planner's model:
-#: every view, the first included, is tempered alike).
+#: Prefix of each model's first-update array in :data:`OBSERVATION_FILE`: the model itself
+#: (every view, the first included, is tempered alike since the first-view-in-full correction
+#: was retired, docs/decisions/0003); written so that the artefact stays as it was, read by no
+#: stage.
 FIRST_VIEW_PREFIX = "first_view_"
 #: A model's declared-confidence temperature (a scalar; absent: 1, the belief as it is) in
 #: :data:`OBSERVATION_FILE`: what a policy reports is its belief ** a, renormalised, a fitted

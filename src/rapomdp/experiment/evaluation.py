@@ -86,7 +86,6 @@ from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import (
     declared_temperatures,
-    first_view_models,
     offered_observation_models,
 )
 from rapomdp.recognition.artefacts import (
@@ -156,7 +155,6 @@ class ClosedLoop:
         robot = load_robot(inputs.robot)
         motion = Motion.from_robot(robot)
         observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
-        first_view = first_view_models(inputs.observe, observation)
         cfg = config.evaluate
         # what each belief reports after its views (evaluate.declared_confidence); Random
         # stops at a belief threshold, so it reports with the a fitted at its threshold
@@ -187,7 +185,7 @@ class ClosedLoop:
                                      f"'{name}', which the workspace lacks")
                 # its a is fitted where its own held-out closed loop stops (else: 1)
                 return LearnedPolicy(network, spec, observation[name], motion.reachable,
-                                     METHOD_NAMES[key], first_view_model=first_view[name],
+                                     METHOD_NAMES[key],
                                      declared_temperature=(declared_fit or {}).get(LEARNED, 1.0)
                                      if calibrated else 1.0)
             if key == "static":
@@ -201,16 +199,14 @@ class ClosedLoop:
                 return RandomWalkPolicy(
                     observation[name], motion.distance_m, motion.reachable,
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
-                    METHOD_NAMES[key], first_view_model=first_view[name],
-                    declared_temperature=declared(name, random_threshold))
+                    METHOD_NAMES[key], declared_temperature=declared(name, random_threshold))
             path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
                                  f"add '{key}' to solve.models")
             return POMDPPolicy.configured(
                 cfg, ActiveRecognitionPolicy.load(path), observation[key], METHOD_NAMES[key],
-                motion.reachable, recogniser, first_view_model=first_view[key],
-                declared_temperature=declared(key))
+                motion.reachable, recogniser, declared_temperature=declared(key))
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}

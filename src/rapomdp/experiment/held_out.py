@@ -81,13 +81,12 @@ class LabelRecogniser:
 class HeldOutFold:
     """One method's held-out group: its models' true classes ``labels`` (M,) and recorded
     labels ``predicted`` (M, V), and the method's ``model`` (V, C, C) fitted without them
-    (the planner's and the belief's) with the belief's ``first_view`` model."""
+    (the planner's and the belief's)."""
 
     group: int
     labels: np.ndarray
     predicted: np.ndarray
     model: np.ndarray
-    first_view: np.ndarray
 
 
 def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
@@ -111,7 +110,7 @@ def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
                 planner = temper(models[name].probabilities, float(temperatures[name]))
                 out[name].append(HeldOutFold(int(evidence.groups[held][0]),
                                              evidence.labels[held], evidence.predicted[held],
-                                             planner, planner))
+                                             planner))
     if "vptree" in methods:
         vptree = load_npz(inputs.vptree / VPTREE_OBSERVATION_FILE)
         if "volume_predictions" not in vptree:
@@ -123,7 +122,7 @@ def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
                                config.vptree.pseudo_count)
         tempered = [(held, temper(m, t)) for held, m in folds_v]
         out["vptree"] = [] if len(folds_v) < 2 else [
-            HeldOutFold(int(groups[held][0]), labels[held], predicted[held], m, m)
+            HeldOutFold(int(groups[held][0]), labels[held], predicted[held], m)
             for held, m in tempered]
     return out
 
@@ -255,16 +254,13 @@ def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldO
     elif name == "random":  # its walk at Table 1's threshold
         walk = config.evaluate.random
         policy = RandomWalkPolicy(fold.model, motion.distance_m, motion.reachable,
-                                  walk.neighbours, walk.belief_threshold, walk.max_moves, name,
-                                  first_view_model=fold.first_view)
+                                  walk.neighbours, walk.belief_threshold, walk.max_moves, name)
     elif plans is None:
         network, spec = load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
-        policy = LearnedPolicy(network, spec, fold.model, motion.reachable, name,
-                               first_view_model=fold.first_view)
+        policy = LearnedPolicy(network, spec, fold.model, motion.reachable, name)
     else:
         policy = POMDPPolicy.configured(config.evaluate, ActiveRecognitionPolicy.load(plans),
-                                        fold.model, name, motion.reachable,
-                                        first_view_model=fold.first_view)
+                                        fold.model, name, motion.reachable)
     return held_out_stops(config, policy, fold, motion)
 
 

@@ -61,7 +61,6 @@ from rapomdp.experiment.sections import LEARNED, learned_lambdas
 from rapomdp.io import read_json, write_json_atomic, write_text_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.stage import (
-    first_view_models,
     offered_observation_models,
 )
 from rapomdp.progress import progress_bar, track
@@ -103,11 +102,9 @@ def record_evidence(dataset: Dataset, volume: XrhoProbabilities) -> RecordedEvid
 def belief_arguments(observe_dir: Path, names: Sequence[str]) -> dict[str, dict[str, Any]]:
     """For each named observation model, the arguments of its closed-loop belief
     (:class:`~rapomdp.experiment.methods.BayesBelief`) as the evaluation builds them: the
-    model and its first-view model."""
+    model."""
     models, _ = offered_observation_models(observe_dir)
-    first = first_view_models(observe_dir, models)
-    return {name: {"observation_model": models[name], "first_view_model": first[name]}
-            for name in names if name in models}
+    return {name: {"observation_model": models[name]} for name in names if name in models}
 
 
 def belief_models(config: Config, observe_dir: Path) -> dict[str, Any]:

@@ -184,7 +184,6 @@ class LearnedPolicy:
 
     def __init__(self, network: PolicyNetwork, spec: PolicySpec, observation_model: np.ndarray,
                  reachable: np.ndarray, name: str = "Learned (PPO)", recogniser: str = "cnn",
-                 first_view_model: np.ndarray | None = None,
                  declared_temperature: float | DeclaredTemperature = 1.0) -> None:
         shape = np.shape(observation_model)
         if len(shape) != 3 or (shape[0], shape[2]) != (spec.viewpoints, spec.classes):
@@ -197,7 +196,7 @@ class LearnedPolicy:
         self.name, self.recogniser = name, recogniser
         self.network, self.spec = network, spec
         self.reachable = np.asarray(reachable, dtype=bool)
-        self._bayes = BayesBelief(observation_model, first_view_model, declared_temperature)
+        self._bayes = BayesBelief(observation_model, declared_temperature)
         self._visited = np.zeros(spec.viewpoints, dtype=bool)
         self._looks = 0
 

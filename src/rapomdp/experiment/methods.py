@@ -31,16 +31,14 @@ from rapomdp.recognition.belief import (
 class BayesBelief:
     """A distribution over the classes updated by Eq. 5 with an observation model P
     (V, C, C): the recogniser's most likely class is the observation. ``state`` is that
-    distribution from a uniform prior and ``belief`` the same (the class distribution). The
-    first update of an episode uses ``first_view_model`` (default: P itself; the observe
-    stage's ``first_view_<name>`` is P); the planner plans every update with P.
+    distribution from a uniform prior and ``belief`` the same (the class distribution); every
+    update uses P, as the planner plans it.
 
     ``declared`` is what a policy reports: the class belief raised to ``declared_temperature``
     and renormalised (``evaluate.declared_confidence``, fitted where held-out walks stop); the
     policy acts on ``belief`` and ``state``, which it leaves alone."""
 
     def __init__(self, observation_model: np.ndarray,
-                 first_view_model: np.ndarray | None = None,
                  declared_temperature: float | DeclaredTemperature = 1.0) -> None:
         if not isinstance(declared_temperature, DeclaredTemperature):
             if not declared_temperature > 0:
@@ -50,22 +48,10 @@ class BayesBelief:
         self.declared_readout = declared_temperature
         self.declared_temperature = declared_temperature.scale
         self.observation_model = np.asarray(observation_model, dtype=np.float64)
-        self.first_view_model = (self.observation_model if first_view_model is None
-                                 else np.asarray(first_view_model, dtype=np.float64))
-        if self.first_view_model.shape != self.observation_model.shape:
-            raise ValueError(f"the first-view model's shape {self.first_view_model.shape} "
-                             f"differs from the observation model's "
-                             f"{self.observation_model.shape}")
         n_s = self.observation_model.shape[1]
         self.prior = np.full(n_s, 1.0 / n_s)
         self.state = self.prior.copy()
         self.updates = 0
-        self.visited = np.zeros(self.observation_model.shape[0], dtype=bool)
-
-    def next_model(self) -> np.ndarray:
-        """The model (V, C, C) the next update uses at each viewpoint: the first-view model
-        before the first view, then P."""
-        return self.first_view_model if self.updates == 0 else self.observation_model
 
     @property
     def n_classes(self) -> int:
@@ -85,12 +71,10 @@ class BayesBelief:
     def reset(self) -> None:
         self.state = self.prior.copy()
         self.updates = 0
-        self.visited[:] = False
 
     def update(self, viewpoint: int, output: np.ndarray) -> None:
         label = int(np.argmax(output))
-        self.state = update_beliefs(self.next_model(), self.state, viewpoint, label)
-        self.visited[viewpoint] = True
+        self.state = update_beliefs(self.observation_model, self.state, viewpoint, label)
         self.updates += 1
 
 
@@ -136,7 +120,6 @@ class RandomWalkPolicy:
     def __init__(self, observation_model: np.ndarray, distance_m: np.ndarray,
                  reachable: np.ndarray, neighbours: int = 8, belief_threshold: float = 0.9,
                  max_moves: int = 10, name: str = "Random", recogniser: str = "cnn",
-                 first_view_model: np.ndarray | None = None,
                  declared_temperature: float | DeclaredTemperature = 1.0) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
@@ -145,7 +128,7 @@ class RandomWalkPolicy:
         self.name, self.recogniser = name, recogniser
         self.neighbours = k_nearest(distance_m, neighbours, allowed=reachable)
         self.belief_threshold, self.max_moves = float(belief_threshold), int(max_moves)
-        self._bayes = BayesBelief(observation_model, first_view_model, declared_temperature)
+        self._bayes = BayesBelief(observation_model, declared_temperature)
         self._visited: set[int] = set()
         self._rng = np.random.default_rng()
 
@@ -190,7 +173,6 @@ class POMDPPolicy:
 
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
                  name: str, recogniser: str = "cnn", revisit: bool = False,
-                 first_view_model: np.ndarray | None = None,
                  lookahead_over: np.ndarray | None = None, lookahead_depth: int = 1,
                  lookahead_width: int = LOOKAHEAD_WIDTH,
                  declared_temperature: float | DeclaredTemperature = 1.0) -> None:
@@ -206,7 +188,7 @@ class POMDPPolicy:
         self.observation_model = observation_model
         self.lookahead_over = lookahead_over
         self.lookahead_depth, self.lookahead_width = lookahead_depth, lookahead_width
-        self._bayes = BayesBelief(observation_model, first_view_model, declared_temperature)
+        self._bayes = BayesBelief(observation_model, declared_temperature)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
     @classmethod
@@ -215,7 +197,7 @@ class POMDPPolicy:
                    recogniser: str = "cnn", **belief: Any) -> POMDPPolicy:
         """The method as the evaluate stage configures it (``cfg``: its revisit rule, the
         lookahead over the ``reachable`` viewpoints, its depth and width); ``belief``: the
-        belief's keyword arguments (``first_view_model``, ``declared_temperature``)."""
+        belief's keyword arguments (``declared_temperature``)."""
         return cls(policy, observation_model, name, recogniser, cfg.revisit,
                    lookahead_over=reachable if cfg.lookahead else None,
                    lookahead_depth=cfg.lookahead_depth, lookahead_width=cfg.lookahead_width,

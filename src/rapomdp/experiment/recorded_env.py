@@ -138,8 +138,8 @@ class RecordedRecognitionEnv(gymnasium.Env):
     Observations: :func:`policy_input` (Box in [0, 1], C + 2V). Actions: ``Discrete(V + C)``
     as in :class:`~rapomdp.experiment.env.ActiveRecognitionEnv`. ``reset`` takes
     ``options={"model": i, "start": v}`` (each drawn from the env's RNG otherwise). The belief
-    is :class:`~rapomdp.experiment.methods.BayesBelief` of ``observation_model`` (V, C, C) with
-    ``first_view_model``, as the evaluation builds it for a method of that model
+    is :class:`~rapomdp.experiment.methods.BayesBelief` of ``observation_model`` (V, C, C), as
+    the evaluation builds it for a method of that model
     (:func:`~rapomdp.experiment.learn_stage.belief_models`).
     :meth:`action_masks` is what sb3-contrib's ``MaskablePPO`` reads. The final ``info`` holds
     ``correct``, ``true_class``, ``model``, ``moves`` and ``energy`` (the scorer's view).
@@ -149,7 +149,6 @@ class RecordedRecognitionEnv(gymnasium.Env):
 
     def __init__(self, evidence: RecordedEvidence, observation_model: np.ndarray,
                  motion: Motion, lambda_: float, max_moves: int, revisit: bool = False,
-                 first_view_model: np.ndarray | None = None,
                  invalid_penalty: float | None = None, seed: int | None = None) -> None:
         if evidence.models == 0:
             raise ValueError("RecordedRecognitionEnv needs at least one recorded model")
@@ -174,7 +173,7 @@ class RecordedRecognitionEnv(gymnasium.Env):
         self.lambda_ = float(lambda_)
         self.max_moves = int(max_moves)
         self.revisit = bool(revisit)
-        self._bayes = BayesBelief(model, first_view_model)
+        self._bayes = BayesBelief(model)
         reach = motion.reachable
         valid = motion.energy[np.ix_(reach, reach)]
         valid = valid[np.isfinite(valid)]

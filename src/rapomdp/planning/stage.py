@@ -23,7 +23,6 @@ from rapomdp.awareness.artefacts import (
     DECLARED_PREFIX,
     DECLARED_THRESHOLD_PREFIX,
     DECLARED_THRESHOLDS,
-    FIRST_VIEW_PREFIX,
     OBSERVATION_FILE,
 )
 from rapomdp.config import Config
@@ -36,17 +35,6 @@ from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE as VPTREE_FILE
 from rapomdp.robot.artefacts import ROBOT_ARRAYS
 from rapomdp.workspace import StageError, StageInputs
-
-
-def first_view_models(observe_dir: Path, offered: dict[str, np.ndarray]
-                      ) -> dict[str, np.ndarray]:
-    """Each ``offered`` model's (:func:`offered_observation_models`) model of the belief's
-    *first* update (the observe stage's ``first_view_<name>``; the planner's model itself where
-    there is none, e.g. the VP-tree's or a workspace from before the belief correction). Later
-    updates use the planner's."""
-    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
-    return {name: observe.get(f"{FIRST_VIEW_PREFIX}{name}", model)
-            for name, model in offered.items()}
 
 
 def declared_temperatures(observe_dir: Path, offered: Collection[str],

@@ -56,7 +56,7 @@ from rapomdp.parallel import pooled, run_tasks
 from rapomdp.pipeline import STAGE_NAMES, get_stage
 from rapomdp.planning.artefacts import load_solve_summary, policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.stage import first_view_models, start_viewpoint
+from rapomdp.planning.stage import start_viewpoint
 from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.recognition.belief import fit_temperature, held_out_walks, temper
 from rapomdp.recognition.evaluation import viewpoint_confusion
@@ -123,7 +123,7 @@ class HeadroomRow:
 class HeadroomResult:
     """The rows and what they were built from: the test models' ``labels`` (N,) and the
     recogniser's labels ``predicted`` (N, V) at X_rho; per observation model (``models``, the
-    planner's and the belief's; ``first_view``, the belief's first update) the test model files
+    planner's and the belief's) the test model files
     it was counted on (``counted_on``, empty for the learned model); per row and test model file
     the observation model its episodes used (``assignment``); ``halves`` (N,) of the
     cross-object split; ``temperatures``: the oracle-fitted ones by row;
@@ -136,7 +136,6 @@ class HeadroomResult:
     labels: np.ndarray
     predicted: np.ndarray
     models: dict[str, np.ndarray]
-    first_view: dict[str, np.ndarray]
     counted_on: dict[str, tuple[str, ...]]
     assignment: dict[str, dict[str, str]]
     halves: np.ndarray | None
@@ -198,13 +197,12 @@ def oracle_temperature(single_view: np.ndarray, labels: np.ndarray, predicted: n
 
 @dataclass
 class RowModels:
-    """Each row's observation models: by model key the planner's and belief's (``models``) and
-    the belief's first update (``first_view``), the test model files counted (``counted_on``);
+    """Each row's observation models: by model key the planner's and belief's (``models``), the
+    test model files counted (``counted_on``);
     per row and test model file the model its episodes use (``assignment``); the oracle-fitted
     temperatures by row."""
 
     models: dict[str, np.ndarray]
-    first_view: dict[str, np.ndarray]
     counted_on: dict[str, tuple[str, ...]]
     assignment: dict[str, dict[str, str]]
     temperatures: dict[str, float]
@@ -212,22 +210,21 @@ class RowModels:
 
 def row_models(rows: Sequence[str], files: Sequence[str], labels: np.ndarray,
                predicted: np.ndarray, halves: np.ndarray | None, classes: int,
-               pseudo_count: float, learned: np.ndarray, learned_first: np.ndarray,
+               pseudo_count: float, learned: np.ndarray,
                learned_temperature: float, directions: np.ndarray,
                seed: int) -> RowModels:
     """The observation models of ``rows`` (keys of :data:`ROWS`) from the test models'
     ``files``, ``labels`` (N,) and ``predicted`` labels (N, V) at X_rho, the cross-object
-    ``halves`` (N,) and the learned model as evaluated (``learned``, ``learned_first``,
-    tempered by ``learned_temperature``). Counts use ``pseudo_count``."""
+    ``halves`` (N,) and the learned model as evaluated (``learned``, tempered by
+    ``learned_temperature``). Counts use ``pseudo_count``."""
     if halves is None and set(rows) & set(CROSS_ROWS):
         raise ValueError("the cross-object rows need the halves (cross_object_halves)")
     single = temper(learned, 1.0 / learned_temperature)  # the single-view rows it tempers
-    out = RowModels({"learned": learned}, {"learned": learned_first}, {"learned": ()},
+    out = RowModels({"learned": learned}, {"learned": ()},
                     {"learned": dict.fromkeys(files, "learned")}, {})
 
     def add(key: str, model: np.ndarray, on: np.ndarray) -> None:
         out.models[key] = model
-        out.first_view[key] = model
         out.counted_on[key] = tuple(f for f, used in zip(files, on, strict=True) if used)
 
     def add_oracle_correct(key: str, oracle: np.ndarray, on: np.ndarray) -> None:
@@ -294,7 +291,7 @@ def _outputs_task(config_json: str, inputs: StageInputs, files: list[str]) -> li
 
 
 def _episodes_task(config_json: str, inputs: StageInputs,
-                   arms: dict[str, tuple[str, np.ndarray, np.ndarray]],
+                   arms: dict[str, tuple[str, np.ndarray]],
                    assignment: dict[str, dict[str, str]], files: list[str],
                    outputs: list[np.ndarray]) -> list[EpisodeRecord]:
     """Every start x row episode of each test model: RA-POMDP's planner and belief (the
@@ -304,11 +301,10 @@ def _episodes_task(config_json: str, inputs: StageInputs,
     assert isinstance(evaluated, POMDPPolicy)
     policies = {key: POMDPPolicy(ActiveRecognitionPolicy.load(path), model, evaluated.name,
                                  evaluated.recogniser, evaluated.revisit,
-                                 first_view_model=first,
                                  lookahead_over=evaluated.lookahead_over,
                                  lookahead_depth=evaluated.lookahead_depth,
                                  lookahead_width=evaluated.lookahead_width)
-                for key, (path, model, first) in arms.items()}
+                for key, (path, model) in arms.items()}
     by_file = {m.file: m for m in loop.dataset.with_role("test")}
     cnn = loop.recognisers[evaluated.recogniser]
     cfg = loop.config
@@ -428,10 +424,9 @@ def _headroom(workspace: str | Path | Workspace, out: str | Path | None,
     t_learned = float(recorded.calibration["temperatures"][METHOD])
     correction = str(recorded.calibration["belief_corrections"][METHOD])
     built = row_models(wanted, files, labels, predicted, halves, len(classes),
-                       config.observe.classifier_pseudo_count, learned,
-                       first_view_models(inputs.observe, {METHOD: learned})[METHOD], t_learned,
+                       config.observe.classifier_pseudo_count, learned, t_learned,
                        np.asarray(recorded.arrays["directions"]), config.seed)
-    models, first, assignment = built.models, built.first_view, built.assignment
+    models, assignment = built.models, built.assignment
     robot = load_robot(inputs.robot)
     motion = Motion.from_robot(robot)
     policies = out / POLICIES_DIR
@@ -452,7 +447,7 @@ def _headroom(workspace: str | Path | Workspace, out: str | Path | None,
     paths["learned"] = str(inputs.solve / policy_file(METHOD))
 
     # 3. the episodes: every (test model, start) pair of the evaluate stage, every row
-    arms = {k: (paths[k], models[k], first[k]) for k in models}
+    arms = {k: (paths[k], models[k]) for k in models}
     episodes_began = time.perf_counter()
     tasks = []
     for share in _shares(files, count):
@@ -481,7 +476,7 @@ def _headroom(workspace: str | Path | Workspace, out: str | Path | None,
             float(sum(float(summary[a]["seconds"]) for a in arms_of if a in summary)),
             float(table.cpu_seconds[mine].sum())))
     result = HeadroomResult(
-        result_rows, table, files, labels, predicted, models, first, built.counted_on,
+        result_rows, table, files, labels, predicted, models, built.counted_on,
         assignment, halves, t_learned, correction, built.temperatures,
         mismatches, agreement,
         {"labels_wall": labels_s, "solve_wall": solve_s, "episodes_wall": episodes_s,
