@@ -23,7 +23,7 @@ install: $(STAMP)
 
 # `rapomdp demo` (what pip users run): the dataset, its contact sheet, every stage, Table 1
 # and the summary (report path, who won, wall time, memory); W/report/report.html.
-# Two PyTorch threads for the serial stages (train, crossfit, observe): the training throughput
+# Two PyTorch threads for the serial stages (train, observe): the training throughput
 # against one thread is in benchmarks/results/classifier_speed.txt; the parallel stages use two
 # single-threaded processes whatever this says.
 DEMO_THREADS ?= 2

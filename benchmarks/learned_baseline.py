@@ -122,9 +122,8 @@ def main() -> None:
         "its forward pass)")
 
     say("\n## Training (learn stage)\n")
-    say(f"evidence: {summary['evidence']['models']} held-out models "
-        f"({summary['evidence']['volume']} volume, {summary['evidence']['crossfit']} "
-        f"cross-fitted); belief: {summary['observation_model']}; {summary['timesteps']:,} "
+    say(f"evidence: {summary['evidence']['models']} held-out volume models; "
+        f"belief: {summary['observation_model']}; {summary['timesteps']:,} "
         f"timesteps per λ; {summary['workers']} worker process(es)")
     curves = read_csv(ws.require("learn") / CURVES_CSV)
     say("| λ (m) | CPU s | plateau (timesteps) | final update: return | accuracy | energy (m) |")

@@ -19,12 +19,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from rapomdp.awareness.stage import (
-    XrhoOutcomes,
-    class_volume,
-    observe,
-    saliency_maps,
-)
+from rapomdp.awareness.observe_stage import XrhoOutcomes, observe
+from rapomdp.awareness.stage import class_volume, saliency_maps
 from rapomdp.awareness.volume import object_grid, saliency_volume
 from rapomdp.io import write_text_atomic
 from rapomdp.recognition.stage import load_workspace_classifier

@@ -18,7 +18,8 @@ from pathlib import Path
 
 import torch
 
-from rapomdp.awareness.stage import XrhoOutcomes, class_volume, observe, xrho_outcomes
+from rapomdp.awareness.observe_stage import XrhoOutcomes, observe, xrho_outcomes
+from rapomdp.awareness.stage import class_volume
 from rapomdp.io import write_text_atomic
 from rapomdp.recognition.stage import load_workspace_classifier
 from rapomdp.workspace import Workspace

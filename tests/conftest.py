@@ -49,7 +49,6 @@ TINY_PIPELINE: dict = {
     "saliency": {"iterations": 5},
     "volume": {"resolution": 12},
     "vptree": {"branching": 4, "levels": 2},
-    "observe": {"crossfit_epochs": 1},
 }
 
 

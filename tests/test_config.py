@@ -26,13 +26,8 @@ def test_default_has_the_papers_values() -> None:
     # default); the paper's 3 / 1 / 1 is a config
     assert cfg.dataset.split == "auto" and cfg.dataset.models_per_class is None
     assert (SplitConfig().train, SplitConfig().volume, SplitConfig().test) == (4, 3, 4)
-    assert cfg.volume.models_per_class == 1 and cfg.observe.evidence == "volume"
-    # the belief's likelihoods tempered (chosen on the held-out closed loop, docs/awareness.md)
-    assert cfg.observe.belief_correction == "temperature"
-    # wrong labels shrunk toward uniform only where the held-out objects support it
-    assert cfg.observe.wrong_labels == "auto"
-    # and the VP-tree's, fitted the same way over its volume models (docs/recognition.md)
-    assert cfg.vptree.belief_correction == "temperature"
+    # RA-POMDP's model: the RA variants averaged with weights fitted held out
+    assert cfg.volume.models_per_class == 1 and cfg.observe.ra_model == "mixture"
     assert SplitConfig().extra == "train"
     paper = load_config(Path(__file__).parents[1] / "configs" / "paper.yaml")
     assert (paper.dataset.split.train, paper.dataset.split.volume, paper.dataset.split.test) \
@@ -74,24 +69,6 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
     assert Config().section("train")["input_features"] == "depth_normals"
     assert Config().section("train")["augment"] == {"shift": 0.05, "scale": 0.1, "noise": False}
     assert Config().section("dataset") == Config().dataset.model_dump(mode="json")
-    assert "discount_walks" not in Config().section("observe")
-    mixed = {"belief": "similarity", "discount_walks": "mixed"}
-    assert config_from_dict({"observe": mixed}).section("observe")["discount_walks"] == "mixed"
-    with pytest.raises(ConfigError, match="discount_walks"):
-        config_from_dict({"observe": {"belief": "similarity", "discount_walks": "far"}})
-    with pytest.raises(ConfigError, match="discount_walks applies to belief: similarity only"):
-        config_from_dict({"observe": {"discount_walks": "mixed"}})
-    # added after workspaces existed: absent from the key at its default, which they ran with
-    assert "class_shrinkage" not in Config().section("observe")
-    assert config_from_dict({"observe": {"class_shrinkage": "auto"}}).section(
-        "observe")["class_shrinkage"] == "auto"
-    with pytest.raises(ConfigError, match="class_shrinkage applies to the naive and similarity"):
-        config_from_dict({"observe": {"belief": "nuisance", "class_shrinkage": "auto"}})
-    # the default RA model, the mixture, is not defined for the nuisance belief's refitted rows
-    with pytest.raises(ConfigError, match="with belief: nuisance set ra_model to auto"):
-        config_from_dict({"observe": {"belief": "nuisance"}})
-    assert config_from_dict({"observe": {"belief": "nuisance", "ra_model": "auto"}}).section(
-        "observe")["belief"] == "nuisance"
 
 
 def test_yaml_round_trip(tmp_path: Path) -> None:

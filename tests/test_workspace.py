@@ -98,14 +98,14 @@ def test_stage_inputs_are_typed_folders_and_name_a_missing_upstream(tmp_path: Pa
     the reading one); ``inputs.train_dir`` is None when not given (an optional input)."""
     inputs = StageInputs("observe", dataset_dir=str(tmp_path), volume_dir=tmp_path / "v")
     assert inputs.dataset == tmp_path and isinstance(inputs.dataset, Path)  # a str is coerced
-    assert inputs.crossfit_dir is None
+    assert inputs.xrho_dir is None
     assert inputs.given() == {"dataset": tmp_path, "volume": tmp_path / "v"}  # pipeline order
     assert repr(inputs) == (f"StageInputs('observe', dataset_dir={str(tmp_path)!r}, "
                             f"volume_dir={str(tmp_path / 'v')!r})")
     with pytest.raises(StageError, match=r"^stage 'observe' needs the folder of stage "
-                                         r"'crossfit', which it was not given: run `rapomdp "
-                                         r"crossfit -w WORKSPACE` first"):
-        inputs.crossfit  # noqa: B018
+                                         r"'xrho', which it was not given: run `rapomdp "
+                                         r"xrho -w WORKSPACE` first"):
+        inputs.xrho  # noqa: B018
     with pytest.raises(StageError, match=r"^this stage needs the folder of stage 'train'"):
         StageInputs().train  # noqa: B018
     assert StageInputs.of("train", {"dataset": tmp_path}) == StageInputs(

@@ -207,7 +207,7 @@ class TrainConfig(Section):
     device: Literal["auto", "cpu", "cuda"] = "auto"
     seed: int | None = Field(
         None, ge=0, lt=2**32, description="the classifier's own seed (weights, batch order, "
-        "validation split, the crossfit folds' training); null: the run's seed. A study varies "
+        "validation split); null: the run's seed. A study varies "
         "it alone with --vary train")
     ensemble: int = Field(
         1, ge=1, le=16, description="networks trained from their own seeds whose mean "
@@ -262,87 +262,17 @@ class VolumeConfig(Section):
 class ObserveConfig(Section):
     """Observation models P(o | class, viewpoint) (see docs/awareness.md)."""
 
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("discount_walks", "class_shrinkage")
-
     calibration: Literal["logistic", "isotonic"] = "logistic"
     classifier_pseudo_count: float = Field(
         0.1, gt=0, description="Classifier model: pseudo-count per (viewpoint, class, label)")
     confusion_pseudo_count: float = Field(
         1.0, ge=0, description="RA / black-box: pseudo-count per (class, label) of the confusion")
-    evidence: Literal["volume", "crossfit", "both"] = Field(
-        "volume", description="held-out evidence the models are fitted on: the volume models "
-        "under the trained classifier (the dataset split's volume role), cross-fitted training "
-        "models (weaker fold classifiers), or both")
-    crossfit_folds: int = Field(3, ge=2, description="cross-fitting folds over training models")
-    crossfit_epochs: int | None = Field(
-        6, ge=1, description="epochs of each fold's classifier (6: the demo's time budget, "
-        "weaker folds than the trained classifier); null: train.epochs, the train stage's own "
-        "recipe (held-out evidence at full strength)")
-    contrastive: bool = Field(
-        False, description="also fit ra_contrastive: each class's saliency volume against its "
-        "most confused class (one more mask per volume-model view)")
-    ra_model: Literal["auto", "paper", "class", "area", "class_area", "contrastive",
-                      "viewpoint", "region", "transfer", "mixture"] = Field(
+    ra_model: Literal["paper", "class", "area", "class_area", "viewpoint", "transfer",
+                      "mixture"] = Field(
         "mixture", description="the recognition-aware model RA-POMDP uses ('ra'); mixture: "
         "the RA variants averaged with weights fitted on the held-out labels (each group "
-        "scored by the variants fitted without it; the default since 2026-12-06, by a rule "
-        "on held-out objects); auto: the variant with the best held-out log-likelihood "
-        "('region', the accuracy per viewpoint pooled over classes, only when named), 'class' "
-        "unless the best beats it by more than one standard error and the choice made without "
-        "each group leaves it too; with too little held-out evidence both fall back to 'class' "
-        "and say so (docs/awareness.md 4.4)")
-    transfer_shrinkage: bool = Field(
-        False, description="ra_transfer's kernel choice also scores shrinking each class row's "
-        "accuracy toward the accuracy pooled over every class (by 0-64 objects' worth, chosen "
-        "on the same held-out likelihood): better held out per label, not in the held-out "
-        "closed loop (docs/awareness.md §4.2)")
-    belief: Literal["naive", "nuisance", "similarity"] = Field(
-        "naive", description="the belief's model of one object's views: naive (independent "
-        "given the class, Eq. 5); nuisance (independent given the class and a hidden "
-        "per-object instance type, typical or atypical, fitted by EM over the held-out "
-        "objects: an unusual object's errors repeat over its views; the planner solves the "
-        "same model and a declaration names a class); similarity (a later view's evidence "
-        "discounted by how alike it is to the views taken, fitted on held-out walks; "
-        "replaces belief_correction) (docs/awareness.md §4.6)")
-    discount_walks: Literal["neighbours", "mixed"] = Field(
-        "neighbours", description="the held-out walks the similarity belief's discount is "
-        "fitted on: neighbours (each step to a near viewpoint, as the temperature's walks) or "
-        "mixed (half the steps jump to any viewpoint, so a far view's worth and a "
-        "neighbour's repetition are told apart; docs/awareness.md §4.6)")
-    wrong_labels: Literal["auto", "none"] = Field(
-        "auto", description="where each model's wrong labels go: none (as counted on the "
-        "held-out objects); auto (per model, mixed toward uniform by the amount of 0-1 of "
-        "best leave-one-group-out log-likelihood, kept only if it beats none by more than one "
-        "standard error; none with fewer than 2 held-out objects a class). Where one object's "
-        "mistakes went need not be where another's go (docs/awareness.md §4.7). The nuisance "
-        "belief fits its own rows: none there")
-    class_shrinkage: Literal["none", "auto"] = Field(
-        "none", description="ra_class's class intercepts: none (as fitted); auto (moved toward "
-        "their mean by the amount of 0-1 of best leave-one-group-out log-likelihood, kept only "
-        "if it beats none by more than one standard error). A class's intercept is fitted on a "
-        "few objects whose errors gather on whole objects. Measured, not adopted "
-        "(docs/awareness.md 4.7)")
-    belief_correction: Literal["auto", "none", "temperature", "after_first"] = Field(
-        "temperature", description="temperature: every model's likelihoods raised to a power "
-        "fitted on held-out multi-view walks, so correlated views count less than independent "
-        "ones (the default: on the held-out closed loop it calibrates RA-POMDP's final belief "
-        "at the same accuracy, docs/awareness.md §4.5); none: naive Bayes; after_first: the "
-        "first view in full, the later ones tempered; auto: per model, the one of least "
-        "held-out belief log loss")
-
-    @model_validator(mode="after")
-    def _discount_walks_need_similarity(self) -> ObserveConfig:
-        if self.class_shrinkage != "none" and self.belief == "nuisance":
-            raise ValueError("class_shrinkage applies to the naive and similarity beliefs; the "
-                             "nuisance belief fits its own rows (set class_shrinkage: none)")
-        if self.ra_model == "mixture" and self.belief == "nuisance":
-            raise ValueError("ra_model mixture (the default) averages the single-view RA "
-                             "variants, and the nuisance belief refits each model's rows: with "
-                             "belief: nuisance set ra_model to auto or a variant")
-        if self.discount_walks != "neighbours" and self.belief != "similarity":
-            raise ValueError("discount_walks applies to belief: similarity only (the view "
-                             f"discount it fits); belief is {self.belief!r}")
-        return self
+        "scored by the variants fitted without it); with too little held-out evidence it falls "
+        "back to 'class' and says so (docs/awareness.md 4.4); another name: that variant")
 
 
 Vector3 = tuple[float, float, float]
@@ -427,13 +357,6 @@ class VPTreeConfig(Section):
         1, ge=1, description="best-matching training views voting (1: the best match's class)")
     pseudo_count: float = Field(
         0.1, gt=0, description="pseudo-count per (viewpoint, class, label) of the confusion")
-    belief_correction: Literal["none", "temperature"] = Field(
-        "temperature", description="temperature: the confusion's likelihoods raised to a power "
-        "fitted on held-out multi-view walks (leave-one-group-out over the volume models, the "
-        "k-th of each class in group k), so correlated views count less than independent ones, "
-        "as observe.belief_correction does for the other models (docs/awareness.md §4.5); with "
-        "fewer than two such groups (one volume model per class) t = 1; none: naive Bayes with "
-        "the raw confusion")
 
 
 class SolveConfig(Section):

@@ -13,11 +13,9 @@ from functools import partial
 from pathlib import Path
 
 from rapomdp.awareness.artefacts import (
-    CROSSFIT_SECTIONS,
     OBSERVE_SECTIONS,
     SALIENCY_SECTIONS,
     VOLUME_SECTIONS,
-    crossfit_fingerprint,
     volume_file,
 )
 from rapomdp.config import Config, apply_overrides, config_from_dict, read_config_data
@@ -56,10 +54,8 @@ def stage_code(name: str) -> StageRun:
         from rapomdp.awareness.stage import run_volume_stage as run
     elif name == "robot":
         from rapomdp.robot.stage import run_robot_stage as run
-    elif name == "crossfit":
-        from rapomdp.awareness.stage import run_crossfit_stage as run
     elif name == "observe":
-        from rapomdp.awareness.stage import run_observe_stage as run
+        from rapomdp.awareness.observe_stage import run_observe_stage as run
     elif name == "vptree":
         from rapomdp.recognition.vptree_stage import run_vptree_stage as run
     elif name == "solve":
@@ -143,23 +139,15 @@ STAGES: list[Stage] = [
         description="Panda IK, reachability and manipulability per test viewpoint; energy E_M",
     ),
     Stage(
-        name="crossfit",
-        run=_deferred("crossfit"),
-        sections=CROSSFIT_SECTIONS,
-        inputs=("dataset", "render"),
-        fingerprint=crossfit_fingerprint,
-        description="held-out evidence: k classifiers label the training models they did not see",
-    ),
-    Stage(
         name="observe",
         run=_deferred("observe"),
         sections=OBSERVE_SECTIONS,
-        inputs=("dataset", "render", "train", "xrho", "classifier_eval", "volume", "crossfit"),
+        inputs=("dataset", "train", "xrho", "classifier_eval", "volume"),
         version="6",  # 2: ra_transfer's kernel chosen per dataset on held-out evidence; 3: the
         # declared confidence fitted where held-out walks stop; 4: by the confidence's
         # cross-entropy, and at each stop threshold; 5: ra_viewpoint's stacked term centred,
         # ra_region fitted; 6: auto leaves the robust default only if it does so without
-        # each group too (evidence.check_variant_stability)
+        # each group too (auto and its check retired since, docs/decisions/0006)
         description="viewpoint scores, observation models P(o | class, x), self-awareness quality",
     ),
     Stage(
@@ -182,7 +170,7 @@ STAGES: list[Stage] = [
         name="learn",
         run=_deferred("learn"),
         sections=LEARN_SECTIONS,
-        inputs=("dataset", "classifier_eval", "crossfit", "observe", "robot"),
+        inputs=("dataset", "classifier_eval", "observe", "robot"),
         fingerprint=learn_fingerprint,
         description="learned baseline: MaskablePPO on held-out recorded evidence (when "
         "evaluate.methods lists 'learned')",

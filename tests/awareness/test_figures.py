@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from rapomdp.awareness import figures
-from rapomdp.awareness.evidence import FixedCorrectness
 from rapomdp.awareness.observation import (
     ClassScoreCalibration,
     ScoreCalibration,
     TransferCalibration,
 )
+from rapomdp.awareness.variants import FixedCorrectness
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.geometry.camera import look_at, look_at_many
 from rapomdp.geometry.viewsphere import fibonacci_directions

@@ -164,29 +164,6 @@ class SharedPart(nn.Module):
         return torch.stack([left + right, left, torch.full_like(left, 7.0)], dim=1)
 
 
-def test_contrastive_mask_highlights_what_tells_two_classes_apart(planted_inputs):
-    from rapomdp.awareness.saliency import ContrastiveMask
-
-    torch.set_num_threads(1)
-    net, target = SharedPart(), torch.zeros(3, dtype=torch.long)
-    params = MaskParams.scaled(SIZE, iterations=60)  # measured: shares 0.99 / 0.50 at 60 and 100
-    logits = net(planted_inputs)
-    assert torch.all(logits.argmax(dim=1) == 0) and torch.all(logits[:, 1] > logits[:, 2] - 3)
-
-    def right_share(maps: torch.Tensor) -> np.ndarray:
-        m = maps.numpy()
-        left, right = m[:, LEFT[0], LEFT[1]].sum(axis=(1, 2)), m[:, RIGHT[0], RIGHT[1]].sum(
-            axis=(1, 2))
-        return right / (left + right)
-
-    contrast = ContrastiveMask(net, params, against=1).attribute(planted_inputs, target)
-    plain = PerturbationMask(net, params).attribute(planted_inputs, target)
-    assert np.all(right_share(contrast) > 0.9)  # against class 1: the right region only
-    assert np.all(np.abs(right_share(plain) - 0.5) < 0.1)  # against all: both regions
-    with pytest.raises(ValueError, match="against itself"):
-        ContrastiveMask(net, params, against=0).attribute(planted_inputs, target)
-
-
 def test_the_mask_of_an_ensemble_of_copies_is_the_mask_of_the_network():
     """An ensemble reaches the saliency as one network: of copies, the network's own mask."""
     from dataclasses import replace

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from rapomdp.awareness.evidence import RecordedObservation
+from rapomdp.awareness.choices import RecordedObservation
 from rapomdp.awareness.observation import load_observation_models
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.cli import app
@@ -16,13 +16,14 @@ from rapomdp.config import config_from_dict
 from rapomdp.context import RunContext
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import get_stage, run_pipeline
-from rapomdp.workspace import StageInputs, Workspace
+from rapomdp.workspace import Workspace
 from tests.conftest import SMALL_SPLIT, TEST_CONTEXT, TINY_PIPELINE
 
-TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"], "split": SMALL_SPLIT},
-        "viewpoints": {"count": 10},
-        # the cross-fitted evidence too (the default is the volume models alone)
-        "observe": {**TINY_PIPELINE["observe"], "evidence": "both"}}
+#: Three volume models a class: three held-out groups, so that every held-out choice is made
+#: (the stacked variants are fitted in each fold on the other two).
+TINY = {**TINY_PIPELINE, "dataset": {"classes": ["bicycle", "teapot"],
+                                     "split": {**SMALL_SPLIT, "volume": 3}},
+        "viewpoints": {"count": 10}}
 MODELS = ("ra", "ra_paper", "ra_class", "ra_area", "ra_class_area", "ra_viewpoint",
           "ra_region", "ra_transfer", "classifier", "blackbox", "ra_mixture")
 
@@ -70,9 +71,8 @@ def test_observation_models_follow_the_planner_contract(workspace):
     similarity = data["view_similarity"]
     assert similarity.shape == (2, 10, 10) and np.allclose(np.diagonal(similarity, 0, 1, 2), 1,
                                                            atol=1e-5)
-    for name in data["models"]:  # the belief's first update: a model of the same shape
-        first = data[f"first_view_{name}"]
-        assert first.shape == data[name].shape and np.allclose(first.sum(axis=2), 1)
+    for name in data["models"]:  # the first update's record: the model itself
+        np.testing.assert_array_equal(data[f"first_view_{name}"], data[name])
     models = load_observation_models(workspace.root / "observe" / "observation_models.npz")
     assert set(models) == set(MODELS)
     with open(workspace.root / "observe" / "quality.csv") as handle:
@@ -82,7 +82,7 @@ def test_observation_models_follow_the_planner_contract(workspace):
     # ra_transfer's kernel: the grid kernel of best held-out log-likelihood, recorded
     chosen = read_json(workspace.root / "observe" / "calibration.json")["transfer_kernel"]
     grid = chosen.pop("grid")
-    assert len(grid) == 64  # observe.transfer_shrinkage off: the class rows as counted
+    assert len(grid) == 64 and {r["class_prior"] for r in grid} == {0.0}
     best = max(grid, key=lambda r: r["held_out_log_likelihood"])
     assert chosen == {k: best[k] for k in ("power", "bandwidth_deg", "prior", "class_prior")}
     assert read_json(workspace.root / "observe" / "timing.json")["transfer_kernel_s"] >= 0
@@ -93,7 +93,10 @@ def test_observation_models_follow_the_planner_contract(workspace):
     np.testing.assert_array_equal(recorded.scores["area"], data["area_scores"])
     assert recorded.transfer_kernel.to_dict() == chosen
     assert recorded.variant == f"ra_{recorded.calibration['ra_model']}"
-    assert recorded.evidence.volume_mask.tolist() == data["evidence_from_volume"].tolist()
+    assert data["evidence_from_volume"].all()  # every row a volume model
+    calibration = recorded.calibration
+    assert (calibration["evidence"], calibration["belief"]) == ("volume", "naive")
+    assert set(calibration["level_shifts"].values()) == {0.0}
 
 
 def test_fig1_is_written_and_a_wrong_class_is_named(workspace):
@@ -120,7 +123,7 @@ def test_solve_stage_plans_on_the_observation_models_and_robot(workspace):
 
     config = config_from_dict({**TINY, "solve": {"timeout_s": 2.0}})
     results = run_pipeline(config, workspace, until="solve", context=TEST_CONTEXT)
-    assert [r.name for r in results][-5:] == ["robot", "crossfit", "observe", "vptree", "solve"]
+    assert [r.name for r in results][-4:] == ["robot", "observe", "vptree", "solve"]
     summary = read_json(workspace.root / "solve" / "solve_summary.json")
     assert set(summary) == {"ra", "classifier", "vptree"}  # the default solve.models
     reachable = load_npz(workspace.root / "robot" / "robot.npz")["reachable"]
@@ -149,124 +152,6 @@ def test_saliency_maps_do_not_depend_on_the_number_of_processes(workspace, tmp_p
     assert read_json(tmp_path / "saliency.json")["processes"] == 2
 
 
-def test_crossfit_never_lets_a_classifier_see_a_model_it_is_evaluated_on(workspace):
-    from rapomdp.awareness.crossfit import CrossfitOutcomes, model_key
-    from rapomdp.data.dataset import load_dataset
-
-    dataset = load_dataset(workspace.root / "dataset")
-    train = sorted(model_key(m) for m in dataset.with_role("train"))
-    out = CrossfitOutcomes.load(workspace.root / "crossfit" / "outcomes.npz")
-    assert sorted(out.keys.tolist()) == train  # every training model labelled once
-    assert out.predicted.shape == (len(train), 10) and len(out.trained_on) == 3
-    for fold, seen in enumerate(out.trained_on):
-        evaluated = set(out.keys[out.folds == fold].tolist())
-        assert evaluated and not evaluated & set(seen.tolist())
-        assert evaluated | set(seen.tolist()) == set(train)  # trained on every other model
-        # one model per class held out in each fold (3 training models per class, 3 folds)
-        assert sorted(k.split("/")[0] for k in evaluated) == ["bicycle", "teapot"]
-    leaked = CrossfitOutcomes(out.keys, out.labels, out.folds, out.predicted,
-                              [out.keys, *out.trained_on[1:]])
-    with pytest.raises(ValueError, match="fold 0: its classifier trained on models it is "
-                                         "evaluated on"):
-        leaked.check_held_out()
-    data = load_npz(workspace.root / "observe" / "observation_models.npz")
-    assert np.array_equal(np.unique(data["evidence_groups"]), [0, 1, 2, 3])  # volume + folds
-    assert data["evidence_predictions"].shape == (2 + len(train), 10)
-    temperatures = dict(zip(data["models"].tolist(), data["temperatures"].tolist(), strict=True))
-    assert all(0.05 <= t <= 2.0 for t in temperatures.values())
-
-
-def test_full_recipe_folds_never_see_the_models_they_label(workspace, tmp_path):
-    """observe.crossfit_epochs: null trains every fold with the train stage's own recipe."""
-    from rapomdp.awareness.artefacts import crossfit_fingerprint
-    from rapomdp.awareness.crossfit import CrossfitOutcomes, model_key
-    from rapomdp.awareness.stage import run_crossfit_stage
-    from rapomdp.data.dataset import load_dataset
-
-    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "crossfit_epochs": None}})
-    assert config.observe.crossfit_epochs is None and config.train.epochs == 2
-    run_crossfit_stage(config, StageInputs("crossfit", dataset_dir=workspace.root / "dataset",
-                                           render_dir=workspace.root / "render"),
-                       tmp_path, TEST_CONTEXT)
-    record = read_json(tmp_path / "crossfit.json")
-    assert (record["epochs"], record["recipe"]) == (config.train.epochs, "full")
-    out = CrossfitOutcomes.load(tmp_path / "outcomes.npz")
-    dataset = load_dataset(workspace.root / "dataset")
-    train = {model_key(m) for m in dataset.with_role("train")}
-    volume_and_test = {model_key(m) for m in dataset.models if m.role != "train"}
-    assert set(out.keys.tolist()) == train
-    for fold, seen in enumerate(out.trained_on):
-        labelled = set(out.keys[out.folds == fold].tolist())
-        trained = set(seen.tolist())
-        assert labelled and not labelled & trained  # never a model it labels
-        assert trained == train - labelled and not trained & volume_and_test
-    # the full recipe shares its cache key with the same epochs written out
-    explicit = config_from_dict({**TINY, "observe": {**TINY["observe"], "crossfit_epochs": 2}})
-    assert crossfit_fingerprint(config) == crossfit_fingerprint(explicit)
-    assert crossfit_fingerprint(config) != crossfit_fingerprint(config_from_dict(TINY))
-
-
-def test_the_nuisance_belief_is_the_model_the_solve_stage_plans(workspace, tmp_path):
-    """observe.belief: nuisance saves typed models with their priors; the solve stage plans
-    over (type, class) from that prior; the report's single-view models are their marginals."""
-    from rapomdp.awareness.observation import ObservationModel
-    from rapomdp.awareness.report import single_view_models
-    from rapomdp.planning.policy import ActiveRecognitionPolicy
-    from rapomdp.planning.stage import run_solve_stage
-
-    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "belief": "nuisance",
-                                                   "transfer_shrinkage": True,
-                                                   "ra_model": "auto"},  # no mixture with it
-                               "solve": {"timeout_s": 2.0, "iterations": 3,
-                                         "models": ["ra", "classifier"]}})
-    run_pipeline(config, workspace, until="observe", context=TEST_CONTEXT)
-    data = load_npz(workspace.root / "observe" / "observation_models.npz")
-    calibration = read_json(workspace.root / "observe" / "calibration.json")
-    assert calibration["belief"] == "nuisance"
-    assert len(calibration["transfer_kernel"]["grid"]) == 320  # with the class rows' shrinkage
-    assert set(calibration["nuisance"]) == set(data["models"].tolist()) - {"ra"}
-    for name in data["models"].tolist():
-        assert data[name].shape == (10, 4, 2)  # (viewpoints, 2 types x 2 classes, labels)
-        prior = data[f"prior_{name}"]
-        assert prior.shape == (4,) and prior.sum() == pytest.approx(1.0)
-        np.testing.assert_allclose(prior[:2], prior[0]) and np.testing.assert_allclose(
-            prior[2:], prior[2])
-        weight = calibration["nuisance"].get(name, calibration["nuisance"][
-            f"ra_{calibration['ra_model']}"])["weight"]
-        assert prior[2:].sum() == pytest.approx(weight)
-    models = load_observation_models(workspace.root / "observe" / "observation_models.npz")
-    assert models["ra"].types == 2 and models["ra"].prior is not None
-    single = single_view_models(data)
-    assert all(p.shape == (10, 2, 2) for p in single.values())
-    ObservationModel(single["ra"], ["bicycle", "teapot"])  # rows sum to 1
-    inputs = workspace.inputs(get_stage("solve"))
-    run_solve_stage(config, inputs, tmp_path, TEST_CONTEXT)
-    for name in ("ra", "classifier"):
-        policy = ActiveRecognitionPolicy.load(tmp_path / f"policy_{name}.npz")
-        assert (policy.n_states, policy.n_classes) == (4, 2)
-        start = int(np.flatnonzero(load_npz(workspace.root / "robot" / "robot.npz")[
-            "reachable"])[0])
-        action = policy.act(start, data[f"prior_{name}"])
-        assert action.kind in ("move", "declare")
-    run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
-
-
-def test_contrastive_variant_joins_the_table_and_the_held_out_belief_is_reported(workspace):
-    config = config_from_dict({**TINY, "observe": {**TINY["observe"], "contrastive": True,
-                                                   "ra_model": "contrastive"}})
-    results = run_pipeline(config, workspace, until="observe", context=TEST_CONTEXT)
-    assert {r.name: r.cached for r in results}["crossfit"]  # observe keys do not retrain
-    data = load_npz(workspace.root / "observe" / "observation_models.npz")
-    assert "ra_contrastive" in data["models"].tolist()
-    assert np.allclose(data["ra"], data["ra_contrastive"])  # the configured RA-POMDP model
-    calibration = read_json(workspace.root / "observe" / "calibration.json")
-    assert calibration["ra_model"] == "contrastive"
-    held = calibration["held_out_belief"]["ra_contrastive"]
-    assert 0 <= held["ece_last_tempered"] <= 1 and 0 <= held["accuracy_last"] <= 1
-    # back to the default
-    run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
-
-
 def test_report_figures_read_the_single_view_models_the_quality_table_scores(workspace,
                                                                               tmp_path):
     from rapomdp.awareness.observation import ObservationModel
@@ -292,41 +177,33 @@ def test_report_figures_read_the_single_view_models_the_quality_table_scores(wor
         write_awareness_figures(workspace.root / "observe", "unicycle", tmp_path)
 
 
-def test_the_papers_protocol_trains_no_fold_classifier_and_keeps_naive_bayes(workspace, tmp_path):
+def test_the_papers_protocol_keeps_naive_bayes_on_one_volume_model_a_class(tmp_path):
+    """configs/paper-awareness.yaml: one volume model a class, so no held-out group to fit a
+    temperature on (t = 1: naive Bayes, Eq. 5) and RA by the Eq. 6 mean score."""
     from pathlib import Path
 
-    from rapomdp.awareness.crossfit import CrossfitOutcomes
-    from rapomdp.awareness.stage import run_crossfit_stage
-    from rapomdp.config import load_config
+    import yaml
 
-    paper = Path(__file__).parents[2] / "configs" / "paper-awareness.yaml"
-    paper_config = load_config(paper)
-    loaded = paper_config.observe
-    assert (loaded.evidence, loaded.ra_model, loaded.belief_correction) == (
-        "volume", "paper", "none")
-    config = config_from_dict({**TINY, "observe": {**TINY["observe"],
-                                                   **loaded.model_dump(include={
-                                                       "evidence", "ra_model",
-                                                       "belief_correction"})}})
-    run_crossfit_stage(config, StageInputs("crossfit", dataset_dir=workspace.root / "dataset",
-                                           render_dir=workspace.root / "render"),
-                       tmp_path, TEST_CONTEXT)
-    empty = CrossfitOutcomes.load(tmp_path / "outcomes.npz")
-    assert empty.predicted.shape == (0, 10) and read_json(tmp_path / "crossfit.json")[
-        "folds"] == 0
-    run_pipeline(config, workspace, until="observe")
+    paper = yaml.safe_load((Path(__file__).parents[2] / "configs" /
+                            "paper-awareness.yaml").read_text())
+    assert paper["observe"] == {"ra_model": "paper"}
+    assert paper["dataset"] == {"split": {"volume": 1}}
+    config = config_from_dict({**TINY, "dataset": {**TINY["dataset"], "split": SMALL_SPLIT},
+                               "observe": paper["observe"]})
+    assert config.dataset.split.volume == 1
+    workspace = Workspace(tmp_path)
+    run_pipeline(config, workspace, until="observe", context=TEST_CONTEXT)
     data = load_npz(workspace.root / "observe" / "observation_models.npz")
     assert np.all(data["temperatures"] == 1.0) and np.all(data["evidence_groups"] == 0)
     assert np.allclose(data["ra"], data["ra_paper"])
     assert not (workspace.root / "observe" / "validation.md").exists()
     calibration = read_json(workspace.root / "observe" / "calibration.json")
+    assert set(calibration["belief_corrections"].values()) == {"none"}  # nothing fitted
     assert calibration["transfer_kernel"] == {
         "power": 4.0, "bandwidth_deg": 20.0, "prior": 4.0, "class_prior": 0.0,
         "grid": []}  # one group: default
-    # one group: too little evidence to choose, said so (here ra_model is configured)
     assert calibration["ra_model_choice"]["rule"] == "configured"
     assert calibration["ra_model_choice"]["dataset_held_out_groups"] == 1  # one volume model
-    run_pipeline(config_from_dict(TINY), workspace, until="observe")  # back to the default
 
 
 def test_saliency_volumes_use_each_classs_first_volume_models_only():
@@ -343,31 +220,24 @@ def test_saliency_volumes_use_each_classs_first_volume_models_only():
 
 def test_the_wrong_label_choice_is_recorded_per_model(workspace):
     """observe.wrong_labels: each model's held-out choice in calibration.json, RA-POMDP's that
-    of its variant; with two classes a class's mistakes have one place to go, so the choice
-    keeps the counted rows and the models are those of ``none``."""
-    from rapomdp.awareness.evidence import WRONG_LABEL_SHRINKAGES
+    of its variant; with two classes a class's mistakes have one place to go, so every
+    amount gives the same rows (to rounding)."""
+    from rapomdp.awareness.shrinkage import WRONG_LABEL_SHRINKAGES
 
     run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
-    auto = load_npz(workspace.root / "observe" / "observation_models.npz")
+    data = load_npz(workspace.root / "observe" / "observation_models.npz")
     calibration = read_json(workspace.root / "observe" / "calibration.json")
     made = calibration["wrong_labels"]
-    assert set(made) == set(auto["models"].tolist())
+    assert set(made) == set(data["models"].tolist())
     assert made["ra"] == made[f"ra_{calibration['ra_model']}"]
     assert made["ra_mixture"]["rule"] == "configured"  # a mixture of the shrunk variants
     for name, record in made.items():
         if name in ("ra", "ra_mixture"):
             continue
         assert record["grid"] == list(WRONG_LABEL_SHRINKAGES)
-        assert record["amount"] == 0.0 and record["rule"] in {"best", "one standard error"}
-        assert abs(record["held_out"]["1"]["difference_to_none"]) < 1e-9
-    off = config_from_dict({**TINY, "observe": {**TINY["observe"], "wrong_labels": "none"}})
-    run_pipeline(off, workspace, until="observe", context=TEST_CONTEXT)
-    none = load_npz(workspace.root / "observe" / "observation_models.npz")
-    assert all(r["rule"] == "configured" for r in read_json(
-        workspace.root / "observe" / "calibration.json")["wrong_labels"].values())
-    for name in auto["models"].tolist():
-        np.testing.assert_allclose(auto[name], none[name], atol=1e-12)
-    run_pipeline(config_from_dict(TINY), workspace, until="observe", context=TEST_CONTEXT)
+        assert record["amount"] in WRONG_LABEL_SHRINKAGES and record["rule"] in {
+            "best", "one standard error"}
+        assert all(abs(row["difference_to_none"]) < 1e-9 for row in record["held_out"].values())
 
 
 def fit_thresholds() -> list[float]:
@@ -399,7 +269,7 @@ def test_the_declared_confidence_is_fitted_per_model_and_recorded_with_its_held_
 
 def test_the_recorded_belief_folds_are_those_the_stage_fitted_its_declared_confidence_on(
         workspace):
-    from rapomdp.awareness.evidence import held_out_declared_confidence
+    from rapomdp.awareness.temperature import held_out_declared_confidence
     from rapomdp.data.splits import class_seed
     from rapomdp.recognition.belief import TEMPERATURE_NEIGHBOURS, TEMPERATURE_WALKS_PER_ROW
 
@@ -414,14 +284,11 @@ def test_the_recorded_belief_folds_are_those_the_stage_fitted_its_declared_confi
     refit = held_out_declared_confidence(
         recorded.evidence, [(held, {n: m for n, m in models.items() if n != "ra"})
                             for held, models in folds],
-        calibration["temperatures"], calibration["belief_corrections"],
-        recorded.arrays["directions"], TEMPERATURE_WALKS_PER_ROW, TEMPERATURE_NEIGHBOURS,
-        class_seed(config.seed, "observe/declared"))
+        calibration["temperatures"], recorded.arrays["directions"], TEMPERATURE_WALKS_PER_ROW,
+        TEMPERATURE_NEIGHBOURS, class_seed(config.seed, "observe/declared"))
     for name in ("classifier", "blackbox", "ra_paper", "ra_class"):  # no float32 similarity
         assert refit[name].temperature == pytest.approx(
             calibration["declared_confidence"][name]["temperature"], abs=1e-9), name
-    with pytest.raises(ValueError, match="observe.belief 'naive' only"):
-        recorded.belief_folds(config.observe.model_copy(update={"belief": "nuisance"}))
 
 
 def test_the_stage_records_the_choices_held_out_choices_makes_on_its_evidence(workspace):
@@ -445,4 +312,3 @@ def test_the_stage_records_the_choices_held_out_choices_makes_on_its_evidence(wo
             calibration["temperatures"][name], rel=1e-9), name
         assert chosen.declared[name].temperature == pytest.approx(
             calibration["declared_confidence"][name]["temperature"], abs=1e-9), name
-    assert chosen.levels["classifier"] != 0.0  # the cross-fitted rows' level, shifted

@@ -84,11 +84,9 @@ def test_each_method_holds_out_each_volume_group_and_reads_its_recorded_labels(w
             assert np.allclose(fold.model.sum(axis=2), 1.0)
         # a fold's model is fitted without its group: the two folds' models differ
         assert not np.allclose(folds[name][0].model, folds[name][1].model), name
-    nuisance = config.model_copy(update={"observe": config.observe.model_copy(
-        update={"belief": "nuisance", "ra_model": "auto"})})
-    assert held_out_folds(nuisance, _inputs(ws), ["ra"]) == {"ra": []}
-    assert closed_loop_skipped(nuisance, "ra") == (
-        "observe.belief nuisance: the held-out folds are refitted for a naive belief only")
+    assert closed_loop_skipped(config, "ra") == (
+        "fewer than two held-out groups of volume models the trained classifier labelled "
+        "(dataset.split.volume)")
 
 
 def test_the_pomdps_declare_with_the_a_fitted_at_their_held_out_stops(workspace):
@@ -140,15 +138,24 @@ def test_the_fit_does_not_depend_on_the_number_of_workers(workspace, tmp_path):
         assert fit.to_dict() == record["methods"][name], name
 
 
-def test_a_belief_without_refitted_folds_keeps_the_walks_a_and_the_record_says_why(
-        workspace, tmp_path):
+def test_a_model_without_held_out_folds_keeps_the_walks_a_and_the_record_says_why(
+        workspace, tmp_path, monkeypatch):
+    """The observe stage's folds withheld (as with one volume group): the VP-tree's own are
+    run."""
+    from rapomdp.experiment import held_out
+
     ws, config = workspace
-    nuisance = config.model_copy(update={"observe": config.observe.model_copy(
-        update={"belief": "nuisance", "ra_model": "auto"})})
-    fits = closed_loop_declared(nuisance, _inputs(ws), ["ra", "vptree"], tmp_path)
-    assert set(fits) == {"vptree"}  # the VP-tree's folds do not depend on observe.belief
+    folds = held_out.held_out_folds
+
+    def without_ra(*args, **kwargs):  # type: ignore[no-untyped-def]
+        return {name: (f if name == "vptree" else []) for name, f in folds(*args,
+                                                                             **kwargs).items()}
+
+    monkeypatch.setattr(held_out, "held_out_folds", without_ra)
+    fits = closed_loop_declared(config, _inputs(ws), ["ra", "vptree"], tmp_path)
+    assert set(fits) == {"vptree"}  # the VP-tree's folds do not depend on the observe stage's
     record = read_json(tmp_path / DECLARED_FIT_FILE)
-    assert record["walks_kept"] == {"ra": closed_loop_skipped(nuisance, "ra")}
+    assert record["walks_kept"] == {"ra": closed_loop_skipped(config, "ra")}
 
 
 def test_a_method_the_solve_stage_did_not_solve_is_named(workspace, tmp_path):
@@ -266,17 +273,25 @@ def test_the_comparison_pairs_by_object_and_start_whatever_the_order():
     assert record["order"] == ["ra", "random", "vptree"]
 
 
-def test_without_ra_held_out_the_comparison_says_why(workspace, tmp_path):
+def test_without_ra_held_out_the_comparison_says_why(workspace, tmp_path, monkeypatch):
+    from rapomdp.experiment import held_out
+
     ws, config = workspace
-    nuisance = config.model_copy(update={"observe": config.observe.model_copy(
-        update={"belief": "nuisance", "ra_model": "auto"})})
-    runs, skipped = held_out_runs(nuisance, _inputs(ws), ["random", "ra", "vptree"])
+    folds = held_out.held_out_folds
+
+    def without_ra(*args, **kwargs):  # type: ignore[no-untyped-def]
+        return {name: (f if name == "vptree" else []) for name, f in folds(*args,
+                                                                             **kwargs).items()}
+
+    monkeypatch.setattr(held_out, "held_out_folds", without_ra)
+    runs, skipped = held_out_runs(config, _inputs(ws), ["random", "ra", "vptree"])
     assert set(runs) == {"vptree"} and set(skipped) == {"random", "ra"}
     record = held_out_comparison(runs, skipped=skipped)
     assert record["paired"] == {} and list(record["methods"]) == ["vptree"]
     assert held_out_comparison_story(record) == (
-        "RA-POMDP has no held-out closed loop to pair the others with: observe.belief "
-        "nuisance: the held-out folds are refitted for a naive belief only.")
+        "RA-POMDP has no held-out closed loop to pair the others with: fewer than two "
+        "held-out groups of volume models the trained classifier labelled "
+        "(dataset.split.volume).")
 
 
 def test_the_comparison_story_says_where_the_intervals_leave_zero():

@@ -97,104 +97,21 @@ def test_pomdp_method_acts_by_its_policys_lookahead_on_its_own_belief(motion: Mo
         POMDPPolicy(policy, P[:5], "bad")
 
 
-def test_bayes_belief_uses_the_first_view_model_once_per_episode() -> None:
+def test_bayes_belief_updates_every_view_by_the_model_and_restarts_uniform() -> None:
     from rapomdp.experiment.methods import BayesBelief
 
-    planner = np.full((2, 2, 2), 0.5)
-    planner[:, 0] = [0.6, 0.4]  # a weak later view
-    single = np.full((2, 2, 2), 0.5)
-    single[:, 0] = [0.9, 0.1]  # a strong first view
-    belief = BayesBelief(planner, single)
+    model = np.full((2, 2, 2), 0.5)
+    model[:, 0] = [0.6, 0.4]
+    belief = BayesBelief(model)
+    np.testing.assert_allclose(belief.belief, [0.5, 0.5])
     output = np.array([1.0, 0.0])  # label 0
     belief.update(0, output)
-    assert np.allclose(belief.belief, np.array([0.9, 0.5]) / 1.4)
+    assert np.allclose(belief.belief, np.array([0.6, 0.5]) / 1.1)
     belief.update(1, output)
-    assert np.allclose(belief.belief, np.array([0.9 * 0.6, 0.5 * 0.5]) / (0.54 + 0.25))
+    assert np.allclose(belief.belief, np.array([0.36, 0.25]) / 0.61)
+    assert belief.updates == 2
     belief.reset()
-    belief.update(1, output)  # a new episode starts with the first-view model again
-    assert np.allclose(belief.belief, np.array([0.9, 0.5]) / 1.4)
-    with pytest.raises(ValueError, match="first-view model's shape"):
-        BayesBelief(planner, np.full((3, 2, 2), 0.5))
-
-
-def test_a_typed_belief_is_over_type_and_class_from_its_prior_and_reports_the_classes() -> None:
-    """Two classes, two instance types: an atypical object of class 0 looks like class 1."""
-    from rapomdp.experiment.methods import BayesBelief
-
-    typical = np.broadcast_to(np.array([[0.8, 0.2], [0.2, 0.8]]), (3, 2, 2))
-    atypical = np.broadcast_to(np.array([[0.3, 0.7], [0.2, 0.8]]), (3, 2, 2))
-    model = np.concatenate([typical, atypical], axis=1)  # (3, 4, 2), state tau * 2 + c
-    prior = np.array([0.4, 0.4, 0.1, 0.1])
-    belief = BayesBelief(model, prior=prior)
-    np.testing.assert_allclose(belief.belief, [0.5, 0.5])
-    label_1 = np.array([0.0, 1.0])
-    for view in range(3):  # three views say class 1
-        belief.update(view, label_1)
-    state = prior * np.array([0.2, 0.8, 0.7, 0.8]) ** 3
-    np.testing.assert_allclose(belief.state, state / state.sum())
-    np.testing.assert_allclose(belief.belief, [state[[0, 2]].sum(), state[[1, 3]].sum()]
-                               / state.sum())
-    # naive Bayes over the same views is surer of class 1 than the typed belief
-    naive = BayesBelief(typical)
-    for view in range(3):
-        naive.update(view, label_1)
-    assert naive.belief[1] > belief.belief[1] + 0.05
-    belief.reset()
-    np.testing.assert_allclose(belief.state, prior)
-    with pytest.raises(ValueError, match="distribution over the model's 4 states"):
-        BayesBelief(model, prior=np.array([0.5, 0.5]))
-
-
-def test_a_pomdp_method_on_a_typed_model_acts_on_its_state_belief() -> None:
-    from rapomdp.planning.ar_solver import solve_active_recognition
-    from rapomdp.planning.momdp import benchmark_problem, build_active_recognition_problem
-
-    base = benchmark_problem(4, 2, seed=2)
-    atypical = np.broadcast_to(np.array([[0.5, 0.5], [0.5, 0.5]]), (4, 2, 2))
-    model = np.concatenate([base.observation_model, atypical], axis=1)
-    prior = np.array([0.35, 0.35, 0.15, 0.15])
-    problem = build_active_recognition_problem(model, base.move_energy, None, 8.0, 0.95, 0,
-                                               prior)
-    policy = solve_active_recognition(problem, timeout=1e6, max_iterations=10, grid=4).policy
-    method = POMDPPolicy(policy, model, "typed", prior=prior,
-                         lookahead_over=np.ones(4, dtype=bool))
-    method.reset(0, np.random.default_rng(0))
-    method.observe(0, np.array([1.0, 0.0]))
-    state = prior * model[0, :, 0]
-    np.testing.assert_allclose(method.belief, [state[[0, 2]].sum(), state[[1, 3]].sum()]
-                               / state.sum())
-    action = method.act(0)
-    expected = policy.lookahead_act(0, state / state.sum(), model, np.ones(4, dtype=bool),
-                                    np.array([True, False, False, False]))
-    assert action == expected
-    with pytest.raises(ValueError, match="4 hidden states and 2 classes"):
-        POMDPPolicy(policy, base.observation_model, "untyped")
-
-
-def test_a_discounted_belief_tempers_each_view_by_its_likeness_to_the_views_taken() -> None:
-    from rapomdp.experiment.methods import BayesBelief
-    from rapomdp.recognition.belief import ViewDiscount, temper
-
-    single = np.broadcast_to(np.array([[0.8, 0.2], [0.3, 0.7]]), (3, 2, 2)).copy()
-    similarity = np.array([[1.0, 0.9, 0.0], [0.9, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    discount = ViewDiscount(0.8, 1.0)
-    planner = temper(single, 0.5)
-    belief = BayesBelief(planner, single, discount=discount, similarity=similarity)
-    np.testing.assert_allclose(belief.next_model(), single)  # the first view in full
-    label_0 = np.array([1.0, 0.0])
-    belief.update(0, label_0)
-    np.testing.assert_allclose(belief.belief, [0.8, 0.3] / np.float64(1.1))
-    weights = belief.discount.weights(similarity, belief.visited)
-    np.testing.assert_allclose(weights, [0.02, 0.8 * 0.1, 0.8])  # a taken view: the floor
-    np.testing.assert_allclose(belief.next_model(), temper(single, weights))
-    before = belief.state.copy()
-    belief.update(1, label_0)  # the near twin: barely counts
-    step = temper(single, 0.08)[1, :, 0]
-    np.testing.assert_allclose(belief.state, before * step / (before * step).sum())
-    belief.reset()
-    assert not belief.visited.any()
-    with pytest.raises(ValueError, match=r"similarity \(3, 3\)"):
-        BayesBelief(planner, single, discount=discount)
+    assert belief.updates == 0 and np.allclose(belief.belief, [0.5, 0.5])
 
 
 def test_static_belief_is_the_output_temperature_scaled_and_declares_its_argmax() -> None:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rapomdp.awareness.evidence import RA_VARIANTS
+from rapomdp.awareness.variants import RA_VARIANTS
 from tests.planning.planning_fixtures import TIGER
 
 README = Path(__file__).resolve().parents[2] / "README.md"

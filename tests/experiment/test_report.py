@@ -48,8 +48,8 @@ ra_paper,-0.61,0.2,0.6,0.5,0.52
 ra_transfer,-0.45,0.15,0.7,0.52,0.52
 classifier,-0.7,0.22,0.62,0.5,0.52
 """
-#: The observe stage's choice: ra_transfer, chosen on held-out log-likelihood.
-CALIBRATION = {"ra_model": "transfer", "ra_model_configured": "auto", "method": "logistic",
+#: The observe stage's choice: ra_transfer, configured by name.
+CALIBRATION = {"ra_model": "transfer", "ra_model_configured": "transfer", "method": "logistic",
                "variants": {"ra_paper": {"method": "logistic"},
                             "ra_transfer": {"method": "salient_view_transfer"}}}
 
@@ -205,9 +205,10 @@ def test_report_holds_the_tables_figures_and_numbers(synthetic, tmp_path: Path) 
             "6.00 m, so the gap is 0.0017 times what an episode spends moving") in text
     assert "`classifier`: stopped at the iteration budget" in text  # no episodes: no energy
     assert "the policy the solver returned; no policy is worth more than the upper" in text
-    # RA-POMDP's model named, with the held-out table that chose it
-    assert ("RA-POMDP's observation model (`ra`) is `ra_transfer`, chosen by "
-            "`observe.ra_model: auto` as the RA variant of best held-out log-likelihood") in text
+    # RA-POMDP's model named, with the held-out table of every variant
+    assert ("RA-POMDP's observation model (`ra`) is `ra_transfer`, as configured "
+            "(`observe.ra_model: transfer`); the held-out validation below shows how the "
+            "variants compare") in text
     assert "| ra_transfer (chosen) | -0.450 | 0.150 | 0.700 | 0.520 | 0.520 |" in text
     assert "| ra_paper | -0.610 |" in text and "held-out accuracy |" in text
     assert text.index("(chosen)") < text.index("| ra | -0.412 |")  # the choice, then the test
@@ -271,7 +272,8 @@ def test_optional_inputs_are_shown_when_present(synthetic, tmp_path: Path) -> No
               "reason": "too little held-out evidence to choose: class 'cup' (1) has fewer "
                         "than 2 held-out objects; the robust default 'class'"}
     write_json_atomic(ws.root / "observe" / "calibration.json",
-                      {**CALIBRATION, "ra_model": "class", "ra_model_choice": choice})
+                      {**CALIBRATION, "ra_model": "class", "ra_model_configured": "mixture",
+                       "ra_model_choice": choice})
     try:
         _, md = write_report(config, _inputs(ws), tmp_path / "r", fig1=_fake_fig1([]))
     finally:
@@ -281,10 +283,10 @@ def test_optional_inputs_are_shown_when_present(synthetic, tmp_path: Path) -> No
         write_json_atomic(ws.root / "observe" / "calibration.json", CALIBRATION)
     text = md.read_text()
     # the choice says when the held-out evidence was too little, and why
-    assert ("RA-POMDP's observation model (`ra`) is `ra_class`, chosen by `observe.ra_model: "
-            "auto` (too little evidence): too little held-out evidence to choose: class 'cup' "
-            "(1) has fewer than 2 held-out objects; the robust default 'class' (each held-out "
-            "object scored") in text
+    assert ("RA-POMDP's observation model (`ra`) is `ra_class`, the fallback of "
+            "`observe.ra_model: mixture` (too little evidence): too little held-out evidence to "
+            "choose: class 'cup' (1) has fewer than 2 held-out objects; the robust default "
+            "'class'. ") in text
     assert "![Fig. 2: one class" in text and (tmp_path / "r" / "fig2.png").exists()
     assert "[fig2.html](fig2.html)" in text and (tmp_path / "r" / "fig2.html").exists()
     assert "over X_rho: 0.417." in text and "vptree.json not found" not in text

@@ -96,26 +96,6 @@ def test_random_walks_move_to_near_unvisited_viewpoints():
     assert np.degrees(np.arccos(np.clip(step, -1, 1))).max() < 35
 
 
-def test_walks_that_jump_see_far_views_and_no_jump_draws_the_neighbour_walks():
-    directions = fibonacci_directions(64, hemisphere=True)
-    starts = np.arange(64).repeat(4)
-    near = random_walks(directions, starts, 6, 6, np.random.default_rng(5))
-    assert np.array_equal(near, random_walks(directions, starts, 6, 6,
-                                             np.random.default_rng(5), jump=0.0))
-    mixed = random_walks(directions, starts, 6, 6, np.random.default_rng(5), jump=0.5)
-    assert np.array_equal(mixed[:, 0], starts)
-    assert all(len(set(w)) == 6 for w in mixed.tolist())  # every view new
-    step = np.einsum("ij,ij->i", directions[mixed[:, :-1]].reshape(-1, 3),
-                     directions[mixed[:, 1:]].reshape(-1, 3))
-    angle = np.degrees(np.arccos(np.clip(step, -1, 1)))
-    assert 0.3 < np.mean(angle > 35) < 0.6  # about half the steps jump, most of them far
-    assert np.mean(angle < 35) > 0.4
-    always = random_walks(directions, starts, 6, 6, np.random.default_rng(5), jump=1.0)
-    far = np.einsum("ij,ij->i", directions[always[:, :-1]].reshape(-1, 3),
-                    directions[always[:, 1:]].reshape(-1, 3))
-    assert np.mean(np.degrees(np.arccos(np.clip(far, -1, 1))) > 35) > 0.8
-
-
 def test_after_first_leaves_independent_evidence_alone_and_discounts_only_later_views():
     rng = np.random.default_rng(13)
     views, rows, p, labels, predicted, walk_row, walks = _planted_walks(rng)
@@ -182,49 +162,6 @@ def test_expected_calibration_error_is_the_weighted_gap_per_bin():
     right = np.array([True, True, True, False])
     assert expected_calibration_error(confidence, right) == pytest.approx(
         0.5 * 0.05 + 0.5 * 0.05)
-
-
-def test_the_view_discount_counts_only_the_views_that_repeat_others():
-    """Independent evidence: every view counts in full. Twin views (2k, 2k + 1 share their
-    label, the similarity says so): the twin of a view taken counts ~nothing, the others in
-    full — which one temperature cannot say."""
-    from rapomdp.recognition.belief import (
-        ViewDiscount,
-        discounted_walk_log_beliefs,
-        fit_view_discount,
-        mean_later_weight,
-    )
-
-    rng = np.random.default_rng(5)
-    views, rows, p, labels, predicted, walk_row, walks = _planted_walks(rng)
-    twins = np.eye(views) + np.kron(np.eye(views // 2), [[0, 1], [1, 0]])  # K(x, twin) = 1
-    row_model = np.zeros(rows, np.int64)
-    naive = ViewDiscount(1.0, 0.0)
-    np.testing.assert_allclose(
-        discounted_walk_log_beliefs(naive, twins, [p], row_model, predicted, walks, walk_row),
-        walk_log_beliefs(1.0, [p], row_model, predicted, walks, walk_row), atol=1e-9)
-    independent = fit_view_discount(twins, [p], row_model, labels, predicted, walks, walk_row)
-    weights = independent.walk_weights(twins, walks)
-    assert np.abs(weights - 1.0).max() < 0.15
-    duplicated = predicted.copy()
-    duplicated[:, 1::2] = duplicated[:, 0::2]
-    pairs = np.stack([rng.permutation(views // 2)[:3] for _ in walk_row])
-    walks = np.stack([2 * pairs, 2 * pairs + 1], axis=2).reshape(len(walk_row), 6)
-    fitted = fit_view_discount(twins, [p], row_model, labels, duplicated, walks, walk_row)
-    weights = fitted.walk_weights(twins, walks)
-    assert weights[:, 1::2].max() < 0.3 and weights[:, 2::2].min() > 0.7  # twins ~0, new ~1
-    t = fit_temperature([p], row_model, labels, duplicated, walks, walk_row)
-    discounted = discounted_walk_log_beliefs(fitted, twins, [p], row_model, duplicated, walks,
-                                             walk_row)
-    true = labels[walk_row]
-    loss = -np.mean(discounted[np.arange(len(walks)), :, true])
-    assert loss < belief_log_loss(t, [p], row_model, labels, duplicated, walks, walk_row)
-    assert mean_later_weight(fitted, twins, walks) == pytest.approx(weights[:, 1:].mean())
-    np.testing.assert_allclose(fitted.weights(twins, np.zeros(views, bool)), 1.0)
-    taken = np.zeros(views, bool)
-    taken[4] = True
-    w = fitted.weights(twins, taken)
-    assert w[5] == pytest.approx(weights[:, 1::2].max(), abs=0.3) and w[5] < 0.3 < w[6]
 
 
 def test_temper_takes_one_temperature_per_viewpoint():

@@ -127,13 +127,6 @@ def test_vptree_temperature_is_fitted_on_held_out_walks_over_the_volume_groups()
     # naive Bayes is overconfident after six views; the tempered belief is nearer its accuracy
     gap = {k: report[f"belief_last_{k}"] - report["accuracy_last"] for k in ("naive", "tempered")}
     assert gap["naive"] > 0.1 and abs(gap["tempered"]) < gap["naive"]
-    # switched off: naive Bayes with the raw confusion
-    off = vptree_observation(labels, predicted, groups, classes,
-                             VPTreeConfig(belief_correction="none"), directions,
-                             np.random.default_rng(5))
-    assert off.temperature == 1.0 and off.held_out_belief == {}
-    np.testing.assert_array_equal(off.model, raw)
-    assert off.note is not None and "none" in off.note
     # one group (one volume model per class): t = 1, and why
     one = vptree_observation(labels, predicted, np.zeros_like(groups), classes, cfg,
                              directions, np.random.default_rng(5))

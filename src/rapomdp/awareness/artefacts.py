@@ -5,8 +5,7 @@ report, the command line and later stages go through (NumPy and JSON only: no to
 ``W/volume/``: ``<class>.npz`` (:func:`volume_file`), :data:`VOLUME_FILE`.
 ``W/observe/``: :data:`OBSERVATION_FILE` (every observation model (V, C, C) by name, ``models``,
 ``classes``, ``scores``, ``directions``, ..., and per model ``first_view_<name>``: the model of
-the belief's first update, :data:`FIRST_VIEW_PREFIX`; a typed model (V, T·C, C) also its prior
-over (type, class), :data:`PRIOR_PREFIX`), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
+the belief's first update, :data:`FIRST_VIEW_PREFIX`), :data:`QUALITY_CSV` / :data:`QUALITY_MD` (the
 self-awareness table, :func:`load_quality`), :data:`CALIBRATION_FILE`,
 :data:`CALIBRATION_FIGURE`, :data:`TIMING_FILE`.
 """
@@ -20,23 +19,17 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.config import Config
-from rapomdp.io import ArtefactError, load_npz, read_json, stable_hash
+from rapomdp.io import ArtefactError, load_npz, read_json
 from rapomdp.recognition.artefacts import TRAIN_SECTIONS, VPTREE_SUMMARY_FILE
 
 SALIENCY_FILE = "saliency.json"
 VOLUME_FILE = "volume.json"
 OBSERVATION_FILE = "observation_models.npz"
-#: Prefix of each model's first-update array in :data:`OBSERVATION_FILE` (the planner's model
-#: when every view is discounted alike; the single-view model with ``after_first``).
+#: Prefix of each model's first-update array in :data:`OBSERVATION_FILE`: the model itself
+#: (every view, the first included, is tempered alike since the first-view-in-full correction
+#: was retired, docs/decisions/0003); written so that the artefact stays as it was, read by no
+#: stage.
 FIRST_VIEW_PREFIX = "first_view_"
-#: Prefix of a typed model's prior over its hidden states (instance type, class) in
-#: :data:`OBSERVATION_FILE` (``observe.belief: nuisance``; absent: uniform over the classes).
-PRIOR_PREFIX = "prior_"
-#: With ``observe.belief: similarity``: a model's view discount (scale, redundancy) is
-#: ``view_discount_<name>`` and the viewpoints' similarity it reads (V, V) :data:`DISCOUNT_KERNEL`.
-DISCOUNT_PREFIX = "view_discount_"
-DISCOUNT_KERNEL = "view_discount_kernel"
 #: A model's declared-confidence temperature (a scalar; absent: 1, the belief as it is) in
 #: :data:`OBSERVATION_FILE`: what a policy reports is its belief ** a, renormalised, a fitted
 #: where held-out walks stop.
@@ -53,23 +46,13 @@ VALIDATION_MD = "validation.md"
 CALIBRATION_FILE = "calibration.json"
 CALIBRATION_FIGURE = "calibration.png"
 TIMING_FILE = "timing.json"
-#: The configuration sections the keys of the saliency, volume, observe and crossfit stages
+#: The configuration sections the keys of the saliency, volume and observe stages
 #: hash (here, with no torch, so that the stage graph is read without loading their code).
 SALIENCY_SECTIONS = (*TRAIN_SECTIONS, "saliency", "volume")
 VOLUME_SECTIONS = ("volume",)
 OBSERVE_SECTIONS = (*TRAIN_SECTIONS, "viewpoints", "observe")
-CROSSFIT_SECTIONS = (*TRAIN_SECTIONS, "viewpoints")
 #: The self-awareness table's columns: the model's name, then its scores on the test models.
 QUALITY_COLUMNS = ("model", "log_likelihood", "brier", "auc", "mean_p_correct", "accuracy")
-
-
-def load_view_discounts(observe_dir: str | Path) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """The observe stage's view discounts: each model's (scale, redundancy) (2,) by name, and
-    the viewpoints' similarity (V, V) they read; empty without ``observe.belief: similarity``."""
-    data = load_npz(Path(observe_dir) / OBSERVATION_FILE)
-    discounts = {name.removeprefix(DISCOUNT_PREFIX): value for name, value in data.items()
-                 if name.startswith(DISCOUNT_PREFIX) and name != DISCOUNT_KERNEL}
-    return discounts, data.get(DISCOUNT_KERNEL, np.zeros((0, 0)))
 
 
 def saliency_map_file(class_name: str, model_id: str) -> Path:
@@ -109,12 +92,11 @@ def load_softmax_temperature(observe_dir: str | Path) -> float:
 @dataclass(frozen=True)
 class RAChoice:
     """Which RA variant is RA-POMDP's model ``ra`` (calibration.json): ``variant`` (``ra`` is
-    the array of ``ra_<variant>``), the ``configured`` ``observe.ra_model`` (``auto``: chosen
-    on held-out objects) and ``method``, what the variant's fit is (``logistic``,
-    ``salient_view_transfer``, ``held_out_mixture``, ...); with ``auto`` or ``mixture``, the
-    choice's ``rule`` (``best``, ``one standard error``, ``too little evidence``, ``unstable``,
-    ``mixture``) and ``reason`` (calibration.json's ``ra_model_choice``; empty in a workspace
-    from before it); with the mixture, each variant's ``weights``."""
+    the array of ``ra_<variant>``), the ``configured`` ``observe.ra_model`` and ``method``, what
+    the variant's fit is (``logistic``, ``salient_view_transfer``, ``held_out_mixture``, ...);
+    the choice's ``rule`` (``configured``, ``mixture`` or ``too little evidence``) and
+    ``reason`` (calibration.json's ``ra_model_choice``; empty in a workspace from before it);
+    with the mixture, each variant's ``weights``."""
 
     variant: str
     configured: str
@@ -144,21 +126,6 @@ def load_ra_choice(observe_dir: str | Path) -> RAChoice:
     except (KeyError, TypeError, AttributeError):
         raise ArtefactError(f"{path}: expected the key ra_model (the RA variant chosen) and "
                             f"variants by name") from None
-
-
-def crossfit_epochs(config: Config) -> int:
-    """The epochs of each fold's classifier: ``observe.crossfit_epochs``, or with null the
-    train stage's ``train.epochs`` (its full recipe)."""
-    epochs = config.observe.crossfit_epochs
-    return config.train.epochs if epochs is None else int(epochs)
-
-
-def crossfit_fingerprint(config: Config) -> str:
-    """The crossfit stage reads these ``observe`` keys only (the rest would retrain for
-    nothing); the full recipe (null epochs) keys as its epochs written out."""
-    cfg = config.observe
-    return stable_hash({"crossfit": cfg.evidence != "volume", "folds": cfg.crossfit_folds,
-                        "epochs": crossfit_epochs(config)})
 
 
 def load_declared_confidence(observe_dir: str | Path, vptree_dir: str | Path | None = None

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.awareness.evidence import RA_VARIANTS
+from rapomdp.awareness.variants import RA_VARIANTS
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.geometry.viewsphere import azimuth_zenith
 from rapomdp.plots import OKABE_ITO, hemisphere_axes, new_figure, save_html, save_png, style
@@ -38,20 +38,17 @@ NO_SCORE_MAP = {
                              "saliency",
     "logistic_score_and_viewpoint_evidence": "its P(correct) also reads the held-out "
                                              "per-viewpoint evidence",
-    "logistic_score_and_region_evidence": "its P(correct) also reads the held-out accuracy "
-                                          "per viewpoint pooled over the classes",
     "held_out_mixture": "it averages the RA variants' rows with weights fitted on the held-out "
                         "labels",
 }
 #: The x axis of calibration.png per viewpoint score.
 SCORE_AXES = {"mean": "normalised mean saliency seen (Eq. 6)",
-              "area": "normalised salient area seen (Eq. 6's sum)",
-              "contrastive": "normalised contrastive saliency score"}
+              "area": "normalised salient area seen (Eq. 6's sum)"}
 
 
 def calibration_score(variant: str) -> str:
     """The viewpoint score calibration.png bins RA variant ``variant`` by: the score its map
-    reads (:data:`~rapomdp.awareness.evidence.RA_VARIANTS`); ``transfer``, which reads none,
+    reads (:data:`~rapomdp.awareness.variants.RA_VARIANTS`); ``transfer``, which reads none,
     the salient area."""
     kind = RA_VARIANTS.get(variant, ("mean", False))[0]
     return "area" if kind == "similarity" else kind

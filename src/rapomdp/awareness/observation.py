@@ -25,7 +25,6 @@ from scipy.optimize import isotonic_regression
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import LogisticRegression
 
-from rapomdp.awareness.artefacts import PRIOR_PREFIX
 from rapomdp.io import load_npz
 from rapomdp.recognition.evaluation import viewpoint_confusion
 
@@ -36,61 +35,38 @@ PROBABILITY_FLOOR = 1e-3
 class ObservationModel:
     """P(o | class, viewpoint) as ``probabilities`` (V, C, C); rows sum to 1.
 
-    A *typed* model (``observe.belief: nuisance``) is P(o | (instance type, class), viewpoint)
-    (V, T·C, C), hidden state τ·C + c, with a ``prior`` (T·C,) over the hidden states (the
-    start belief of the planner and of the closed loop); untyped models have ``prior`` None
-    (uniform over the classes)."""
+    Args:
+        probabilities: (V, C, C), P(o | c, x) at index [x, c, o].
+        classes: the C class names, in order.
+
+    Raises:
+        ValueError: not (V, C, C) for the classes given, or not rows of probabilities.
+    """
 
     name = "observation"
 
-    def __init__(self, probabilities: np.ndarray, classes: Sequence[str],
-                 prior: np.ndarray | None = None) -> None:
+    def __init__(self, probabilities: np.ndarray, classes: Sequence[str]) -> None:
         p = np.asarray(probabilities, dtype=np.float64)
         c = len(classes)
-        if p.ndim != 3 or p.shape[2] != c or p.shape[1] == 0 or p.shape[1] % c:
-            raise ValueError(f"observation probabilities must be (V, {c}, {c}) for {c} classes "
-                             f"(or (V, T*{c}, {c}) with T instance types), got shape {p.shape}")
+        if p.ndim != 3 or p.shape[1:] != (c, c):
+            raise ValueError(f"observation probabilities must be (V, {c}, {c}) for {c} classes, "
+                             f"got shape {p.shape}")
         if np.any(p < 0) or not np.allclose(p.sum(axis=2), 1.0, atol=1e-6):
             raise ValueError("observation probabilities must be non-negative rows summing to 1")
-        if prior is not None:
-            prior = np.asarray(prior, dtype=np.float64)
-            if prior.shape != (p.shape[1],) or np.any(prior < 0) or \
-                    not np.isclose(prior.sum(), 1.0):
-                raise ValueError(f"the prior must be a distribution over the model's "
-                                 f"{p.shape[1]} hidden states, got shape {prior.shape}")
         self.probabilities = p
         self.classes = list(classes)
-        self.prior = prior
 
     @property
     def viewpoints(self) -> int:
         return self.probabilities.shape[0]
 
-    @property
-    def types(self) -> int:
-        """Instance types T of the hidden state (1: the hidden state is the class)."""
-        return self.probabilities.shape[1] // self.probabilities.shape[2]
-
     def likelihood(self, viewpoint: int, observation: int) -> np.ndarray:
-        """P(o | s, x) for every hidden state s (S,): the factor of a Bayes belief update."""
+        """P(o | c, x) for every class c (C,): the factor of a Bayes belief update."""
         return self.probabilities[viewpoint, :, observation]
 
     def correct_probability(self) -> np.ndarray:
         """P(o = c | c, x) as (V, C)."""
         return np.diagonal(self.probabilities, axis1=1, axis2=2)
-
-
-def single_view_marginal(probabilities: np.ndarray, prior: np.ndarray | None) -> np.ndarray:
-    """The one-view model P(o | c, x) (V, C, C) of a typed model (V, T·C, C) with its prior
-    over (type, class): each class's rows averaged over its types by the prior's weights. An
-    untyped model (or no prior) is returned as it is."""
-    p = np.asarray(probabilities, dtype=np.float64)
-    c = p.shape[2]
-    if p.shape[1] == c or prior is None:
-        return p
-    w = np.asarray(prior, dtype=np.float64).reshape(-1, c)  # (T, C)
-    w = w / w.sum(axis=0, keepdims=True)
-    return np.einsum("tc,vtco->vco", w, p.reshape(p.shape[0], -1, c, c))
 
 
 @dataclass
@@ -259,7 +235,7 @@ class TransferCalibration:
 class TransferObservationModel(ObservationModel):
     """Recognition-aware by transfer: each viewpoint's whole row P(o | c, x) pooled from the
     held-out labels at the viewpoints whose seen saliency resembles x's
-    (:func:`rapomdp.awareness.evidence.transfer_confusion`)."""
+    (:func:`rapomdp.awareness.transfer.transfer_confusion`)."""
 
     name = "ra_transfer"
 
@@ -283,7 +259,7 @@ class MixtureCalibration:
 class MixtureObservationModel(ObservationModel):
     """Recognition-aware by averaging: P(o | c, x) = Σ_v w_v P_v(o | c, x) over RA variants,
     the weights w (a simplex) those that best predict held-out labels
-    (:func:`rapomdp.awareness.evidence.ra_mixture_folds`). One variant picked from a few
+    (:func:`rapomdp.awareness.mixture.ra_mixture_folds`). One variant picked from a few
     held-out objects is brittle; a weighted average of them is not."""
 
     name = "ra_mixture"
@@ -333,5 +309,4 @@ def load_observation_models(path: str | Path) -> dict[str, ObservationModel]:
     data = load_npz(path)
     classes = [str(c) for c in data["classes"]]
     names = [str(n) for n in data["models"]]
-    return {name: ObservationModel(data[name], classes, data.get(f"{PRIOR_PREFIX}{name}"))
-            for name in names}
+    return {name: ObservationModel(data[name], classes) for name in names}

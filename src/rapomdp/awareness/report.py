@@ -14,7 +14,6 @@ import numpy as np
 
 from rapomdp.awareness.artefacts import (
     OBSERVATION_FILE,
-    PRIOR_PREFIX,
     load_declared_confidence,
     volume_file,
 )
@@ -24,7 +23,6 @@ from rapomdp.awareness.figures import (
     most_salient_view,
     reliability_figure,
 )
-from rapomdp.awareness.observation import single_view_marginal
 from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
 from rapomdp.data.training_views import load_training_views
@@ -130,12 +128,10 @@ def floor_cell(record: dict[str, Any]) -> str:
 
 def single_view_models(observe: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The observe stage's models before the belief's temperature (the single-view models the
-    quality table scores): tempering by t is undone by tempering by 1 / t; a typed model
-    (``observe.belief: nuisance``) is read as its one-view marginal over instance types."""
+    quality table scores): tempering by t is undone by tempering by 1 / t."""
     names = [str(n) for n in observe["models"]]
     temperatures = observe["temperatures"] if "temperatures" in observe else np.ones(len(names))
-    return {n: single_view_marginal(temper(observe[n], 1.0 / float(t)),
-                                    observe.get(f"{PRIOR_PREFIX}{n}"))
+    return {n: temper(observe[n], 1.0 / float(t))
             for n, t in zip(names, temperatures, strict=True)}
 
 

@@ -191,27 +191,6 @@ class PerturbationMask(Attribution):
         return (1.0 - up[:, 0]).clamp(0.0, 1.0).detach()
 
 
-class ContrastiveMask(PerturbationMask):
-    """The perturbation mask of a class *against* another (the paper's Fig. 2 idea: the bicycle
-    against the motorbike points at what tells them apart). The perturbation drives down
-    P(target | target or against) = sigmoid(logit_target - logit_against), so what it deletes
-    is the evidence that separates the two classes, not what they share."""
-
-    name = "contrastive_mask"
-
-    def __init__(self, network: nn.Module, params: MaskParams, against: int | torch.Tensor,
-                 seed: int = 0) -> None:
-        super().__init__(network, params, seed)
-        self.against = against
-
-    def score(self, logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        against = torch.as_tensor(self.against, device=logits.device).expand_as(target)
-        if bool((against == target).any()):
-            raise ValueError("a class cannot be contrasted against itself")
-        pair = logits.gather(1, target[:, None])[:, 0] - logits.gather(1, against[:, None])[:, 0]
-        return torch.sigmoid(pair)
-
-
 class _CaptumMethod(Attribution):
     """Shared plumbing for captum methods: |attribution| summed over channels, scaled to [0, 1]."""
 

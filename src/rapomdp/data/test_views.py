@@ -35,8 +35,6 @@ from rapomdp.workspace import StageError, StageInputs
 VOLUME_STREAM = "observe/volume"
 #: The noise stream of the test models' renders at X_rho (single-view accuracy, quality tables).
 TEST_STREAM = "classifier_eval"
-#: The noise stream of the training models the cross-fitted classifiers label at X_rho.
-CROSSFIT_STREAM = "crossfit"
 #: The noise stream of each role the xrho stage renders.
 ROLE_STREAMS = {"volume": VOLUME_STREAM, "test": TEST_STREAM}
 XRHO_FILE = "xrho.json"

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import load_softmax_temperature, load_view_discounts
+from rapomdp.awareness.artefacts import load_softmax_temperature
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
@@ -83,8 +83,6 @@ from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import (
     declared_temperatures,
-    first_view_models,
-    observation_priors,
     offered_observation_models,
 )
 from rapomdp.recognition.artefacts import (
@@ -92,7 +90,6 @@ from rapomdp.recognition.artefacts import (
     XrhoProbabilities,
     load_xrho_probabilities,
 )
-from rapomdp.recognition.belief import ViewDiscount
 from rapomdp.recognition.stage import load_stage_classifier
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
@@ -153,11 +150,6 @@ class ClosedLoop:
         robot = load_robot(inputs.robot)
         motion = Motion.from_robot(robot)
         observation, _ = offered_observation_models(inputs.observe, inputs.vptree_dir)
-        first_view = first_view_models(inputs.observe, observation)
-        priors = observation_priors(inputs.observe, observation)
-        discount_arrays, discount_kernel = load_view_discounts(inputs.observe)
-        discounts = {name: ViewDiscount(float(d[0]), float(d[1]))
-                     for name, d in discount_arrays.items()}
         cfg = config.evaluate
         # what each belief reports after its views: Random stops at a belief threshold, so it
         # reports with the a fitted at its threshold
@@ -180,9 +172,7 @@ class ClosedLoop:
                                      f"'{name}', which the workspace lacks")
                 # its a is fitted where its own held-out closed loop stops (else: 1)
                 return LearnedPolicy(network, spec, observation[name], motion.reachable,
-                                     METHOD_NAMES[key], first_view_model=first_view[name],
-                                     prior=priors[name], discount=discounts.get(name),
-                                     similarity=discount_kernel,
+                                     METHOD_NAMES[key],
                                      declared_temperature=(declared_fit or {}).get(LEARNED, 1.0))
             if key == "static":
                 return StaticPolicy(METHOD_NAMES[key],
@@ -195,18 +185,14 @@ class ClosedLoop:
                 return RandomWalkPolicy(
                     observation[name], motion.distance_m, motion.reachable,
                     cfg.random.neighbours, random_threshold, cfg.random.max_moves,
-                    METHOD_NAMES[key], first_view_model=first_view[name], prior=priors[name],
-                    discount=discounts.get(name), similarity=discount_kernel,
-                    declared_temperature=declared(name, random_threshold))
+                    METHOD_NAMES[key], declared_temperature=declared(name, random_threshold))
             path = solve_dir / policy_file(key)
             if not path.exists() or key not in observation:
                 raise StageError(f"method '{key}' needs {path.name} from the solve stage: "
                                  f"add '{key}' to solve.models")
             return POMDPPolicy.configured(
                 cfg, ActiveRecognitionPolicy.load(path), observation[key], METHOD_NAMES[key],
-                motion.reachable, recogniser, first_view_model=first_view[key],
-                prior=priors[key], discount=discounts.get(key), similarity=discount_kernel,
-                declared_temperature=declared(key))
+                motion.reachable, recogniser, declared_temperature=declared(key))
 
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}
@@ -377,8 +363,7 @@ def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
         precision=solve.precision, timeout=solve.timeout_s, max_iterations=solve.iterations,
         workers=context.worker_count, allow_stay=False, class_names=classes,
         memory_gb=solve.memory_gb, scheduler=context.scheduler, cost=gap,
-        description=f"evaluate: λ sweep ({sweep_lambdas} m)",
-        start_beliefs=observation_priors(inputs.observe, models), pool=context.pool)
+        description=f"evaluate: λ sweep ({sweep_lambdas} m)", pool=context.pool)
 
 
 def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],

@@ -19,7 +19,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from rapomdp.awareness.evidence import RecordedObservation
+from rapomdp.awareness.choices import RecordedObservation
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
@@ -72,45 +72,36 @@ class LabelRecogniser:
 class HeldOutFold:
     """One method's held-out group: its models' true classes ``labels`` (M,) and recorded
     labels ``predicted`` (M, V), and the method's ``model`` (V, C, C) fitted without them
-    (the planner's and the belief's) with the belief's ``first_view`` model."""
+    (the planner's and the belief's)."""
 
     group: int
     labels: np.ndarray
     predicted: np.ndarray
     model: np.ndarray
-    first_view: np.ndarray
 
 
 def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
                    ) -> dict[str, list[HeldOutFold]]:
     """Each POMDP method's held-out groups (``vptree``: the vptree stage's labels of the
     volume models; the others: the observe stage's refitted folds, ``ra`` its chosen
-    variant). Empty lists where there are fewer than two groups to hold out, and for the
-    observe stage's models unless their belief is naive (:func:`closed_loop_skipped`)."""
+    variant). Empty lists where there are fewer than two groups to hold out
+    (:func:`closed_loop_skipped`)."""
     out: dict[str, list[HeldOutFold]] = {}
     cnn = [m for m in methods if m != "vptree"]
-    if cnn and config.observe.belief != "naive":
-        out.update({name: [] for name in cnn})
-    elif cnn:
+    if cnn:
         recorded = RecordedObservation.load(inputs.observe)
         folds = recorded.belief_folds(config.observe)
         temperatures = recorded.calibration["temperatures"]
-        corrections = recorded.calibration["belief_corrections"]
         evidence = recorded.evidence
         for name in cnn:
             out[name] = []
             if len(folds) < 2:
                 continue
             for held, models in folds:
-                rows = held & evidence.volume_mask  # the modelled classifier's own labels
-                if not rows.any():
-                    continue
-                single = models[name].probabilities
-                planner = temper(single, float(temperatures[name]))
-                first = single if corrections[name] == "after_first" else planner
-                out[name].append(HeldOutFold(int(evidence.groups[rows][0]),
-                                             evidence.labels[rows], evidence.predicted[rows],
-                                             planner, first))
+                planner = temper(models[name].probabilities, float(temperatures[name]))
+                out[name].append(HeldOutFold(int(evidence.groups[held][0]),
+                                             evidence.labels[held], evidence.predicted[held],
+                                             planner))
     if "vptree" in methods:
         vptree = load_npz(inputs.vptree / VPTREE_OBSERVATION_FILE)
         if "volume_predictions" not in vptree:
@@ -122,18 +113,15 @@ def held_out_folds(config: Config, inputs: StageInputs, methods: Sequence[str]
                                config.vptree.pseudo_count)
         tempered = [(held, temper(m, t)) for held, m in folds_v]
         out["vptree"] = [] if len(folds_v) < 2 else [
-            HeldOutFold(int(groups[held][0]), labels[held], predicted[held], m, m)
+            HeldOutFold(int(groups[held][0]), labels[held], predicted[held], m)
             for held, m in tempered]
     return out
 
 
 def closed_loop_skipped(config: Config, name: str) -> str:
     """Why a POMDP method has no held-out closed loop (it keeps the walks' a)."""
-    if name != "vptree" and config.observe.belief != "naive":
-        return (f"observe.belief {config.observe.belief}: the held-out folds are refitted for "
-                "a naive belief only")
     return ("fewer than two held-out groups of volume models the trained classifier labelled "
-            "(dataset.split.volume; observe.evidence crossfit has none)")
+            "(dataset.split.volume)")
 
 
 class HeldOutStops(NamedTuple):
@@ -235,16 +223,13 @@ def _held_out_task(config_json: str, inputs: StageInputs, name: str, fold: HeldO
     elif name == "random":  # its walk at Table 1's threshold
         walk = config.evaluate.random
         policy = RandomWalkPolicy(fold.model, motion.distance_m, motion.reachable,
-                                  walk.neighbours, walk.belief_threshold, walk.max_moves, name,
-                                  first_view_model=fold.first_view)
+                                  walk.neighbours, walk.belief_threshold, walk.max_moves, name)
     elif plans is None:
         network, spec = load_learned_policy(inputs.learn, config.solve.wrong_declaration_cost_m)
-        policy = LearnedPolicy(network, spec, fold.model, motion.reachable, name,
-                               first_view_model=fold.first_view)
+        policy = LearnedPolicy(network, spec, fold.model, motion.reachable, name)
     else:
         policy = POMDPPolicy.configured(config.evaluate, ActiveRecognitionPolicy.load(plans),
-                                        fold.model, name, motion.reachable,
-                                        first_view_model=fold.first_view)
+                                        fold.model, name, motion.reachable)
     return held_out_stops(config, policy, fold, motion)
 
 

@@ -5,8 +5,8 @@ When ``evaluate.methods`` lists ``learned``, the stage
 1. records the evidence (:class:`~rapomdp.experiment.recorded_env.RecordedEvidence`): the
    trained classifier's output at every test viewpoint of every *volume* model (the
    classifier_eval stage's, on the xrho stage's images: the outputs the observation models
-   were fitted on; its test models' arrays are not read), and the cross-fitted training models'
-   labels when the crossfit stage made them. No test model is read (checked by key);
+   were fitted on; its test models' arrays are not read). No test model is read (checked by
+   key);
 2. trains one policy per wrong-declaration cost λ (Table 1's ``solve.wrong_declaration_cost_m``
    and every ``evaluate.lambdas``) with sb3-contrib's MaskablePPO on
    :class:`~rapomdp.experiment.recorded_env.RecordedRecognitionEnv`, the belief that of
@@ -35,8 +35,6 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.awareness.artefacts import load_view_discounts
-from rapomdp.awareness.crossfit import CROSSFIT_FILE, CrossfitOutcomes
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, load_dataset
@@ -63,13 +61,10 @@ from rapomdp.experiment.sections import LEARNED, learned_lambdas
 from rapomdp.io import read_json, write_json_atomic, write_text_atomic
 from rapomdp.parallel import run_tasks
 from rapomdp.planning.stage import (
-    first_view_models,
-    observation_priors,
     offered_observation_models,
 )
 from rapomdp.progress import progress_bar, track
 from rapomdp.recognition.artefacts import XrhoProbabilities, load_volume_probabilities
-from rapomdp.recognition.belief import ViewDiscount
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
 
@@ -80,12 +75,10 @@ CURVE_COLUMNS = ("lambda", "update", "timesteps", "episodes", "mean_return", "ac
 
 # -- 1. the recorded evidence ------------------------------------------------------------------
 
-def record_evidence(dataset: Dataset, volume: XrhoProbabilities,
-                    crossfit: CrossfitOutcomes | None = None) -> RecordedEvidence:
+def record_evidence(dataset: Dataset, volume: XrhoProbabilities) -> RecordedEvidence:
     """The classifier's outputs at X_rho of every volume model (``volume``: the classifier_eval
-    stage's, on the xrho stage's images, the ones the observation models were fitted on), then
-    the cross-fitted training models' labels as one-hot outputs (when ``crossfit`` holds
-    any). No test model is read; evidence naming one is refused."""
+    stage's, on the xrho stage's images, the ones the observation models were fitted on). No
+    test model is read; evidence naming one is refused."""
     models = dataset.with_role("volume")
     classes = len(dataset.classes)
     outputs = [np.asarray(volume.of(m), dtype=np.float32) for m in models]
@@ -95,11 +88,6 @@ def record_evidence(dataset: Dataset, volume: XrhoProbabilities,
                               np.stack(outputs) if outputs else
                               np.zeros((0, views, classes), np.float32),
                               np.full(len(models), "volume"))]
-    if crossfit is not None and len(crossfit.labels):
-        one_hot = np.eye(classes, dtype=np.float32)[crossfit.predicted]
-        parts.append(RecordedEvidence(crossfit.keys.astype(str),
-                                      crossfit.labels.astype(np.int64), one_hot,
-                                      np.full(len(crossfit.labels), "crossfit")))
     evidence = RecordedEvidence.concatenate(parts)
     test = {f"{m.class_name}/{m.id}" for m in dataset.with_role("test")}
     leaked = sorted(set(evidence.keys.tolist()) & test)
@@ -114,19 +102,9 @@ def record_evidence(dataset: Dataset, volume: XrhoProbabilities,
 def belief_arguments(observe_dir: Path, names: Sequence[str]) -> dict[str, dict[str, Any]]:
     """For each named observation model, the arguments of its closed-loop belief
     (:class:`~rapomdp.experiment.methods.BayesBelief`) as the evaluation builds them: the
-    model, its first-view model, its prior over states and its view discount (with the
-    viewpoints' similarity) where the observe stage made one."""
+    model."""
     models, _ = offered_observation_models(observe_dir)
-    first = first_view_models(observe_dir, models)
-    priors = observation_priors(observe_dir, models)
-    discounts, kernel = load_view_discounts(observe_dir)
-    return {name: {"observation_model": models[name], "first_view_model": first[name],
-                   "prior": priors[name],
-                   "discount": (ViewDiscount(float(discounts[name][0]),
-                                             float(discounts[name][1]))
-                                if name in discounts else None),
-                   "similarity": kernel if name in discounts else None}
-            for name in names if name in models}
+    return {name: {"observation_model": models[name]} for name in names if name in models}
 
 
 def belief_models(config: Config, observe_dir: Path) -> dict[str, Any]:
@@ -410,10 +388,7 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
         return
     require_sb3()
     dataset = load_dataset(inputs.dataset)
-    crossfit = (CrossfitOutcomes.load(inputs.crossfit / CROSSFIT_FILE)
-                if inputs.crossfit_dir is not None else None)
-    evidence = record_evidence(dataset, load_volume_probabilities(inputs.classifier_eval),
-                               crossfit)
+    evidence = record_evidence(dataset, load_volume_probabilities(inputs.classifier_eval))
     evidence.save(out / RECORDED_FILE)
     recorded_s = time.perf_counter() - began
     motion = Motion.from_robot(load_robot(inputs.robot))
@@ -439,7 +414,6 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
         "timesteps": config.learn.timesteps,
         "evidence": {"models": evidence.models,
                      "volume": int((evidence.sources == "volume").sum()),
-                     "crossfit": int((evidence.sources == "crossfit").sum()),
                      "keys": evidence.keys.tolist()},
         "policies": {f"{lam:g}": {
             "cpu_seconds": seconds,

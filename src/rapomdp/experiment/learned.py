@@ -40,7 +40,6 @@ from rapomdp.experiment.recorded_env import (
 from rapomdp.experiment.sections import LEARNED
 from rapomdp.io import ArtefactError, read_json, write_bytes_atomic, write_json_atomic
 from rapomdp.planning.policy import ARAction
-from rapomdp.recognition.belief import ViewDiscount
 
 FORMAT = "rapomdp.learned-policy.v1"
 #: The learn stage's summary: what was trained, for how long, its held-out scores.
@@ -195,9 +194,6 @@ class LearnedPolicy:
 
     def __init__(self, network: PolicyNetwork, spec: PolicySpec, observation_model: np.ndarray,
                  reachable: np.ndarray, name: str = "Learned (PPO)", recogniser: str = "cnn",
-                 first_view_model: np.ndarray | None = None, prior: np.ndarray | None = None,
-                 discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None,
                  declared_temperature: float = 1.0) -> None:
         shape = np.shape(observation_model)
         if len(shape) != 3 or (shape[0], shape[2]) != (spec.viewpoints, spec.classes):
@@ -210,8 +206,7 @@ class LearnedPolicy:
         self.name, self.recogniser = name, recogniser
         self.network, self.spec = network, spec
         self.reachable = np.asarray(reachable, dtype=bool)
-        self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity, declared_temperature)
+        self._bayes = BayesBelief(observation_model, declared_temperature)
         self._visited = np.zeros(spec.viewpoints, dtype=bool)
         self._looks = 0
 

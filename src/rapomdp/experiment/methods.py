@@ -22,76 +22,32 @@ from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
 from rapomdp.planning.rules import class_marginal
 from rapomdp.recognition.belief import (
-    ViewDiscount,
     declared_belief,
     temper,
 )
 
 
 class BayesBelief:
-    """A distribution over the hidden states updated by Eq. 5 with an observation model P
-    (V, S, C): the recogniser's most likely class is the observation. The states are the
-    classes, or (instance type, class) pairs at τ·C + c (``observe.belief: nuisance``), from
-    the ``prior`` (S,) (default uniform); ``state`` is that distribution and ``belief`` its
-    class marginal. The first update of an episode uses ``first_view_model`` (default: P
-    itself) — the single-view model when the observe stage discounts only the views after the
-    first (``observe.belief_correction: after_first``); the planner plans every later update,
-    and plans it with P (and from the same prior).
-
-    With a ``discount`` (:class:`~rapomdp.recognition.belief.ViewDiscount`, ``observe.belief:
-    similarity``) and the viewpoints' ``similarity`` (V, V), an update uses the first-view
-    model tempered by the weight the discount gives that view after the views already taken
-    (:meth:`next_model`); P is then the solved policy's memoryless stand-in.
+    """A distribution over the classes updated by Eq. 5 with an observation model P
+    (V, C, C): the recogniser's most likely class is the observation. ``state`` is that
+    distribution from a uniform prior and ``belief`` the same (the class distribution); every
+    update uses P, as the planner plans it.
 
     ``declared`` is what a policy reports: the class belief raised to ``declared_temperature``
     and renormalised (fitted where held-out episodes stop); the policy acts on ``belief`` and
     ``state``, which it leaves alone."""
 
     def __init__(self, observation_model: np.ndarray,
-                 first_view_model: np.ndarray | None = None,
-                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None,
                  declared_temperature: float = 1.0) -> None:
         if not declared_temperature > 0:
             raise ValueError(f"the declared-confidence temperature must be positive, got "
                              f"{declared_temperature}")
         self.declared_temperature = float(declared_temperature)
         self.observation_model = np.asarray(observation_model, dtype=np.float64)
-        self.first_view_model = (self.observation_model if first_view_model is None
-                                 else np.asarray(first_view_model, dtype=np.float64))
-        if self.first_view_model.shape != self.observation_model.shape:
-            raise ValueError(f"the first-view model's shape {self.first_view_model.shape} "
-                             f"differs from the observation model's "
-                             f"{self.observation_model.shape}")
         n_s = self.observation_model.shape[1]
-        self.prior = (np.full(n_s, 1.0 / n_s) if prior is None
-                      else np.asarray(prior, dtype=np.float64))
-        if self.prior.shape != (n_s,) or np.any(self.prior < 0) or \
-                not np.isclose(self.prior.sum(), 1.0):
-            raise ValueError(f"the prior must be a distribution over the model's {n_s} states, "
-                             f"got shape {self.prior.shape}")
-        views = self.observation_model.shape[0]
-        if discount is not None and np.shape(similarity) != (views, views):
-            raise ValueError(f"a view discount needs the viewpoints' similarity ({views}, "
-                             f"{views}), got shape {np.shape(similarity)}")
-        self.discount = discount
-        self.similarity = None if similarity is None else np.asarray(similarity, np.float64)
+        self.prior = np.full(n_s, 1.0 / n_s)
         self.state = self.prior.copy()
         self.updates = 0
-        self.visited = np.zeros(views, dtype=bool)
-
-    def _weights(self) -> np.ndarray:
-        assert self.discount is not None and self.similarity is not None
-        return self.discount.weights(self.similarity, self.visited)
-
-    def next_model(self) -> np.ndarray:
-        """The model (V, S, C) the next update uses at each viewpoint: the first-view model
-        before the first view, then P — or, with a view discount, the first-view model
-        tempered by each viewpoint's weight after the views taken. The lookahead predicts its
-        children with it, so the belief and the next step's choice share one model."""
-        if self.discount is None:
-            return self.first_view_model if self.updates == 0 else self.observation_model
-        return temper(self.first_view_model, self._weights())
 
     @property
     def n_classes(self) -> int:
@@ -111,18 +67,10 @@ class BayesBelief:
     def reset(self) -> None:
         self.state = self.prior.copy()
         self.updates = 0
-        self.visited[:] = False
 
     def update(self, viewpoint: int, output: np.ndarray) -> None:
         label = int(np.argmax(output))
-        if self.discount is None:
-            model = self.first_view_model if self.updates == 0 else self.observation_model
-            self.state = update_beliefs(model, self.state, viewpoint, label)
-        else:  # the view's own rows, tempered by its weight (next_model at one viewpoint)
-            row = temper(self.first_view_model[viewpoint:viewpoint + 1],
-                         self._weights()[viewpoint])
-            self.state = update_beliefs(row, self.state, 0, label)
-        self.visited[viewpoint] = True
+        self.state = update_beliefs(self.observation_model, self.state, viewpoint, label)
         self.updates += 1
 
 
@@ -167,9 +115,6 @@ class RandomWalkPolicy:
     def __init__(self, observation_model: np.ndarray, distance_m: np.ndarray,
                  reachable: np.ndarray, neighbours: int = 8, belief_threshold: float = 0.9,
                  max_moves: int = 10, name: str = "Random", recogniser: str = "cnn",
-                 first_view_model: np.ndarray | None = None,
-                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None,
                  declared_temperature: float = 1.0) -> None:
         if not 0.0 < belief_threshold <= 1.0:
             raise ValueError(f"belief_threshold must be in (0, 1], got {belief_threshold}")
@@ -178,8 +123,7 @@ class RandomWalkPolicy:
         self.name, self.recogniser = name, recogniser
         self.neighbours = k_nearest(distance_m, neighbours, allowed=reachable)
         self.belief_threshold, self.max_moves = float(belief_threshold), int(max_moves)
-        self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity, declared_temperature)
+        self._bayes = BayesBelief(observation_model, declared_temperature)
         self._visited: set[int] = set()
         self._rng = np.random.default_rng()
 
@@ -221,10 +165,7 @@ class POMDPPolicy:
 
     def __init__(self, policy: ActiveRecognitionPolicy, observation_model: np.ndarray,
                  name: str, recogniser: str = "cnn", revisit: bool = False,
-                 first_view_model: np.ndarray | None = None,
                  lookahead_over: np.ndarray | None = None,
-                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None,
                  declared_temperature: float = 1.0) -> None:
         if observation_model.shape[0] != policy.n_viewpoints or \
                 observation_model.shape[1] != policy.n_states or \
@@ -238,8 +179,7 @@ class POMDPPolicy:
         self.observation_model = observation_model
         self.lookahead_over = (np.ones(policy.n_viewpoints, dtype=bool) if lookahead_over is None
                                else np.asarray(lookahead_over, dtype=bool))
-        self._bayes = BayesBelief(observation_model, first_view_model, prior, discount,
-                                  similarity, declared_temperature)
+        self._bayes = BayesBelief(observation_model, declared_temperature)
         self._visited = np.zeros(policy.n_viewpoints, dtype=bool)
 
     @classmethod
@@ -248,8 +188,7 @@ class POMDPPolicy:
                    recogniser: str = "cnn", **belief: Any) -> POMDPPolicy:
         """The method as the evaluate stage configures it (``cfg``: its revisit rule; the
         lookahead over the ``reachable`` viewpoints); ``belief``: the belief's keyword
-        arguments (``first_view_model``, ``prior``, ``discount``, ``similarity``,
-        ``declared_temperature``)."""
+        arguments (``declared_temperature``)."""
         return cls(policy, observation_model, name, recogniser, cfg.revisit,
                    lookahead_over=reachable, **belief)
 
@@ -267,9 +206,6 @@ class POMDPPolicy:
 
     def act(self, viewpoint: int) -> ARAction:
         forbidden = None if self.revisit else self._visited
-        # the children of the next view as the belief will update (a view discount's
-        # weights after the views taken), valued by the solved policy
-        model = (self.observation_model if self._bayes.discount is None
-                 else self._bayes.next_model())
-        return self.policy.lookahead_act(viewpoint, self._bayes.state, model,
+        # the children of the next view as the belief will update, valued by the policy
+        return self.policy.lookahead_act(viewpoint, self._bayes.state, self.observation_model,
                                          self.lookahead_over, forbidden)

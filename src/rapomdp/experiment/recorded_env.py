@@ -2,9 +2,8 @@
 
 The rendering environment (:mod:`rapomdp.experiment.env`) renders and classifies at every step
 (milliseconds). Here the classifier's output at every test viewpoint of every *held-out* model
-(:class:`RecordedEvidence`: the volume models under the trained classifier, and the
-cross-fitted training models when the crossfit stage labelled them) is computed once, so a step
-is a lookup plus the belief update of the closed loop
+(:class:`RecordedEvidence`: the volume models under the trained classifier) is computed once,
+so a step is a lookup plus the belief update of the closed loop
 (:class:`~rapomdp.experiment.methods.BayesBelief`, Eq. 5 with the method's observation model)
 and the move of the closed loop (:meth:`~rapomdp.experiment.episode.Motion.move`).
 
@@ -33,7 +32,6 @@ from gymnasium import spaces
 from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.methods import BayesBelief
 from rapomdp.io import ArtefactError, load_npz, save_npz
-from rapomdp.recognition.belief import ViewDiscount
 
 #: The file of the recorded evidence in the learn stage's folder.
 RECORDED_FILE = "recorded_evidence.npz"
@@ -54,8 +52,7 @@ def episode_options(options: dict[str, Any] | None) -> dict[str, Any]:
 class RecordedEvidence:
     """The recogniser's output (M, V, C) at every test viewpoint of M held-out models, their
     ``keys`` (M,) ``"class/id"``, true ``labels`` (M,) and ``sources`` (M,): ``"volume"`` (the
-    trained classifier's output) or ``"crossfit"`` (a fold classifier's label, one-hot: the
-    crossfit stage records labels only)."""
+    trained classifier's output)."""
 
     keys: np.ndarray
     labels: np.ndarray
@@ -141,9 +138,9 @@ class RecordedRecognitionEnv(gymnasium.Env):
     Observations: :func:`policy_input` (Box in [0, 1], C + 2V). Actions: ``Discrete(V + C)``
     as in :class:`~rapomdp.experiment.env.ActiveRecognitionEnv`. ``reset`` takes
     ``options={"model": i, "start": v}`` (each drawn from the env's RNG otherwise). The belief
-    is :class:`~rapomdp.experiment.methods.BayesBelief` of ``observation_model`` (V, S, C) with
-    ``first_view_model``, ``prior``, ``discount`` and ``similarity``, as the evaluation builds
-    it for a method of that model (:func:`~rapomdp.experiment.learn_stage.belief_models`).
+    is :class:`~rapomdp.experiment.methods.BayesBelief` of ``observation_model`` (V, C, C), as
+    the evaluation builds it for a method of that model
+    (:func:`~rapomdp.experiment.learn_stage.belief_models`).
     :meth:`action_masks` is what sb3-contrib's ``MaskablePPO`` reads. The final ``info`` holds
     ``correct``, ``true_class``, ``model``, ``moves`` and ``energy`` (the scorer's view).
     """
@@ -152,10 +149,7 @@ class RecordedRecognitionEnv(gymnasium.Env):
 
     def __init__(self, evidence: RecordedEvidence, observation_model: np.ndarray,
                  motion: Motion, lambda_: float, max_moves: int, revisit: bool = False,
-                 first_view_model: np.ndarray | None = None,
-                 invalid_penalty: float | None = None, seed: int | None = None,
-                 prior: np.ndarray | None = None, discount: ViewDiscount | None = None,
-                 similarity: np.ndarray | None = None) -> None:
+                 invalid_penalty: float | None = None, seed: int | None = None) -> None:
         if evidence.models == 0:
             raise ValueError("RecordedRecognitionEnv needs at least one recorded model")
         model = np.asarray(observation_model, dtype=np.float64)
@@ -179,7 +173,7 @@ class RecordedRecognitionEnv(gymnasium.Env):
         self.lambda_ = float(lambda_)
         self.max_moves = int(max_moves)
         self.revisit = bool(revisit)
-        self._bayes = BayesBelief(model, first_view_model, prior, discount, similarity)
+        self._bayes = BayesBelief(model)
         reach = motion.reachable
         valid = motion.energy[np.ix_(reach, reach)]
         valid = valid[np.isfinite(valid)]

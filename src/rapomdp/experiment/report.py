@@ -555,25 +555,10 @@ def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
                f"variants fitted without its group, the test models play no part): {weights}")
     elif choice.configured == "mixture":
         why = (f"the fallback of `observe.ra_model: mixture` ({choice.rule}): {choice.reason}")
-    elif choice.configured != "auto":
+    else:
         why = (f"as configured (`observe.ra_model: {choice.configured}`)"
                + ("; the held-out validation below shows how the variants compare"
                   if validation else ""))
-    elif choice.reason:
-        why = (f"chosen by `observe.ra_model: auto` ({choice.rule}): {choice.reason} (each "
-               "held-out object scored by the variants fitted without its group: the k-th "
-               "volume model of every class is group k, each cross-fitting fold one more; the "
-               "test models play no part)")
-    elif validation:
-        why = ("chosen by `observe.ra_model: auto` as the RA variant of best held-out "
-               "log-likelihood in the validation below: each group of the held-out evidence "
-               "(the k-th volume model of every class is group k, each cross-fitting fold one "
-               "more) scored by the variants fitted without it; the test models play no part")
-    else:
-        why = (f"the fallback of `observe.ra_model: auto`: the held-out evidence forms "
-               f"{_evidence_groups(observe)} group(s) (the k-th volume model of every class is "
-               f"group k, each cross-fitting fold one more) and leave-one-group-out validation "
-               f"needs two or more, so the variants were not compared")
     b.add(Paragraph(f"RA-POMDP's observation model (`ra`) is `{choice.model}`, {why}. The row "
                     f"`ra` in the tables is that variant itself."))
     if validation:
@@ -584,15 +569,6 @@ def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
         b.add(Paragraph("Held-out validation (the groups of held-out evidence, each scored by "
                         "the models fitted without it):"), Table(header, rows))
     return choice
-
-
-def _evidence_groups(observe: Path) -> int | str:
-    """How many groups the held-out evidence forms (``?`` when the artefact lacks them)."""
-    try:
-        groups = load_npz(observe / OBSERVATION_FILE).get("evidence_groups")
-    except ArtefactError:
-        return "?"
-    return "?" if groups is None else int(np.unique(groups).size)
 
 
 def _identical_rows(observe: Path, choice: RAChoice | None) -> str:
@@ -742,8 +718,8 @@ def _learned(b: _Builder, folder: Path | None, cmd: str) -> None:
         b.add(Paragraph(
             f"One policy per λ ({', '.join(f'{v:g}' for v in data['lambdas'])} m), each "
             f"trained for {data['timesteps']:,} environment steps on the recorded evidence of "
-            f"{evidence['models']} held-out models ({evidence['volume']} volume, "
-            f"{evidence['crossfit']} cross-fitted; no test model), its belief Eq. 5 with the "
+            f"{evidence['models']} held-out volume models (no test model), its belief Eq. 5 "
+            f"with the "
             f"'{data['observation_model']}' observation model. Training took "
             f"{seconds['train_wall']:.0f} s of wall time ({seconds['train_cpu']:.0f} s of CPU "
             f"over {data['workers']} process(es)); recording the evidence "

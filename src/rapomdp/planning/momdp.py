@@ -11,7 +11,7 @@ Array shapes (V viewpoints, C classes):
 
 - ``observation_model`` (V, C, C): ``P[v, c, o]`` = P(predicted label o | class c, viewpoint v),
   rows over o sum to 1 (the observation stage's output). With T instance types (a per-object
-  nuisance the belief models, ``observe.belief: nuisance``) the hidden state is (type, class)
+  nuisance: a hidden type every view of one object shares) the hidden state is (type, class)
   at index τ·C + c and the model is (V, T·C, C): every view of one object shares its type,
   so the views are independent given (class, type), not given the class. A declaration
   names a class and is right in each of its types' states (:mod:`rapomdp.planning.rules`).

@@ -4,8 +4,8 @@ Every solver, bound, policy and simulator of the package calls these: the value 
 (Eq. 2: −λ(1 − max b) for the best class), and the move-or-declare rule with its tie-break
 (declare unless a move is worth more by more than :data:`TIE_TOL`).
 
-The hidden state is the class, or, with T *instance types* (a per-object nuisance: the belief
-``observe.belief: nuisance``), the pair (type τ, class c) at index τ·C + c (type-major). A
+The hidden state is the class, or, with T *instance types* (a per-object nuisance), the pair
+(type τ, class c) at index τ·C + c (type-major). A
 declaration names a class, so its value reads the belief's class marginal
 (:func:`class_marginal`); ``n_classes`` None means the states are the classes.
 """

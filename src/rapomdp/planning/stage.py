@@ -23,9 +23,7 @@ from rapomdp.awareness.artefacts import (
     DECLARED_PREFIX,
     DECLARED_THRESHOLD_PREFIX,
     DECLARED_THRESHOLDS,
-    FIRST_VIEW_PREFIX,
     OBSERVATION_FILE,
-    PRIOR_PREFIX,
 )
 from rapomdp.config import Config
 from rapomdp.context import RunContext
@@ -39,26 +37,6 @@ from rapomdp.robot.artefacts import ROBOT_ARRAYS
 from rapomdp.workspace import StageError, StageInputs
 
 
-def first_view_models(observe_dir: Path, offered: dict[str, np.ndarray]
-                      ) -> dict[str, np.ndarray]:
-    """Each ``offered`` model's (:func:`offered_observation_models`) model of the belief's
-    *first* update (the observe stage's ``first_view_<name>``; the planner's model itself where
-    there is none, e.g. the VP-tree's or a workspace from before the belief correction). Later
-    updates use the planner's."""
-    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
-    return {name: observe.get(f"{FIRST_VIEW_PREFIX}{name}", model)
-            for name, model in offered.items()}
-
-
-def observation_priors(observe_dir: Path, offered: dict[str, np.ndarray]
-                       ) -> dict[str, np.ndarray | None]:
-    """Each ``offered`` model's start belief over its hidden states: a typed model's prior
-    over (instance type, class) (the observe stage's ``prior_<name>``,
-    ``observe.belief: nuisance``), None (uniform over the classes) for the others."""
-    observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
-    return {name: observe.get(f"{PRIOR_PREFIX}{name}") for name in offered}
-
-
 def declared_temperatures(observe_dir: Path, offered: Collection[str],
                           vptree_dir: Path | None = None,
                           stop_threshold: float | None = None) -> dict[str, float]:
@@ -67,8 +45,7 @@ def declared_temperatures(observe_dir: Path, offered: Collection[str],
     ``declared_temperature``): what a policy with that belief reports is its belief ** a.
     With ``stop_threshold`` (a policy that stops once its belief reaches it: Random), the a
     fitted at that threshold, interpolated between the thresholds fitted (the pooled a where a
-    stage fitted none). 1 where none was fitted (one held-out group, a view discount's
-    belief)."""
+    stage fitted none). 1 where none was fitted (one held-out group)."""
     observe = load_npz(Path(observe_dir) / OBSERVATION_FILE)
     vptree: dict[str, np.ndarray] = (load_npz(Path(vptree_dir) / VPTREE_FILE)
                                      if vptree_dir is not None else {})
@@ -162,8 +139,7 @@ def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path, model:
         raise StageError(f"no observation model '{model}'; available: {', '.join(models)}")
     return build_active_recognition_problem(
         models[model], energy, reachable, config.solve.wrong_declaration_cost_m,
-        config.solve.discount, start_viewpoint(reachable),
-        observation_priors(observe_dir, models)[model], class_names=classes,
+        config.solve.discount, start_viewpoint(reachable), class_names=classes,
     )
 
 
@@ -208,7 +184,6 @@ def run_solve_stage(config: Config, inputs: StageInputs, out: Path,
             class_names=classes,
             memory_gb=config.solve.memory_gb,
             scheduler=context.scheduler,
-            start_beliefs=observation_priors(inputs.observe, models),
             pool=context.pool,
         )
     except MemoryCapError as exc:

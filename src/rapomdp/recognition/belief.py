@@ -6,11 +6,8 @@ the likelihood temperature t (P ** t, renormalised) that minimises the belief's 
 held-out random walks over viewpoints keeps it calibrated. Held out: the outcome rows form
 groups; each group's walks are scored by the model fitted without it (leave-one-group-out).
 Nothing here depends on how a model was fitted: the observe stage tempers every awareness model
-with it (:func:`rapomdp.awareness.evidence.held_out_temperatures`), the vptree stage the
-VP-tree's confusion. A model may also be *typed* (V, T·C, C) with a prior (T·C,) over its
-hidden states (instance type, class) at τ·C + c (``observe.belief: nuisance``): the walks'
-beliefs are then over the states and read as their class marginal, as the closed loop's
-(``experiment.methods.BayesBelief``). Also here: the reliability and ECE of a confidence.
+with it (:func:`rapomdp.awareness.temperature.held_out_temperatures`), the vptree stage the
+VP-tree's confusion. Also here: the reliability and ECE of a confidence.
 """
 
 from __future__ import annotations
@@ -30,9 +27,6 @@ TEMPERATURE_WALKS_PER_ROW = 16
 """Walks started (at random viewpoints) per held-out outcome row."""
 TEMPERATURE_NEIGHBOURS = 8
 """A walk moves to one of this many nearest viewpoints not yet visited."""
-DISCOUNT_JUMP = 0.5
-"""With ``observe.discount_walks: mixed``, the share of the view discount's walk steps that
-jump to any unvisited viewpoint instead of a neighbour, so that far views are seen too."""
 
 
 # -- the calibration of a confidence ---------------------------------------------------------
@@ -114,53 +108,10 @@ def temper(probabilities: np.ndarray, temperature: float | np.ndarray) -> np.nda
     return out / out.sum(axis=2, keepdims=True)
 
 
-DISCOUNT_BOUNDS = ((0.05, 2.0), (0.0, 1.0))
-"""The intervals the view discount's scale and redundancy are searched in."""
-MIN_VIEW_WEIGHT = 0.02
-"""A later view's evidence weight never falls below this (no view is worth nothing)."""
-
-
-@dataclass(frozen=True)
-class ViewDiscount:
-    """Evidence discounted by how alike a view is to those already taken
-    (``observe.belief: similarity``): the first view of an episode counts in full, a later view
-    x with weight ``scale`` · (1 − ``redundancy`` · max over the views x' already taken of
-    K(x, x')), K a similarity of viewpoints (1 on the diagonal; the observe stage's is
-    ``ra_transfer``'s kernel: seen saliency and angle). Its update is Eq. 5 with P(o | c, x)
-    tempered by that weight (:func:`temper`), so the belief depends on which views were taken,
-    not only on their labels."""
-
-    scale: float
-    redundancy: float
-
-    def weights(self, similarity: np.ndarray, visited: np.ndarray) -> np.ndarray:
-        """The weight (V,) the next view would have at every viewpoint after ``visited``
-        (V,) bool: 1 everywhere before the first view."""
-        visited = np.asarray(visited, dtype=bool)
-        if not visited.any():
-            return np.ones(similarity.shape[0])
-        near = np.asarray(similarity)[:, visited].max(axis=1)
-        return np.maximum(self.scale * (1.0 - self.redundancy * near), MIN_VIEW_WEIGHT)
-
-    def walk_weights(self, similarity: np.ndarray, walks: np.ndarray) -> np.ndarray:
-        """Every step's weight (E, L) along ``walks`` (E, L) of viewpoints."""
-        out = np.ones(walks.shape)
-        for t in range(1, walks.shape[1]):
-            near = np.asarray(similarity)[walks[:, t][:, None], walks[:, :t]].max(axis=1)
-            out[:, t] = np.maximum(self.scale * (1.0 - self.redundancy * near),
-                                   MIN_VIEW_WEIGHT)
-        return out
-
-    def to_array(self) -> np.ndarray:
-        return np.array([self.scale, self.redundancy])
-
-
 def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighbours: int,
-                 rng: np.random.Generator, jump: float = 0.0) -> np.ndarray:
+                 rng: np.random.Generator) -> np.ndarray:
     """Viewpoint sequences (E, length): from each start, moves to a random one of the
-    ``neighbours`` nearest viewpoints not yet visited (the shape of an active episode); with
-    ``jump`` > 0 each step instead goes, with that probability, to a uniformly drawn unvisited
-    viewpoint, near or far (``jump`` = 0 draws exactly the neighbour walks)."""
+    ``neighbours`` nearest viewpoints not yet visited (the shape of an active episode)."""
     d = np.asarray(directions, dtype=np.float64)
     angle = np.arccos(np.clip(d @ d.T, -1.0, 1.0))
     np.fill_diagonal(angle, np.inf)
@@ -177,19 +128,14 @@ def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighb
         pick = candidates[rows, keys.argmax(axis=1)]
         # a walk boxed in by visited neighbours stays where it is (no new evidence)
         stuck = ~fresh.any(axis=1)
-        step = np.where(stuck, walks[:, t - 1], pick)
-        if jump > 0.0:
-            anywhere = np.where(visited, -1.0, rng.random(visited.shape)).argmax(axis=1)
-            step = np.where(rng.random(len(starts)) < jump, anywhere, step)
-        walks[:, t] = step
+        walks[:, t] = np.where(stuck, walks[:, t - 1], pick)
         visited[rows, walks[:, t]] = True
     return walks
 
 
 def _log_likelihoods(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                      predicted: np.ndarray) -> np.ndarray:
-    """log P(observed label | s, x) (N, V, S) of every outcome row under its tempered model
-    (S hidden states: the classes, or (type, class) pairs)."""
+    """log P(observed label | c, x) (N, V, C) of every outcome row under its tempered model."""
     loglik = np.empty(predicted.shape + (models[0].shape[1],))  # (N, V, S)
     for m, p in enumerate(models):
         rows = np.flatnonzero(row_model == m)
@@ -203,14 +149,12 @@ def _log_likelihoods(temperature: float, models: Sequence[np.ndarray], row_model
 
 def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                      predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
-                     first_temperature: float | None = None,
-                     priors: Sequence[np.ndarray] | None = None) -> np.ndarray:
+                     first_temperature: float | None = None) -> np.ndarray:
     """Log class beliefs (E, L, C) after every step of every walk, updated by Eq. 5 with the
-    tempered models (row r of the outcomes uses ``models[row_model[r]]``) from a uniform prior
-    or ``priors[row_model[r]]`` over the model's hidden states (a typed model's beliefs are
-    over (type, class) and read as their class marginal); with ``first_temperature`` the first
-    view is tempered by it instead (1: the single-view model, later views discounted alone). A
-    viewpoint a walk stays on adds no evidence (the sensor would see the same image)."""
+    tempered models (row r of the outcomes uses ``models[row_model[r]]``) from a uniform prior;
+    with ``first_temperature`` the first view is tempered by it instead (1: the single-view
+    model, later views discounted alone). A viewpoint a walk stays on adds no evidence (the
+    sensor would see the same image)."""
     loglik = _log_likelihoods(temperature, models, row_model, predicted)
     steps = loglik[walk_row[:, None], walks]  # (E, L, C)
     if first_temperature is not None:
@@ -219,124 +163,34 @@ def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model
     repeat = np.zeros(walks.shape, dtype=bool)
     repeat[:, 1:] = walks[:, 1:] == walks[:, :-1]
     steps = np.where(repeat[..., None], 0.0, steps)
-    cumulative = np.cumsum(steps, axis=1)  # (E, L, S)
-    if priors is not None:
-        log_prior = np.log(np.maximum(np.stack([np.asarray(p, dtype=np.float64)
-                                                for p in priors]), 1e-300))  # (models, S)
-        cumulative = cumulative + log_prior[row_model[walk_row]][:, None, :]
-    n_classes = models[0].shape[2]
-    if cumulative.shape[2] != n_classes:  # typed: the class marginal over instance types
-        types = cumulative.shape[2] // n_classes
-        cumulative = logsumexp(cumulative.reshape(*cumulative.shape[:2], types, n_classes),
-                               axis=2)
+    cumulative = np.cumsum(steps, axis=1)  # (E, L, C)
     cumulative -= cumulative.max(axis=2, keepdims=True)
     return cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
 
 
 def belief_log_loss(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                     labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
-                    walk_row: np.ndarray, first_temperature: float | None = None,
-                    priors: Sequence[np.ndarray] | None = None) -> float:
+                    walk_row: np.ndarray, first_temperature: float | None = None) -> float:
     """Mean −log belief in the true class after every step of every walk
     (:func:`walk_log_beliefs`)."""
     log_belief = walk_log_beliefs(temperature, models, row_model, predicted, walks, walk_row,
-                                  first_temperature, priors)
+                                  first_temperature)
     return float(-np.mean(log_belief[np.arange(len(walks)), :, labels[walk_row]]))
 
 
 def fit_temperature(models: Sequence[np.ndarray], row_model: np.ndarray, labels: np.ndarray,
                     predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
                     bounds: tuple[float, float] = TEMPERATURE_BOUNDS,
-                    first_temperature: float | None = None,
-                    priors: Sequence[np.ndarray] | None = None) -> float:
+                    first_temperature: float | None = None) -> float:
     """The temperature that minimises :func:`belief_log_loss` on held-out walks (bounded 1-D
     search). Evidence that is independent and drawn from the model gives ~1; evidence that
     repeats itself gives less. With ``first_temperature`` only the views after the first are
     tempered by the fit."""
     result = minimize_scalar(belief_log_loss, bounds=bounds, method="bounded",
                              args=(models, row_model, labels, predicted, walks, walk_row,
-                                   first_temperature, priors),
+                                   first_temperature),
                              options={"xatol": 1e-3})
     return float(result.x)
-
-
-def discounted_walk_log_beliefs(discount: ViewDiscount, similarity: np.ndarray,
-                                models: Sequence[np.ndarray], row_model: np.ndarray,
-                                predicted: np.ndarray, walks: np.ndarray, walk_row: np.ndarray,
-                                priors: Sequence[np.ndarray] | None = None) -> np.ndarray:
-    """Log class beliefs (E, L, C) after every step of every walk under the view discount:
-    step t's likelihood is P(o | s, x_t) tempered by its weight (:meth:`ViewDiscount.
-    walk_weights`); otherwise as :func:`walk_log_beliefs` (the models, priors and the rule that
-    a viewpoint a walk stays on adds nothing)."""
-    weights = discount.walk_weights(similarity, walks)  # (E, L)
-    return _weighted_walk_log_beliefs(weights, models, row_model, predicted, walks, walk_row,
-                                      priors)
-
-
-def _weighted_walk_log_beliefs(weights: np.ndarray, models: Sequence[np.ndarray],
-                               row_model: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
-                               walk_row: np.ndarray,
-                               priors: Sequence[np.ndarray] | None = None) -> np.ndarray:
-    """:func:`discounted_walk_log_beliefs` for given step weights (E, L)."""
-    n_s, n_c = models[0].shape[1], models[0].shape[2]
-    steps = np.zeros(walks.shape + (n_s,))
-    walk_model = row_model[walk_row]
-    for m, p in enumerate(models):
-        rows = np.flatnonzero(walk_model == m)
-        if rows.size == 0:
-            continue
-        log_p = np.log(np.maximum(p, 1e-300))[walks[rows]]  # (R, L, S, O)
-        w = weights[rows][..., None, None]
-        z = w * log_p
-        log_norm = np.log(np.exp(z - z.max(axis=3, keepdims=True)).sum(axis=3)) + z.max(axis=3)
-        label = predicted[walk_row[rows][:, None], walks[rows]]  # (R, L)
-        observed = np.take_along_axis(z, label[:, :, None, None], axis=3)[..., 0]
-        steps[rows] = observed - log_norm  # (R, L, S)
-    repeat = np.zeros(walks.shape, dtype=bool)
-    repeat[:, 1:] = walks[:, 1:] == walks[:, :-1]
-    steps = np.where(repeat[..., None], 0.0, steps)
-    cumulative = np.cumsum(steps, axis=1)
-    if priors is not None:
-        log_prior = np.log(np.maximum(np.stack([np.asarray(q, dtype=np.float64)
-                                                for q in priors]), 1e-300))
-        cumulative = cumulative + log_prior[walk_model][:, None, :]
-    if n_s != n_c:
-        cumulative = logsumexp(cumulative.reshape(*cumulative.shape[:2], n_s // n_c, n_c),
-                               axis=2)
-    cumulative -= cumulative.max(axis=2, keepdims=True)
-    return cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
-
-
-def fit_view_discount(similarity: np.ndarray, models: Sequence[np.ndarray],
-                      row_model: np.ndarray, labels: np.ndarray, predicted: np.ndarray,
-                      walks: np.ndarray, walk_row: np.ndarray,
-                      priors: Sequence[np.ndarray] | None = None) -> ViewDiscount:
-    """The :class:`ViewDiscount` of least mean −log belief in the true class after every step
-    of the held-out walks (bounded search over scale and redundancy, from naive Bayes: 1, 0).
-    Independent evidence drawn from the model gives ~(1, 0)."""
-    from scipy.optimize import minimize
-
-    true = labels[walk_row]
-    rows = np.arange(len(walks))
-
-    def loss(x: np.ndarray) -> float:
-        log_b = discounted_walk_log_beliefs(ViewDiscount(float(x[0]), float(x[1])), similarity,
-                                            models, row_model, predicted, walks, walk_row,
-                                            priors)
-        return float(-np.mean(log_b[rows, :, true]))
-
-    result = minimize(loss, np.array([1.0, 0.0]), method="L-BFGS-B", bounds=DISCOUNT_BOUNDS,
-                      options={"eps": 1e-4})
-    return ViewDiscount(float(result.x[0]), float(result.x[1]))
-
-
-def mean_later_weight(discount: ViewDiscount, similarity: np.ndarray,
-                      walks: np.ndarray) -> float:
-    """The mean weight of the views after the first along ``walks``: the one temperature the
-    planner's memoryless model stands in for the discount with."""
-    weights = discount.walk_weights(similarity, walks)[:, 1:]
-    moved = walks[:, 1:] != walks[:, :-1]
-    return float(weights[moved].mean()) if moved.any() else 1.0
 
 
 # -- held out: the folds, their walks and the calibration of the beliefs on them -------------
@@ -368,20 +222,18 @@ def fold_of_rows(held: Sequence[np.ndarray], rows: int) -> np.ndarray:
 def held_out_walks(row_model: np.ndarray, directions: np.ndarray, rng: np.random.Generator,
                    length: int = TEMPERATURE_WALK_LENGTH,
                    starts_per_row: int = TEMPERATURE_WALKS_PER_ROW,
-                   neighbours: int = TEMPERATURE_NEIGHBOURS, jump: float = 0.0
-                   ) -> tuple[np.ndarray, np.ndarray]:
+                   neighbours: int = TEMPERATURE_NEIGHBOURS) -> tuple[np.ndarray, np.ndarray]:
     """Random walks (E, length) over ``directions`` (V, 3), ``starts_per_row`` from random
-    viewpoints per held-out row (``row_model`` >= 0), and each walk's row (E,); ``jump``: as
-    :func:`random_walks`."""
+    viewpoints per held-out row (``row_model`` >= 0), and each walk's row (E,)."""
     walk_row = np.repeat(np.flatnonzero(row_model >= 0), starts_per_row)
     starts = rng.integers(0, len(directions), size=walk_row.size)
-    return random_walks(directions, starts, length, neighbours, rng, jump), walk_row
+    return random_walks(directions, starts, length, neighbours, rng), walk_row
 
 
 def walk_calibration(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
                      labels: np.ndarray, predicted: np.ndarray, walks: np.ndarray,
-                     walk_row: np.ndarray, first_temperature: float | None = None,
-                     priors: Sequence[np.ndarray] | None = None) -> dict[str, float]:
+                     walk_row: np.ndarray, first_temperature: float | None = None
+                     ) -> dict[str, float]:
     """The calibration of the held-out beliefs on ``walks`` naive (t = 1) and at
     ``temperature``: each one's log loss (``log_loss_{naive,tempered}``) and, after the first
     and the last step, the ECE and mean of the max belief against a right argmax
@@ -391,10 +243,9 @@ def walk_calibration(temperature: float, models: Sequence[np.ndarray], row_model
     report: dict[str, float] = {"temperature": temperature}
     for label, value in (("naive", 1.0), ("tempered", temperature)):
         report[f"log_loss_{label}"] = belief_log_loss(
-            value, models, row_model, labels, predicted, walks, walk_row, first_temperature,
-            priors)
+            value, models, row_model, labels, predicted, walks, walk_row, first_temperature)
         belief = np.exp(walk_log_beliefs(value, models, row_model, predicted, walks, walk_row,
-                                         first_temperature, priors))
+                                         first_temperature))
         for step, at in (("first", 0), ("last", walks.shape[1] - 1)):
             confidence = belief[:, at].max(axis=1)
             right = belief[:, at].argmax(axis=1) == true

@@ -4,8 +4,8 @@ Fits a :class:`~rapomdp.recognition.vocabulary_tree.VocabularyTreeClassifier` on
 models' training-viewsphere renders, classifies every class's volume model(s) at the test
 viewpoints X_rho and counts the per-viewpoint confusion P(o | class, x) with pseudo-counts (the
 same construction as the CNN's "Classifier" model), tempers it for a multi-view belief with the
-likelihood temperature fitted on held-out walks (``vptree.belief_correction``; the k-th volume
-model of each class is held-out group k, as the observe stage's evidence), and records its
+likelihood temperature fitted on held-out walks (the k-th volume model of each class is
+held-out group k, as the observe stage's evidence), and records its
 single-view accuracy on the test models at X_rho.
 
 ``W/vptree/``: ``vocabulary_tree.npz`` (the classifier), ``observation_model.npz`` with
@@ -156,13 +156,11 @@ def vptree_observation(labels: np.ndarray, predicted: np.ndarray, groups: np.nda
                        classes: int, cfg: VPTreeConfig, directions: np.ndarray,
                        rng: np.random.Generator) -> VPTreeObservation:
     """The confusion of the VP-tree's labels ``predicted`` (M, V) of models of true class
-    ``labels`` (M,), tempered as ``cfg.belief_correction`` says: t fitted on random walks over
+    ``labels`` (M,), tempered for a multi-view belief: t fitted on random walks over
     ``directions`` (V, 3) drawn from ``rng``, each held-out group of ``groups`` (M,) scored by
     the confusion of the others (naive Bayes over correlated views is overconfident). With
     fewer than two groups to hold out t = 1."""
     raw = viewpoint_confusion(labels, predicted, classes, cfg.pseudo_count)
-    if cfg.belief_correction == "none":
-        return VPTreeObservation(raw, raw, note="vptree.belief_correction is none")
     folds = vptree_folds(labels, predicted, groups, classes, cfg.pseudo_count)
     if len(folds) < 2:
         return VPTreeObservation(raw, raw, note=(
@@ -240,7 +238,7 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
         "accuracy_test_xrho": test_accuracy,
         "accuracy_volume_xrho": float((volume_pred == volume_labels[:, None]).mean()),
         "chance": 1.0 / len(dataset.classes),
-        "belief_correction": config.vptree.belief_correction,
+        "belief_correction": "temperature",  # the only one (docs/decisions/0003)
         "temperature": observation.temperature,
         "temperature_note": observation.note,
         "held_out_belief": observation.held_out_belief,

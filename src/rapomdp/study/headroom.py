@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.awareness.evidence import RecordedObservation
+from rapomdp.awareness.choices import RecordedObservation
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
@@ -56,7 +56,7 @@ from rapomdp.parallel import pooled, run_tasks
 from rapomdp.pipeline import STAGE_NAMES, get_stage
 from rapomdp.planning.artefacts import load_solve_summary, policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.stage import first_view_models, start_viewpoint
+from rapomdp.planning.stage import start_viewpoint
 from rapomdp.planning.workspace import solve_workspace_problems
 from rapomdp.recognition.belief import fit_temperature, held_out_walks, temper
 from rapomdp.recognition.evaluation import viewpoint_confusion
@@ -123,7 +123,7 @@ class HeadroomRow:
 class HeadroomResult:
     """The rows and what they were built from: the test models' ``labels`` (N,) and the
     recogniser's labels ``predicted`` (N, V) at X_rho; per observation model (``models``, the
-    planner's and the belief's; ``first_view``, the belief's first update) the test model files
+    planner's and the belief's) the test model files
     it was counted on (``counted_on``, empty for the learned model); per row and test model file
     the observation model its episodes used (``assignment``); ``halves`` (N,) of the
     cross-object split; ``temperatures``: the oracle-fitted ones by row;
@@ -136,7 +136,6 @@ class HeadroomResult:
     labels: np.ndarray
     predicted: np.ndarray
     models: dict[str, np.ndarray]
-    first_view: dict[str, np.ndarray]
     counted_on: dict[str, tuple[str, ...]]
     assignment: dict[str, dict[str, str]]
     halves: np.ndarray | None
@@ -185,28 +184,25 @@ def with_correct_probability(model: np.ndarray, correct: np.ndarray) -> np.ndarr
 
 
 def oracle_temperature(single_view: np.ndarray, labels: np.ndarray, predicted: np.ndarray,
-                       directions: np.ndarray, seed: int, after_first: bool) -> float:
+                       directions: np.ndarray, seed: int) -> float:
     """The belief temperature of ``single_view`` (V, C, C) fitted as the observe stage fits
     it — :func:`~rapomdp.recognition.belief.fit_temperature` on random walks of the project's
     length, count and neighbours — but on the test models' labels (``labels`` (N,),
-    ``predicted`` (N, V)): an oracle. ``after_first``: only the views after the first are
-    tempered (``observe.belief_correction: after_first``)."""
+    ``predicted`` (N, V)): an oracle."""
     row_model = np.zeros(len(labels), dtype=np.int64)
     walks, walk_row = held_out_walks(row_model, directions,
                                      class_seed(seed, "headroom/temperature"))
-    return fit_temperature([single_view], row_model, labels, predicted, walks, walk_row,
-                           first_temperature=1.0 if after_first else None)
+    return fit_temperature([single_view], row_model, labels, predicted, walks, walk_row)
 
 
 @dataclass
 class RowModels:
-    """Each row's observation models: by model key the planner's and belief's (``models``) and
-    the belief's first update (``first_view``), the test model files counted (``counted_on``);
+    """Each row's observation models: by model key the planner's and belief's (``models``), the
+    test model files counted (``counted_on``);
     per row and test model file the model its episodes use (``assignment``); the oracle-fitted
     temperatures by row."""
 
     models: dict[str, np.ndarray]
-    first_view: dict[str, np.ndarray]
     counted_on: dict[str, tuple[str, ...]]
     assignment: dict[str, dict[str, str]]
     temperatures: dict[str, float]
@@ -214,33 +210,29 @@ class RowModels:
 
 def row_models(rows: Sequence[str], files: Sequence[str], labels: np.ndarray,
                predicted: np.ndarray, halves: np.ndarray | None, classes: int,
-               pseudo_count: float, learned: np.ndarray, learned_first: np.ndarray,
-               learned_temperature: float, correction: str, directions: np.ndarray,
+               pseudo_count: float, learned: np.ndarray,
+               learned_temperature: float, directions: np.ndarray,
                seed: int) -> RowModels:
     """The observation models of ``rows`` (keys of :data:`ROWS`) from the test models'
     ``files``, ``labels`` (N,) and ``predicted`` labels (N, V) at X_rho, the cross-object
-    ``halves`` (N,) and the learned model as evaluated (``learned``, ``learned_first``,
-    tempered by ``learned_temperature`` under ``correction``). Counts use ``pseudo_count``."""
+    ``halves`` (N,) and the learned model as evaluated (``learned``, tempered by
+    ``learned_temperature``). Counts use ``pseudo_count``."""
     if halves is None and set(rows) & set(CROSS_ROWS):
         raise ValueError("the cross-object rows need the halves (cross_object_halves)")
     single = temper(learned, 1.0 / learned_temperature)  # the single-view rows it tempers
-    out = RowModels({"learned": learned}, {"learned": learned_first}, {"learned": ()},
+    out = RowModels({"learned": learned}, {"learned": ()},
                     {"learned": dict.fromkeys(files, "learned")}, {})
 
-    after_first = correction == "after_first"
-
-    def add(key: str, model: np.ndarray, on: np.ndarray, first_view: np.ndarray | None = None
-            ) -> None:
+    def add(key: str, model: np.ndarray, on: np.ndarray) -> None:
         out.models[key] = model
-        out.first_view[key] = model if first_view is None else first_view
         out.counted_on[key] = tuple(f for f, used in zip(files, on, strict=True) if used)
 
     def add_oracle_correct(key: str, oracle: np.ndarray, on: np.ndarray) -> None:
         # the learned single-view rows with the oracle's P(correct), then the learned belief
-        # correction as evaluated (its temperature; the first view in full with after_first)
+        # correction as evaluated (its temperature)
         rows_of = with_correct_probability(single, np.diagonal(oracle, axis1=1, axis2=2))
         tempered = temper(rows_of, learned_temperature)
-        add(key, tempered, on, rows_of if after_first else tempered)
+        add(key, tempered, on)
 
     everything = np.ones(len(files), dtype=bool)
     in_sample = viewpoint_confusion(labels, predicted, classes, pseudo_count)
@@ -251,10 +243,10 @@ def row_models(rows: Sequence[str], files: Sequence[str], labels: np.ndarray,
     for row, rows_of in (("oracle_temperature", single),
                          ("oracle_in_sample_temperature", in_sample)):
         if row in rows:
-            t = oracle_temperature(rows_of, labels, predicted, directions, seed, after_first)
+            t = oracle_temperature(rows_of, labels, predicted, directions, seed)
             out.temperatures[row] = t
             tempered = temper(rows_of, t)
-            add(row, tempered, everything, rows_of if after_first else tempered)
+            add(row, tempered, everything)
     for row in rows:
         if row in out.models:
             out.assignment[row] = dict.fromkeys(files, row)
@@ -299,7 +291,7 @@ def _outputs_task(config_json: str, inputs: StageInputs, files: list[str]) -> li
 
 
 def _episodes_task(config_json: str, inputs: StageInputs,
-                   arms: dict[str, tuple[str, np.ndarray, np.ndarray]],
+                   arms: dict[str, tuple[str, np.ndarray]],
                    assignment: dict[str, dict[str, str]], files: list[str],
                    outputs: list[np.ndarray]) -> list[EpisodeRecord]:
     """Every start x row episode of each test model: RA-POMDP's planner and belief (the
@@ -309,9 +301,8 @@ def _episodes_task(config_json: str, inputs: StageInputs,
     assert isinstance(evaluated, POMDPPolicy)
     policies = {key: POMDPPolicy(ActiveRecognitionPolicy.load(path), model, evaluated.name,
                                  evaluated.recogniser, evaluated.revisit,
-                                 first_view_model=first,
                                  lookahead_over=evaluated.lookahead_over)
-                for key, (path, model, first) in arms.items()}
+                for key, (path, model) in arms.items()}
     by_file = {m.file: m for m in loop.dataset.with_role("test")}
     cnn = loop.recognisers[evaluated.recogniser]
     cfg = loop.config
@@ -455,10 +446,9 @@ def _headroom(workspace: str | Path | Workspace, out: str | Path | None,
     t_learned = float(recorded.calibration["temperatures"][METHOD])
     correction = str(recorded.calibration["belief_corrections"][METHOD])
     built = row_models(wanted, files, labels, predicted, halves, len(classes),
-                       config.observe.classifier_pseudo_count, learned,
-                       first_view_models(inputs.observe, {METHOD: learned})[METHOD], t_learned,
-                       correction, np.asarray(recorded.arrays["directions"]), config.seed)
-    models, first, assignment = built.models, built.first_view, built.assignment
+                       config.observe.classifier_pseudo_count, learned, t_learned,
+                       np.asarray(recorded.arrays["directions"]), config.seed)
+    models, assignment = built.models, built.assignment
     robot = load_robot(inputs.robot)
     motion = Motion.from_robot(robot)
     policies = out / POLICIES_DIR
@@ -479,7 +469,7 @@ def _headroom(workspace: str | Path | Workspace, out: str | Path | None,
     paths["learned"] = str(inputs.solve / policy_file(METHOD))
 
     # 3. the episodes: every (test model, start) pair of the evaluate stage, every row
-    arms = {k: (paths[k], models[k], first[k]) for k in models}
+    arms = {k: (paths[k], models[k]) for k in models}
     episodes_began = time.perf_counter()
     tasks = []
     for share in _shares(files, count):
@@ -508,7 +498,7 @@ def _headroom(workspace: str | Path | Workspace, out: str | Path | None,
             float(sum(float(summary[a]["seconds"]) for a in arms_of if a in summary)),
             float(table.cpu_seconds[mine].sum())))
     result = HeadroomResult(
-        result_rows, table, files, labels, predicted, models, first, built.counted_on,
+        result_rows, table, files, labels, predicted, models, built.counted_on,
         assignment, halves, t_learned, correction, built.temperatures,
         mismatches, agreement,
         {"labels_wall": labels_s, "solve_wall": solve_s, "episodes_wall": episodes_s,

@@ -73,7 +73,6 @@ class StageInputs:
     saliency_dir: Path | None = None
     volume_dir: Path | None = None
     robot_dir: Path | None = None
-    crossfit_dir: Path | None = None
     observe_dir: Path | None = None
     vptree_dir: Path | None = None
     solve_dir: Path | None = None
@@ -88,7 +87,6 @@ class StageInputs:
     saliency = _Upstream()
     volume = _Upstream()
     robot = _Upstream()
-    crossfit = _Upstream()
     observe = _Upstream()
     vptree = _Upstream()
     solve = _Upstream()
