@@ -282,10 +282,3 @@ def fingerprint_files(paths: Sequence[Path]) -> str:
         stat = path.stat()
         entries.append([str(path), stat.st_size, stat.st_mtime_ns])
     return stable_hash(entries)
-
-
-def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    """A markdown table of string cells (one header row, then ``rows``), newline-terminated."""
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return "\n".join(lines) + "\n"

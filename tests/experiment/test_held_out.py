@@ -26,11 +26,8 @@ from rapomdp.experiment.held_out import (
     load_declared_fit,
     load_held_out_comparison,
 )
-from rapomdp.experiment.report import (
-    closed_loop_cells,
-    held_out_comparison_cells,
-    held_out_comparison_story,
-)
+from rapomdp.experiment.report import held_out_comparison_cells, held_out_comparison_story
+from rapomdp.experiment.report_awareness import closed_loop_cells
 from rapomdp.io import read_json
 from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.planning.stage import declared_temperatures

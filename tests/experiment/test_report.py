@@ -20,6 +20,7 @@ from rapomdp.cli import app  # noqa: E402
 from rapomdp.config import Config  # noqa: E402
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset  # noqa: E402
+from rapomdp.document import Table, table_html  # noqa: E402
 from rapomdp.experiment import report as report_module  # noqa: E402
 from rapomdp.experiment.episode_table import EpisodeTable  # noqa: E402
 from rapomdp.experiment.metrics import (  # noqa: E402
@@ -28,12 +29,7 @@ from rapomdp.experiment.metrics import (  # noqa: E402
     table1,
     table1_markdown,
 )
-from rapomdp.experiment.report import (  # noqa: E402
-    Table,
-    run_report_stage,
-    table_html,
-    write_report,
-)
+from rapomdp.experiment.report import run_report_stage, write_report  # noqa: E402
 from rapomdp.io import save_npz, write_json_atomic  # noqa: E402
 from rapomdp.pipeline import get_stage, run_pipeline  # noqa: E402
 from rapomdp.workspace import Stage, StageError, StageInputs, Workspace  # noqa: E402

@@ -17,7 +17,8 @@ from sklearn.metrics import roc_auc_score
 
 from rapomdp.awareness.artefacts import QUALITY_COLUMNS
 from rapomdp.awareness.observation import ObservationModel
-from rapomdp.io import atomic_path, markdown_table
+from rapomdp.document import markdown_table
+from rapomdp.io import atomic_path
 
 
 def roc_auc(scores: np.ndarray, positive: np.ndarray) -> float:

@@ -21,7 +21,7 @@ import numpy as np
 from scipy import stats
 
 from rapomdp.config import METHOD_NAMES
-from rapomdp.io import markdown_table
+from rapomdp.document import markdown_table
 
 if TYPE_CHECKING:
     from rapomdp.experiment.episode_table import EpisodeTable
@@ -379,17 +379,17 @@ def tradeoff_csv(points: Sequence[TradeoffPoint]) -> str:
 
 def tradeoff_markdown(points: Sequence[TradeoffPoint]) -> str:
     """The accuracy-energy points as a markdown table (Table 1's settings marked *)."""
-    lines = ["| Method | Setting | Accuracy [95 % CI] | Energy (m) | # steps | Episodes |",
-             "|---|---|---|---|---|---|"]
+    header = ["Method", "Setting", "Accuracy [95 % CI]", "Energy (m)", "# steps", "Episodes"]
+    rows = []
     for p in points:
         s = p.summary
         setting = {"lambda": f"λ = {p.value:g} m", "threshold": f"stop at belief {p.value:g}",
                    "none": "—"}[p.parameter] + (" *" if p.configured else "")
-        lines.append(f"| {METHOD_NAMES.get(p.method, p.method)} | {setting} | {s.accuracy:.3f} "
-                     f"[{s.accuracy_low:.3f}, {s.accuracy_high:.3f}] | "
-                     f"{_pm(s.means['energy'], s.halfwidths['energy'])} | "
-                     f"{s.means['moves']:.2f} | {s.episodes} |")
-    return "\n".join(lines) + "\n\n* the setting of Table 1.\n"
+        rows.append([METHOD_NAMES.get(p.method, p.method), setting,
+                     f"{s.accuracy:.3f} [{s.accuracy_low:.3f}, {s.accuracy_high:.3f}]",
+                     _pm(s.means["energy"], s.halfwidths["energy"]),
+                     f"{s.means['moves']:.2f}", f"{s.episodes}"])
+    return markdown_table(header, rows) + "\n* the setting of Table 1.\n"
 
 
 def read_tradeoff_csv(text: str) -> list[TradeoffPoint]:

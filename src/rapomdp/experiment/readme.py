@@ -56,7 +56,7 @@ def markdown_tables(text: str) -> list[tuple[list[str], list[list[str]]]]:
     """Every pipe table of a Markdown text, as (header, rows of cells), in order.
 
     Args:
-        text: Markdown, as `rapomdp.io.markdown_table` writes tables (one row a line,
+        text: Markdown, as `rapomdp.document.markdown_table` writes tables (one row a line,
             cells between ``|``, a ``|---|`` rule under the header).
 
     Returns:

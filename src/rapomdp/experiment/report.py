@@ -15,40 +15,23 @@ so the folder is self-contained. The report reads, from the stages it needs:
 and, when present (they are not among its inputs): ``W/figures/fig2.png`` (``rapomdp figure
 fig2``, expensive: it trains three classifiers) and ``W/vptree/vptree.json`` (the VP-tree
 baseline). A missing file gives a line saying what is missing and which command makes it.
+
+The pages are written by the document layer (:mod:`rapomdp.document`); the self-awareness
+section (Figs. 1 and 2, the observe stage's tables and figures, the declared confidence) is
+:mod:`rapomdp.experiment.report_awareness`.
 """
 
 from __future__ import annotations
 
-import html
-import shutil
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
-import numpy as np
-
-from rapomdp.awareness.artefacts import (
-    CALIBRATION_FIGURE,
-    CALIBRATION_FILE,
-    OBSERVATION_FILE,
-    QUALITY_CSV,
-    VALIDATION_CSV,
-    RAChoice,
-    load_quality,
-    load_ra_choice,
-)
-from rapomdp.awareness.figures import RELIABILITY_MIN_COUNT, calibration_caption
-from rapomdp.awareness.quality import quality_cells
-from rapomdp.awareness.report import (
-    FIGURES_DIR,
-    declared_confidence_cells,
-    floor_cell,
-    write_fig1,
-)
+from rapomdp.awareness.report import write_fig1
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import load_dataset
+from rapomdp.document import Builder, Code, Heading, Paragraph, Table, to_html, to_markdown
 from rapomdp.experiment.episode_table import (
     EPISODES_FILE,
     FIG3_FILE,
@@ -60,16 +43,13 @@ from rapomdp.experiment.episode_table import (
 )
 from rapomdp.experiment.evaluation import PAIRED_REFERENCE
 from rapomdp.experiment.evaluation import figure_class as evaluation_figure_class
-from rapomdp.experiment.held_out import load_declared_fit, load_held_out_comparison
+from rapomdp.experiment.held_out import load_held_out_comparison
 from rapomdp.experiment.learned import CURVES_FIGURE, LEARN_SUMMARY
 from rapomdp.experiment.metrics import (
-    CALIBRATED_ECE_NOTE,
     PER_CLASS_NOTE,
-    REPORTED_BELIEF_NOTE,
     MethodSummary,
     PairedDifference,
     TradeoffPoint,
-    belief_calibration_cells,
     paired_against,
     paired_note,
     per_class,
@@ -80,15 +60,9 @@ from rapomdp.experiment.metrics import (
     table1_cells,
     table1_story,
 )
-from rapomdp.experiment.sections import LEARNED, REPORT_INPUTS
-from rapomdp.io import (
-    ArtefactError,
-    atomic_path,
-    load_npz,
-    read_json,
-    stable_hash,
-    write_text_atomic,
-)
+from rapomdp.experiment.report_awareness import awareness_section
+from rapomdp.experiment.sections import REPORT_INPUTS
+from rapomdp.io import ArtefactError, stable_hash, write_text_atomic
 from rapomdp.planning.artefacts import SOLVE_SUMMARY
 from rapomdp.recognition.artefacts import (
     HEMISPHERE_FIGURE,
@@ -104,210 +78,6 @@ from rapomdp.workspace import StageError, StageInputs, Workspace, read_stage_rec
 
 REPORT_MD = "report.md"
 REPORT_HTML = "report.html"
-BELIEF_RELIABILITY_FIGURE = "belief_reliability.png"
-T = TypeVar("T")
-
-
-# --- the report's blocks, rendered both as markdown and as HTML -------------------------------
-
-
-@dataclass(frozen=True)
-class Heading:
-    text: str
-    level: int = 2
-
-
-@dataclass(frozen=True)
-class Paragraph:
-    text: str
-
-
-@dataclass(frozen=True)
-class Table:
-    header: list[str]
-    rows: list[list[str]]
-
-
-@dataclass(frozen=True)
-class Image:
-    file: str  # a PNG in the report folder
-    caption: str
-
-
-@dataclass(frozen=True)
-class Link:
-    """A line linking a file in the report folder (an interactive figure): ``text`` then the
-    link, labelled ``label``."""
-
-    text: str
-    file: str
-    label: str
-
-
-@dataclass(frozen=True)
-class Code:
-    """Preformatted text (the configuration), folded under ``summary`` in the HTML page."""
-
-    text: str
-    summary: str
-
-
-@dataclass(frozen=True)
-class Missing:
-    what: str
-    how: str  # the command (or reason) that makes it
-
-
-Block = Heading | Paragraph | Table | Image | Link | Code | Missing
-
-
-def _md_cell(text: str) -> str:
-    return text.replace("|", "\\|")
-
-
-def to_markdown(blocks: Sequence[Block]) -> str:
-    """The report as markdown (images as relative links)."""
-    parts = []
-    for block in blocks:
-        if isinstance(block, Heading):
-            parts.append(f"{'#' * block.level} {block.text}")
-        elif isinstance(block, Paragraph):
-            parts.append(block.text)
-        elif isinstance(block, Table):
-            lines = ["| " + " | ".join(_md_cell(c) for c in block.header) + " |",
-                     "|" + "---|" * len(block.header)]
-            lines += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in block.rows]
-            parts.append("\n".join(lines))
-        elif isinstance(block, Image):
-            parts.append(f"![{block.caption}]({block.file})\n\n*{block.caption}*")
-        elif isinstance(block, Link):
-            parts.append(f"{block.text} [{block.label}]({block.file})")
-        elif isinstance(block, Code):
-            parts.append(f"{block.summary}:\n\n```yaml\n{block.text.rstrip()}\n```")
-        else:
-            parts.append(f"> **Missing:** {block.what} — {block.how}")
-    return "\n\n".join(parts) + "\n"
-
-
-def table_html(table: Table) -> str:
-    """One ``<table>`` with a header row; cells are escaped."""
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in table.header)
-    body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>"
-        for row in table.rows
-    )
-    return f"<table>\n<thead><tr>{head}</tr></thead>\n<tbody>{body}</tbody>\n</table>"
-
-
-_STYLE = (
-    "body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}"
-    "table{border-collapse:collapse;margin:1em 0}th,td{border:1px solid #bbb;padding:.25em .6em;"
-    "text-align:left}th{background:#eee}figure{margin:1.5em 0}img{max-width:100%}"
-    "figcaption{font-style:italic;color:#444}.missing{background:#fff4e0;padding:.4em .8em;"
-    "border-left:4px solid #e0a030}code{background:#f2f2f2;padding:0 .2em}"
-)
-
-
-def to_html(blocks: Sequence[Block], title: str) -> str:
-    """The report as one HTML page (images as relative ``<img>`` links)."""
-    parts = [
-        "<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
-        f"<title>{html.escape(title)}</title>", f"<style>{_STYLE}</style>", "</head>", "<body>",
-    ]
-    for block in blocks:
-        if isinstance(block, Heading):
-            parts.append(f"<h{block.level}>{html.escape(block.text)}</h{block.level}>")
-        elif isinstance(block, Paragraph):
-            parts.append(f"<p>{html.escape(block.text)}</p>")
-        elif isinstance(block, Table):
-            parts.append(table_html(block))
-        elif isinstance(block, Link):
-            parts.append(f'<p>{html.escape(block.text)} <a href="{html.escape(block.file)}">'
-                         f"{html.escape(block.label)}</a></p>")
-        elif isinstance(block, Code):
-            parts.append(f"<details><summary>{html.escape(block.summary)}</summary>"
-                         f"<pre>{html.escape(block.text)}</pre></details>")
-        elif isinstance(block, Image):
-            parts.append(f'<figure><img src="{html.escape(block.file)}" '
-                         f'alt="{html.escape(block.caption)}"><figcaption>'
-                         f"{html.escape(block.caption)}</figcaption></figure>")
-        else:
-            parts.append(f'<p class="missing"><strong>Missing:</strong> '
-                         f"{html.escape(block.what)} — {html.escape(block.how)}</p>")
-    parts += ["</body>", "</html>"]
-    return "\n".join(parts) + "\n"
-
-
-# --- gathering the workspace's results --------------------------------------------------------
-
-
-class _Builder:
-    """Collects blocks and copies the figures they show into the report folder."""
-
-    def __init__(self, root: Path, out: Path) -> None:
-        self.root = root
-        self.out = out
-        self.blocks: list[Block] = []
-
-    def add(self, *blocks: Block) -> None:
-        self.blocks.extend(blocks)
-
-    def missing(self, what: str, how: str) -> None:
-        self.blocks.append(Missing(what, how))
-
-    def copy(self, source: Path, name: str | None = None) -> str:
-        """Copy ``source`` into the report folder (as ``name``); returns the name there."""
-        name = name or source.name
-        target = self.out / name
-        if source.resolve() != target.resolve():
-            with atomic_path(target) as tmp:
-                shutil.copyfile(source, tmp)
-        return name
-
-    def figure(self, source: Path, caption: str, how: str, name: str | None = None) -> None:
-        """Copy ``source`` into the report (as ``name``) with its caption, or say it is
-        missing and how to make it."""
-        if not source.is_file():
-            self.missing(f"{self.shown(source)} (not found)", how)
-            return
-        self.blocks.append(Image(self.copy(source, name), caption))
-
-    def interactive(self, source: Path, what: str) -> None:
-        """Link a self-contained interactive HTML figure (copied into the report folder)."""
-        if source.is_file():
-            self.add(Link(f"Interactive 3D version of {what} (self-contained, works offline):",
-                          self.copy(source), source.name))
-
-    def load(self, source: Path, reader: Callable[[Path], T], how: str) -> T | None:
-        """``reader(source)`` (an artefact's typed loader), or a missing line saying why not."""
-        if not source.is_file():
-            self.missing(f"{self.shown(source)} (not found)", how)
-            return None
-        try:
-            return reader(source)
-        except (ArtefactError, KeyError, ValueError) as exc:
-            self.missing(f"{self.shown(source)}: {exc}", how)
-            return None
-
-    def json(self, source: Path, how: str) -> dict[str, Any] | None:
-        if not source.is_file():
-            self.missing(f"{self.shown(source)} (not found)", how)
-            return None
-        try:
-            data = read_json(source)
-        except ArtefactError as exc:
-            self.missing(str(exc), how)
-            return None
-        if not isinstance(data, dict):
-            self.missing(f"{self.shown(source)} is not a JSON object", how)
-            return None
-        return data
-
-    def shown(self, path: Path) -> str:
-        try:
-            return str(path.relative_to(self.root))
-        except ValueError:
-            return str(path)
 
 
 def _fmt(value: Any, digits: int = 3) -> str:
@@ -324,7 +94,7 @@ def figure_class(evaluation: dict[str, Any] | None, config: Config,
     return drawn if drawn in classes else evaluation_figure_class(config, classes)
 
 
-def _provenance(builder: _Builder, config: Config, given: dict[str, Path]) -> None:
+def _provenance(builder: Builder, config: Config, given: dict[str, Path]) -> None:
     """The configuration hash and every stage's key: the workspace's, then those of the
     report's input folders (``given``: ``{stage: folder}``) not recorded there."""
     builder.add(Paragraph(
@@ -393,7 +163,7 @@ def evaluation_summaries(table: EpisodeTable, folder: Path, seed: int
     return rows, paired, points, unpaired
 
 
-def _evaluation(b: _Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any] | None:
+def _evaluation(b: Builder, folder: Path, cmd: str, seed: int) -> dict[str, Any] | None:
     how = f"made by `{cmd} evaluate -w {b.root}`"
     b.add(Heading("Closed-loop recognition (Table 1)"))
     data = b.json(folder / SUMMARY_FILE, how)
@@ -485,7 +255,7 @@ def held_out_comparison_cells(record: dict[str, Any]) -> tuple[list[str], list[l
     return header, rows
 
 
-def _held_out_comparison(b: _Builder, folder: Path) -> None:
+def _held_out_comparison(b: Builder, folder: Path) -> None:
     """Table 1's methods on the held-out objects (the evaluate stage's comparison)."""
     record = load_held_out_comparison(folder)
     if record is None or not record["methods"]:
@@ -494,215 +264,7 @@ def _held_out_comparison(b: _Builder, folder: Path) -> None:
     b.add(Table(*held_out_comparison_cells(record)))
 
 
-def _awareness(b: _Builder, config: Config, inputs: StageInputs, class_name: str,
-               fig1: Callable[..., tuple[Path, Path]], cmd: str) -> None:
-    b.add(Heading("Recognition self-awareness"))
-    ws = Workspace(b.root)
-    fig1_how = f"made by `{cmd} figure fig1 -w {b.root} --class {class_name}`"
-    try:
-        png, page = fig1(ws, class_name, out_dir=b.out)
-    except (StageError, ArtefactError) as exc:
-        b.missing(f"Fig. 1 for class {class_name} could not be made ({exc})", fig1_how)
-    else:
-        b.figure(png, f"Fig. 1, class {class_name}: (a) a depth view of its volume model, "
-                      f"(b) the 2D saliency of that view, (c) the 3D dense saliency volume, "
-                      f"(d) the normalised viewpoint scores on X_rho.", fig1_how, png.name)
-        b.interactive(page, "Fig. 1")
-    fig2 = b.root / FIGURES_DIR / "fig2.png"
-    fig2_how = (f"`{cmd} figure fig2 -w {b.root}` or `{cmd} report --fig2 -w {b.root}` makes "
-                f"it (it trains three two-class classifiers, so the report does not by default)")
-    if fig2.is_file():
-        b.figure(fig2, "Fig. 2: one class's saliency volume in two-class problems and in the "
-                       "all-class problem, all seen from one camera.", fig2_how)
-        b.interactive(fig2.with_suffix(".html"), "Fig. 2")
-    else:  # optional: not asked for, so not a missing figure
-        b.add(Paragraph(f"Fig. 2 (one class's saliency volume in two-class problems) is "
-                        f"optional: {fig2_how}."))
-    observe_how = f"made by `{cmd} observe -w {b.root}`"
-    choice = _ra_choice(b, inputs.observe, observe_how)
-    b.add(Paragraph("How well each observation model predicts the classifier's correctness on "
-                    "the test models over X_rho (single view, before the belief's "
-                    "temperature):"))
-    quality = b.load(inputs.observe / QUALITY_CSV, lambda p: load_quality(p.parent),
-                     observe_how)
-    if quality is not None:
-        b.add(Table(*quality_cells(quality)))
-        note = _identical_rows(inputs.observe, choice)
-        if note:
-            b.add(Paragraph(note))
-    b.figure(inputs.observe / CALIBRATION_FIGURE,
-             calibration_caption(choice.variant, choice.method) if choice is not None else
-             "Calibration: the classifier's accuracy per viewpoint-score bin on the held-out "
-             "evidence (which RA variant is RA-POMDP's model could not be read).",
-             observe_how)
-    _self_awareness(b, inputs, class_name, observe_how)
-
-
-def _ra_choice(b: _Builder, observe: Path, how: str) -> RAChoice | None:
-    """Which RA variant RA-POMDP's model is and what chose it: the held-out validation table
-    (the chosen row marked), or why there is none."""
-    choice = b.load(observe / CALIBRATION_FILE, lambda p: load_ra_choice(p.parent), how)
-    if choice is None:
-        return None
-    validation = (b.load(observe / VALIDATION_CSV,
-                         lambda p: load_quality(p.parent, VALIDATION_CSV), how)
-                  if (observe / VALIDATION_CSV).exists() else None)
-    if choice.configured == "mixture" and choice.weights:
-        weights = ", ".join(f"`{name}` {w:.2f}" for name, w in
-                            sorted(choice.weights.items(), key=lambda kv: -kv[1]) if w >= 0.005)
-        why = ("the RA variants averaged with weights fitted on the held-out labels "
-               f"(`observe.ra_model: mixture`, the default; each held-out object scored by the "
-               f"variants fitted without its group, the test models play no part): {weights}")
-    elif choice.configured == "mixture":
-        why = (f"the fallback of `observe.ra_model: mixture` ({choice.rule}): {choice.reason}")
-    else:
-        why = (f"as configured (`observe.ra_model: {choice.configured}`)"
-               + ("; the held-out validation below shows how the variants compare"
-                  if validation else ""))
-    b.add(Paragraph(f"RA-POMDP's observation model (`ra`) is `{choice.model}`, {why}. The row "
-                    f"`ra` in the tables is that variant itself."))
-    if validation:
-        header, rows = quality_cells(validation)
-        header = [*header[:-1], "held-out accuracy"]  # the accuracy of these groups' outcomes
-        rows = [[f"{row[0]} (chosen)" if row[0] == choice.model else row[0], *row[1:]]
-                for row in rows]
-        b.add(Paragraph("Held-out validation (the groups of held-out evidence, each scored by "
-                        "the models fitted without it):"), Table(header, rows))
-    return choice
-
-
-def _identical_rows(observe: Path, choice: RAChoice | None) -> str:
-    """Which rows of the quality tables are equal because their models are, and why."""
-    from rapomdp.awareness.report import identical_models
-
-    try:
-        groups = identical_models(load_npz(observe / OBSERVATION_FILE))
-    except (ArtefactError, KeyError, ValueError):
-        return ""
-    parts = []
-    for group in groups:
-        if choice is not None and {"ra", choice.model} <= set(group):
-            others = [f"`{n}`" for n in group if n not in ("ra", choice.model)]
-            parts.append(f"`ra` and `{choice.model}` are one model (`ra` is the chosen "
-                         f"variant), so their rows are equal by construction"
-                         + (f"; {', '.join(others)} coincide with it on this evidence"
-                            if others else ""))
-        else:
-            names = " and ".join(f"`{n}`" for n in group)
-            parts.append(f"{names} give the same P(o | c, x) at every viewpoint on this "
-                         f"evidence (their fits coincide), so their rows are equal")
-    return ("Equal rows: " + "; ".join(parts) + ".") if parts else ""
-
-
-def _self_awareness(b: _Builder, inputs: StageInputs, class_name: str, how: str) -> None:
-    """Predicted vs observed P(correct), one class's hemispheres and the calibration of every
-    method's final belief."""
-    from rapomdp.awareness.report import AWARENESS_RELIABILITY, write_awareness_figures
-
-    observe = inputs.observe
-    try:
-        rel, hemi = write_awareness_figures(observe, class_name, b.out)
-    except (StageError, ArtefactError, KeyError) as exc:
-        b.missing(f"the self-awareness figures could not be made ({exc})", how)
-    else:
-        b.figure(rel, "Predicted against observed P(correct) on the test models, per "
-                      "observation model (single view, before the belief's temperature; "
-                      "marker area and the bars below: (test model, viewpoint) pairs per "
-                      "bin).", how, rel.name)
-        b.add(Link("Its bins and counts:", f"{AWARENESS_RELIABILITY}.csv",
-                   f"{AWARENESS_RELIABILITY}.csv"))
-        b.figure(hemi, f"Class {class_name}: predicted P(correct) per viewpoint (RA, "
-                       f"Classifier) beside the test models' actual accuracy.", how, hemi.name)
-    episodes = inputs.evaluate / EPISODES_FILE
-    if episodes.exists():
-        _belief_calibration(b, EpisodeTable.load(episodes), inputs.evaluate)
-    vptree = b.root / "vptree"  # not an input of the report stage (as the VP-tree summary)
-    header, rows = declared_confidence_cells(observe, vptree if vptree.is_dir() else None)
-    if rows:
-        b.add(Paragraph("The declared confidence, fitted on held-out random walks stopped at "
-                        "belief thresholds 0.5 to 0.99: per model, a and, at those stops, the "
-                        "belief's and the declared belief's confidence and ECE, each held-out "
-                        "group scored by the a the other groups give (docs/awareness.md)."))
-        b.add(Table(header, rows))
-    record = load_declared_fit(inputs.evaluate)
-    if record is not None and record["methods"]:
-        whose = ("The POMDP methods' and the learned baseline's" if LEARNED in record["methods"]
-                 else "The POMDP methods'")
-        b.add(Paragraph(
-            f"{whose} declared confidence, fitted at "
-            f"their own held-out closed-loop stops: "
-            f"each volume group's models run from {record['starts_per_model']} starts, the "
-            "belief (and a POMDP's lookahead) by the model fitted without the group, a POMDP "
-            f"by the solve stage's plan, λ = {record['lambda_m']:g} m; per "
-            "method a, the loop's accuracy and energy, and at its stops the belief's and the "
-            "declared belief's confidence and ECE (each group by the a the other groups "
-            "give). These a are the ones the methods above reported with."))
-        b.add(Table(*closed_loop_cells(record)))
-
-
-def closed_loop_cells(record: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
-    """The held-out closed loop's record (``held_out/declared_fit.json``) as a table: per
-    POMDP method a, the loop's accuracy and mean energy, the belief's and the declared
-    belief's (held out) confidence and ECE at its stops, and the stops."""
-    header = ["Method", "a", "Accuracy", "Energy (m)",
-              "Belief: confidence", "ECE", "Declared (held out): confidence", "ECE",
-              "ECE if calibrated (95 %)", "Stops"]
-    rows = []
-    for name, fit in record["methods"].items():
-        d = fit["declared_confidence"]
-        rows.append([METHOD_NAMES.get(name, name), f"{d['temperature']:.3f}",
-                     f"{fit['accuracy']:.3f}", f"{fit['energy']:.2f}",
-                     f"{d['confidence']:.3f}", f"{d['ece']:.3f}",
-                     f"{d['declared_confidence']:.3f}", f"{d['declared_ece']:.3f}",
-                     floor_cell(d),
-                     str(fit["episodes"])])
-    return header, rows
-
-
-def _belief_calibration(b: _Builder, table: EpisodeTable, evaluate: Path) -> None:
-    """Every method's final belief against its accuracy (:func:`belief_calibration_cells`) and
-    the reliability of its confidence."""
-    from rapomdp.awareness.figures import reliability_figure
-    from rapomdp.awareness.report import write_reliability_csv
-    from rapomdp.experiment.figures import method_style
-
-    curves = belief_reliability(table)
-    styles = {METHOD_NAMES.get(m, m): method_style(m, i)[::2]
-              for i, m in enumerate(table.methods)}
-    b.add(Paragraph("Calibration of every method's final belief in the closed loop on the test "
-                    "models: the mean belief in the true class; the confidence (the belief in "
-                    "the declared class), which a calibrated belief's accuracy equals; ECE of "
-                    "the confidence over 10 equal-width bins. "
-                    + REPORTED_BELIEF_NOTE + " " + CALIBRATED_ECE_NOTE))
-    b.add(Table(*belief_calibration_cells(table)))
-    figure = reliability_figure(curves, b.out / BELIEF_RELIABILITY_FIGURE,
-                                xlabel="final belief in the declared class",
-                                title="Final beliefs on the test models (10 bins)",
-                                styles=styles)
-    data = write_reliability_csv(curves, figure.with_suffix(".csv"))
-    b.add(Image(figure.name, "Reliability of every method's final belief: accuracy against "
-                             "confidence (belief in the declared class), from "
-                             f"{b.shown(evaluate / EPISODES_FILE)}; marker area and the bars "
-                             "below: episodes per bin (legend: episodes in all), bins of "
-                             f"fewer than {RELIABILITY_MIN_COUNT} episodes hollow and off the "
-                             "line."),
-          Link("Its bins and counts:", data.name, data.name))
-
-
-def belief_reliability(table: EpisodeTable, bins: int = 10
-                       ) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Every method's final confidence (the belief in the declared class) against its
-    accuracy, per equal-width bin: (mean confidence, accuracy, episodes), by display name (the
-    reliability figure's and ``belief_reliability.csv``'s data)."""
-    from rapomdp.recognition.belief import reliability
-
-    confidence = table.final_confidence()
-    return {METHOD_NAMES.get(m, m): reliability(confidence[table.method == m],
-                                                table.correct[table.method == m], bins)
-            for m in table.methods}
-
-
-def _learned(b: _Builder, folder: Path | None, cmd: str) -> None:
+def _learned(b: Builder, folder: Path | None, cmd: str) -> None:
     """The learned baseline's training (time, curves) and its held-out scores beside Random's,
     when the learn stage trained it (``evaluate.methods`` lists ``learned``; it changes only
     with the evaluate stage, an input, so the folder is read beside it like the VP-tree's)."""
@@ -739,7 +301,7 @@ def _learned(b: _Builder, folder: Path | None, cmd: str) -> None:
              "the training episodes that ended in each PPO update, one line per λ.", how)
 
 
-def _classifier(b: _Builder, inputs: StageInputs, cmd: str) -> None:
+def _classifier(b: Builder, inputs: StageInputs, cmd: str) -> None:
     b.add(Heading("Single-view classifier"))
     how = f"made by `{cmd} classifier_eval -w {b.root}`"
     metrics = b.load(inputs.classifier_eval / METRICS_FILE,
@@ -769,7 +331,7 @@ def _classifier(b: _Builder, inputs: StageInputs, cmd: str) -> None:
         b.missing(f"VP-tree baseline accuracy (vptree/{VPTREE_SUMMARY_FILE} not found)", how)
 
 
-def _robot_and_solver(b: _Builder, config: Config, inputs: StageInputs, cmd: str
+def _robot_and_solver(b: Builder, config: Config, inputs: StageInputs, cmd: str
                       ) -> None:
     b.add(Heading("Robot and planner"))
     how = f"made by `{cmd} robot -w {b.root}`"
@@ -876,15 +438,15 @@ def write_report(config: Config, inputs: StageInputs, out: Path,
     out.mkdir(parents=True, exist_ok=True)
     root = inputs.dataset.parent
     classes = load_dataset(inputs.dataset).classes
-    b = _Builder(root, out)
+    b = Builder(root, out)
     title = f"rapomdp report: {root.name}"
     b.add(Heading(title, 1))
     _provenance(b, config, {name: given[name] for name in REPORT_INPUTS})
     b.add(Paragraph(f"Classes ({len(classes)}): {', '.join(classes)}."))
     evaluation = _evaluation(b, inputs.evaluate, command, config.seed)
     _learned(b, inputs.learn_dir or root / "learn", command)
-    _awareness(b, config, inputs, figure_class(evaluation, config, classes),
-               fig1 or write_fig1, command)
+    awareness_section(b, config, inputs, figure_class(evaluation, config, classes),
+                      fig1 or write_fig1, command)
     _classifier(b, inputs, command)
     _robot_and_solver(b, config, inputs, command)
     md = write_text_atomic(out / REPORT_MD, to_markdown(b.blocks))

@@ -46,12 +46,13 @@ from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import TEST_STREAM, xrho_noise_rng
+from rapomdp.document import markdown_table
 from rapomdp.experiment.episode import Motion, run_episode
 from rapomdp.experiment.episode_table import EPISODES_FILE, EpisodeRecord, EpisodeTable
 from rapomdp.experiment.evaluation import ClosedLoop, episode_rng, start_viewpoints
 from rapomdp.experiment.methods import POMDPPolicy
 from rapomdp.experiment.metrics import table1
-from rapomdp.io import markdown_table, write_json_atomic, write_text_atomic
+from rapomdp.io import write_json_atomic, write_text_atomic
 from rapomdp.parallel import pooled, run_tasks
 from rapomdp.pipeline import STAGE_NAMES, get_stage
 from rapomdp.planning.artefacts import load_solve_summary, policy_file

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rapomdp.config import METHOD_NAMES
+from rapomdp.document import markdown_table
 from rapomdp.experiment.metrics import standing_phrases
 from rapomdp.experiment.readme import interval_cell, leading_number, markdown_tables
 from rapomdp.io import read_text, write_text_atomic
@@ -212,7 +213,7 @@ def headline_table(headline: Headline) -> str:
     header = ["Method"]
     for name in headline.configurations:
         header += [f"'{name}' accuracy", "energy (m)", f"Δ vs {headline.reference} [95 %]"]
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    body = []
     for method in methods:
         cells = [method]
         for rows in headline.configurations.values():
@@ -223,8 +224,8 @@ def headline_table(headline: Headline) -> str:
             d = row.difference
             cells += [f"{row.accuracy:.3f}", f"{row.energy_m:.2f}",
                       "—" if d is None else f"{d[0]:+.3f} [{d[1]:+.3f}, {d[2]:+.3f}]"]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        body.append(cells)
+    return markdown_table(header, body).rstrip("\n")
 
 
 def headline_markdown(headline: Headline, source: str) -> str:

@@ -11,13 +11,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rapomdp.config import METHOD_NAMES
+from rapomdp.document import Block, Heading, Image, Paragraph, Table, to_html, to_markdown
 from rapomdp.experiment.figures import tradeoff
 from rapomdp.experiment.metrics import (
     CALIBRATED_ECE_NOTE,
     REPORTED_BELIEF_NOTE,
     standing_phrases,
 )
-from rapomdp.experiment.report import Block, Heading, Image, Paragraph, Table, to_html, to_markdown
 from rapomdp.io import read_text, write_text_atomic
 from rapomdp.study.pooled import (
     REFERENCE,
