@@ -23,10 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.artefacts import OBSERVATION_FILE
+from rapomdp.belief import BayesBelief, update_beliefs
 from rapomdp.experiment.episode import Motion
-from rapomdp.experiment.methods import BayesBelief
 from rapomdp.io import load_npz
-from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
 from rapomdp.robot.artefacts import load_robot

@@ -22,7 +22,8 @@ ENTRY_POINTS = {
     "rapomdp.workspace.lock",  # Workspace.check, Workspace.locked
     "rapomdp.workspace.stages",  # StageInputs
     "rapomdp.planning.ar_solver",  # solve_active_recognition
-    "rapomdp.planning.momdp",  # build_active_recognition_problem, update_beliefs
+    "rapomdp.belief",  # update_beliefs, temper, declared_belief, BayesBelief
+    "rapomdp.planning.momdp",  # build_active_recognition_problem
     "rapomdp.planning.pomdp",  # POMDP, belief_update
     "rapomdp.planning.policy",  # the policies
     "rapomdp.planning.io_pomdp",  # parse_pomdp, format_pomdp

@@ -97,23 +97,6 @@ def test_pomdp_method_acts_by_its_policys_lookahead_on_its_own_belief(motion: Mo
         POMDPPolicy(policy, P[:5], "bad")
 
 
-def test_bayes_belief_updates_every_view_by_the_model_and_restarts_uniform() -> None:
-    from rapomdp.experiment.methods import BayesBelief
-
-    model = np.full((2, 2, 2), 0.5)
-    model[:, 0] = [0.6, 0.4]
-    belief = BayesBelief(model)
-    np.testing.assert_allclose(belief.belief, [0.5, 0.5])
-    output = np.array([1.0, 0.0])  # label 0
-    belief.update(0, output)
-    assert np.allclose(belief.belief, np.array([0.6, 0.5]) / 1.1)
-    belief.update(1, output)
-    assert np.allclose(belief.belief, np.array([0.36, 0.25]) / 0.61)
-    assert belief.updates == 2
-    belief.reset()
-    assert belief.updates == 0 and np.allclose(belief.belief, [0.5, 0.5])
-
-
 def test_static_belief_is_the_output_temperature_scaled_and_declares_its_argmax() -> None:
     output = np.array([0.5, 0.3, 0.2])
     static = StaticPolicy(softmax_temperature=0.5)

@@ -131,11 +131,11 @@ def _with_requirements(names: set[str]) -> set[str]:
 
 def test_the_planning_distribution_is_the_solver_alone_and_solves_tiger(tmp_path: Path) -> None:
     """packages/rapomdp-planning builds (offline: no build isolation, no index) from src/ into
-    a wheel of exactly rapomdp.planning, rapomdp.geometry and rapomdp.io, requiring NumPy,
-    SciPy, typer and rich only; from that wheel alone, with every other dependency of rapomdp
-    blocked, `rapomdp-pomdp solve Tiger.pomdp` reaches the reference value and `export -w` names
-    the distribution it needs. (benchmarks/planning_only_install.py installs it into a fresh
-    venv with pip.)"""
+    a wheel of exactly rapomdp.planning, rapomdp.geometry, rapomdp.io and rapomdp.belief,
+    requiring NumPy, SciPy, typer and rich only; from that wheel alone, with every other
+    dependency of rapomdp blocked, `rapomdp-pomdp solve Tiger.pomdp` reaches the reference
+    value and `export -w` names the distribution it needs. (benchmarks/planning_only_install.py
+    installs it into a fresh venv with pip.)"""
     tomllib = pytest.importorskip("tomllib")  # Python 3.11
     pytest.importorskip("setuptools")
     # the project beside a link to src/, in tmp: its build writes there, not into the checkout
@@ -151,7 +151,7 @@ def test_the_planning_distribution_is_the_solver_alone_and_solves_tiger(tmp_path
                     str(project)], check=True, capture_output=True, cwd=tmp_path)
     (wheel,) = wheels.glob("rapomdp_planning-*.whl")
     src = REPO / "src"
-    expected = {"rapomdp/__init__.py", "rapomdp/io.py"} | {
+    expected = {"rapomdp/__init__.py", "rapomdp/io.py", "rapomdp/belief.py"} | {
         p.relative_to(src).as_posix() for folder in ("geometry", "planning")
         for p in (src / "rapomdp" / folder).glob("*.py")}
     with zipfile.ZipFile(wheel) as archive:

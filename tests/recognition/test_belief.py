@@ -13,7 +13,6 @@ from rapomdp.recognition.belief import (
     belief_log_loss,
     calibrated_ece,
     calibrated_ece_draws,
-    declared_belief,
     declared_confidence,
     expected_calibration_error,
     fit_declared_temperature,
@@ -25,7 +24,6 @@ from rapomdp.recognition.belief import (
     stop_steps,
     stopped_log_beliefs,
     stops_declared_confidence,
-    temper,
     walk_calibration,
     walk_log_beliefs,
 )
@@ -73,17 +71,6 @@ def test_temperature_leaves_independent_evidence_alone_and_shrinks_duplicated_ev
     loss = [belief_log_loss(t, [p], np.zeros(rows, np.int64), labels, duplicated, walks,
                             walk_row) for t in (1.0, shrunk)]
     assert loss[1] < loss[0]
-
-
-def test_temper_keeps_rows_normalised_and_flattens_them():
-    rng = np.random.default_rng(4)
-    p = _planted_model(5, 4, rng)
-    assert np.array_equal(temper(p, 1.0), p)
-    cooled = temper(p, 0.5)
-    assert np.allclose(cooled.sum(axis=2), 1.0)
-    entropy = [-(q * np.log(q)).sum(axis=2) for q in (p, cooled)]
-    assert np.all(entropy[1] > entropy[0])
-    assert np.allclose(temper(p, 0.5), np.sqrt(p) / np.sqrt(p).sum(axis=2, keepdims=True))
 
 
 def test_random_walks_move_to_near_unvisited_viewpoints():
@@ -164,16 +151,6 @@ def test_expected_calibration_error_is_the_weighted_gap_per_bin():
         0.5 * 0.05 + 0.5 * 0.05)
 
 
-def test_temper_takes_one_temperature_per_viewpoint():
-    rng = np.random.default_rng(6)
-    p = _planted_model(4, 3, rng)
-    t = np.array([1.0, 0.5, 0.0, 2.0])
-    out = temper(p, t)
-    for v in range(4):
-        np.testing.assert_allclose(out[v], temper(p[v:v + 1], float(t[v]))[0])
-    np.testing.assert_allclose(out[2], 1.0 / 3)  # weight 0: no evidence
-
-
 def _posterior_walks(rng: np.random.Generator, walks: int = 3000, steps: int = 8,
                      classes: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Log posteriors (E, L, C) of walks whose every view emits a label independently from a
@@ -197,16 +174,6 @@ def test_walks_stop_where_the_belief_first_reaches_the_threshold_or_at_their_end
     final, walk = stopped_log_beliefs(log_belief, (0.8, 0.9))
     assert walk.tolist() == [0, 1, 0, 1]
     assert np.allclose(np.exp(final), belief[[0, 1, 0, 1], [1, 2, 2, 2]])
-
-
-def test_the_declared_belief_keeps_the_argmax_and_flattens_below_one():
-    belief = np.array([[0.7, 0.2, 0.1], [0.1, 0.05, 0.85]])
-    flat = declared_belief(belief, 0.5)
-    assert np.allclose(flat.sum(axis=1), 1.0)
-    assert np.array_equal(flat.argmax(axis=1), belief.argmax(axis=1))
-    assert np.allclose(flat[0], np.sqrt(belief[0]) / np.sqrt(belief[0]).sum())
-    assert np.all(flat.max(axis=1) < belief.max(axis=1))
-    assert np.array_equal(declared_belief(belief[0], 1.0), belief[0])
 
 
 def test_the_declared_temperature_undoes_a_planted_overconfidence_where_walks_stop():

@@ -25,9 +25,10 @@ from rapomdp.awareness.figures import (
 )
 from rapomdp.awareness.stage import load_saliency
 from rapomdp.awareness.volume import SaliencyVolume
+from rapomdp.belief import temper
 from rapomdp.data.training_views import load_training_views
 from rapomdp.io import atomic_path, load_npz
-from rapomdp.recognition.belief import reliability, temper
+from rapomdp.recognition.belief import reliability
 from rapomdp.workspace import StageError, Workspace
 
 FIGURES_DIR = "figures"

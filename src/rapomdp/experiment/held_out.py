@@ -20,6 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from rapomdp.awareness.choices import RecordedObservation
+from rapomdp.belief import safe_log, temper
 from rapomdp.config import Config
 from rapomdp.context import RunContext
 from rapomdp.data.splits import class_seed
@@ -33,11 +34,7 @@ from rapomdp.parallel import run_tasks
 from rapomdp.planning.artefacts import policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.recognition.artefacts import VPTREE_OBSERVATION_FILE
-from rapomdp.recognition.belief import (
-    DeclaredConfidence,
-    stops_declared_confidence,
-    temper,
-)
+from rapomdp.recognition.belief import DeclaredConfidence, stops_declared_confidence
 from rapomdp.recognition.vptree_stage import vptree_folds
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs
@@ -150,7 +147,7 @@ def held_out_stops(config: Config, policy: Policy, fold: HeldOutFold, motion: Mo
         for s in rng.choice(reachable, min(starts, reachable.size), replace=False):
             episode = run_episode(LabelScene(), LabelRecogniser(fold.predicted[r], classes),
                                   policy, motion, int(s), config.evaluate.max_moves, rng)
-            finals.append(np.log(np.maximum(episode.beliefs[-1], 1e-300)))
+            finals.append(safe_log(episode.beliefs[-1]))
             truth.append(int(fold.labels[r]))
             right.append(episode.declared == int(fold.labels[r]))
             energy.append(float(episode.move_energy.sum()))

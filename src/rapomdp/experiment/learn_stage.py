@@ -101,7 +101,7 @@ def record_evidence(dataset: Dataset, volume: XrhoProbabilities) -> RecordedEvid
 
 def belief_arguments(observe_dir: Path, names: Sequence[str]) -> dict[str, dict[str, Any]]:
     """For each named observation model, the arguments of its closed-loop belief
-    (:class:`~rapomdp.experiment.methods.BayesBelief`) as the evaluation builds them: the
+    (:class:`~rapomdp.belief.BayesBelief`) as the evaluation builds them: the
     model."""
     models, _ = offered_observation_models(observe_dir)
     return {name: {"observation_model": models[name]} for name in names if name in models}

@@ -7,7 +7,7 @@ SHA-256 its JSON records) and a JSON of its architecture and setting (:class:`Po
 never sb3's ``.zip`` (which pickles). :class:`PolicyNetwork` rebuilds the network from them:
 the same layers as sb3's ``MlpPolicy`` actor (tanh MLP, then a linear layer to one logit per
 action). :class:`LearnedPolicy` runs it in the closed loop like every method: its belief is
-:class:`~rapomdp.experiment.methods.BayesBelief` with its observation model, its input
+:class:`~rapomdp.belief.BayesBelief` with its observation model, its input
 :func:`~rapomdp.experiment.recorded_env.policy_input`, and it takes the most likely action among
 :func:`~rapomdp.experiment.recorded_env.valid_actions` (PPO's deterministic action).
 
@@ -29,7 +29,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from rapomdp.experiment.methods import BayesBelief
+from rapomdp.belief import BayesBelief
 from rapomdp.experiment.recorded_env import (
     RECORDED_FILE,
     closed_loop_action,

@@ -8,6 +8,8 @@
 
 A user's own method is any object with the same five members (``name``, ``recogniser``,
 ``reset``, ``observe``, ``belief``, ``act``); see :class:`rapomdp.experiment.episode.Policy`.
+Every belief here is :class:`rapomdp.belief.BayesBelief` (Eq. 5 and the declared confidence) or,
+for Static, the output tempered by :func:`rapomdp.belief.temper`.
 """
 
 from __future__ import annotations
@@ -16,62 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from rapomdp.belief import BayesBelief, temper
 from rapomdp.config import EvaluateConfig
 from rapomdp.geometry.viewsphere import k_nearest
-from rapomdp.planning.momdp import update_beliefs
 from rapomdp.planning.policy import ActiveRecognitionPolicy, ARAction
-from rapomdp.planning.rules import class_marginal
-from rapomdp.recognition.belief import (
-    declared_belief,
-    temper,
-)
-
-
-class BayesBelief:
-    """A distribution over the classes updated by Eq. 5 with an observation model P
-    (V, C, C): the recogniser's most likely class is the observation. ``state`` is that
-    distribution from a uniform prior and ``belief`` the same (the class distribution); every
-    update uses P, as the planner plans it.
-
-    ``declared`` is what a policy reports: the class belief raised to ``declared_temperature``
-    and renormalised (fitted where held-out episodes stop); the policy acts on ``belief`` and
-    ``state``, which it leaves alone."""
-
-    def __init__(self, observation_model: np.ndarray,
-                 declared_temperature: float = 1.0) -> None:
-        if not declared_temperature > 0:
-            raise ValueError(f"the declared-confidence temperature must be positive, got "
-                             f"{declared_temperature}")
-        self.declared_temperature = float(declared_temperature)
-        self.observation_model = np.asarray(observation_model, dtype=np.float64)
-        n_s = self.observation_model.shape[1]
-        self.prior = np.full(n_s, 1.0 / n_s)
-        self.state = self.prior.copy()
-        self.updates = 0
-
-    @property
-    def n_classes(self) -> int:
-        return self.observation_model.shape[2]
-
-    @property
-    def belief(self) -> np.ndarray:
-        """The class distribution (C,): the state distribution summed over instance types."""
-        return class_marginal(self.state, self.n_classes)
-
-    @property
-    def declared(self) -> np.ndarray:
-        """The class belief as reported (C,): ``belief`` ** ``declared_temperature``,
-        renormalised (the same argmax)."""
-        return declared_belief(self.belief, self.declared_temperature)
-
-    def reset(self) -> None:
-        self.state = self.prior.copy()
-        self.updates = 0
-
-    def update(self, viewpoint: int, output: np.ndarray) -> None:
-        label = int(np.argmax(output))
-        self.state = update_beliefs(self.observation_model, self.state, viewpoint, label)
-        self.updates += 1
 
 
 class StaticPolicy:

@@ -4,7 +4,7 @@ The rendering environment (:mod:`rapomdp.experiment.env`) renders and classifies
 (milliseconds). Here the classifier's output at every test viewpoint of every *held-out* model
 (:class:`RecordedEvidence`: the volume models under the trained classifier) is computed once,
 so a step is a lookup plus the belief update of the closed loop
-(:class:`~rapomdp.experiment.methods.BayesBelief`, Eq. 5 with the method's observation model)
+(:class:`~rapomdp.belief.BayesBelief`, Eq. 5 with the method's observation model)
 and the move of the closed loop (:meth:`~rapomdp.experiment.episode.Motion.move`).
 
 The agent sees what the POMDP methods see: its belief, its viewpoint and the viewpoints it has
@@ -29,8 +29,8 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from rapomdp.belief import BayesBelief
 from rapomdp.experiment.episode import Motion
-from rapomdp.experiment.methods import BayesBelief
 from rapomdp.io import ArtefactError, load_npz, save_npz
 
 #: The file of the recorded evidence in the learn stage's folder.
@@ -138,7 +138,7 @@ class RecordedRecognitionEnv(gymnasium.Env):
     Observations: :func:`policy_input` (Box in [0, 1], C + 2V). Actions: ``Discrete(V + C)``
     as in :class:`~rapomdp.experiment.env.ActiveRecognitionEnv`. ``reset`` takes
     ``options={"model": i, "start": v}`` (each drawn from the env's RNG otherwise). The belief
-    is :class:`~rapomdp.experiment.methods.BayesBelief` of ``observation_model`` (V, C, C), as
+    is :class:`~rapomdp.belief.BayesBelief` of ``observation_model`` (V, C, C), as
     the evaluation builds it for a method of that model
     (:func:`~rapomdp.experiment.learn_stage.belief_models`).
     :meth:`action_masks` is what sb3-contrib's ``MaskablePPO`` reads. The final ``info`` holds

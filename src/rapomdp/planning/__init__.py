@@ -6,6 +6,7 @@ the pipeline's stages. Both solvers budget process CPU time and size their array
 memory cap (``memory_gb``, default 4) before allocating them.
 """
 
+from rapomdp.belief import update_beliefs
 from rapomdp.planning.ar_solver import ActiveRecognitionSolver, solve_active_recognition
 from rapomdp.planning.io_pomdp import (
     PomdpParseError,
@@ -25,7 +26,6 @@ from rapomdp.planning.momdp import (
     finite_move_energy,
     simulate_policy,
     to_flat_pomdp,
-    update_beliefs,
 )
 from rapomdp.planning.policy import ActiveRecognitionPolicy, AlphaVectorPolicy, ARAction
 from rapomdp.planning.pomdp import POMDP, belief_update

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from rapomdp.belief import class_marginal, update_beliefs
 from rapomdp.planning.ar_children import MoveChildren, min_ratio
 from rapomdp.planning.ar_memory import (
     KEEP_PAIRS,
@@ -55,7 +56,6 @@ from rapomdp.planning.rules import (
     BELIEF_DECIMALS,
     EQUAL_TOL,
     IMPROVEMENT_TOL,
-    class_marginal,
     declare_alphas,
     declare_value,
     move_or_declare,
@@ -338,8 +338,7 @@ class ActiveRecognitionSolver:
             like = pb.observation_model[j, cls]  # (k, O)
             u = rng.random(j.size)
             labels = np.minimum((u[:, None] > np.cumsum(like, axis=1)).sum(axis=1), n_o - 1)
-            B = B * pb.observation_model[j, :, labels]
-            B /= B.sum(axis=1, keepdims=True)
+            B = update_beliefs(pb.observation_model, B, j, labels)
             views = j
             steps.append(B)
             step_v.append(views)

@@ -27,10 +27,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rapomdp.belief import class_marginal, update_beliefs
 from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
 from rapomdp.planning.memory import DEFAULT_MEMORY_GB, ENTRY_BYTES, check_memory
 from rapomdp.planning.pomdp import POMDP, PROB_TOL
-from rapomdp.planning.rules import class_marginal, declare_value, move_or_declare
+from rapomdp.planning.rules import declare_value, move_or_declare
 
 #: λ of Eq. 1 wherever none is given: the configuration's ``solve.wrong_declaration_cost_m``.
 DEFAULT_LAMBDA = 8.0
@@ -157,42 +158,6 @@ class ActiveRecognitionProblem:
         """max_k −λ(1 − b_k) for beliefs (..., S), b the class marginal: the value of
         stopping now."""
         return declare_value(belief, self.lambda_, self.n_classes)
-
-
-def update_beliefs(
-    observation_model: np.ndarray,
-    beliefs: np.ndarray,
-    viewpoints: np.ndarray | int,
-    labels: np.ndarray | int,
-) -> np.ndarray:
-    """Vectorised Eq. 5 over a batch: beliefs (..., S) over the hidden states (the classes, or
-    (type, class) pairs), viewpoints and labels broadcastable; ``observation_model`` (V, S, O).
-    The one belief update of the package: the closed loop's beliefs and the planners'.
-
-    Args:
-        observation_model: (V, S, O) = P(label o | hidden state s, viewpoint v).
-        beliefs: (..., S) beliefs, each summing to 1.
-        viewpoints: The viewpoint of each image (broadcast against ``beliefs[..., 0]``).
-        labels: The predicted label of each image (broadcast alike).
-
-    Returns:
-        (..., S) the posteriors b'(s) ∝ P[v, s, o] b(s).
-
-    Raises:
-        ValueError: An observation has probability 0 under its belief.
-
-    Example:
-        >>> import numpy as np
-        >>> P = np.array([[[0.9, 0.1], [0.2, 0.8]]])
-        >>> update_beliefs(P, np.array([0.5, 0.5]), 0, 1).round(4).tolist()
-        [0.1111, 0.8889]
-    """
-    like = observation_model[viewpoints, :, labels]  # (..., C)
-    post = beliefs * like
-    total = post.sum(axis=-1, keepdims=True)
-    if np.any(total <= 0):
-        raise ValueError("an observation has probability 0 under the belief")
-    return post / total
 
 
 def build_active_recognition_problem(

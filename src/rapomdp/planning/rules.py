@@ -5,14 +5,16 @@ Every solver, bound, policy and simulator of the package calls these: the value 
 (declare unless a move is worth more by more than :data:`TIE_TOL`).
 
 The hidden state is the class, or, with T *instance types* (a per-object nuisance), the pair
-(type τ, class c) at index τ·C + c (type-major). A
-declaration names a class, so its value reads the belief's class marginal
-(:func:`class_marginal`); ``n_classes`` None means the states are the classes.
+(type τ, class c) at index τ·C + c (type-major). A declaration names a class, so its value
+reads the belief's class marginal (:func:`rapomdp.belief.class_marginal`, with the rest of the
+belief's rule); ``n_classes`` None means the states are the classes.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from rapomdp.belief import class_marginal
 
 #: A move must beat declaring by more than this to be chosen (ties go to declaring: it ends
 #: the episode, and on equal value the shorter plan is the one a user expects).
@@ -28,19 +30,6 @@ BELIEF_DECIMALS = 12
 POINT_IMPROVEMENT_TOL = 1e-12
 #: Two plans' values this close count as equal (the structured-label test, point pruning).
 EQUAL_TOL = 1e-12
-
-
-def class_marginal(belief: np.ndarray, n_classes: int | None = None) -> np.ndarray:
-    """The class distribution (..., C) of a belief over states (..., T·C), state τ·C + c:
-    the sum over instance types. ``n_classes`` None, or as many states as classes: the belief
-    itself."""
-    b = np.asarray(belief)
-    if n_classes is None or b.shape[-1] == n_classes:
-        return b
-    if b.shape[-1] % n_classes:
-        raise ValueError(f"a belief over {b.shape[-1]} states is no whole number of types of "
-                         f"{n_classes} classes")
-    return b.reshape(*b.shape[:-1], b.shape[-1] // n_classes, n_classes).sum(axis=-2)
 
 
 def declare_values(belief: np.ndarray, lambda_: float,

@@ -7,7 +7,12 @@ held-out random walks over viewpoints keeps it calibrated. Held out: the outcome
 groups; each group's walks are scored by the model fitted without it (leave-one-group-out).
 Nothing here depends on how a model was fitted: the observe stage tempers every awareness model
 with it (:func:`rapomdp.awareness.temperature.held_out_temperatures`), the vptree stage the
-VP-tree's confusion. Also here: the reliability and ECE of a confidence.
+VP-tree's confusion. Also here: the reliability and ECE of a confidence, and the fit of the
+declared confidence where held-out walks stop.
+
+The rule itself (Eq. 5, :func:`~rapomdp.belief.temper`, the declared form b ** a) lives in
+:mod:`rapomdp.belief`, which the planner, the closed loop and the environments call too; this
+module fits its two temperatures.
 """
 
 from __future__ import annotations
@@ -17,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize_scalar
-from scipy.special import logsumexp
+
+from rapomdp.belief import accumulate_log_beliefs, declared_log_beliefs, safe_log, temper
 
 TEMPERATURE_BOUNDS = (0.05, 2.0)
 """The interval the temperature is searched in."""
@@ -92,22 +98,6 @@ def calibrated_ece(confidence: np.ndarray, quantile: float = CALIBRATED_ECE_QUAN
 
 # -- the belief's temperature ----------------------------------------------------------------
 
-def temper(probabilities: np.ndarray, temperature: float | np.ndarray) -> np.ndarray:
-    """P(o | c, x) ** t, renormalised over o: a model whose evidence counts ``t`` times a
-    naive-Bayes update's (t < 1: correlated views count less). t = 1 returns the model; an
-    array t (V,) tempers each viewpoint's rows by its own."""
-    p = np.asarray(probabilities, dtype=np.float64)
-    t = np.asarray(temperature, dtype=np.float64)
-    if t.ndim == 0 and float(t) == 1.0:
-        return p.copy()
-    if t.ndim:
-        t = t.reshape(-1, *([1] * (p.ndim - 1)))
-    log_p = t * np.log(np.maximum(p, 1e-300))
-    log_p -= log_p.max(axis=2, keepdims=True)
-    out = np.exp(log_p)
-    return out / out.sum(axis=2, keepdims=True)
-
-
 def random_walks(directions: np.ndarray, starts: np.ndarray, length: int, neighbours: int,
                  rng: np.random.Generator) -> np.ndarray:
     """Viewpoint sequences (E, length): from each start, moves to a random one of the
@@ -141,7 +131,7 @@ def _log_likelihoods(temperature: float, models: Sequence[np.ndarray], row_model
         rows = np.flatnonzero(row_model == m)
         if rows.size == 0:
             continue
-        log_p = np.log(np.maximum(temper(p, temperature), 1e-300))  # (V, C, O)
+        log_p = safe_log(temper(p, temperature))  # (V, C, O)
         x = np.arange(p.shape[0])[None, :]
         loglik[rows] = log_p[x, :, predicted[rows]]  # (R, V, S)
     return loglik
@@ -163,9 +153,7 @@ def walk_log_beliefs(temperature: float, models: Sequence[np.ndarray], row_model
     repeat = np.zeros(walks.shape, dtype=bool)
     repeat[:, 1:] = walks[:, 1:] == walks[:, :-1]
     steps = np.where(repeat[..., None], 0.0, steps)
-    cumulative = np.cumsum(steps, axis=1)  # (E, L, C)
-    cumulative -= cumulative.max(axis=2, keepdims=True)
-    return cumulative - np.log(np.exp(cumulative).sum(axis=2, keepdims=True))
+    return accumulate_log_beliefs(steps)  # (E, L, C)
 
 
 def belief_log_loss(temperature: float, models: Sequence[np.ndarray], row_model: np.ndarray,
@@ -281,40 +269,6 @@ def stopped_log_beliefs(log_beliefs: np.ndarray,
     walks = np.arange(log_beliefs.shape[0])
     finals = [log_beliefs[walks, stop_steps(log_beliefs, t)] for t in thresholds]
     return np.concatenate(finals), np.tile(walks, len(thresholds))
-
-
-def declared_log_beliefs(log_beliefs: np.ndarray, temperature: float | np.ndarray
-                         ) -> np.ndarray:
-    """log b' with b' ∝ b ** ``temperature`` over the last axis: the declared confidence's
-    form (an array of temperatures: one per belief). The argmax is b's (a temperature > 0 keeps
-    the order of the classes)."""
-    t = np.asarray(temperature, dtype=np.float64)
-    scaled = (t[..., None] if t.ndim else t) * np.asarray(log_beliefs, dtype=np.float64)
-    return scaled - logsumexp(scaled, axis=-1, keepdims=True)
-
-
-def declared_belief(belief: np.ndarray, temperature: float) -> np.ndarray:
-    """The belief reported for a class belief after its views: b ** a renormalised.
-
-    The policy acts on the belief; only what it reports is calibrated
-    (:func:`fit_declared_temperature`). The argmax stays the belief's.
-
-    Args:
-        belief: a class belief (C,), or beliefs (..., C), each summing to 1.
-        temperature: the declared-confidence temperature a > 0 (1: the belief itself).
-
-    Returns:
-        The declared beliefs, of ``belief``'s shape.
-
-    Example:
-        >>> import numpy as np
-        >>> declared_belief(np.array([0.8, 0.2]), 0.5).round(3).tolist()
-        [0.667, 0.333]
-    """
-    b = np.asarray(belief, dtype=np.float64)
-    if temperature == 1.0:
-        return b
-    return np.exp(declared_log_beliefs(np.log(np.maximum(b, 1e-300)), temperature))
 
 
 DECLARED_CRITERIA = ("log_loss", "confidence")

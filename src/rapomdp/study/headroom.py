@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from rapomdp.awareness.choices import RecordedObservation
+from rapomdp.belief import temper
 from rapomdp.config import METHOD_NAMES, Config
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
@@ -59,7 +60,7 @@ from rapomdp.planning.artefacts import load_solve_summary, policy_file
 from rapomdp.planning.policy import ActiveRecognitionPolicy
 from rapomdp.planning.stage import start_viewpoint
 from rapomdp.planning.workspace import solve_workspace_problems
-from rapomdp.recognition.belief import fit_temperature, held_out_walks, temper
+from rapomdp.recognition.belief import fit_temperature, held_out_walks
 from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.robot.artefacts import load_robot
 from rapomdp.workspace import StageError, StageInputs, Workspace
