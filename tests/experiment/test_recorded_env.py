@@ -71,7 +71,9 @@ def test_same_observations_beliefs_rewards_and_masks_as_the_rendering_env(record
     observations; rewards and masks agree step by step."""
     _, config, dataset, classifier, evidence, arguments, motion = recorded
     volume = dataset.with_role("volume")
-    rendering = ActiveRecognitionEnv([TestViews.of_model(config, dataset, m) for m in volume],
+    scenes = [TestViews.of_model(dataset, m, config.viewpoints, config.camera,
+                                 config.render.noise) for m in volume]
+    rendering = ActiveRecognitionEnv(scenes,
                                      [dataset.label(m) for m in volume], dataset.classes,
                                      motion, LAMBDA, max_moves=6, revisit=False)
     fast = _recorded_env(recorded)

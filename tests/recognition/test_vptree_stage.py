@@ -62,7 +62,9 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     assert alone[1].shape == (len(models), 16)
     assert all(np.array_equal(a, b) for a, b in zip(alone, shared, strict=True))
     # the stored images are the ones each model's own noise stream renders
-    rendered = classifier.predict(xrho_renders(dataset, models[0], config, TEST_STREAM)[1])
+    rendered = classifier.predict(xrho_renders(dataset, models[0], TEST_STREAM, config.seed,
+                                               config.viewpoints, config.camera,
+                                               config.render.noise)[1])
     assert np.array_equal(alone[1][0], rendered.argmax(axis=1))
     # one volume model per class at 16 viewpoints and pseudo-count a: n(c, x) = 1, so each
     # row is (1 + a) / (1 + 3a) on the label seen and a / (1 + 3a) elsewhere

@@ -112,7 +112,8 @@ def xrho_outcomes(dataset: Dataset, model: ModelEntry, config: Config, classifie
         The clean depth images (V, H, W) in metres, the camera poses (V, 4, 4), the labels
         (V,) and the classifier's output (V, C).
     """
-    clean, sensed, poses = xrho_renders(dataset, model, config, purpose)
+    clean, sensed, poses = xrho_renders(dataset, model, purpose, config.seed, config.viewpoints,
+                                        config.camera, config.render.noise)
     probabilities = classifier.predict(sensed)
     return XrhoOutcomes(clean, poses, probabilities.argmax(axis=1),
                         probabilities.astype(np.float32))

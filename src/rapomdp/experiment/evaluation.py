@@ -220,7 +220,8 @@ class ClosedLoop:
         return cls(config, dataset, recognisers, methods, motion, stored)
 
     def scene(self, model: ModelEntry) -> TestViews:
-        return TestViews.of_model(self.config, self.dataset, model)
+        return TestViews.of_model(self.dataset, model, self.config.viewpoints,
+                                  self.config.camera, self.config.render.noise)
 
     def run_model(self, model: ModelEntry) -> list[EpisodeRecord]:
         """Every start x method episode of one test model."""
