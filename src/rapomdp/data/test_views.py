@@ -124,11 +124,13 @@ def _view_file(root: Path, model: ModelEntry) -> Path:
     return root / "views" / model.class_name / f"{model.id}.npz"
 
 
-def _render_xrho_model(dataset: Dataset, model: ModelEntry, config: Config, out: Path) -> None:
+def _render_xrho_model(dataset: Dataset, model: ModelEntry, seed: int,
+                       viewpoints: ViewpointsConfig, camera: CameraConfig, noise: NoiseConfig,
+                       out: Path) -> None:
     """One model's renders at X_rho, written to ``out`` (a task of the xrho stage)."""
-    clean, sensed, poses = xrho_renders(dataset, model, ROLE_STREAMS[model.role], config.seed,
-                                        config.viewpoints, config.camera, config.render.noise)
-    extra = {"clean": clean} if config.render.noise.enabled else {}
+    clean, sensed, poses = xrho_renders(dataset, model, ROLE_STREAMS[model.role], seed,
+                                        viewpoints, camera, noise)
+    extra = {"clean": clean} if noise.enabled else {}
     save_npz(_view_file(out, model), compressed=True, depth=sensed, poses=poses, **extra)
 
 
@@ -137,7 +139,9 @@ def run_xrho_stage(config: Config, inputs: StageInputs, out: Path, context: RunC
     processes (each model's noise has its own stream: the images do not depend on them)."""
     dataset = load_dataset(inputs.dataset)
     models = [m for m in dataset.models if m.role in ROLE_STREAMS]
-    run_tasks(_render_xrho_model, [(dataset, m, config, out) for m in models],
+    run_tasks(_render_xrho_model,
+              [(dataset, m, config.seed, config.viewpoints, config.camera, config.render.noise,
+                out) for m in models],
               context.worker_count, "xrho: the volume and test models at X_rho",
               context.progress, context.scheduler, unit="models", pool=context.pool)
     vp = config.viewpoints
