@@ -347,10 +347,9 @@ def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
             folders.setdefault(folder, (value, []))[1].append(method)
     if not folders:
         return
-    variant = config.model_copy(deep=True)
-    variant.solve.models = list(dict.fromkeys(m for _, ms in folders.values() for m in ms))
     models, energy, reachable, classes = workspace_arrays(
-        variant, inputs.observe, inputs.robot, inputs.vptree_dir)
+        inputs.observe, inputs.robot, inputs.vptree_dir,
+        list(dict.fromkeys(m for _, ms in folders.values() for m in ms)))
     rows = (load_solve_summary(inputs.solve) if (inputs.solve / SOLVE_SUMMARY).is_file()
             else {})
     gap = {name: float(row["upper"]) - float(row["lower"]) for name, row in rows.items()
