@@ -112,8 +112,8 @@ def main() -> None:
     evidence = RecordedEvidence.load(ws.require("learn") / RECORDED_FILE)
     inputs = ws.inputs(get_stage("evaluate"))
     sweep = ws.require("evaluate") / "sweep"
-    loop = ClosedLoop.load(config, inputs, threads=1,
-                           sweep_dir=sweep if sweep_settings(config) else None)
+    swept = sweep_settings(config.evaluate, config.solve.wrong_declaration_cost_m)
+    loop = ClosedLoop.load(config, inputs, threads=1, sweep_dir=sweep if swept else None)
 
     fast, slow_ms = env_speed(ws, evidence, loop, args.steps)
     say("\n## Environment speed (one process, one thread)\n")
