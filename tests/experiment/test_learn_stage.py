@@ -79,7 +79,11 @@ def test_a_policy_per_lambda_loads_and_acts_within_the_mask(learned_workspace) -
     evidence = RecordedEvidence.load(out / "recorded_evidence.npz")
     models, _ = offered_observation_models(ws.require("observe"))
     motion = Motion.from_robot(load_robot(ws.require("robot")))
-    assert learned_lambdas(config_from_dict(LEARNED_TINY)) == LAMBDAS
+    config = config_from_dict(LEARNED_TINY)
+    assert learned_lambdas(config.solve.wrong_declaration_cost_m,
+                           config.evaluate.lambdas) == LAMBDAS
+    assert learned_lambdas(3.0) == [3.0]  # no sweep: Table 1's λ alone
+    assert learned_lambdas(3.0, [1.0, 3.000001, 5.0]) == [3.0, 1.0, 5.0]  # np.isclose
     for lam in LAMBDAS:
         network, spec = load_learned_policy(out, lam)
         assert (spec.lambda_, spec.max_moves, spec.revisit, spec.hidden) == (lam, 6, False,

@@ -330,7 +330,7 @@ def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
         raise StageError(f"evaluate.random.observation_model is '{walk}'; the workspace "
                          "lacks it")
     settings: list[tuple[str, float, Policy]] = []
-    for lam in learned_lambdas(config):
+    for lam in learned_lambdas(config.solve.wrong_declaration_cost_m, ev.lambdas):
         network, spec = load_learned_policy(out, lam)
         settings.append((LEARNED, lam, LearnedPolicy(network, spec, reachable=motion.reachable,
                                                      **beliefs[spec.observation_model])))
@@ -433,7 +433,7 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
     motion = Motion.from_robot(load_robot(inputs.robot))
     # a wrong observation model is named before work
     belief_models(inputs.observe, config.learn.observation_model)
-    lambdas = learned_lambdas(config)
+    lambdas = learned_lambdas(config.solve.wrong_declaration_cost_m, config.evaluate.lambdas)
     workers = min(context.worker_count, len(lambdas))
     in_process = workers == 1 and not context.uses_cluster
     tasks = [(config.model_dump_json(), str(out), str(inputs.observe), str(inputs.robot), lam,
