@@ -13,6 +13,7 @@ from rapomdp.data.dataset import Dataset, load_dataset
 from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.episode_table import EpisodeTable
 from rapomdp.experiment.learn_stage import (
+    held_out_comparison,
     plateau_timesteps,
     recorded_scores,
     run_learn_stage,
@@ -138,6 +139,10 @@ def test_curves_and_held_out_scores_are_recorded(learned_workspace) -> None:
                                                     motion.reachable), motion, 6, config.seed,
                             "learned")
     assert again == {k: held[0][k] for k in again}
+    # the whole comparison again from the sections alone, without a pipeline configuration
+    rows = held_out_comparison(evidence, out, ws.require("observe"), motion, 8.0,
+                               config.evaluate.model_copy(), "ra", config.seed, progress=False)
+    assert rows == held
 
 
 def test_evaluate_runs_learned_in_table1_the_paired_column_and_the_sweep(

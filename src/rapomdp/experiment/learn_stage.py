@@ -317,20 +317,38 @@ def recorded_scores(evidence: RecordedEvidence, method: Policy, motion: Motion,
             "mean_energy": float(np.mean(energy)), "mean_moves": float(np.mean(moves))}
 
 
-def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
-                        observe_dir: Path, motion: Motion, progress: bool = True
+def held_out_comparison(evidence: RecordedEvidence, out: Path, observe_dir: Path,
+                        motion: Motion, lambda_: float, ev: EvaluateConfig | None = None,
+                        observation_model: str = "ra", seed: int = 0, progress: bool = True
                         ) -> list[dict[str, Any]]:
     """Every trained policy and Random (at each stop belief) scored on the held-out recorded
     evidence (:func:`recorded_scores`), one row each; their beliefs as the evaluation builds
-    them."""
-    ev = config.evaluate
+    them.
+
+    Args:
+        evidence: The recorded classifier outputs of the held-out models.
+        out: The learn stage's folder (the trained policies, one per λ).
+        observe_dir: The observe stage's folder (the beliefs' observation models).
+        motion: The robot's movement energy and reachable viewpoints.
+        lambda_: Table 1's λ in metres (``solve.wrong_declaration_cost_m``).
+        ev: The ``evaluate`` section: the sweep's λ, Random's settings, the step budget
+            (None: the defaults).
+        observation_model: The learned policy's belief (``learn.observation_model``).
+        seed: The configuration's ``seed`` (the episodes' generators).
+        progress: Show a progress bar.
+
+    Returns:
+        One row per (method, setting): ``method``, ``parameter``, ``value`` and
+        :func:`recorded_scores`' accuracy, mean energy (metres) and moves.
+    """
+    ev = EvaluateConfig() if ev is None else ev
     walk = ev.random.observation_model
-    beliefs = belief_arguments(observe_dir, [config.learn.observation_model, walk])
+    beliefs = belief_arguments(observe_dir, [observation_model, walk])
     if walk not in beliefs:
         raise StageError(f"evaluate.random.observation_model is '{walk}'; the workspace "
                          "lacks it")
     settings: list[tuple[str, float, Policy]] = []
-    for lam in learned_lambdas(config.solve.wrong_declaration_cost_m, ev.lambdas):
+    for lam in learned_lambdas(lambda_, ev.lambdas):
         network, spec = load_learned_policy(out, lam)
         settings.append((LEARNED, lam, LearnedPolicy(network, spec, reachable=motion.reachable,
                                                      **beliefs[spec.observation_model])))
@@ -342,7 +360,7 @@ def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
     rows = []
     for method, value, policy in track(settings, "learn: held-out episodes", progress,
                                        unit="settings"):
-        scores = recorded_scores(evidence, policy, motion, ev.max_moves, config.seed, method)
+        scores = recorded_scores(evidence, policy, motion, ev.max_moves, seed, method)
         rows.append({"method": method, "parameter": "lambda" if method == LEARNED
                      else "threshold", "value": value, **scores})
     return rows
@@ -445,7 +463,9 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
     rows = [row for curve, _ in trained for row in curve]
     write_text_atomic(out / CURVES_CSV, curves_csv(rows))
     curves_figure(rows, out / CURVES_FIGURE)
-    held_out = held_out_comparison(config, evidence, out, inputs.observe, motion,
+    held_out = held_out_comparison(evidence, out, inputs.observe, motion,
+                                   config.solve.wrong_declaration_cost_m, config.evaluate,
+                                   config.learn.observation_model, config.seed,
                                    context.progress)
     write_json_atomic(out / LEARN_SUMMARY, {
         "trained": True,
