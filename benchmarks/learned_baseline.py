@@ -55,8 +55,9 @@ def env_speed(ws: Workspace, evidence: RecordedEvidence, loop: ClosedLoop,
     from rapomdp.experiment.learn_stage import belief_models
 
     config = loop.config
-    env = recorded_environment(config, evidence, belief_models(config, ws.require("observe")),
-                               loop.motion, config.solve.wrong_declaration_cost_m, seed=0)
+    belief = belief_models(ws.require("observe"), config.learn.observation_model)
+    env = recorded_environment(evidence, belief, loop.motion,
+                               config.solve.wrong_declaration_cost_m, config.evaluate, seed=0)
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     done = 0
@@ -111,8 +112,8 @@ def main() -> None:
     evidence = RecordedEvidence.load(ws.require("learn") / RECORDED_FILE)
     inputs = ws.inputs(get_stage("evaluate"))
     sweep = ws.require("evaluate") / "sweep"
-    loop = ClosedLoop.load(config, inputs, threads=1,
-                           sweep_dir=sweep if sweep_settings(config) else None)
+    swept = sweep_settings(config.evaluate, config.solve.wrong_declaration_cost_m)
+    loop = ClosedLoop.load(config, inputs, threads=1, sweep_dir=sweep if swept else None)
 
     fast, slow_ms = env_speed(ws, evidence, loop, args.steps)
     say("\n## Environment speed (one process, one thread)\n")

@@ -26,7 +26,7 @@ from rapomdp.robot.stage import ik_settings
 def _solve(config: Config, repeats: int = 1):
     arm = CameraArm(Scene.from_config(config.robot))
     eyes = arm.scene.viewpoints_world(config.viewpoints.count, config.viewpoints.radius_m)
-    settings = ik_settings(config)
+    settings = ik_settings(config.robot, config.seed)
     times, result = [], None
     for _ in range(repeats):
         start = time.perf_counter()

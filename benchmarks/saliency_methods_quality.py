@@ -58,7 +58,8 @@ def main() -> None:
             built[model.class_name] = saliency_volume(depth, poses, maps, views.intrinsics, grid)
         runs.append((method, built, time.perf_counter() - start))
     for name, vols, seconds in runs:
-        result = observe(config, dataset, classifier, vols, cache, progress=False)
+        result = observe(dataset, classifier, vols, config.observe, config.viewpoints,
+                         config.camera, config.render.noise, config.seed, cache, progress=False)
         rows = {row["model"]: row for row in result.quality}
         results[name] = {"saliency_and_volumes_s": seconds, "slope": result.calibration.slope,
                          "quality": rows,

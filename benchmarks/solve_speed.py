@@ -29,8 +29,8 @@ from rapomdp.workspace import Workspace
 ws = Workspace(Path(sys.argv[1]))
 cfg = ws.config()
 vptree = ws.root / "vptree"
-problem = workspace_problem(cfg, ws.require("observe"), ws.require("robot"), sys.argv[2],
-                            vptree if vptree.is_dir() else None)
+problem = workspace_problem(ws.require("observe"), ws.require("robot"), sys.argv[2],
+                            vptree if vptree.is_dir() else None, cfg.solve)
 start = time.process_time()
 result = solve_active_recognition(problem, precision=cfg.solve.precision,
                                   timeout=cfg.solve.timeout_s,

@@ -41,8 +41,9 @@ def main() -> None:
     start = time.perf_counter()
     for model in dataset.with_role("volume") + dataset.with_role("test"):
         purpose = "observe/volume" if model.role == "volume" else "classifier_eval"
-        cache[f"{model.class_name}/{model.id}"] = xrho_outcomes(dataset, model, config,
-                                                                classifier, purpose)
+        cache[f"{model.class_name}/{model.id}"] = xrho_outcomes(
+            dataset, model, classifier, purpose, config.seed, config.viewpoints, config.camera,
+            config.render.noise)
     render_s = time.perf_counter() - start
     print(f"{len(dataset.classes)} classes, {config.viewpoints.count} viewpoints: rendering and "
           f"classifying the volume and test models at X_rho took {render_s:.1f} s")
@@ -54,7 +55,8 @@ def main() -> None:
         volumes = {name: class_volume(dataset, views, saliency_dir, name, resolution)
                    for name in dataset.classes}
         volume_s = time.perf_counter() - start
-        result = observe(config, dataset, classifier, volumes, cache, progress=False)
+        result = observe(dataset, classifier, volumes, config.observe, config.viewpoints,
+                         config.camera, config.render.noise, config.seed, cache, progress=False)
         rows = {row["model"]: row for row in result.quality}
         ra = rows["ra"]
         results["resolutions"][resolution] = {

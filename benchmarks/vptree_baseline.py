@@ -64,7 +64,7 @@ def main() -> None:
 
     start = time.perf_counter()
     views = load_training_views(ws / "render", ws / "dataset")
-    classifier = fit_vptree(config, views, progress=False)
+    classifier = fit_vptree(views, config.vptree, config.seed, progress=False)
     fit_s = time.perf_counter() - start
     dataset = views.dataset
 

@@ -36,6 +36,7 @@ ENTRY_POINTS = {
     "rapomdp.robot.arm",
     "rapomdp.robot.ik",
     "rapomdp.robot.scene",
+    "rapomdp.robot.stage",  # ik_settings
 }
 
 

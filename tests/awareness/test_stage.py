@@ -312,3 +312,37 @@ def test_the_stage_records_the_choices_held_out_choices_makes_on_its_evidence(wo
             calibration["temperatures"][name], rel=1e-9), name
         assert chosen.declared[name].temperature == pytest.approx(
             calibration["declared_confidence"][name]["temperature"], abs=1e-9), name
+
+
+def test_observe_and_its_inputs_without_a_pipeline_configuration(workspace):
+    """observe, observe_inputs and xrho_outcomes take the sections they read: on the stage's
+    folders they give the stage's models, and rendering afresh gives its test labels."""
+    from rapomdp.awareness.observe_stage import observe, observe_inputs, xrho_outcomes
+    from rapomdp.config import CameraConfig, ObserveConfig, ViewpointsConfig
+    from rapomdp.data.dataset import load_dataset
+    from rapomdp.data.test_views import TEST_STREAM
+    from rapomdp.recognition.stage import load_stage_classifier
+
+    config = config_from_dict(TINY)
+    dataset = load_dataset(workspace.require("dataset"))
+    classifier = load_stage_classifier(config, workspace.require("train"), dataset.classes, 1)
+    viewpoints, camera = ViewpointsConfig(count=10), CameraConfig(width=64, height=48)
+    stored = load_npz(workspace.root / "observe" / "observation_models.npz")
+    inputs = workspace.inputs(get_stage("observe"))
+    result = observe_inputs(inputs, dataset, classifier, ObserveConfig(), viewpoints, camera,
+                            progress=False)
+    assert list(result.models) == stored["models"].tolist()
+    for name, model in result.models.items():
+        assert model.probabilities.shape == (10, 2, 2)
+        np.testing.assert_array_equal(model.probabilities, stored[name])
+    np.testing.assert_array_equal(result.scores, stored["scores"])
+    test = dataset.with_role("test")
+    seen = xrho_outcomes(dataset, test[0], classifier, TEST_STREAM, 0, viewpoints, camera)
+    assert seen.clean.shape == (10, 48, 64) and seen.probabilities.shape == (10, 2)
+    np.testing.assert_array_equal(seen.predicted, stored["test_predictions"][0])
+    volumes = {name: SaliencyVolume.load(workspace.root / "volume" / f"{name}.npz")
+               for name in dataset.classes}
+    fresh = observe(dataset, classifier, volumes, viewpoints=viewpoints, camera=camera,
+                    progress=False)
+    np.testing.assert_array_equal(fresh.test_predictions, stored["test_predictions"])
+    np.testing.assert_array_equal(fresh.raw_scores, stored["raw_scores"])

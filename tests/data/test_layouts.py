@@ -4,7 +4,13 @@ from pathlib import Path
 import pytest
 import trimesh
 
-from rapomdp.data.layouts import DatasetLayoutError, detect_layout, discover_models
+from rapomdp.config import DatasetConfig
+from rapomdp.data.layouts import (
+    DatasetLayoutError,
+    detect_layout,
+    discover_models,
+    folder_models,
+)
 
 
 def _write(path: Path) -> None:
@@ -63,3 +69,18 @@ def test_missing_folders_and_empty_layouts_are_named(tmp_path: Path) -> None:
     with pytest.raises(DatasetLayoutError, match="no mesh files found in the 'generic' layout"):
         discover_models(tmp_path)
     assert detect_layout(tmp_path) == "generic"
+
+
+def test_folder_models_reads_the_dataset_section_alone(tmp_path: Path) -> None:
+    for c in ("chair", "desk", "lamp"):
+        _write(tmp_path / c / "train" / f"{c}_0001.off")
+    _write(tmp_path / "lamp" / "test" / "lamp_0900.off")
+    layout, found = folder_models(DatasetConfig(source="folder", path=tmp_path))
+    assert layout == "modelnet" and list(found) == ["chair", "desk", "lamp"]
+    assert [p.name for p in found["lamp"]] == ["lamp_0001.off", "lamp_0900.off"]
+    chosen = DatasetConfig(source="folder", path=tmp_path, classes=["lamp", "chair"])
+    assert list(folder_models(chosen)[1]) == ["lamp", "chair"]
+    with pytest.raises(DatasetLayoutError, match=r"class folder\(s\) not found: sofa"):
+        folder_models(DatasetConfig(source="folder", path=tmp_path, classes=["sofa"]))
+    with pytest.raises(DatasetLayoutError, match="dataset.path is not set"):
+        folder_models(DatasetConfig())

@@ -337,3 +337,14 @@ def test_calibrated_declarations_change_what_is_reported_and_no_action(workspace
         t = 1.0 if a.method == "static" else expected[a.method]
         tempered = a.episode.beliefs ** t
         assert np.allclose(b.episode.beliefs, tempered / tempered.sum(axis=1, keepdims=True))
+
+
+def test_sweep_settings_from_the_evaluate_section_alone() -> None:
+    from rapomdp.config import EvaluateConfig
+
+    cfg = EvaluateConfig(methods=["static", "random", "ra", "learned"], lambdas=[2.0, 8.0, 2.0],
+                         random_thresholds=[0.6, 0.9], random={"belief_threshold": 0.9})
+    assert evaluation.sweep_settings(cfg, lambda_=8.0) == [
+        ("ra", "lambda", 2.0, "lambda_2"), ("learned", "lambda", 2.0, None),
+        ("random", "threshold", 0.6, None)]
+    assert evaluation.sweep_settings(EvaluateConfig(methods=["static"]), 8.0) == []

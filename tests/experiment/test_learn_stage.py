@@ -13,6 +13,7 @@ from rapomdp.data.dataset import Dataset, load_dataset
 from rapomdp.experiment.episode import Motion
 from rapomdp.experiment.episode_table import EpisodeTable
 from rapomdp.experiment.learn_stage import (
+    held_out_comparison,
     plateau_timesteps,
     recorded_scores,
     run_learn_stage,
@@ -79,7 +80,11 @@ def test_a_policy_per_lambda_loads_and_acts_within_the_mask(learned_workspace) -
     evidence = RecordedEvidence.load(out / "recorded_evidence.npz")
     models, _ = offered_observation_models(ws.require("observe"))
     motion = Motion.from_robot(load_robot(ws.require("robot")))
-    assert learned_lambdas(config_from_dict(LEARNED_TINY)) == LAMBDAS
+    config = config_from_dict(LEARNED_TINY)
+    assert learned_lambdas(config.solve.wrong_declaration_cost_m,
+                           config.evaluate.lambdas) == LAMBDAS
+    assert learned_lambdas(3.0) == [3.0]  # no sweep: Table 1's λ alone
+    assert learned_lambdas(3.0, [1.0, 3.000001, 5.0]) == [3.0, 1.0, 5.0]  # np.isclose
     for lam in LAMBDAS:
         network, spec = load_learned_policy(out, lam)
         assert (spec.lambda_, spec.max_moves, spec.revisit, spec.hidden) == (lam, 6, False,
@@ -134,6 +139,10 @@ def test_curves_and_held_out_scores_are_recorded(learned_workspace) -> None:
                                                     motion.reachable), motion, 6, config.seed,
                             "learned")
     assert again == {k: held[0][k] for k in again}
+    # the whole comparison again from the sections alone, without a pipeline configuration
+    rows = held_out_comparison(evidence, out, ws.require("observe"), motion, 8.0,
+                               config.evaluate.model_copy(), "ra", config.seed, progress=False)
+    assert rows == held
 
 
 def test_evaluate_runs_learned_in_table1_the_paired_column_and_the_sweep(

@@ -38,7 +38,7 @@ def recorded(pipeline_workspace):
     dataset = load_dataset(ws.require("dataset"))
     classifier = load_stage_classifier(config, ws.require("train"), dataset.classes, 1)
     evidence = record_evidence(dataset, load_volume_probabilities(ws.require("classifier_eval")))
-    models = belief_models(config, ws.require("observe"))
+    models = belief_models(ws.require("observe"), config.learn.observation_model)
     motion = Motion.from_robot(load_robot(ws.require("robot")))
     return ws, config, dataset, classifier, evidence, models, motion
 
@@ -71,7 +71,9 @@ def test_same_observations_beliefs_rewards_and_masks_as_the_rendering_env(record
     observations; rewards and masks agree step by step."""
     _, config, dataset, classifier, evidence, arguments, motion = recorded
     volume = dataset.with_role("volume")
-    rendering = ActiveRecognitionEnv([TestViews.of_model(config, dataset, m) for m in volume],
+    scenes = [TestViews.of_model(dataset, m, config.viewpoints, config.camera,
+                                 config.render.noise) for m in volume]
+    rendering = ActiveRecognitionEnv(scenes,
                                      [dataset.label(m) for m in volume], dataset.classes,
                                      motion, LAMBDA, max_moves=6, revisit=False)
     fast = _recorded_env(recorded)
@@ -182,3 +184,29 @@ def test_the_constructor_names_a_mismatched_model(recorded) -> None:
         RecordedRecognitionEnv(evidence, model[:, :2, :2], motion, 1.0, 3)
     with pytest.raises(ValueError, match="must be positive"):
         RecordedRecognitionEnv(evidence, model, motion, 0.0, 3)
+
+
+def test_the_training_environment_and_policy_without_a_pipeline_configuration(recorded) -> None:
+    """belief_models, recorded_environment and train_policy take the sections they read."""
+    from rapomdp.config import EvaluateConfig, LearnConfig
+    from rapomdp.experiment.learn_stage import recorded_environment, train_policy
+    from rapomdp.workspace import StageError
+
+    ws, config, _, _, evidence, belief, motion = recorded
+    models = belief_models(ws.require("observe"))  # RA-POMDP's, learn.observation_model's default
+    assert list(models) == ["observation_model"]
+    np.testing.assert_array_equal(models["observation_model"], belief["observation_model"])
+    assert models["observation_model"].shape == (config.viewpoints.count, 3, 3)
+    with pytest.raises(StageError, match="learn.observation_model is 'nope'"):
+        belief_models(ws.require("observe"), "nope")
+    env = recorded_environment(evidence, models, motion, LAMBDA,
+                               EvaluateConfig(max_moves=4, revisit=False), seed=0)
+    assert (env.max_moves, env.revisit, env.lambda_) == (4, False, LAMBDA)
+    assert recorded_environment(evidence, models, motion, 1.0).max_moves == \
+        EvaluateConfig().max_moves
+    learn = LearnConfig(timesteps=64, envs=2, rollout_steps=32, batch_size=32, epochs=1,
+                        hidden=[8])
+    network, spec, rows = train_policy(evidence, ws.require("observe"), motion, LAMBDA, 0,
+                                       learn, EvaluateConfig(max_moves=4))
+    assert (spec.lambda_, spec.max_moves, spec.hidden) == (LAMBDA, 4, (8,))
+    assert [row["update"] for row in rows] == [1] and rows[0]["timesteps"] == 64

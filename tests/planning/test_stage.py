@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from rapomdp.config import config_from_dict
+from rapomdp.config import SolveConfig, config_from_dict
 from rapomdp.geometry.viewsphere import geodesic_distance_matrix, viewpoints
 from rapomdp.io import read_json, save_npz
 from rapomdp.planning.cli import pomdp_app
 from rapomdp.planning.policy import ActiveRecognitionPolicy
-from rapomdp.planning.stage import run_solve_stage, workspace_problem
+from rapomdp.planning.stage import run_solve_stage, workspace_arrays, workspace_problem
 from rapomdp.workspace import Stage, StageError, StageInputs, Workspace
 from tests.conftest import TEST_CONTEXT
 
@@ -89,35 +89,45 @@ def test_solve_stage_errors_name_the_model_and_the_mismatch(workspace: Workspace
     cfg = config_from_dict({"solve": {"models": ["ra", "blackbox"]}})
     with pytest.raises(StageError, match="solve.models names blackbox; the workspace offers "
                                          "ra, classifier, vptree$"):
-        workspace_problem(cfg, observe, robot, "ra", vptree)
+        workspace_problem(observe, robot, "ra", vptree, cfg.solve)
     with pytest.raises(StageError, match="names vptree; the workspace offers ra, classifier "
                                          r"\(the vptree stage makes 'vptree'"):
-        workspace_problem(config_from_dict({}), observe, robot, "ra")
+        workspace_problem(observe, robot, "ra", solve=config_from_dict({}).solve)
     everything = config_from_dict({"solve": {"models": None}})
-    assert workspace_problem(everything, observe, robot, "vptree", vptree).class_names == [
+    assert workspace_problem(observe, robot, "vptree", vptree, everything.solve).class_names == [
         "cup", "mug", "bottle"]
     save_npz(vptree / "observation_model.npz", classes=np.array(["cup", "bottle", "mug"]),
              vptree=_observation_model(2))
     with pytest.raises(StageError, match=r"observation_model\.npz: the VP-tree's classes "
                                          r"\['cup', 'bottle', 'mug'\] differ"):
-        workspace_problem(everything, observe, robot, "ra", vptree)
+        workspace_problem(observe, robot, "ra", vptree, everything.solve)
     save_npz(vptree / "observation_model.npz", classes=np.array(["cup", "mug", "bottle"]),
              vptree=_observation_model(2)[:4])
     with pytest.raises(StageError, match="the VP-tree model covers 4 viewpoints, the observe "
                                          "stage's 10"):
-        workspace_problem(everything, observe, robot, "ra", vptree)
+        workspace_problem(observe, robot, "ra", vptree, everything.solve)
     save_npz(robot / "robot.npz", energy=np.zeros((4, 4)),
              reachable=np.ones(4, dtype=bool), distance_m=np.zeros((4, 4)))
     with pytest.raises(StageError, match="covers 10 viewpoints, the robot stage 4"):
-        workspace_problem(everything, observe, robot, "ra")
+        workspace_problem(observe, robot, "ra", solve=everything.solve)
 
 
 def test_workspace_problem_uses_the_robot_and_solve_section(workspace: Workspace) -> None:
     cfg = config_from_dict({"solve": {"wrong_declaration_cost_m": 4.0}})
-    problem = workspace_problem(cfg, workspace.stage_dir("observe"),
-                                workspace.stage_dir("robot"), "classifier",
-                                workspace.stage_dir("vptree"))
+    problem = workspace_problem(workspace.stage_dir("observe"), workspace.stage_dir("robot"),
+                                "classifier", workspace.stage_dir("vptree"), cfg.solve)
     assert problem.lambda_ == 4.0
+    # the section alone, without a pipeline configuration, builds the same problem
+    alone = workspace_problem(workspace.stage_dir("observe"), workspace.stage_dir("robot"),
+                              "classifier", workspace.stage_dir("vptree"),
+                              SolveConfig(wrong_declaration_cost_m=4.0))
+    np.testing.assert_array_equal(alone.move_energy, problem.move_energy)
+    assert alone.lambda_ == 4.0 and alone.discount == problem.discount == 0.95
+    models, energy, reachable, classes = workspace_arrays(
+        workspace.stage_dir("observe"), workspace.stage_dir("robot"), models=["classifier"])
+    assert list(models) == ["classifier"] and classes == ["cup", "mug", "bottle"]
+    assert models["classifier"].shape == (reachable.size, 3, 3) == (10, 3, 3)
+    assert energy.shape == (10, 10)
     assert problem.class_names == ["cup", "mug", "bottle"]
     assert UNREACHABLE not in problem.targets
     assert np.all(np.isfinite(problem.move_energy))

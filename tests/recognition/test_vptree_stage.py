@@ -13,6 +13,7 @@ from rapomdp.config import VPTreeConfig
 from rapomdp.data.dataset import load_dataset
 from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import TEST_STREAM, load_xrho_views, xrho_renders
+from rapomdp.data.training_views import load_training_views
 from rapomdp.geometry.viewsphere import fibonacci_directions
 from rapomdp.io import load_npz, read_json
 from rapomdp.pipeline import run_pipeline
@@ -26,6 +27,7 @@ from rapomdp.recognition.belief import (
 )
 from rapomdp.recognition.evaluation import viewpoint_confusion
 from rapomdp.recognition.vptree_stage import (
+    fit_vptree,
     load_workspace_vptree,
     vptree_observation,
     xrho_predictions,
@@ -53,6 +55,13 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     assert set(summary["seconds"]) >= {"fit", "observation_model", "test", "total"}
     classifier = load_workspace_vptree(stage)
     assert classifier.classes == classes and classifier.tree.leaves == 16
+    # fitted again from its section and the seed alone, without a pipeline configuration
+    views = load_training_views(workspace.root / "render", workspace.root / "dataset")
+    again = fit_vptree(views, VPTreeConfig(branching=4, levels=2), seed=3, progress=False)
+    assert again.classes == classes and again.tree.leaves == 16 and again.labels.size == 54
+    assert again.fit_descriptors == summary["descriptors_fit"]
+    sample = views.load(views.dataset.with_role("train")[0])[0]
+    np.testing.assert_array_equal(again.predict(sample), classifier.predict(sample))
     # the models at X_rho over two worker processes: the labels of one process
     dataset = load_dataset(workspace.root / "dataset")
     models = dataset.with_role("test") + dataset.with_role("volume")
@@ -62,7 +71,9 @@ def test_vptree_stage_writes_a_normalised_observation_model(tmp_path: Path) -> N
     assert alone[1].shape == (len(models), 16)
     assert all(np.array_equal(a, b) for a, b in zip(alone, shared, strict=True))
     # the stored images are the ones each model's own noise stream renders
-    rendered = classifier.predict(xrho_renders(dataset, models[0], config, TEST_STREAM)[1])
+    rendered = classifier.predict(xrho_renders(dataset, models[0], TEST_STREAM, config.seed,
+                                               config.viewpoints, config.camera,
+                                               config.render.noise)[1])
     assert np.array_equal(alone[1][0], rendered.argmax(axis=1))
     # one volume model per class at 16 viewpoints and pseudo-count a: n(c, x) = 1, so each
     # row is (1 + a) / (1 + 3a) on the label seen and a / (1 + 3a) elsewhere

@@ -64,4 +64,4 @@ def arm(config: Config) -> CameraArm:
 def solved(config: Config):
     from rapomdp.robot.stage import solve_robot
 
-    return solve_robot(config)
+    return solve_robot(config.robot, config.viewpoints, config.seed, progress=False)

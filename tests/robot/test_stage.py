@@ -7,11 +7,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rapomdp.config import Config, ConfigError, config_from_dict
+from rapomdp.config import Config, ConfigError, RobotConfig, ViewpointsConfig, config_from_dict
+from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
 from rapomdp.io import read_json
 from rapomdp.robot.artefacts import ROBOT_ARRAYS, ROBOT_FIGURE, ROBOT_SUMMARY, describe, load_robot
 from rapomdp.robot.energy import movement_energy
-from rapomdp.robot.stage import UnreachableError, run_robot_stage, solve_robot
+from rapomdp.robot.stage import (
+    UnreachableError,
+    ik_settings,
+    plot_result,
+    run_robot_stage,
+    solve_robot,
+)
 from rapomdp.workspace import StageError, StageInputs
 from tests.conftest import TEST_CONTEXT
 
@@ -51,10 +58,36 @@ def test_solved_default_scene(solved) -> None:
     assert solved.summary["manipulability"]["max"] == pytest.approx(m.max())
 
 
+def test_ik_settings_read_the_robot_section_alone() -> None:
+    settings = ik_settings(RobotConfig(restarts=2, angle_tolerance_deg=2.0,
+                                       floor_clearance_m=None), seed=7)
+    assert settings.restarts == 2 and settings.seed == 7 and settings.floor_clearance_m is None
+    assert settings.angle_tolerance_rad == pytest.approx(np.pi / 90)
+    assert ik_settings(RobotConfig()).seed == 0 and ik_settings(RobotConfig()).roll_samples == 8
+
+
+def test_solve_robot_and_its_figure_without_a_pipeline_configuration(tmp_path: Path) -> None:
+    result = solve_robot(RobotConfig(), ViewpointsConfig(count=8, radius_m=0.5), progress=False)
+    assert result.summary["viewpoints"] == 8 and result.summary["radius_m"] == 0.5
+    assert result.reachable.tolist() == [True, True, True, False, True, False, True, True]
+    assert result.summary["unreachable_indices"] == [3, 5]
+    assert result.summary["centroid_in_base_m"] == [0.4, 0.0, 0.0]
+    np.testing.assert_array_equal(result.directions, fibonacci_directions(8, hemisphere=True))
+    np.testing.assert_array_equal(result.distance_m,
+                                  geodesic_distance_matrix(result.directions, 0.5))
+    assert np.all(np.diag(result.energy) == 0) and np.isinf(np.delete(result.energy[:, 3], 3)).all()
+    # the same section and seed give what the stage computes from a whole configuration
+    config = Config(viewpoints={"count": 8, "radius_m": 0.5})
+    staged = solve_robot(config.robot, config.viewpoints, config.seed, progress=False)
+    np.testing.assert_array_equal(staged.energy, result.energy)
+    plot_result(result, RobotConfig(), tmp_path / "robot.png", arms=2)
+    assert (tmp_path / "robot.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_no_reachable_viewpoint_is_a_clear_error() -> None:
     config = Config(robot={"base_xyz_m": (5.0, 0.0, 0.0)})
     with pytest.raises(UnreachableError, match=r"none of the 128 viewpoints.*base_xyz_m"):
-        solve_robot(config)
+        solve_robot(config.robot, config.viewpoints, config.seed, progress=False)
     assert issubclass(UnreachableError, StageError)
 
 

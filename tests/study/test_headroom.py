@@ -127,9 +127,11 @@ def test_the_in_sample_oracle_counts_the_test_renders_labels(headroom_run) -> No
     classifier = load_stage_classifier(config, ws.require("train"), dataset.classes, 1)
     rng = np.random.default_rng(0)  # noise is off: the renders draw nothing
     labels = np.array([dataset.label(m) for m in test])
+    scenes = [TestViews.of_model(dataset, m, config.viewpoints, config.camera,
+                                 config.render.noise) for m in test]
     predicted = np.stack([
-        [int(classifier.predict(TestViews.of_model(config, dataset, m).look(v, rng)[None])
-             .argmax()) for v in range(config.viewpoints.count)] for m in test])
+        [int(classifier.predict(scene.look(v, rng)[None]).argmax())
+         for v in range(config.viewpoints.count)] for scene in scenes])
     assert np.array_equal(result.labels, labels)
     assert np.array_equal(result.predicted, predicted)
     expected = _count(labels, predicted, len(dataset.classes),

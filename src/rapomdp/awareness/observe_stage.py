@@ -58,7 +58,7 @@ from rapomdp.awareness.transfer import (
 )
 from rapomdp.awareness.visibility import visibility_from_depth
 from rapomdp.awareness.volume import SaliencyVolume
-from rapomdp.config import Config
+from rapomdp.config import CameraConfig, Config, NoiseConfig, ObserveConfig, ViewpointsConfig
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, class_ranks, load_dataset
 from rapomdp.data.test_views import (
@@ -97,22 +97,27 @@ class XrhoOutcomes:
     probabilities: np.ndarray | None = None  # (V, C) the classifier's output
 
 
-def xrho_outcomes(dataset: Dataset, model: ModelEntry, config: Config, classifier: Classifier,
-                  purpose: str) -> XrhoOutcomes:
+def xrho_outcomes(dataset: Dataset, model: ModelEntry, classifier: Classifier, purpose: str,
+                  seed: int = 0, viewpoints: ViewpointsConfig | None = None,
+                  camera: CameraConfig | None = None,
+                  noise: NoiseConfig | None = None) -> XrhoOutcomes:
     """One model rendered at every test viewpoint X_rho and classified.
 
     Args:
-        dataset: the dataset.
-        model: the model.
-        config: the run's configuration (camera, viewpoints, sensor noise, seed).
-        classifier: the trained classifier.
-        purpose: the noise stream (``VOLUME_STREAM``, ``TEST_STREAM``).
+        dataset: The dataset ``model`` belongs to.
+        model: The model.
+        classifier: The trained classifier (any with ``predict(depth (N, H, W)) -> (N, C)``).
+        purpose: The noise stream (``VOLUME_STREAM``, ``TEST_STREAM``).
+        seed: The configuration's ``seed`` (keys the noise stream).
+        viewpoints: The ``viewpoints`` section (None: the defaults).
+        camera: The ``camera`` section (None: the defaults).
+        noise: The ``render.noise`` section (None: off).
 
     Returns:
         The clean depth images (V, H, W) in metres, the camera poses (V, 4, 4), the labels
-        (V,) and the classifier's output (V, C).
+        (V,) and the classifier's output (V, C) float32.
     """
-    clean, sensed, poses = xrho_renders(dataset, model, config, purpose)
+    clean, sensed, poses = xrho_renders(dataset, model, purpose, seed, viewpoints, camera, noise)
     probabilities = classifier.predict(sensed)
     return XrhoOutcomes(clean, poses, probabilities.argmax(axis=1),
                         probabilities.astype(np.float32))
@@ -198,43 +203,54 @@ class Observation:
         return self.models
 
 
-def observe(config: Config, dataset: Dataset, classifier: Classifier,
-            volumes: dict[str, SaliencyVolume],
-            cache: dict[str, XrhoOutcomes] | None = None, progress: bool = True,
+def observe(dataset: Dataset, classifier: Classifier, volumes: dict[str, SaliencyVolume],
+            cfg: ObserveConfig | None = None, viewpoints: ViewpointsConfig | None = None,
+            camera: CameraConfig | None = None, noise: NoiseConfig | None = None,
+            seed: int = 0, cache: dict[str, XrhoOutcomes] | None = None, progress: bool = True,
             source: Callable[[ModelEntry, str], XrhoOutcomes] | None = None) -> Observation:
     """Viewpoint scores, observation models fitted on the volume models' held-out evidence,
     and their quality on the test models.
 
     Args:
-        config: the run's configuration (``observe``, ``viewpoints``, ``camera``, ``seed``).
-        dataset: the dataset (its volume and test models are read).
-        classifier: the trained classifier (labels the renders when ``source`` is None).
-        volumes: each class's saliency volume, by class name.
+        dataset: The dataset (its volume and test models are read).
+        classifier: The trained classifier (labels the renders when ``source`` is None).
+        volumes: Each class's saliency volume, by class name.
+        cfg: The ``observe`` section: the calibration, pseudo-counts and RA-POMDP's model
+            (None: the defaults).
+        viewpoints: The ``viewpoints`` section: X_rho's count V and radius in metres (None:
+            the defaults).
+        camera: The ``camera`` section: the depth images' size (None: the defaults).
+        noise: The ``render.noise`` section of the renders when ``source`` is None (None: off).
+        seed: The configuration's ``seed`` (the noise streams, the held-out walks).
         cache: "class/model id" -> :class:`XrhoOutcomes`: lets callers that try several
             volumes (the voxel-resolution sweep) render and classify each model at X_rho once.
-        progress: show progress bars.
+        progress: Show progress bars.
         source: (model, noise stream) -> its outcomes, read instead of rendering and
             classifying (the stage reads the xrho and classifier_eval stages' artefacts).
 
     Returns:
-        The stage's :class:`Observation`.
+        The stage's :class:`Observation`: each model (V, C, C) = P(o | class, viewpoint), the
+        scores (C, V), the held-out evidence and the quality rows.
     """
     cache = {} if cache is None else cache
     classes = dataset.classes
-    intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
-    cfg = config.observe
+    cfg = ObserveConfig() if cfg is None else cfg
+    viewpoints = ViewpointsConfig() if viewpoints is None else viewpoints
+    camera = CameraConfig() if camera is None else camera
+    intrinsics = xtion_intrinsics(camera.width, camera.height)
     start = time.perf_counter()
 
     def outcomes(model: ModelEntry, purpose: str) -> XrhoOutcomes:
         key = f"{model.class_name}/{model.id}"
         if key not in cache:
             cache[key] = (source(model, purpose) if source is not None
-                          else xrho_outcomes(dataset, model, config, classifier, purpose))
+                          else xrho_outcomes(dataset, model, classifier, purpose, seed,
+                                             viewpoints, camera, noise))
         return cache[key]
 
-    raw = np.zeros((len(classes), config.viewpoints.count))
+    raw = np.zeros((len(classes), viewpoints.count))
     area = np.zeros_like(raw)
-    similarity = np.zeros((len(classes), config.viewpoints.count, config.viewpoints.count))
+    similarity = np.zeros((len(classes), viewpoints.count, viewpoints.count))
     vol_labels, vol_pred, vol_probabilities = [], [], []
     vol_models: list[ModelEntry] = []
     for c, class_name in enumerate(track(classes, "observe: volume models at X_rho", progress,
@@ -267,8 +283,8 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
     evidence = Evidence(labels, predicted, np.asarray(class_ranks(vol_models), dtype=np.int64))
     scores_s = time.perf_counter() - start
     # RA-POMDP's model and the belief's temperature: chosen / fitted on held-out groups
-    directions = fibonacci_directions(config.viewpoints.count, hemisphere=True)
-    chosen = held_out_choices(evidence, scores, classes, cfg, directions, config.seed)
+    directions = fibonacci_directions(viewpoints.count, hemisphere=True)
+    chosen = held_out_choices(evidence, scores, classes, cfg, directions, seed)
     models: dict[str, ObservationModel] = {
         name: ObservationModel(temper(m.probabilities, chosen.temperatures[name]), classes)
         for name, m in chosen.single_view.items()}
@@ -290,24 +306,30 @@ def observe(config: Config, dataset: Dataset, classifier: Classifier,
         chosen.declared, chosen.belief_folds)
 
 
-def observe_inputs(config: Config, inputs: StageInputs, dataset: Dataset,
-                   threads: int | None = None, progress: bool = True) -> Observation:
-    """:func:`observe` on a workspace's stage folders (what the observe stage computes).
+def observe_inputs(inputs: StageInputs, dataset: Dataset, classifier: Classifier,
+                   cfg: ObserveConfig | None = None, viewpoints: ViewpointsConfig | None = None,
+                   camera: CameraConfig | None = None, seed: int = 0,
+                   progress: bool = True) -> Observation:
+    """:func:`observe` on a workspace's stage folders (what the observe stage computes): the
+    volume stage's volumes and the xrho and classifier_eval stages' outcomes at X_rho.
 
     Args:
-        config: the run's configuration.
-        inputs: the stage folders (``train``, ``volume``, ``xrho``, ``classifier_eval``).
-        dataset: the workspace's dataset.
-        threads: torch threads of the classifier (None: torch's default).
-        progress: show progress bars.
+        inputs: The stage folders (``volume``, ``xrho``, ``classifier_eval``).
+        dataset: The workspace's dataset.
+        classifier: The train stage's classifier.
+        cfg: The ``observe`` section (None: the defaults).
+        viewpoints: The ``viewpoints`` section the xrho stage rendered (None: the defaults).
+        camera: The ``camera`` section the xrho stage rendered (None: the defaults).
+        seed: The configuration's ``seed``.
+        progress: Show progress bars.
 
     Returns:
         The stage's :class:`Observation`.
     """
-    classifier = load_stage_classifier(config, inputs.train, dataset.classes, threads)
     volumes = {name: SaliencyVolume.load(inputs.volume / volume_file(name))
                for name in dataset.classes}
-    return observe(config, dataset, classifier, volumes, progress=progress,
+    return observe(dataset, classifier, volumes, cfg, viewpoints, camera, seed=seed,
+                   progress=progress,
                    source=stored_outcomes(inputs.xrho, inputs.classifier_eval, dataset))
 
 
@@ -327,7 +349,9 @@ def run_observe_stage(config: Config, inputs: StageInputs, out: Path,
     from rapomdp.awareness.figures import calibration_figure, calibration_score
 
     dataset = load_dataset(inputs.dataset)
-    result = observe_inputs(config, inputs, dataset, context.threads, context.progress)
+    classifier = load_stage_classifier(config, inputs.train, dataset.classes, context.threads)
+    result = observe_inputs(inputs, dataset, classifier, config.observe, config.viewpoints,
+                            config.camera, config.seed, context.progress)
     write_quality(result.quality, out / QUALITY_CSV, out / QUALITY_MD)
     if result.validation:
         write_quality(result.validation, out / VALIDATION_CSV, out / VALIDATION_MD)

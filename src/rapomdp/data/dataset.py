@@ -215,7 +215,7 @@ def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
         candidates = {c: list(range(per_class)) for c in classes}
         layout, up_axis = "procedural", "z"
     else:
-        layout, candidates = folder_models(config)
+        layout, candidates = folder_models(cfg)
         up_axis = LAYOUT_UP_AXIS[layout] if cfg.up_axis == "auto" else cfg.up_axis
 
     drawn = split_models(candidates, counts, config.seed, cfg.too_few_models,

@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from rapomdp.config import Config
+from rapomdp.config import Config, DatasetConfig
 from rapomdp.io import ArtefactError, check_plain_name, fingerprint_files, read_text
 
 LAYOUT_UP_AXIS = {"generic": "z", "objectnet3d": "y", "modelnet": "z", "shapenet": "y"}
@@ -150,11 +150,35 @@ def discover_models(
     return layout, dict(sorted(found.items()))
 
 
-def folder_models(config: Config) -> tuple[str, dict[str, list[Path]]]:
-    """The layout and, per class, the mesh files of ``dataset.source: folder`` (only
-    ``dataset.classes`` when given; a class named there but not found is an error)."""
-    cfg = config.dataset
-    assert cfg.path is not None
+def folder_models(cfg: DatasetConfig) -> tuple[str, dict[str, list[Path]]]:
+    """The layout and, per class, the mesh files of a mesh folder (``dataset.source: folder``).
+
+    Args:
+        cfg: The ``dataset`` section: its ``path``, ``layout`` (``auto``: detected),
+            ``synset_map`` and ``classes`` (only those, in that order, when given).
+
+    Returns:
+        The layout used and, per class, the sorted mesh files.
+
+    Raises:
+        DatasetLayoutError: No ``path``, a folder that does not match its layout, or a class
+            named in ``classes`` but not found.
+
+    Example:
+        >>> import tempfile
+        >>> from rapomdp.config import DatasetConfig
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> for name in ("bowl", "cup", "mug"):
+        ...     (Path(tmp.name) / name).mkdir()
+        ...     _ = (Path(tmp.name) / name / "a.obj").write_text("v 0 0 0\\n")
+        >>> cfg = DatasetConfig(source="folder", path=tmp.name, classes=["mug", "cup"])
+        >>> layout, found = folder_models(cfg)
+        >>> layout, {name: [p.name for p in files] for name, files in found.items()}
+        ('generic', {'mug': ['a.obj'], 'cup': ['a.obj']})
+        >>> tmp.cleanup()
+    """
+    if cfg.path is None:
+        raise DatasetLayoutError("dataset.path is not set: the mesh folder to read")
     layout, found = discover_models(cfg.path, cfg.layout, cfg.synset_map)
     if cfg.classes is not None:
         missing = [c for c in cfg.classes if c not in found]
@@ -171,5 +195,5 @@ def dataset_fingerprint(config: Config) -> str:
     """What the stage reads from outside the config: the mesh files, or the generator's version."""
     if config.dataset.source == "procedural":
         return f"procedural-{PROCEDURAL_VERSION}"
-    _, found = folder_models(config)
+    _, found = folder_models(config.dataset)
     return fingerprint_files([p for paths in found.values() for p in paths])

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rapomdp.config import Config, NoiseConfig
+from rapomdp.config import CameraConfig, Config, NoiseConfig, ViewpointsConfig
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.renderer import DepthRenderer
@@ -57,14 +57,29 @@ class TestViews:
     noise: NoiseConfig
 
     @classmethod
-    def of_model(cls, config: Config, dataset: Dataset, model: ModelEntry) -> TestViews:
-        """A dataset model seen from X_rho (``config.viewpoints``) by the configured camera,
-        with the configured sensor noise (``config.render.noise``)."""
-        intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
-        vp = config.viewpoints
+    def of_model(cls, dataset: Dataset, model: ModelEntry,
+                 viewpoints: ViewpointsConfig | None = None, camera: CameraConfig | None = None,
+                 noise: NoiseConfig | None = None) -> TestViews:
+        """A dataset model seen from X_rho by the camera, with the sensor noise.
+
+        Args:
+            dataset: The dataset ``model`` belongs to (its mesh is read).
+            model: The model, placed at the workspace centre.
+            viewpoints: The ``viewpoints`` section: X_rho's count V and radius in metres
+                (None: the defaults).
+            camera: The ``camera`` section: the depth image's width and height in pixels
+                (None: the defaults).
+            noise: The ``render.noise`` section: the sensor noise (None: off).
+
+        Returns:
+            The model's :class:`TestViews`: ``poses`` (V, 4, 4) camera-to-world in metres.
+        """
+        viewpoints = ViewpointsConfig() if viewpoints is None else viewpoints
+        camera = CameraConfig() if camera is None else camera
+        intrinsics = xtion_intrinsics(camera.width, camera.height)
         return cls(DepthRenderer(dataset.mesh(model), intrinsics),
-                   model_poses(model, vp.count, vp.radius_m, hemisphere=True),
-                   config.render.noise)
+                   model_poses(model, viewpoints.count, viewpoints.radius_m, hemisphere=True),
+                   NoiseConfig() if noise is None else noise)
 
     def look(self, viewpoint: int, rng: np.random.Generator) -> np.ndarray:
         """The sensor's depth image (H, W) in metres from ``viewpoint``."""
@@ -81,12 +96,27 @@ class TestViews:
         return clean, (self.sensed(rng) if self.noise.enabled else clean)
 
 
-def xrho_renders(dataset: Dataset, model: ModelEntry, config: Config,
-                 purpose: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Clean depth, sensor depth (noise when enabled) and poses of a model at X_rho, the noise
-    drawn from ``purpose``'s stream (:data:`VOLUME_STREAM` or :data:`TEST_STREAM`)."""
-    views = TestViews.of_model(config, dataset, model)
-    clean, sensed = views.render_all(xrho_noise_rng(config.seed, purpose, model))
+def xrho_renders(dataset: Dataset, model: ModelEntry, purpose: str, seed: int = 0,
+                 viewpoints: ViewpointsConfig | None = None, camera: CameraConfig | None = None,
+                 noise: NoiseConfig | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A model rendered at every test viewpoint X_rho, the sensor noise (when on) drawn from
+    ``purpose``'s stream (:func:`xrho_noise_rng`).
+
+    Args:
+        dataset: The dataset ``model`` belongs to.
+        model: The model.
+        purpose: The noise stream (:data:`VOLUME_STREAM` or :data:`TEST_STREAM`).
+        seed: The configuration's ``seed`` (keys the noise stream).
+        viewpoints: The ``viewpoints`` section (None: the defaults).
+        camera: The ``camera`` section (None: the defaults).
+        noise: The ``render.noise`` section (None: off).
+
+    Returns:
+        The clean depth (V, H, W) in metres, the sensor's depth (V, H, W) in metres (the same
+        array when the noise is off) and the camera poses (V, 4, 4) camera-to-world.
+    """
+    views = TestViews.of_model(dataset, model, viewpoints, camera, noise)
+    clean, sensed = views.render_all(xrho_noise_rng(seed, purpose, model))
     return clean, sensed, views.poses
 
 
@@ -94,10 +124,13 @@ def _view_file(root: Path, model: ModelEntry) -> Path:
     return root / "views" / model.class_name / f"{model.id}.npz"
 
 
-def _render_xrho_model(dataset: Dataset, model: ModelEntry, config: Config, out: Path) -> None:
+def _render_xrho_model(dataset: Dataset, model: ModelEntry, seed: int,
+                       viewpoints: ViewpointsConfig, camera: CameraConfig, noise: NoiseConfig,
+                       out: Path) -> None:
     """One model's renders at X_rho, written to ``out`` (a task of the xrho stage)."""
-    clean, sensed, poses = xrho_renders(dataset, model, config, ROLE_STREAMS[model.role])
-    extra = {"clean": clean} if config.render.noise.enabled else {}
+    clean, sensed, poses = xrho_renders(dataset, model, ROLE_STREAMS[model.role], seed,
+                                        viewpoints, camera, noise)
+    extra = {"clean": clean} if noise.enabled else {}
     save_npz(_view_file(out, model), compressed=True, depth=sensed, poses=poses, **extra)
 
 
@@ -106,7 +139,9 @@ def run_xrho_stage(config: Config, inputs: StageInputs, out: Path, context: RunC
     processes (each model's noise has its own stream: the images do not depend on them)."""
     dataset = load_dataset(inputs.dataset)
     models = [m for m in dataset.models if m.role in ROLE_STREAMS]
-    run_tasks(_render_xrho_model, [(dataset, m, config, out) for m in models],
+    run_tasks(_render_xrho_model,
+              [(dataset, m, config.seed, config.viewpoints, config.camera, config.render.noise,
+                out) for m in models],
               context.worker_count, "xrho: the volume and test models at X_rho",
               context.progress, context.scheduler, unit="models", pool=context.pool)
     vp = config.viewpoints

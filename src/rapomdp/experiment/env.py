@@ -175,7 +175,8 @@ class ActiveRecognitionEnv(gymnasium.Env):
                              f"{robot['reachable'].size} viewpoints, {ws.config_path} "
                              f"viewpoints.count is {vp.count}")
         models = dataset.with_role("test")
-        scenes = [TestViews.of_model(config, dataset, m) for m in models]
+        scenes = [TestViews.of_model(dataset, m, vp, config.camera, config.render.noise)
+                  for m in models]
         motion = Motion.from_robot(robot)
         return cls(scenes, [dataset.label(m) for m in models], dataset.classes, motion,
                    config.solve.wrong_declaration_cost_m, max_moves=max_moves, seed=seed,

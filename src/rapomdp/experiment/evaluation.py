@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rapomdp.awareness.artefacts import load_softmax_temperature
-from rapomdp.config import METHOD_NAMES, Config
+from rapomdp.config import METHOD_NAMES, Config, EvaluateConfig
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
 from rapomdp.data.splits import class_seed
@@ -197,7 +197,8 @@ class ClosedLoop:
         methods = {key: method(key, cfg.random.belief_threshold, inputs.solve)
                    for key in cfg.methods}
         if sweep_dir is not None:  # the accuracy-energy sweep's settings, run alongside
-            for key, parameter, value, folder in sweep_settings(config):
+            extra = sweep_settings(cfg, config.solve.wrong_declaration_cost_m)
+            for key, parameter, value, folder in extra:
                 threshold = value if parameter == "threshold" else cfg.random.belief_threshold
                 lam = value if parameter == "lambda" else config.solve.wrong_declaration_cost_m
                 solve_dir = sweep_dir / folder if folder else inputs.solve
@@ -220,7 +221,8 @@ class ClosedLoop:
         return cls(config, dataset, recognisers, methods, motion, stored)
 
     def scene(self, model: ModelEntry) -> TestViews:
-        return TestViews.of_model(self.config, self.dataset, model)
+        return TestViews.of_model(self.dataset, model, self.config.viewpoints,
+                                  self.config.camera, self.config.render.noise)
 
     def run_model(self, model: ModelEntry) -> list[EpisodeRecord]:
         """Every start x method episode of one test model."""
@@ -276,7 +278,9 @@ def run_episodes(config: Config, inputs: StageInputs,
     dataset = load_dataset(inputs.dataset)
     models = dataset.with_role("test")
     per_model = config.evaluate.starts_per_model * (
-        len(config.evaluate.methods) + (len(sweep_settings(config)) if sweep_dir else 0))
+        len(config.evaluate.methods)
+        + (len(sweep_settings(config.evaluate, config.solve.wrong_declaration_cost_m))
+           if sweep_dir else 0))
     # On a Dask cluster every test model is a task of its own (the cluster spreads them).
     count = len(models) if context.uses_cluster else min(context.worker_count, len(models))
     if count <= 1 and not context.uses_cluster:
@@ -299,19 +303,34 @@ def run_episodes(config: Config, inputs: StageInputs,
     return [r for records in per_model_records for r in records], dataset
 
 
-def sweep_settings(config: Config) -> list[tuple[str, str, float, str | None]]:
-    """The accuracy-energy sweep's extra settings: (method, parameter, value, λ folder) for
-    every POMDP method at every extra λ (the learned baseline too, with no solve folder: the
-    learn stage trained it there) and Random at every extra stop belief.
+def sweep_settings(cfg: EvaluateConfig, lambda_: float
+                   ) -> list[tuple[str, str, float, str | None]]:
+    """The accuracy-energy sweep's extra settings: every POMDP method at every extra λ (the
+    learned baseline too, with no solve folder: the learn stage trained it there) and Random
+    at every extra stop belief.
 
-    Table 1's own settings (``solve.wrong_declaration_cost_m``, ``random.belief_threshold``)
-    are not repeated: the main episodes are their points.
+    Table 1's own settings (``lambda_``, ``random.belief_threshold``) are not repeated: the
+    main episodes are their points.
+
+    Args:
+        cfg: The ``evaluate`` section: its ``methods``, ``lambdas``, ``random_thresholds`` and
+            Random's ``belief_threshold``.
+        lambda_: Table 1's λ in metres (``solve.wrong_declaration_cost_m``).
+
+    Returns:
+        (method, parameter, value, λ folder or None) per extra setting.
+
+    Example:
+        >>> from rapomdp.config import EvaluateConfig
+        >>> cfg = EvaluateConfig(methods=["ra", "random"], lambdas=[1.0, 3.0],
+        ...                      random_thresholds=[0.5, 0.9])
+        >>> sweep_settings(cfg, lambda_=3.0)
+        [('ra', 'lambda', 1.0, 'lambda_1'), ('random', 'threshold', 0.5, None)]
     """
-    cfg = config.evaluate
     pomdp = [m for m in cfg.methods if m not in NOT_POMDP]
     out: list[tuple[str, str, float, str | None]] = []
     for lam in dict.fromkeys(cfg.lambdas):
-        if not np.isclose(lam, config.solve.wrong_declaration_cost_m):
+        if not np.isclose(lam, lambda_):
             out += [(m, "lambda", float(lam), f"lambda_{lam:g}") for m in pomdp]
             if LEARNED in cfg.methods:  # trained at every λ by the learn stage, not solved
                 out.append((LEARNED, "lambda", float(lam), None))
@@ -341,15 +360,15 @@ def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
     from rapomdp.planning.workspace import solve_problem_sets
 
     folders: dict[str, tuple[float, list[str]]] = {}
-    for method, _, value, folder in sweep_settings(config):
+    lambda_ = config.solve.wrong_declaration_cost_m
+    for method, _, value, folder in sweep_settings(config.evaluate, lambda_):
         if folder is not None:
             folders.setdefault(folder, (value, []))[1].append(method)
     if not folders:
         return
-    variant = config.model_copy(deep=True)
-    variant.solve.models = list(dict.fromkeys(m for _, ms in folders.values() for m in ms))
     models, energy, reachable, classes = workspace_arrays(
-        variant, inputs.observe, inputs.robot, inputs.vptree_dir)
+        inputs.observe, inputs.robot, inputs.vptree_dir,
+        list(dict.fromkeys(m for _, ms in folders.values() for m in ms)))
     rows = (load_solve_summary(inputs.solve) if (inputs.solve / SOLVE_SUMMARY).is_file()
             else {})
     gap = {name: float(row["upper"]) - float(row["lower"]) for name, row in rows.items()
@@ -366,13 +385,24 @@ def solve_sweep(config: Config, inputs: StageInputs, sweep_dir: Path,
         description=f"evaluate: λ sweep ({sweep_lambdas} m)", pool=context.pool)
 
 
-def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[EpisodeRecord],
-                    dataset: Dataset) -> list[TradeoffPoint]:
+def tradeoff_points(table: EpisodeTable, sweep: Sequence[EpisodeRecord], dataset: Dataset,
+                    cfg: EvaluateConfig, lambda_: float) -> list[TradeoffPoint]:
     """Accuracy against energy: Table 1's rows, then every sweep setting's episodes (all from
-    the same (test model, start) pairs), one curve per method ordered by its setting."""
+    the same (test model, start) pairs), one curve per method ordered by its setting.
+
+    Args:
+        table: Table 1's episodes.
+        sweep: The sweep settings' episodes (keyed by :func:`sweep_key`).
+        dataset: The dataset (the episodes' test models).
+        cfg: The ``evaluate`` section (the methods, the sweep, Random's stop belief).
+        lambda_: Table 1's λ in metres (``solve.wrong_declaration_cost_m``).
+
+    Returns:
+        One :class:`~rapomdp.experiment.metrics.TradeoffPoint` per (method, setting): its
+        accuracy and mean energy in metres.
+    """
     from rapomdp.experiment.metrics import TradeoffPoint, table1
 
-    cfg = config.evaluate
     points: list[TradeoffPoint] = []
     for row in table1(table, cfg.methods):
         if row.method == "static":
@@ -381,9 +411,8 @@ def tradeoff_points(config: Config, table: EpisodeTable, sweep: Sequence[Episode
             points.append(TradeoffPoint("random", "threshold", cfg.random.belief_threshold,
                                         True, row))
         else:
-            points.append(TradeoffPoint(row.method, "lambda",
-                                        config.solve.wrong_declaration_cost_m, True, row))
-    settings = sweep_settings(config)
+            points.append(TradeoffPoint(row.method, "lambda", lambda_, True, row))
+    settings = sweep_settings(cfg, lambda_)
     if settings:
         keys = [sweep_key(m, p, v) for m, p, v, _ in settings]
         swept = EpisodeTable.from_records(sweep, dataset, keys)
@@ -419,7 +448,7 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
 
     began = time.perf_counter()
     sweep_dir = None
-    if sweep_settings(config):
+    if sweep_settings(config.evaluate, config.solve.wrong_declaration_cost_m):
         sweep_dir = out / "sweep"
         solve_sweep(config, inputs, sweep_dir, context)
     solved_s = time.perf_counter() - began
@@ -458,7 +487,8 @@ def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
     write_text_atomic(out / PER_CLASS_CSV, rows_csv([r for _, r in classes_rows],
                                                       [name for name, _ in classes_rows]))
     write_text_atomic(out / EPISODES_CSV, episodes_csv(table))
-    points = tradeoff_points(config, table, sweep, dataset)
+    points = tradeoff_points(table, sweep, dataset, config.evaluate,
+                             config.solve.wrong_declaration_cost_m)
     write_text_atomic(out / TRADEOFF_CSV, tradeoff_csv(points))
     write_text_atomic(out / TRADEOFF_MD, tradeoff_markdown(points))
     figures.tradeoff(points, out / TRADEOFF_FIGURE)

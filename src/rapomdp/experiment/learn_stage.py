@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.config import Config
+from rapomdp.config import Config, EvaluateConfig, LearnConfig
 from rapomdp.context import RunContext
 from rapomdp.data.dataset import Dataset, load_dataset
 from rapomdp.data.splits import class_seed
@@ -107,10 +107,20 @@ def belief_arguments(observe_dir: Path, names: Sequence[str]) -> dict[str, dict[
     return {name: {"observation_model": models[name]} for name in names if name in models}
 
 
-def belief_models(config: Config, observe_dir: Path) -> dict[str, Any]:
-    """The belief arguments (:func:`belief_arguments`) of ``learn.observation_model``, the
-    belief the learned policy sees; a model the observe stage did not make is named."""
-    name = config.learn.observation_model
+def belief_models(observe_dir: Path, name: str = "ra") -> dict[str, Any]:
+    """The belief arguments (:func:`belief_arguments`) of one observation model, the belief
+    the learned policy sees.
+
+    Args:
+        observe_dir: The observe stage's folder.
+        name: The observation model (``learn.observation_model``).
+
+    Returns:
+        The keyword arguments of its belief: ``observation_model`` (V, C, C).
+
+    Raises:
+        StageError: The observe stage did not make ``name`` (the models it made are named).
+    """
     found = belief_arguments(observe_dir, [name])
     if name not in found:
         models, _ = offered_observation_models(observe_dir)
@@ -119,15 +129,27 @@ def belief_models(config: Config, observe_dir: Path) -> dict[str, Any]:
     return found[name]
 
 
-def recorded_environment(config: Config, evidence: RecordedEvidence,
-                         belief: dict[str, Any], motion: Motion,
-                         lambda_: float, seed: int | None = None) -> RecordedRecognitionEnv:
-    """The training environment at ``lambda_``: the closed loop's step budget and revisit
-    rule (``evaluate.max_moves``, ``evaluate.revisit``), the belief of ``belief``
-    (:func:`belief_models`)."""
+def recorded_environment(evidence: RecordedEvidence, belief: dict[str, Any], motion: Motion,
+                         lambda_: float, evaluate: EvaluateConfig | None = None,
+                         seed: int | None = None) -> RecordedRecognitionEnv:
+    """The training environment at ``lambda_`` over recorded evidence.
+
+    Args:
+        evidence: The recorded classifier outputs of the models.
+        belief: The belief's arguments (:func:`belief_models`).
+        motion: The robot's movement energy and reachable viewpoints.
+        lambda_: λ, the cost of a wrong declaration in metres.
+        evaluate: The ``evaluate`` section: the closed loop's step budget and revisit rule
+            (``max_moves``, ``revisit``; None: the defaults).
+        seed: The environment's seed (None: unseeded).
+
+    Returns:
+        The :class:`~rapomdp.experiment.recorded_env.RecordedRecognitionEnv`.
+    """
+    evaluate = EvaluateConfig() if evaluate is None else evaluate
     return RecordedRecognitionEnv(evidence, motion=motion, lambda_=lambda_,
-                                  max_moves=config.evaluate.max_moves,
-                                  revisit=config.evaluate.revisit, seed=seed, **belief)
+                                  max_moves=evaluate.max_moves,
+                                  revisit=evaluate.revisit, seed=seed, **belief)
 
 
 def network_of(policy: Any, spec: PolicySpec) -> PolicyNetwork:
@@ -140,17 +162,35 @@ def network_of(policy: Any, spec: PolicySpec) -> PolicyNetwork:
     return network.eval()
 
 
-def train_policy(config: Config, evidence: RecordedEvidence, observe_dir: Path,
-                 motion: Motion, lambda_: float, seed: int, progress: bool = False
+def train_policy(evidence: RecordedEvidence, observe_dir: Path, motion: Motion, lambda_: float,
+                 seed: int, cfg: LearnConfig | None = None,
+                 evaluate: EvaluateConfig | None = None, progress: bool = False
                  ) -> tuple[PolicyNetwork, PolicySpec, list[dict[str, float]]]:
-    """MaskablePPO on ``learn.envs`` recorded-evidence environments at ``lambda_``; the policy
-    network, its spec and one training-curve row per update (the episodes that ended in it)."""
+    """MaskablePPO on ``learn.envs`` recorded-evidence environments at ``lambda_``.
+
+    Args:
+        evidence: The recorded classifier outputs of the training models.
+        observe_dir: The observe stage's folder (the belief's observation model).
+        motion: The robot's movement energy and reachable viewpoints.
+        lambda_: λ, the cost of a wrong declaration in metres.
+        seed: PPO's seed.
+        cfg: The ``learn`` section: the network, PPO's settings, the belief's model (None:
+            the defaults).
+        evaluate: The ``evaluate`` section: the step budget and revisit rule (None: the
+            defaults).
+        progress: Show a progress bar.
+
+    Returns:
+        The policy network, its spec and one training-curve row per update (the episodes
+        that ended in it).
+    """
     import torch
     from sb3_contrib import MaskablePPO
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    cfg = config.learn
+    cfg = LearnConfig() if cfg is None else cfg
+    evaluate = EvaluateConfig() if evaluate is None else evaluate
     rows: list[dict[str, float]] = []
 
     class Curves(BaseCallback):  # type: ignore[misc]
@@ -183,12 +223,11 @@ def train_policy(config: Config, evidence: RecordedEvidence, observe_dir: Path,
                                    f"{last['accuracy']:.2f}")
 
     spec = PolicySpec(evidence.classes, evidence.viewpoints, tuple(cfg.hidden),
-                      cfg.observation_model, lambda_, config.evaluate.max_moves,
-                      config.evaluate.revisit)
-    models = belief_models(config, observe_dir)
+                      cfg.observation_model, lambda_, evaluate.max_moves, evaluate.revisit)
+    models = belief_models(observe_dir, cfg.observation_model)
 
     def environment() -> Any:
-        return MapDeclaration(recorded_environment(config, evidence, models, motion, lambda_))
+        return MapDeclaration(recorded_environment(evidence, models, motion, lambda_, evaluate))
 
     envs = DummyVecEnv([environment for _ in range(cfg.envs)])
     threads = torch.get_num_threads()
@@ -220,8 +259,8 @@ def _train_task(config_json: str, out: str, observe_dir: str, robot_dir: str, la
     motion = Motion.from_robot(load_robot(Path(robot_dir)))
     seed = int(class_seed(config.seed, f"learn/lambda_{lambda_:g}").integers(2**31))
     began = time.process_time()
-    network, spec, rows = train_policy(config, evidence, Path(observe_dir), motion, lambda_,
-                                       seed, progress)
+    network, spec, rows = train_policy(evidence, Path(observe_dir), motion, lambda_, seed,
+                                       config.learn, config.evaluate, progress)
     seconds = time.process_time() - began
     save_learned_policy(out, network, spec, {"timesteps": config.learn.timesteps,
                                              "seed": seed, "cpu_seconds": seconds})
@@ -278,20 +317,38 @@ def recorded_scores(evidence: RecordedEvidence, method: Policy, motion: Motion,
             "mean_energy": float(np.mean(energy)), "mean_moves": float(np.mean(moves))}
 
 
-def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
-                        observe_dir: Path, motion: Motion, progress: bool = True
+def held_out_comparison(evidence: RecordedEvidence, out: Path, observe_dir: Path,
+                        motion: Motion, lambda_: float, ev: EvaluateConfig | None = None,
+                        observation_model: str = "ra", seed: int = 0, progress: bool = True
                         ) -> list[dict[str, Any]]:
     """Every trained policy and Random (at each stop belief) scored on the held-out recorded
     evidence (:func:`recorded_scores`), one row each; their beliefs as the evaluation builds
-    them."""
-    ev = config.evaluate
+    them.
+
+    Args:
+        evidence: The recorded classifier outputs of the held-out models.
+        out: The learn stage's folder (the trained policies, one per λ).
+        observe_dir: The observe stage's folder (the beliefs' observation models).
+        motion: The robot's movement energy and reachable viewpoints.
+        lambda_: Table 1's λ in metres (``solve.wrong_declaration_cost_m``).
+        ev: The ``evaluate`` section: the sweep's λ, Random's settings, the step budget
+            (None: the defaults).
+        observation_model: The learned policy's belief (``learn.observation_model``).
+        seed: The configuration's ``seed`` (the episodes' generators).
+        progress: Show a progress bar.
+
+    Returns:
+        One row per (method, setting): ``method``, ``parameter``, ``value`` and
+        :func:`recorded_scores`' accuracy, mean energy (metres) and moves.
+    """
+    ev = EvaluateConfig() if ev is None else ev
     walk = ev.random.observation_model
-    beliefs = belief_arguments(observe_dir, [config.learn.observation_model, walk])
+    beliefs = belief_arguments(observe_dir, [observation_model, walk])
     if walk not in beliefs:
         raise StageError(f"evaluate.random.observation_model is '{walk}'; the workspace "
                          "lacks it")
     settings: list[tuple[str, float, Policy]] = []
-    for lam in learned_lambdas(config):
+    for lam in learned_lambdas(lambda_, ev.lambdas):
         network, spec = load_learned_policy(out, lam)
         settings.append((LEARNED, lam, LearnedPolicy(network, spec, reachable=motion.reachable,
                                                      **beliefs[spec.observation_model])))
@@ -303,7 +360,7 @@ def held_out_comparison(config: Config, evidence: RecordedEvidence, out: Path,
     rows = []
     for method, value, policy in track(settings, "learn: held-out episodes", progress,
                                        unit="settings"):
-        scores = recorded_scores(evidence, policy, motion, ev.max_moves, config.seed, method)
+        scores = recorded_scores(evidence, policy, motion, ev.max_moves, seed, method)
         rows.append({"method": method, "parameter": "lambda" if method == LEARNED
                      else "threshold", "value": value, **scores})
     return rows
@@ -392,8 +449,9 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
     evidence.save(out / RECORDED_FILE)
     recorded_s = time.perf_counter() - began
     motion = Motion.from_robot(load_robot(inputs.robot))
-    belief_models(config, inputs.observe)  # a wrong observation model is named before work
-    lambdas = learned_lambdas(config)
+    # a wrong observation model is named before work
+    belief_models(inputs.observe, config.learn.observation_model)
+    lambdas = learned_lambdas(config.solve.wrong_declaration_cost_m, config.evaluate.lambdas)
     workers = min(context.worker_count, len(lambdas))
     in_process = workers == 1 and not context.uses_cluster
     tasks = [(config.model_dump_json(), str(out), str(inputs.observe), str(inputs.robot), lam,
@@ -405,7 +463,9 @@ def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
     rows = [row for curve, _ in trained for row in curve]
     write_text_atomic(out / CURVES_CSV, curves_csv(rows))
     curves_figure(rows, out / CURVES_FIGURE)
-    held_out = held_out_comparison(config, evidence, out, inputs.observe, motion,
+    held_out = held_out_comparison(evidence, out, inputs.observe, motion,
+                                   config.solve.wrong_declaration_cost_m, config.evaluate,
+                                   config.learn.observation_model, config.seed,
                                    context.progress)
     write_json_atomic(out / LEARN_SUMMARY, {
         "trained": True,

@@ -204,8 +204,8 @@ def _workspace_problem(root: Path, model: str) -> ActiveRecognitionProblem:
         ws = Workspace(root)
         config = ws.config(default=Config())
         vptree = ws.require("vptree") if "vptree" in ws.manifest()["stages"] else None
-        return workspace_problem(config, ws.require("observe"), ws.require("robot"), model,
-                                 vptree)
+        return workspace_problem(ws.require("observe"), ws.require("robot"), model, vptree,
+                                 config.solve)
     except (StageError, ConfigError) as exc:
         raise ValueError(str(exc)) from None
 

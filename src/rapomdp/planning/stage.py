@@ -13,7 +13,7 @@ the energy goes to the problem builder as it is, which handles those entries
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +25,7 @@ from rapomdp.awareness.artefacts import (
     DECLARED_THRESHOLDS,
     OBSERVATION_FILE,
 )
-from rapomdp.config import Config
+from rapomdp.config import Config, SolveConfig
 from rapomdp.context import RunContext
 from rapomdp.io import load_npz
 from rapomdp.planning.artefacts import load_solve_summary
@@ -96,16 +96,30 @@ def offered_observation_models(observe_dir: Path, vptree_dir: Path | None = None
 
 
 def workspace_arrays(
-    config: Config, observe_dir: Path, robot_dir: Path, vptree_dir: Path | None = None
+    observe_dir: Path, robot_dir: Path, vptree_dir: Path | None = None,
+    models: Sequence[str] | None = None,
 ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[str]]:
-    """The observation models to solve (``solve.models`` among those offered, see
-    :func:`offered_observation_models`), E_M as the robot stage wrote it (+inf to and from
-    unreachable viewpoints), the reachable mask and the class names.
+    """The observation models to solve, as the solve stage reads them from a workspace.
+
+    Args:
+        observe_dir: The observe stage's folder.
+        robot_dir: The robot stage's folder.
+        vptree_dir: The vptree stage's folder (None: no ``vptree`` model offered).
+        models: The models' names (``solve.models``; None: every model offered, see
+            :func:`offered_observation_models`).
+
+    Returns:
+        The models by name, each (V, C, C) = P(o | class, viewpoint); E_M (V, V) in metres as
+        the robot stage wrote it (+inf to and from unreachable viewpoints); the reachable
+        mask (V,); the class names (C).
+
+    Raises:
+        StageError: A model not offered, or arrays over different viewpoints.
     """
     offered, classes = offered_observation_models(observe_dir, vptree_dir)
     robot = load_npz(Path(robot_dir) / ROBOT_ARRAYS)
     available = list(offered)
-    wanted = config.solve.models if config.solve.models is not None else available
+    wanted = list(models) if models is not None else available
     unknown = [name for name in wanted if name not in available]
     if unknown:
         hint = (" (the vptree stage makes 'vptree': run `rapomdp vptree`)"
@@ -114,15 +128,15 @@ def workspace_arrays(
             f"solve.models names {', '.join(unknown)}; the workspace offers "
             f"{', '.join(available)}{hint}"
         )
-    models = {name: offered[name] for name in wanted}
+    chosen = {name: offered[name] for name in wanted}
     reachable = robot["reachable"].astype(bool)
-    for name, array in models.items():
+    for name, array in chosen.items():
         if array.shape[0] != reachable.size:
             raise StageError(
                 f"observation model '{name}' covers {array.shape[0]} viewpoints, the robot "
                 f"stage {reachable.size}: run both with the same viewpoints.count"
             )
-    return models, robot["energy"], reachable, classes
+    return chosen, robot["energy"], reachable, classes
 
 
 def start_viewpoint(reachable: np.ndarray) -> int:
@@ -130,16 +144,34 @@ def start_viewpoint(reachable: np.ndarray) -> int:
     return int(np.flatnonzero(reachable)[0])
 
 
-def workspace_problem(config: Config, observe_dir: Path, robot_dir: Path, model: str,
-                      vptree_dir: Path | None = None) -> ActiveRecognitionProblem:
-    """One observation model's MOMDP, as the solve stage builds it (for export)."""
-    models, energy, reachable, classes = workspace_arrays(config, observe_dir, robot_dir,
-                                                          vptree_dir)
+def workspace_problem(observe_dir: Path, robot_dir: Path, model: str,
+                      vptree_dir: Path | None = None,
+                      solve: SolveConfig | None = None) -> ActiveRecognitionProblem:
+    """One observation model's MOMDP, as the solve stage builds it (for export).
+
+    Args:
+        observe_dir: The observe stage's folder.
+        robot_dir: The robot stage's folder.
+        model: The observation model's name (``ra``, ``classifier``, ``vptree``...).
+        vptree_dir: The vptree stage's folder (None: no ``vptree`` model offered).
+        solve: The ``solve`` section: ``models`` (which the workspace must offer), λ
+            (``wrong_declaration_cost_m``, metres) and the discount (None: the defaults).
+
+    Returns:
+        The :class:`~rapomdp.planning.momdp.ActiveRecognitionProblem` over the workspace's
+        V viewpoints and C classes, starting at :func:`start_viewpoint`.
+
+    Raises:
+        StageError: ``model`` not among ``solve.models``, or the stages' arrays disagree.
+    """
+    solve = SolveConfig() if solve is None else solve
+    models, energy, reachable, classes = workspace_arrays(observe_dir, robot_dir, vptree_dir,
+                                                          solve.models)
     if model not in models:
         raise StageError(f"no observation model '{model}'; available: {', '.join(models)}")
     return build_active_recognition_problem(
-        models[model], energy, reachable, config.solve.wrong_declaration_cost_m,
-        config.solve.discount, start_viewpoint(reachable), class_names=classes,
+        models[model], energy, reachable, solve.wrong_declaration_cost_m,
+        solve.discount, start_viewpoint(reachable), class_names=classes,
     )
 
 
@@ -168,8 +200,8 @@ def run_solve_stage(config: Config, inputs: StageInputs, out: Path,
             from rapomdp.pipeline import run_pipeline
             run_pipeline(config, Workspace("runs/demo"), until="solve")
     """
-    models, energy, reachable, classes = workspace_arrays(config, inputs.observe,
-                                                         inputs.robot, inputs.vptree_dir)
+    models, energy, reachable, classes = workspace_arrays(inputs.observe, inputs.robot,
+                                                          inputs.vptree_dir, config.solve.models)
     try:
         solve_workspace_problems(
             models, energy, reachable, out,

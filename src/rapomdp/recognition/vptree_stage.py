@@ -67,9 +67,25 @@ def descriptor_params(cfg: VPTreeConfig) -> DescriptorParams:
     return DescriptorParams(cfg.patch_size_m, cfg.patch_samples, cfg.stride_px)
 
 
-def fit_vptree(config: Config, views: TrainingViews,
+def fit_vptree(views: TrainingViews, cfg: VPTreeConfig | None = None, seed: int = 0,
                progress: bool = True) -> VocabularyTreeClassifier:
-    """The VP-tree classifier fitted on the train models' training-viewsphere renders."""
+    """The VP-tree classifier fitted on the train models' training-viewsphere renders.
+
+    Args:
+        views: The render stage's training views (the train models' depth images (N, H, W)
+            in metres and the camera's intrinsics).
+        cfg: The ``vptree`` section: the descriptors' patch and stride, the tree's branching
+            and levels (None: the defaults).
+        seed: The configuration's ``seed`` (the descriptors sampled for the fit, k-means).
+        progress: Show a progress bar while the views load.
+
+    Returns:
+        The fitted :class:`~rapomdp.recognition.vocabulary_tree.VocabularyTreeClassifier`
+        over the dataset's classes (``predict`` gives (N, C) class probabilities).
+
+    Raises:
+        StageError: The dataset has no train models.
+    """
     dataset = views.dataset
     train = dataset.with_role("train")
     if not train:
@@ -81,10 +97,10 @@ def fit_vptree(config: Config, views: TrainingViews,
         labels.append(np.full(images.shape[0], dataset.label(model)))
     images = np.concatenate(depth)
     del depth  # one copy of the training images in memory, not two
-    cfg = config.vptree
+    cfg = VPTreeConfig() if cfg is None else cfg
     return VocabularyTreeClassifier.fit(
         images, np.concatenate(labels), dataset.classes, views.intrinsics.fx,
-        views.intrinsics.fy, descriptor_params(cfg), config.seed, branching=cfg.branching,
+        views.intrinsics.fy, descriptor_params(cfg), seed, branching=cfg.branching,
         levels=cfg.levels, max_fit_descriptors=cfg.max_fit_descriptors, top_k=cfg.top_k)
 
 
@@ -188,7 +204,7 @@ def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
     start = time.perf_counter()
     views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
-    classifier = fit_vptree(config, views, context.progress)
+    classifier = fit_vptree(views, config.vptree, config.seed, context.progress)
     seconds["fit"] = time.perf_counter() - start
     step = time.perf_counter()
     volume_models = dataset.with_role("volume")

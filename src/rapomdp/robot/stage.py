@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from rapomdp.config import Config
+from rapomdp.config import Config, RobotConfig, ViewpointsConfig
 from rapomdp.context import RunContext
 from rapomdp.geometry.viewsphere import fibonacci_directions, geodesic_distance_matrix
 from rapomdp.io import save_npz, write_json_atomic
@@ -69,9 +69,23 @@ class RobotResult:
         }
 
 
-def ik_settings(config: Config) -> IKSettings:
-    """The IK search settings of a configuration (degrees become radians here)."""
-    robot = config.robot
+def ik_settings(robot: RobotConfig, seed: int = 0) -> IKSettings:
+    """The IK search settings of a ``robot`` section (degrees become radians here).
+
+    Args:
+        robot: The ``robot`` section (its roll samples, restarts, iterations, tolerances and
+            clearances).
+        seed: The seed of the IK's random restarts (the configuration's ``seed``).
+
+    Returns:
+        The :class:`~rapomdp.robot.ik.IKSettings`, the angle tolerance in radians.
+
+    Example:
+        >>> from rapomdp.config import RobotConfig
+        >>> settings = ik_settings(RobotConfig(angle_tolerance_deg=1.0), seed=3)
+        >>> round(settings.angle_tolerance_rad, 6), settings.restarts, settings.seed
+        (0.017453, 4, 3)
+    """
     return IKSettings(
         roll_samples=robot.roll_samples,
         restarts=robot.restarts,
@@ -80,49 +94,53 @@ def ik_settings(config: Config) -> IKSettings:
         angle_tolerance_rad=float(np.radians(robot.angle_tolerance_deg)),
         floor_clearance_m=robot.floor_clearance_m,
         object_clearance_m=robot.object_clearance_m,
-        seed=config.seed,
+        seed=seed,
     )
 
 
-def solve_robot(config: Config, progress: bool = True) -> RobotResult:
-    """IK, manipulability, distances and movement energy for the configured X_rho.
+def solve_robot(robot: RobotConfig, viewpoints: ViewpointsConfig, seed: int = 0,
+                progress: bool = True) -> RobotResult:
+    """IK, manipulability, distances and movement energy for the test viewpoints X_rho.
 
     Raises :class:`UnreachableError`, naming the placement, when no viewpoint is reachable.
 
     Args:
-        config: The configuration (its ``robot`` and ``viewpoints`` sections).
+        robot: The ``robot`` section (the arm's placement, the IK search, the energy's terms).
+        viewpoints: The ``viewpoints`` section: X_rho's count V and radius in metres.
+        seed: The seed of the IK's random restarts (the configuration's ``seed``).
         progress: Show the IK's progress bar.
 
     Returns:
-        Per viewpoint of X_rho: reachability, joint angles, manipulability, and the (V, V)
-        geodesic distances and movement energy E_M in metres, with a summary.
+        Per viewpoint of X_rho: reachability (V,), joint angles (V, 7) in radians,
+        manipulability (V,), and the (V, V) geodesic distances and movement energy E_M in
+        metres, with a summary.
 
     Example:
-        The default arm placement over the default X_rho (seconds: roboticstoolbox loads)::
+        The default arm placement over 16 viewpoints (seconds: roboticstoolbox loads)::
 
-            from rapomdp.config import Config
-            result = solve_robot(Config())
+            from rapomdp.config import RobotConfig, ViewpointsConfig
+            result = solve_robot(RobotConfig(), ViewpointsConfig(count=16), progress=False)
             result.summary["reachable"]  # how many viewpoints the arm reaches
     """
-    scene = Scene.from_config(config.robot)
+    scene = Scene.from_config(robot)
     arm = CameraArm(scene)
-    count, radius_m = config.viewpoints.count, config.viewpoints.radius_m
+    count, radius_m = viewpoints.count, viewpoints.radius_m
     eyes = scene.viewpoints_world(count, radius_m)
     start = time.perf_counter()
-    solutions = solve_viewpoints(arm, eyes, ik_settings(config), progress)
+    solutions = solve_viewpoints(arm, eyes, ik_settings(robot, seed), progress)
     ik_seconds = time.perf_counter() - start
     reachable = solutions.reachable
     if not reachable.any():
         raise UnreachableError(
             f"robot: none of the {count} viewpoints (radius {radius_m} m around the centroid "
-            f"{list(config.robot.centroid_m)}) is reachable from the base at "
-            f"{list(config.robot.base_xyz_m)} with camera mount "
-            f"{list(config.robot.camera_mount_xyz_m)}; move robot.base_xyz_m or "
+            f"{list(robot.centroid_m)}) is reachable from the base at "
+            f"{list(robot.base_xyz_m)} with camera mount "
+            f"{list(robot.camera_mount_xyz_m)}; move robot.base_xyz_m or "
             f"robot.centroid_m closer together, or lower viewpoints.radius_m"
         )
     directions = fibonacci_directions(count, hemisphere=True)
     distance = geodesic_distance_matrix(directions, radius_m)
-    energy_cfg = config.robot.energy
+    energy_cfg = robot.energy
     energy = movement_energy(
         distance,
         solutions.manipulability,
@@ -171,9 +189,17 @@ def solve_robot(config: Config, progress: bool = True) -> RobotResult:
     )
 
 
-def plot_result(result: RobotResult, config: Config, path: str | Path, arms: int = 3) -> None:
-    """The stage's figure for ``result``: the arm drawn at ``arms`` of its solutions."""
-    scene = Scene.from_config(config.robot)
+def plot_result(result: RobotResult, robot: RobotConfig, path: str | Path,
+                arms: int = 3) -> None:
+    """The stage's figure for ``result``: the arm drawn at ``arms`` of its solutions.
+
+    Args:
+        result: What :func:`solve_robot` computed.
+        robot: The ``robot`` section ``result`` was solved with (the arm's placement).
+        path: The figure's file (PNG).
+        arms: How many of the solutions to draw the arm at.
+    """
+    scene = Scene.from_config(robot)
     arm = CameraArm(scene)
     s = result.solutions
     picks = pick_poses(s.manipulability, s.reachable, arms)
@@ -188,7 +214,7 @@ def plot_result(result: RobotResult, config: Config, path: str | Path, arms: int
         camera_poses=s.camera_pose_world[picks],
         title=(
             f"Panda: {int(s.reachable.sum())}/{s.count} viewpoints reachable "
-            f"(radius {config.viewpoints.radius_m} m), coloured by manipulability"
+            f"(radius {result.summary['radius_m']} m), coloured by manipulability"
         ),
         arm_labels=[f"arm at viewpoint {i} (man. {s.manipulability[i]:.3f})" for i in picks],
     )
@@ -208,8 +234,8 @@ def run_robot_stage(config: Config, inputs: StageInputs, out: Path,
         UnreachableError: The arm reaches no viewpoint of X_rho (the placement is named).
     """
     del inputs  # the robot stage reads only the configuration
-    result = solve_robot(config, context.progress)
+    result = solve_robot(config.robot, config.viewpoints, config.seed, context.progress)
     out = Path(out)
     save_npz(out / ROBOT_ARRAYS, **result.arrays())
     write_json_atomic(out / ROBOT_SUMMARY, result.summary)
-    plot_result(result, config, out / ROBOT_FIGURE)
+    plot_result(result, config.robot, out / ROBOT_FIGURE)
