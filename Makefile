@@ -37,8 +37,8 @@ readme: demo
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
 	$(PY) -m mypy
+	# tests/test_docs.py builds the documentation site with mkdocs build --strict
 	OMP_NUM_THREADS=1 $(PY) -m pytest -q
-	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
 
 # The documentation site (mkdocs.yml), offline: site/index.html. Any warning is an error.
 docs: $(STAMP)
