@@ -199,7 +199,19 @@ def _write_mesh(out: Path, rel: str, mesh: trimesh.Trimesh) -> None:
 
 def run_dataset_stage(config: Config, inputs: StageInputs, out: Path,
                       context: RunContext) -> None:
-    """Build the dataset: pick, split, load, normalise and store every model."""
+    """Build the dataset: pick, split, load, normalise and store every model.
+
+    Args:
+        config: the run's configuration; the stage reads ``seed`` and ``dataset`` (its
+            key) and ``limits``.
+        inputs: the folders of the stages it reads (none).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: ``dataset.json`` (the models, classes, split and roles, with
+            each mesh file's content hash) and ``meshes/`` (every model normalised, as a mesh file).
+    """
     cfg = config.dataset
     auto = cfg.split == "auto"
     counts = None if auto else {role: getattr(cfg.split, role) for role in ROLES}

@@ -136,7 +136,19 @@ def _render_xrho_model(dataset: Dataset, model: ModelEntry, seed: int,
 
 def run_xrho_stage(config: Config, inputs: StageInputs, out: Path, context: RunContext) -> None:
     """Render every volume and test model at X_rho once, one model per task over the worker
-    processes (each model's noise has its own stream: the images do not depend on them)."""
+    processes (each model's noise has its own stream: the images do not depend on them).
+
+    Args:
+        config: the run's configuration; the stage reads ``seed``, ``camera``, ``render``
+            and ``viewpoints``.
+        inputs: the folders of the stages it reads (dataset).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: ``views/<class>/<model>.npz`` (depth images (V, H, W) in metres
+            at the V test viewpoints, and their poses) and ``xrho.json``.
+    """
     dataset = load_dataset(inputs.dataset)
     models = [m for m in dataset.models if m.role in ROLE_STREAMS]
     run_tasks(_render_xrho_model,

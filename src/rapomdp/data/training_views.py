@@ -64,7 +64,18 @@ def run_render_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
     """Render every model of the dataset from the training viewsphere, one model per task
     over the worker processes (each model's noise has its own seed: the images do not depend
-    on the number of processes)."""
+    on the number of processes).
+
+    Args:
+        config: the run's configuration; the stage reads ``seed``, ``camera`` and ``render``.
+        inputs: the folders of the stages it reads (dataset).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: ``views/<class>/<model>.npz`` (depth images (n, H, W) in metres
+            over the training viewsphere, and their poses) and ``render.json``.
+    """
     dataset = load_dataset(inputs.dataset)
     intrinsics = xtion_intrinsics(config.camera.width, config.camera.height)
     cfg = config.render

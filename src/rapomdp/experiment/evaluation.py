@@ -431,7 +431,22 @@ def figure_class(config: Config, classes: Sequence[str]) -> str:
 
 def run_evaluate_stage(config: Config, inputs: StageInputs, out: Path,
                        context: RunContext) -> None:
-    """Run every episode, score them, write Table 1, the per-class table and the figures."""
+    """Run every episode, score them, write Table 1, the per-class table and the figures.
+
+    Args:
+        config: the run's configuration; the stage reads the sections of its key
+            (the classifier's, ``viewpoints`` and ``evaluate``) and ``solve`` (λ).
+        inputs: the folders of the stages it reads (dataset, train, classifier_eval, observe,
+            vptree, robot, solve and learn).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: ``episodes.npz``/``episodes.csv`` (every episode's views,
+            beliefs, declaration and energy), ``table1.md``/``table1.csv``, ``paired.csv``,
+            ``per_class.md``/``.csv``, ``fig3.png``, the accuracy-energy ``sweep/`` and the
+            ``held_out/`` comparison and declared-confidence fits, and ``evaluate.json``.
+    """
     from rapomdp.experiment import figures
     from rapomdp.experiment.metrics import (
         paired_against,

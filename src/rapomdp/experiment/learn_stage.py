@@ -436,7 +436,19 @@ def require_sb3() -> None:
 
 def run_learn_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
-    """Record the held-out evidence, train a policy per λ, score it on held-out episodes."""
+    """Record the held-out evidence, train a policy per λ, score it on held-out episodes.
+
+    Args:
+        config: the run's configuration; the stage reads ``seed`` and ``learn`` (its key),
+            and ``evaluate`` and ``solve`` (the methods and λ).
+        inputs: the folders of the stages it reads (dataset, classifier_eval, observe and robot).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: one MaskablePPO policy per λ (when ``evaluate.methods`` lists
+            ``learned``) with its held-out scores, and ``learn.json``.
+    """
     began = time.perf_counter()
     if LEARNED not in config.evaluate.methods:
         write_json_atomic(out / LEARN_SUMMARY, {

@@ -456,6 +456,18 @@ def write_report(config: Config, inputs: StageInputs, out: Path,
 
 def run_report_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
-    """The pipeline stage: the report of the workspace the inputs belong to."""
+    """The pipeline stage: the report of the workspace the inputs belong to.
+
+    Args:
+        config: the run's configuration; the stage reads every section, to say how the run
+            was made.
+        inputs: the folders of the stages it reads (every earlier stage).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: ``report.md`` and ``report.html`` and their figures (PNG) and
+            tables (CSV).
+    """
     del context  # one process, no long loops
     write_report(config, inputs, out)

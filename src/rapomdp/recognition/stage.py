@@ -148,7 +148,20 @@ def _train_members_in_tasks(config: Config, inputs: StageInputs, views: Training
 
 def run_train_stage(config: Config, inputs: StageInputs, out: Path,
                     context: RunContext) -> None:
-    """Train the depth classifier on the train models' training-viewsphere renders."""
+    """Train the depth classifier on the train models' training-viewsphere renders.
+
+    Args:
+        config: the run's configuration; the stage reads ``seed``, ``dataset``, ``camera``,
+            ``render`` and ``train``.
+        inputs: the folders of the stages it reads (dataset and render).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: ``classifier.pt`` and ``classifier.json`` (the weights, checked
+            by SHA-256, and what they were trained with), ``history.csv``, ``metrics.json`` and
+            ``training.png``.
+    """
     views = load_training_views(inputs.render, inputs.dataset)
     classes = views.dataset.classes
     if len(classes) < 2:
@@ -228,7 +241,20 @@ def run_classifier_eval_stage(config: Config, inputs: StageInputs, out: Path,
                               context: RunContext) -> None:
     """Single-view accuracy of the trained classifier on the test models, and its outputs at
     X_rho on the volume and test models for later stages (classified in a few shares per
-    worker process; the probabilities do not depend on it)."""
+    worker process; the probabilities do not depend on it).
+
+    Args:
+        config: the run's configuration; the stage reads ``seed``, ``camera``, ``render``
+            and ``viewpoints`` (its key) and ``train`` (to check the checkpoint).
+        inputs: the folders of the stages it reads (dataset, render, xrho and train).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: ``metrics.json`` (single-view accuracy, per class and
+            viewpoint), ``probabilities.npz`` (the classifier's outputs at X_rho on the volume and
+            test models), the confusion tables (CSV) and figures (PNG).
+    """
     views = load_training_views(inputs.render, inputs.dataset)
     dataset = views.dataset
     # loaded here first: a checkpoint that does not fit is refused before any task starts

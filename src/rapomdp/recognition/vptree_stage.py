@@ -199,7 +199,19 @@ def vptree_observation(labels: np.ndarray, predicted: np.ndarray, groups: np.nda
 def run_vptree_stage(config: Config, inputs: StageInputs, out: Path,
                      context: RunContext) -> None:
     """Fit the VP-tree, count its per-viewpoint confusion on the volume models at X_rho and
-    temper it on held-out walks over them."""
+    temper it on held-out walks over them.
+
+    Args:
+        config: the run's configuration; the stage reads ``seed``, ``camera``, ``render``,
+            ``viewpoints`` and ``vptree``.
+        inputs: the folders of the stages it reads (dataset, render and xrho).
+        out: the stage's temporary folder; the workspace swaps it in when the stage finishes.
+        context: worker processes, threads and progress bars (no artefact depends on them).
+
+    Returns:
+        None. Writes into ``out``: ``vocabulary_tree.npz``, ``observation_model.npz`` (the
+            per-viewpoint confusion (V, C, C), tempered), ``xrho_outputs.npz`` and ``vptree.json``.
+    """
     seconds: dict[str, float] = {}
     start = time.perf_counter()
     views = load_training_views(inputs.render, inputs.dataset)
