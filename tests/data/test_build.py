@@ -15,7 +15,7 @@ import pytest
 import trimesh
 
 from rapomdp.data.build import BUILDERS, DatasetBuildError, build
-from rapomdp.data.build.common import refuse_held_back
+from rapomdp.data.build.common import BUILT_MARKER, refuse_held_back
 from rapomdp.data.build.mesh_set import SHAPES, build_mesh_set
 from rapomdp.data.build.real_cad import (
     COPYRIGHT,
@@ -225,3 +225,24 @@ def test_every_builder_says_what_it_needs_and_how_long() -> None:
     assert set(BUILDERS) == {"real-cad", "mesh-set"}
     assert "apt-get" in BUILDERS["real-cad"].needs and "--source" in BUILDERS["real-cad"].needs
     assert all(b.duration and b.config.startswith("configs/") for b in BUILDERS.values())
+
+
+def test_a_folder_a_builder_did_not_make_is_never_replaced(tmp_path: Path) -> None:
+    """--out naming a user's own folder is refused before any work, and the folder is intact;
+    a new, an empty or a built folder is taken."""
+    own = tmp_path / "photos"
+    own.mkdir()
+    (own / "holiday.jpg").write_bytes(b"mine")
+    source = kicad_tree(tmp_path / "pkg", SECOND_SET)
+    with pytest.raises(DatasetBuildError, match="photos exists and was not made by"):
+        build_real_cad(own, which="second", source=source, max_per_class=3)
+    with pytest.raises(DatasetBuildError, match="name a new or empty folder"):
+        build_mesh_set(own, models_per_class=1)
+    assert [p.name for p in own.iterdir()] == ["holiday.jpg"]
+    assert (own / "holiday.jpg").read_bytes() == b"mine"
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    build_mesh_set(empty, models_per_class=1)
+    assert (empty / BUILT_MARKER).is_file()
+    build_mesh_set(empty, models_per_class=1)  # a built folder is rebuilt
+    assert (empty / BUILT_MARKER).is_file()

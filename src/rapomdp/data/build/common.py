@@ -11,6 +11,8 @@ from pathlib import Path
 #: Sources this project never reads, in datasets, corpora or tests, refused by name: the Debian
 #: packages of Sweet Home 3D's furniture models are held back for judging.
 HELD_BACK = ("sweethome3d",)
+#: Written into every folder a builder makes: only such a folder (or an empty one) is replaced.
+BUILT_MARKER = ".rapomdp-dataset-build"
 
 
 class DatasetBuildError(ValueError):
@@ -43,6 +45,28 @@ def refuse_held_back(names: Iterable[str], what: str) -> None:
                     "project's datasets, corpora or tests); use another source")
 
 
+def check_replaceable(out: Path) -> Path:
+    """Refuse an ``out`` a build may not replace: anything but a new or empty folder, or one
+    a builder made (it holds :data:`BUILT_MARKER`). Builders call it before any work.
+
+    Args:
+        out: the mesh folder a build would replace whole.
+
+    Returns:
+        ``out``, resolved.
+
+    Raises:
+        DatasetBuildError: naming the folder and what to do.
+    """
+    out = out.resolve()
+    if out.exists() and not (out.is_dir() and (not any(out.iterdir())
+                                               or (out / BUILT_MARKER).is_file())):
+        raise DatasetBuildError(
+            f"{out} exists and was not made by 'rapomdp dataset build' (no {BUILT_MARKER}): "
+            "a build replaces its --out folder whole; name a new or empty folder")
+    return out
+
+
 def building_folder(out: Path) -> Path:
     """A fresh hidden folder beside ``out`` to build into, after removing any left by an
     interrupted build of the same ``out``.
@@ -51,9 +75,13 @@ def building_folder(out: Path) -> Path:
         out: the mesh folder the build will replace.
 
     Returns:
-        ``out.parent/.<name>.building-<pid>``, created empty.
+        ``out.parent/.<name>.building-<pid>``, holding only :data:`BUILT_MARKER`.
+
+    Raises:
+        DatasetBuildError: ``out`` exists and is not an empty folder or one a builder made
+            (it would be replaced whole: a folder of the user's own is never deleted).
     """
-    out = out.resolve()
+    out = check_replaceable(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     for stale in out.parent.glob(f".{out.name}.building-*"):
         shutil.rmtree(stale, ignore_errors=True)
@@ -61,6 +89,8 @@ def building_folder(out: Path) -> Path:
         shutil.rmtree(stale, ignore_errors=True)
     building = out.parent / f".{out.name}.building-{os.getpid()}"
     building.mkdir()
+    (building / BUILT_MARKER).write_text("made by rapomdp dataset build; replaced whole by the "
+                                         "next build into this folder\n")
     return building
 
 

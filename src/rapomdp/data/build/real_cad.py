@@ -87,6 +87,7 @@ import trimesh
 from rapomdp.data.build.common import (
     DatasetBuildError,
     building_folder,
+    check_replaceable,
     refuse_held_back,
     swap_in,
 )
@@ -497,6 +498,7 @@ def build_real_cad(out: Path | None = None, *, which: str = "first",
     if max_per_class < 0:
         raise DatasetBuildError(f"--max-per-class must be 0 (all) or more, got {max_per_class}")
     class_map = SETS[which]
+    target = check_replaceable(out if out is not None else DEFAULT_OUT[which])
     if source is not None:
         refuse_held_back(source.resolve().parts, "--source folder")
         root = source
@@ -515,7 +517,6 @@ def build_real_cad(out: Path | None = None, *, which: str = "first",
         package = {"package": PACKAGE, "version": deb_field(deb, "Version"), "deb": deb.name,
                    "deb_sha256": _sha256(deb), "homepage": deb_field(deb, "Homepage")}
     stanzas = parse_copyright((root / COPYRIGHT).read_text())
-    target = out if out is not None else DEFAULT_OUT[which]
     building = building_folder(target)
     try:
         reports = []
