@@ -33,10 +33,13 @@ class RetiredKey:
         default: the value it had by default, which every workspace made before the
             retirement recorded; at this value the key is dropped silently.
         page: the decision page (file name under ``docs/decisions/``) that retired it.
+        keyed: the key was in its stage's cache key at ``default``; it stays there, so the
+            workspaces and checkpoints made before the retirement keep their keys.
     """
 
     default: Any
     page: str
+    keyed: bool = False
 
 
 #: Keys removed from the configuration, by dotted path.
@@ -55,17 +58,18 @@ RETIRED_KEYS: dict[str, RetiredKey] = {
     "observe.class_shrinkage": RetiredKey("none", "0007-class-shrinkage.md"),
     "observe.transfer_shrinkage": RetiredKey(False, "0008-transfer-shrinkage.md"),
     "observe.contrastive": RetiredKey(False, "0009-contrastive-model.md"),
-    "evaluate.lookahead_depth": RetiredKey(1, "0010-lookahead-depth.md"),
-    "evaluate.lookahead_width": RetiredKey(4, "0010-lookahead-depth.md"),
-    "evaluate.declared_fit": RetiredKey("closed_loop", "0011-declared-fit.md"),
+    "evaluate.lookahead_depth": RetiredKey(1, "0010-lookahead-depth.md", keyed=True),
+    "evaluate.lookahead_width": RetiredKey(4, "0010-lookahead-depth.md", keyed=True),
+    "evaluate.declared_fit": RetiredKey("closed_loop", "0011-declared-fit.md", keyed=True),
     "evaluate.declared_form": RetiredKey("scalar", "0012-declared-form.md"),
     "observe.belief_correction": RetiredKey("temperature", "0003-belief-correction.md"),
     "vptree.belief_correction": RetiredKey("temperature", "0003-belief-correction.md"),
     "observe.wrong_labels": RetiredKey("auto", "0017-wrong-labels.md"),
-    "train.input_features": RetiredKey("depth_normals", "0019-surface-normals.md"),
-    "evaluate.lookahead": RetiredKey(True, "0015-lookahead.md"),
-    "evaluate.declared_confidence": RetiredKey("calibrated", "0016-declared-confidence.md"),
-    "learn.declare": RetiredKey("map", "0018-learned-declaration.md"),
+    "train.input_features": RetiredKey("depth_normals", "0019-surface-normals.md", keyed=True),
+    "evaluate.lookahead": RetiredKey(True, "0015-lookahead.md", keyed=True),
+    "evaluate.declared_confidence": RetiredKey("calibrated", "0016-declared-confidence.md",
+                                               keyed=True),
+    "learn.declare": RetiredKey("map", "0018-learned-declaration.md", keyed=True),
 }
 
 #: Values removed from keys that stay, by dotted path: value -> decision page.
@@ -127,3 +131,20 @@ def drop_retired(data: dict[str, Any], source: str) -> dict[str, Any]:
                 f"{source}: {dotted}: {value!r} was retired: see {_page(values[value])}; "
                 "remove the key for the default")
     return result
+
+
+def keyed_retired(section: str) -> dict[str, Any]:
+    """The retired keys of a top-level section that stay in its stage keys, at their value.
+
+    Args:
+        section: a top-level section's name (``train``, ``evaluate`` ...).
+
+    Returns:
+        Key -> its one value, for every :attr:`RetiredKey.keyed` key of the section.
+
+    Example:
+        >>> keyed_retired("learn")
+        {'declare': 'map'}
+    """
+    return {dotted.split(".", 1)[1]: retired.default for dotted, retired in RETIRED_KEYS.items()
+            if retired.keyed and dotted.startswith(f"{section}.") and dotted.count(".") == 1}

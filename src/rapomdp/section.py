@@ -47,10 +47,6 @@ class Section(BaseModel):
     #: Fields added after workspaces existed, whose default is what those workspaces did:
     #: left out of ``Config.section`` (so of every stage key) while at that default.
     hash_omits_default: ClassVar[tuple[str, ...]] = ()
-    #: Retired keys (:mod:`rapomdp.retired`) that were in the stage keys at the value that is
-    #: now their only behaviour: (name, value) pairs still written into ``Config.section``, so
-    #: the workspaces and checkpoints made before the retirement keep their keys.
-    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = ()
 
     @field_validator("*", mode="before")
     @classmethod

@@ -24,6 +24,7 @@ from pydantic import (
 
 from rapomdp.config.files import commented_lines
 from rapomdp.io import ArtefactError, check_plain_name
+from rapomdp.retired import keyed_retired
 from rapomdp.section import Section
 
 
@@ -51,7 +52,7 @@ class SplitConfig(Section):
 
 def _keyed(value: BaseModel) -> dict[str, Any]:
     """``value``'s JSON data less the fields its (and its nested sections')
-    ``hash_omits_default`` names while at their default, plus its ``hash_keeps_retired``."""
+    ``hash_omits_default`` names while at their default."""
     data = value.model_dump(mode="json")
     for key in type(value).model_fields:
         nested = getattr(value, key)
@@ -62,7 +63,7 @@ def _keyed(value: BaseModel) -> dict[str, Any]:
     for key in value.hash_omits_default:
         if getattr(value, key) == type(value).model_fields[key].default:
             data.pop(key)
-    return {**data, **dict(value.hash_keeps_retired)}
+    return data
 
 
 def _split_kind(value: Any) -> str:
@@ -209,9 +210,6 @@ class TrainConfig(Section):
 
     #: At its default, what every workspace before the option trained: out of the keys.
     hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble",)
-    #: The retired ``input_features`` at its one behaviour, in the key as before.
-    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = (
-        ("input_features", "depth_normals"),)
 
 
 class SaliencyConfig(Section):
@@ -410,10 +408,6 @@ class EvaluateConfig(Section):
     the observe stage's held-out walks stop at its threshold); docs/awareness.md.
     """
 
-    #: The retired keys at their one behaviour, in the key as before.
-    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = (
-        ("lookahead", True), ("lookahead_depth", 1), ("lookahead_width", 4),
-        ("declared_confidence", "calibrated"), ("declared_fit", "closed_loop"))
 
     methods: list[str] = Field(
         ["static", "random", "vptree", "classifier", "ra"],
@@ -473,8 +467,6 @@ class LearnConfig(Section):
     The policy chooses a move or to stop, and stopping declares the belief's most likely class
     (as Random and the POMDPs declare)."""
 
-    #: The retired ``declare`` at its one behaviour, in the key as before.
-    hash_keeps_retired: ClassVar[tuple[tuple[str, Any], ...]] = (("declare", "map"),)
 
     observation_model: str = Field(
         "ra", description="the observation model of the belief the policy sees (an observe "
@@ -576,12 +568,13 @@ class Config(Section):
         """A section's values as plain JSON-able data (for hashing and records); the fields a
         section's ``hash_omits_default`` names are left out at their default (options added
         after workspaces existed, whose default is what those workspaces did), and the
-        retired keys its ``hash_keeps_retired`` names are in at their one value (so the keys
-        of workspaces made before the retirement stay)."""
+        retired keys that were in its stage keys are in at their one value
+        (:func:`rapomdp.retired.keyed_retired`: the keys of workspaces made before the
+        retirement stay)."""
         value = getattr(self, name)
         if not isinstance(value, BaseModel):
             return value
-        return _keyed(value)
+        return {**_keyed(value), **keyed_retired(name)}
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
