@@ -1,5 +1,5 @@
-"""The package graph flows one way: geometry -> data -> recognition -> awareness -> robot ->
-planning -> experiment -> study (with pipeline) -> cli, with the top-level helpers (io,
+"""The package graph flows one way: geometry -> data -> recognition -> pretrain -> awareness ->
+robot -> planning -> experiment -> study (with pipeline) -> cli, with the top-level helpers (io,
 progress, parallel, workspace, section, config, context) beneath every stage. Every import
 counts, lazy ones inside functions included."""
 
@@ -17,8 +17,8 @@ import pytest
 SOURCE = Path(__file__).resolve().parents[1] / "src" / "rapomdp"
 
 #: The pipeline's stage packages in order; a package may import only itself and earlier ones.
-STAGE_ORDER = ["geometry", "data", "recognition", "awareness", "robot", "planning", "experiment",
-               "study", "cli"]
+STAGE_ORDER = ["geometry", "data", "recognition", "pretrain", "awareness", "robot", "planning",
+               "experiment", "study", "cli"]
 #: Top-level modules that belong to the command line's level (they assemble every stage).
 TOP_LEVEL_STAGE = {"cli": "cli", "pipeline": "study"}
 #: The level of the foundations: top-level helpers that import no stage package.

@@ -21,6 +21,7 @@ from rapomdp.cli import report as _report_commands
 from rapomdp.cli import stages as _stage_commands
 from rapomdp.cli.common import _duration as _duration
 from rapomdp.cli.dataset import dataset_app
+from rapomdp.cli.pretrain import pretrain
 from rapomdp.cli.report import figure_app
 from rapomdp.cli.stages import _story as _story
 from rapomdp.cli.stages import peak_memory_gb, run_summary_lines
@@ -84,6 +85,7 @@ app.command()(_stage_commands.learn)
 app.command()(_stage_commands.evaluate)
 app.command()(_report_commands.report)
 app.command()(study)
+app.command()(pretrain)
 app.command("config")(show_config)
 app.command()(status)
 

@@ -205,11 +205,23 @@ class TrainConfig(Section):
         1, ge=1, le=16, description="networks trained from their own seeds whose mean "
         "probability is the classifier (K times the training, saliency and inference time; "
         "measured more accurate and calibrated on unseen objects: docs/recognition.md)")
+    backbone: str = Field(
+        "scratch", description="where the convolutions start: scratch (random weights), "
+        "pretrained (the backbone shipped with the package, made by rapomdp pretrain: "
+        "docs/recognition.md) or the path of a backbone file rapomdp pretrain wrote")
     preprocess: PreprocessConfig = PreprocessConfig()
     augment: AugmentConfig = AugmentConfig()
 
     #: At its default, what every workspace before the option trained: out of the keys.
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble",)
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "backbone")
+
+    @field_validator("backbone")
+    @classmethod
+    def _backbone_form(cls, value: str) -> str:
+        if value not in ("scratch", "pretrained") and not value.endswith(".pt"):
+            raise ValueError(f"{value!r} is neither scratch, pretrained nor a backbone file "
+                             "(.pt, written by rapomdp pretrain)")
+        return value
 
 
 class SaliencyConfig(Section):

@@ -53,6 +53,7 @@ from rapomdp.recognition.training import (
     network_spec,
     preprocess_params,
     train_classifier,
+    training_backbone,
     validation_drop_note,
     validation_mask,
 )
@@ -204,6 +205,9 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
         "device": str(device),
         "threads": torch.get_num_threads(),
     }
+    backbone = training_backbone(config.train)
+    if backbone is not None:  # a scratch network's record is as before the option
+        metrics["backbone"] = {"path": str(backbone.path), "sha256": backbone.sha256}
     classifier.save(out, train_config_hash(config), extra={"training": metrics})
     rows = history.rows()
     with atomic_path(out / HISTORY_FILE) as tmp, open(tmp, "w", newline="") as handle:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -22,6 +23,14 @@ from rapomdp.config import AugmentConfig, NoiseConfig, PreprocessConfig, TrainCo
 from rapomdp.data.noise import apply_sensor_noise
 from rapomdp.data.training_views import TrainingViews
 from rapomdp.progress import progress_bar
+from rapomdp.recognition.backbone import (
+    BACKBONE_LR_FACTOR,
+    SHIPPED_BACKBONE,
+    Backbone,
+    check_fits,
+    initialise_from_backbone,
+    load_backbone,
+)
 from rapomdp.recognition.classifier import Classifier
 from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
 from rapomdp.recognition.preprocess import (
@@ -175,6 +184,28 @@ def network_spec(classes: int, cfg: TrainConfig) -> NetworkSpec:
                        input_background=pre.background)
 
 
+def training_backbone(cfg: TrainConfig) -> Backbone | None:
+    """The backbone ``train.backbone`` names, checked against the network the configuration
+    builds (None: ``scratch``).
+
+    Args:
+        cfg: the training configuration.
+
+    Returns:
+        The loaded backbone, or None.
+
+    Raises:
+        BackboneError: the file is missing or tampered with, or was pretrained for another
+            width or input (the message names the setting).
+    """
+    if cfg.backbone == "scratch":
+        return None
+    backbone = load_backbone(SHIPPED_BACKBONE if cfg.backbone == "pretrained"
+                             else Path(cfg.backbone))
+    check_fits(backbone, network_spec(2, cfg), preprocess_params(cfg.preprocess))
+    return backbone
+
+
 def member_seed(seed: int, member: int) -> int:
     """Ensemble member ``member``'s seed: ``seed`` itself for the first (an ensemble of one is
     the single classifier), then draws of ``SeedSequence([seed, member])`` (so the members of
@@ -215,6 +246,7 @@ def train_classifier(
     noise = noise or NoiseConfig()
     history = History()
     batches = -(-len(train) // cfg.batch_size)
+    backbone = training_backbone(cfg)
     networks: list[DepthAlexNet] = []
     with progress_bar(progress, status=True) as bar:
         task = bar.add_task("train", total=len(members) * cfg.epochs * batches, status="",
@@ -230,7 +262,7 @@ def train_classifier(
 
             networks.append(_train_network(
                 spec, train, val, val_inputs, extents, cfg, params, fx_px, fy_px,
-                member_seed(seed, member), device, noise, history, member, update))
+                member_seed(seed, member), device, noise, history, member, update, backbone))
     return ensemble_classifier(networks, classes, cfg, fx_px, fy_px, device), history
 
 
@@ -295,13 +327,23 @@ def _train_network(
     extents: ObjectExtents | None, cfg: TrainConfig, params: PreprocessParams, fx_px: float,
     fy_px: float, seed: int, device: torch.device, noise: NoiseConfig, history: History,
     member: int, report: Callable[[int, str | None, str], None],
+    backbone: Backbone | None = None,
 ) -> DepthAlexNet:
-    """One DepthAlexNet trained from ``seed``; its epochs are appended to ``history``."""
+    """One DepthAlexNet trained from ``seed``; its epochs are appended to ``history``. With a
+    ``backbone`` its convolutions start from the backbone's and learn at
+    ``BACKBONE_LR_FACTOR`` times the linear layer's rate (fine-tuning)."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    network = DepthAlexNet(spec).to(device)
-    optimiser = torch.optim.Adam(network.parameters(), lr=cfg.learning_rate,
-                                 weight_decay=cfg.weight_decay)
+    network = DepthAlexNet(spec)
+    if backbone is None:
+        groups = [{"params": list(network.parameters()), "lr": cfg.learning_rate}]
+    else:
+        initialise_from_backbone(network, backbone)
+        groups = [{"params": list(network.features.parameters()),
+                   "lr": cfg.learning_rate * BACKBONE_LR_FACTOR},
+                  {"params": list(network.classifier.parameters()), "lr": cfg.learning_rate}]
+    network = network.to(device)
+    optimiser = torch.optim.Adam(groups, lr=cfg.learning_rate, weight_decay=cfg.weight_decay)
     batches = -(-len(train) // cfg.batch_size)
     for epoch in range(1, cfg.epochs + 1):
         start_s = time.perf_counter()
