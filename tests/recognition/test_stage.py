@@ -18,7 +18,7 @@ from rapomdp.data.splits import class_seed
 from rapomdp.data.test_views import load_xrho_views
 from rapomdp.data.training_views import load_training_views
 from rapomdp.io import load_npz, read_json
-from rapomdp.pipeline import run_pipeline
+from rapomdp.pipeline import get_stage, run_pipeline
 from rapomdp.recognition.artefacts import load_xrho_probabilities
 from rapomdp.recognition.classifier import META_FILE, CheckpointMismatchError
 from rapomdp.recognition.network import DepthEnsemble
@@ -195,3 +195,24 @@ def test_render_and_classifier_eval_over_two_workers_write_what_one_process_does
                 assert _same_arrays(out / rel, root / name / rel), rel
         if name == "classifier_eval":
             assert read_json(out / "metrics.json") == read_json(root / name / "metrics.json")
+
+
+def test_train_stage_fine_tunes_a_backbone_and_records_it(workspace, tmp_path):
+    from rapomdp.config import TrainConfig
+    from rapomdp.recognition.backbone import load_backbone
+    from tests.recognition.test_backbone import tiny_backbone
+
+    root, config = workspace
+    train = TrainConfig(**TINY["train"])
+    path = tiny_backbone(tmp_path / "b.pt", train)
+    tuned = config_from_dict({**TINY, "train": {**TINY["train"], "backbone": str(path)}})
+    out = tmp_path / "train"
+    out.mkdir()
+    run_train_stage(tuned, Workspace(root).inputs(get_stage("train")), out, TEST_CONTEXT)
+    metrics = read_json(out / "metrics.json")
+    assert metrics["backbone"] == {"path": str(path), "sha256": load_backbone(path).sha256}
+    scratch = read_json(root / "train" / "metrics.json")
+    assert "backbone" not in scratch
+    # the checkpoint carries its configuration's hash: the scratch one does not fit it
+    assert train_config_hash(tuned) != train_config_hash(config)
+    assert read_json(out / META_FILE)["config_hash"] == train_config_hash(tuned)

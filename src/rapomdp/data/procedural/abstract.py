@@ -56,9 +56,9 @@ class PartRule:
     """
 
     primitive: str
-    size: tuple[float, float, float]
+    size: tuple[float, ...]
     side: str
-    offset: tuple[float, float]
+    offset: tuple[float, ...]
     layout: str
     count: int
     optional: bool
@@ -70,7 +70,7 @@ class AbstractFamily:
 
     name: str
     body: str
-    extents_m: tuple[float, float, float]
+    extents_m: tuple[float, ...]
     taper: float
     parts: tuple[PartRule, ...]
     spread: float
