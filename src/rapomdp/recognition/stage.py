@@ -44,7 +44,7 @@ from rapomdp.recognition.classifier import (
 )
 from rapomdp.recognition.evaluation import SingleViewResult, write_confusion_csv
 from rapomdp.recognition.figures import confusion_figure, hemisphere_figure, training_curves
-from rapomdp.recognition.network import DepthAlexNet, member_networks
+from rapomdp.recognition.network import build_member, member_networks
 from rapomdp.recognition.training import (
     History,
     collect_views,
@@ -138,7 +138,7 @@ def _train_members_in_tasks(config: Config, inputs: StageInputs, views: Training
     networks = []
     for states, _ in parts:
         for state in states:
-            network = DepthAlexNet(spec).to(device)
+            network = build_member(spec).to(device)
             network.load_state_dict(state)
             networks.append(network)
     return (ensemble_classifier(networks, classes, config.train, views.intrinsics.fx,

@@ -23,7 +23,15 @@ from rapomdp.data.noise import apply_sensor_noise
 from rapomdp.data.training_views import TrainingViews
 from rapomdp.progress import progress_bar
 from rapomdp.recognition.classifier import Classifier
-from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
+from rapomdp.recognition.custom import CustomSpec
+from rapomdp.recognition.network import (
+    AnySpec,
+    DepthEnsemble,
+    MemberNetwork,
+    Network,
+    NetworkSpec,
+    build_member,
+)
 from rapomdp.recognition.preprocess import (
     ObjectExtents,
     PreprocessParams,
@@ -165,11 +173,24 @@ def evaluate_inputs(
     return loss / len(labels), correct / len(labels)
 
 
-def network_spec(classes: int, cfg: TrainConfig) -> NetworkSpec:
-    """The network a training configuration describes (one member of its ensemble). The
-    normals' scale is the input's depth unit over its pixel's side at the crop's nominal
-    size (docs/recognition.md)."""
+def network_spec(classes: int, cfg: TrainConfig) -> AnySpec:
+    """The network a training configuration describes (one member of its ensemble).
+
+    ``train.network`` ``alexnet``: a DepthAlexNet of ``width`` and ``dropout``, whose normals'
+    scale is the input's depth unit over its pixel's side at the crop's nominal size
+    (docs/recognition.md); an import path: the user's recogniser (a
+    :class:`~rapomdp.recognition.custom.CustomSpec`; width and dropout are not read).
+
+    Args:
+        classes: logits per image.
+        cfg: the ``train`` section.
+
+    Returns:
+        The spec of one member.
+    """
     pre = cfg.preprocess
+    if cfg.network != "alexnet":
+        return CustomSpec(cfg.network, classes, pre.input_size_px)
     return NetworkSpec(classes, pre.input_size_px, cfg.width, cfg.dropout,
                        normal_scale=pre.depth_range_m * pre.input_size_px / pre.crop_size_m,
                        input_background=pre.background)
@@ -198,9 +219,10 @@ def train_classifier(
     members: Iterable[int] | None = None,
     report: Callable[[int], None] | None = None,
 ) -> tuple[Classifier, History]:
-    """Train ``cfg.ensemble`` DepthAlexNets on ``train``, each from its own
-    :func:`member_seed`; report ``val`` after every epoch (on a progress bar when
-    ``progress``). More than one member gives a :class:`DepthEnsemble`.
+    """Train ``cfg.ensemble`` networks of ``cfg.network`` (DepthAlexNets, or the user's
+    recogniser) on ``train``, each from its own :func:`member_seed`; report ``val`` after
+    every epoch (on a progress bar when ``progress``). More than one member gives a
+    :class:`DepthEnsemble`.
 
     ``members`` (indices; None: all) trains a share of the ensemble only (a worker's), and
     ``report(1)`` is called after every batch when given.
@@ -215,7 +237,7 @@ def train_classifier(
     noise = noise or NoiseConfig()
     history = History()
     batches = -(-len(train) // cfg.batch_size)
-    networks: list[DepthAlexNet] = []
+    networks: list[MemberNetwork] = []
     with progress_bar(progress, status=True) as bar:
         task = bar.add_task("train", total=len(members) * cfg.epochs * batches, status="",
                             unit="batches")
@@ -234,13 +256,13 @@ def train_classifier(
     return ensemble_classifier(networks, classes, cfg, fx_px, fy_px, device), history
 
 
-def ensemble_classifier(networks: Sequence[DepthAlexNet], classes: Sequence[str],
+def ensemble_classifier(networks: Sequence[MemberNetwork], classes: Sequence[str],
                         cfg: TrainConfig, fx_px: float, fy_px: float,
                         device: torch.device) -> Classifier:
     """The classifier of trained members: the one network, or their :class:`DepthEnsemble`."""
     params = preprocess_params(cfg.preprocess)
     if len(networks) == 1:
-        network: DepthAlexNet | DepthEnsemble = networks[0]
+        network: Network = networks[0]
     else:
         network = DepthEnsemble(replace(networks[0].spec, members=len(networks))).to(device)
         for slot, trained in zip(network.members, networks, strict=True):
@@ -291,15 +313,16 @@ def validation_drop_note(history: History) -> str | None:
 
 
 def _train_network(
-    spec: NetworkSpec, train: LabelledViews, val: LabelledViews, val_inputs: np.ndarray | None,
+    spec: AnySpec, train: LabelledViews, val: LabelledViews, val_inputs: np.ndarray | None,
     extents: ObjectExtents | None, cfg: TrainConfig, params: PreprocessParams, fx_px: float,
     fy_px: float, seed: int, device: torch.device, noise: NoiseConfig, history: History,
     member: int, report: Callable[[int, str | None, str], None],
-) -> DepthAlexNet:
-    """One DepthAlexNet trained from ``seed``; its epochs are appended to ``history``."""
+) -> MemberNetwork:
+    """One network of ``spec`` (a DepthAlexNet or the user's recogniser, the same loop)
+    trained from ``seed``; its epochs are appended to ``history``."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    network = DepthAlexNet(spec).to(device)
+    network = build_member(spec).to(device)
     optimiser = torch.optim.Adam(network.parameters(), lr=cfg.learning_rate,
                                  weight_decay=cfg.weight_decay)
     batches = -(-len(train) // cfg.batch_size)
