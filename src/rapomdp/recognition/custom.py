@@ -8,7 +8,7 @@ channel: ``(reference - depth) / depth_range_m`` clipped to [-1, 1], background 
 wraps it so that every caller of a network (training, the checkpoint, saliency, the closed
 loop) sees what it sees of a :class:`~rapomdp.recognition.network.DepthAlexNet`: a ``spec``
 (:class:`CustomSpec`, what the checkpoint records: the import path, not the code) and a
-``last_conv`` for Grad-CAM.
+``last_conv`` for Grad-CAM (the module's own ``last_conv``, else its last ``nn.Conv2d``).
 
 The user's code is imported because the user named it in the configuration (and again when a
 checkpoint that names it is loaded); the weights alone are read from the checkpoint, with
@@ -235,18 +235,24 @@ class CustomNetwork(nn.Module):
         self.module = build_recogniser(spec.factory, spec.classes, spec.input_size_px)
 
     @property
-    def last_conv(self) -> nn.Conv2d:
-        """The last ``nn.Conv2d`` among the module's submodules, in their registration order
-        (the layer Grad-CAM attributes to).
+    def last_conv(self) -> nn.Module:
+        """The layer Grad-CAM attributes to: the module's own ``last_conv`` when it has one
+        (an ``nn.Module``: a network names its last feature map's layer), else the last
+        ``nn.Conv2d`` among its submodules in their registration order.
 
         Raises:
-            RecogniserError: the module has no ``nn.Conv2d`` (Grad-CAM cannot be used).
+            RecogniserError: the module names no layer and has no ``nn.Conv2d`` (Grad-CAM
+                cannot be used).
         """
+        named = getattr(self.module, "last_conv", None)
+        if isinstance(named, nn.Module):
+            return named
         convolutions = [m for m in self.module.modules() if isinstance(m, nn.Conv2d)]
         if not convolutions:
             raise _fail(self.spec.factory, "saliency.method 'gradcam' needs a convolution to "
-                        "attribute to, and this recogniser has no torch.nn.Conv2d; use another "
-                        "saliency.method (e.g. 'mask' or 'occlusion')")
+                        "attribute to, and this recogniser has no torch.nn.Conv2d and no "
+                        "'last_conv' layer; use another saliency.method (e.g. 'mask' or "
+                        "'occlusion')")
         return convolutions[-1]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:

@@ -65,6 +65,12 @@ class SmallResNet(nn.Module):
         self.blocks = nn.Sequential(*blocks)
         self.head = nn.Linear(widths[-1], classes)
 
+    @property
+    def last_conv(self) -> nn.Module:
+        """The last residual block, whose output is the last feature map (Grad-CAM's layer;
+        its last ``nn.Conv2d`` in registration order would be the shortcut's projection)."""
+        return self.blocks[-1]
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         features = self.blocks(self.stem(x))
         return self.head(features.mean(dim=(2, 3)))
