@@ -254,3 +254,16 @@ def test_an_ensemble_of_a_custom_recogniser_trains_each_member_from_its_own_seed
     assert isinstance(classifier.network, DepthEnsemble)
     assert not torch.equal(first.module.head.weight, second.module.head.weight)
     assert read_json(tmp_path / "metrics.json")["ensemble"] == 2
+
+
+def test_the_train_stage_refuses_a_factory_that_cannot_be_used(resnet_workspace,
+                                                              tmp_path) -> None:
+    source, _ = resnet_workspace
+    config = config_from_dict({**TINY, "train": {**TINY["train"],
+                                                 "network": "tests.recognition.custom_nets:fails"}})
+    inputs = StageInputs.of("train", {"dataset": source.root / "dataset",
+                                      "render": source.root / "render"})
+    with pytest.raises(RecogniserError, match=r"^train.network 'tests.recognition.custom_nets:"
+                       r"fails': calling it as factory\(classes=3, input_size_px=32\) failed"):
+        run_train_stage(config, inputs, tmp_path, TEST_CONTEXT)
+    assert list(tmp_path.iterdir()) == []

@@ -166,6 +166,8 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
     classes = views.dataset.classes
     if len(classes) < 2:
         raise StageError(f"{inputs.dataset}: training needs at least 2 classes, got {classes}")
+    if config.train.network != "alexnet":  # a recogniser that cannot be used, before any view
+        build_member(network_spec(len(classes), config.train))
     data = collect_views(views, "train")
     held = validation_mask(data, config.train.validation_fraction,
                            class_seed(config.train_seed, "train/validation"))
