@@ -60,9 +60,18 @@ def test_an_option_added_later_leaves_the_stage_keys_alone_at_its_default() -> N
     assert {k: v for k, v in Config().section("train").items()
             if k not in ("augment", "input_features")} == {
         k: v for k, v in Config().train.model_dump(mode="json").items()
-        if k not in ("ensemble", "augment")}
+        if k not in ("ensemble", "network", "backbone", "augment")}
     assert config_from_dict({"train": {"ensemble": 3}}).section("train")["ensemble"] == 3
     assert yaml.safe_load(Config().to_yaml())["train"]["ensemble"] == 1
+    # train.network likewise: alexnet is what every workspace before the option trained
+    assert "network" not in Config().section("train")
+    assert config_from_dict({"train": {"network": "pkg.nets:resnet"}}).section(
+        "train")["network"] == "pkg.nets:resnet"
+    assert yaml.safe_load(Config().to_yaml())["train"]["network"] == "alexnet"
+    # and train.backbone: scratch is what every workspace before it trained
+    assert "backbone" not in Config().section("train")
+    assert config_from_dict({"train": {"backbone": "pretrained"}}).section(
+        "train")["backbone"] == "pretrained"
     # a retired key in the key at its one behaviour: workspaces before the retirement keep
     # their train key and their checkpoint's recorded hash
     assert "input_features" not in Config().train.model_dump()

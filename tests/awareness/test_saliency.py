@@ -12,6 +12,7 @@ from rapomdp.awareness.saliency import (
     MaskParams,
     PerturbationMask,
     gaussian_blur,
+    input_gradient_problem,
     make_attribution,
     total_variation,
 )
@@ -182,3 +183,33 @@ def test_the_mask_of_an_ensemble_of_copies_is_the_mask_of_the_network():
     together = PerturbationMask(ensemble, params, seed=1).attribute(inputs, target)
     assert float(alone.max()) > 0.1
     torch.testing.assert_close(together, alone, atol=1e-4, rtol=0)
+
+
+class Detached(nn.Module):
+    """Logits of a detached input: autograd has no path back to the input."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.linear = nn.Linear(16, 2)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.linear(x.detach().flatten(1))
+
+
+class Exploding(nn.Module):
+    """Logits whose input gradient is infinite (a square root at 0)."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.sqrt(x - x.detach()).flatten(1)[:, :2]
+
+
+def test_a_network_without_usable_input_gradients_is_told_with_the_reason():
+    x = torch.linspace(-1, 1, 3 * 16).reshape(3, 1, 4, 4)
+    t = torch.tensor([0, 1, 0])
+    assert input_gradient_problem(Detached(), x, t) == (
+        "its logits do not depend on the input through autograd")
+    assert input_gradient_problem(Exploding(), x, t) == "the gradient is not finite on 3 views"
+    assert input_gradient_problem(Planted(), torch.randn(2, 1, SIZE, SIZE),
+                                  torch.tensor([0, 1])) is None
+    dropout = nn.Sequential(nn.Dropout(0.5), nn.Flatten(), nn.Linear(16, 2)).train()
+    assert input_gradient_problem(dropout, x, t) is None and dropout.training  # mode restored

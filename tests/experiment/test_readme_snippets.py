@@ -83,10 +83,23 @@ def test_the_recognition_docs_run_as_written(reader_folder) -> None:
     centre = np.array([0.0, 0.0, mesh.bounds[1, 2] / 2])
     poses = look_at_many(viewpoints(4, 0.6, hemisphere=True, centre=centre), centre)
     namespace: dict = {"depth_images": DepthRenderer(mesh, xtion_intrinsics(80, 60)).render(poses)}
-    block, = python_blocks((DOCS / "recognition.md").read_text())
+    _, block = python_blocks((DOCS / "recognition.md").read_text())
     exec(block, namespace)
     assert namespace["probs"].shape == (4, len(namespace["clf"].classes))
     assert namespace["logits"].shape == (4, len(namespace["clf"].classes))
+
+
+def test_the_recognition_docs_own_recogniser_runs_as_written() -> None:
+    """The "Bring your own recogniser" block: the wrapped network passes the train stage's
+    check and maps the depth input to logits."""
+    import torch
+
+    block, _ = python_blocks((DOCS / "recognition.md").read_text())
+    namespace: dict = {}
+    exec(block, namespace)
+    network = namespace["network"]
+    assert isinstance(network, namespace["ThreeChannels"])
+    assert tuple(network(torch.zeros(5, 1, 64, 64)).shape) == (5, 3)
 
 
 def test_the_robot_docs_run_as_written(reader_folder) -> None:
@@ -124,7 +137,7 @@ def test_the_cluster_snippets_are_valid_python_for_their_libraries() -> None:
 def test_every_python_snippet_of_the_docs_is_covered() -> None:
     counts = {str(p.relative_to(DOCS)): len(python_blocks(p.read_text()))
               for p in sorted(DOCS.rglob("*.md"))}
-    covered = {"awareness.md": 1, "experiment.md": 3, "planning.md": 1, "recognition.md": 1,
+    covered = {"awareness.md": 1, "experiment.md": 3, "planning.md": 1, "recognition.md": 2,
                "robot.md": 1, "scale-out.md": 2, "howto/learned.md": 1, "howto/solver.md": 1}
     assert {name: n for name, n in counts.items() if n} == covered
 

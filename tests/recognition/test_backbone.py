@@ -109,3 +109,10 @@ def test_fine_tuning_starts_from_the_backbone_and_is_identical_on_rerun(tmp_path
     # from scratch the first layer is another draw altogether
     assert 0 < float((tuned - start).abs().max()) < 0.05
     assert float((scratch.network.state_dict()["features.0.weight"] - start).abs().max()) > 0.05
+
+
+def test_a_backbone_with_a_recogniser_of_ones_own_is_refused() -> None:
+    cfg = TrainConfig(backbone="pretrained", network="rapomdp.recognition.examples:small_resnet")
+    with pytest.raises(BackboneError, match="starts the alexnet network's convolutions; "
+                                            "train.network is 'rapomdp.recognition"):
+        training_backbone(cfg)

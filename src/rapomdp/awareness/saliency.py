@@ -29,6 +29,9 @@ REFERENCE_INPUT_PX = 224
 """Fong & Vedaldi's defaults are for 224 px inputs; sizes scale by ``S / 224``."""
 
 METHODS = ("mask", "gradient", "smoothgrad", "gradcam", "integrated_gradients", "occlusion")
+#: The method that needs no gradient of the network (it only runs it): a recogniser that gives
+#: none is attributed with it (:func:`input_gradient_problem`).
+BLACK_BOX_METHOD = "occlusion"
 
 
 def _normalise(maps: torch.Tensor) -> torch.Tensor:
@@ -305,6 +308,60 @@ class Occlusion(_CaptumMethod):
                 perturbations_per_eval=64,
             )
         return maps.clamp(min=0.0)
+
+
+def input_gradient_problem(network: nn.Module, inputs: torch.Tensor,
+                           target: torch.Tensor) -> str | None:
+    """Why ``network`` gives no usable gradient of its logits with respect to its input, or
+    None when it gives one.
+
+    The gradient of the sum of each input's ``target`` logit is taken on ``inputs`` (in
+    evaluation mode; the network's weights are left alone). It is unusable when autograd
+    cannot take it (the logits do not depend on the input through differentiable
+    operations: None), when it is zero on every pixel of every input (e.g. a rounding of the
+    input), or when it is not finite. Every method of :data:`METHODS` but
+    :data:`BLACK_BOX_METHOD` follows this gradient.
+
+    Args:
+        network: (n, 1, S, S) -> (n, C) logits.
+        inputs: a probe batch of preprocessed inputs (n, 1, S, S).
+        target: the class attributed per input (n,).
+
+    Returns:
+        A short reason (``"the gradient is zero on every pixel of 8 views"``), or None.
+
+    Example:
+        >>> class Rounding(nn.Module):  # a straight quantisation: zero input gradient
+        ...     def forward(self, x):
+        ...         return torch.round(x * 8).flatten(1)[:, :2]
+        >>> x, t = torch.linspace(-1, 1, 32).reshape(2, 1, 4, 4), torch.tensor([0, 1])
+        >>> input_gradient_problem(Rounding(), x, t)
+        'the gradient is zero on every pixel of 2 views'
+        >>> input_gradient_problem(nn.Sequential(nn.Flatten(), nn.Linear(16, 2)), x, t) is None
+        True
+    """
+    was_training = network.training
+    network.eval()
+    x = inputs.detach().clone().requires_grad_(True)
+    views = f"{x.shape[0]} view{'s' if x.shape[0] != 1 else ''}"
+    try:
+        with torch.enable_grad():
+            logits = network(x)
+            if not isinstance(logits, torch.Tensor) or not logits.requires_grad:
+                return "its logits do not depend on the input through autograd"
+            score = logits.gather(1, target.reshape(-1, 1).to(logits.device)).sum()
+            gradient, = torch.autograd.grad(score, x, allow_unused=True)
+    except RuntimeError as exc:
+        return f"autograd failed: {exc}"
+    finally:
+        network.train(was_training)
+    if gradient is None:
+        return "its logits do not depend on the input through autograd"
+    if not bool(torch.isfinite(gradient).all()):
+        return f"the gradient is not finite on {views}"
+    if not bool((gradient != 0).any()):
+        return f"the gradient is zero on every pixel of {views}"
+    return None
 
 
 def make_attribution(method: str, network: nn.Module, input_px: int,

@@ -4,7 +4,9 @@
 ``W/saliency/``: ``maps/<class>/<model>.npz`` per volume model with ``saliency`` (views, H, W)
 float16 in [0, 1] on the depth images' pixels, ``probability`` (views,) of the class on the
 clean input and, for the mask, ``perturbed_probability`` (views,) after the perturbation;
-``saliency.json`` (method, hyperparameters, maps per second).
+``saliency.json`` (the method used, hyperparameters, maps per second; when the recogniser
+gives no input gradients and the black-box method replaced the configured one, also
+``configured_method`` and ``method_note``).
 
 ``W/volume/``: ``<class>.npz`` (a :class:`~rapomdp.awareness.volume.SaliencyVolume`: ``scores``
 with NaN = empty, ``counts``, ``origin``, ``voxel_size_m``, ``shape``) and ``volume.json``.
@@ -14,16 +16,23 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
+from rich.console import Console
 
 from rapomdp.awareness.artefacts import SALIENCY_FILE, VOLUME_FILE, saliency_map_file, volume_file
-from rapomdp.awareness.saliency import PerturbationMask, make_attribution
+from rapomdp.awareness.saliency import (
+    BLACK_BOX_METHOD,
+    PerturbationMask,
+    input_gradient_problem,
+    make_attribution,
+)
 from rapomdp.awareness.volume import SaliencyVolume, object_grid, saliency_volume
 from rapomdp.config import Config
 from rapomdp.context import RunContext
-from rapomdp.data.dataset import Dataset, ModelEntry, load_dataset
+from rapomdp.data.dataset import Dataset, ModelEntry
 from rapomdp.data.splits import class_seed
 from rapomdp.data.training_views import TrainingViews, load_training_views
 from rapomdp.io import load_npz, save_npz, write_json_atomic
@@ -95,9 +104,51 @@ def saliency_maps(classifier: Classifier, depth_m: np.ndarray, label: int, metho
     return {"saliency": maps, "probability": probability, "perturbed_probability": perturbed}
 
 
+#: Views of the first volume model on which the recogniser's input gradient is probed.
+GRADIENT_PROBE_VIEWS = 8
+
+
+class SaliencyMethod(NamedTuple):
+    """The method the saliency stage runs (``used``), and why it is not the configured one
+    (``note``: None when it is)."""
+
+    used: str
+    note: str | None
+
+
+def saliency_method(classifier: Classifier, depth_m: np.ndarray, label: int,
+                    method: str) -> SaliencyMethod:
+    """The saliency method the stage runs: ``method``, or the black-box
+    :data:`~rapomdp.awareness.saliency.BLACK_BOX_METHOD` when ``method`` follows the
+    network's input gradient and the recogniser gives none on the probe views
+    (:func:`~rapomdp.awareness.saliency.input_gradient_problem`), with the line that says so.
+
+    Args:
+        classifier: the trained classifier.
+        depth_m: the probe views (n, H, W), depth in metres (a volume model's).
+        label: their class.
+        method: the configured method (``saliency.method``).
+
+    Returns:
+        The method used and, when it is not ``method``, the note saying why.
+    """
+    if method == BLACK_BOX_METHOD:
+        return SaliencyMethod(method, None)
+    inputs = torch.from_numpy(classifier.preprocess(depth_m).images).to(classifier.device)
+    target = torch.full((inputs.shape[0],), label, dtype=torch.long)
+    problem = input_gradient_problem(classifier.network, inputs, target)
+    if problem is None:
+        return SaliencyMethod(method, None)
+    return SaliencyMethod(BLACK_BOX_METHOD, (
+        f"saliency: the recogniser gives no input gradients ({problem}); the black-box "
+        f"method {BLACK_BOX_METHOD!r} is used instead of {method!r}"))
+
+
 def _saliency_task(config_json: str, render_dir: str, dataset_dir: str, train_dir: str,
-                   out: str, model_file: str, threads: int | None) -> tuple[int, float]:
-    """One volume model's saliency maps, written to ``out``; returns (views, seconds)."""
+                   out: str, model_file: str, threads: int | None,
+                   method: str) -> tuple[int, float]:
+    """One volume model's saliency maps by ``method``, written to ``out``; returns (views,
+    seconds)."""
     config = Config.model_validate_json(config_json)
     views = load_training_views(Path(render_dir), Path(dataset_dir))
     dataset = views.dataset
@@ -107,7 +158,7 @@ def _saliency_task(config_json: str, render_dir: str, dataset_dir: str, train_di
     depth, _ = views.load(model)
     start = time.perf_counter()
     seed = int(class_seed(config.seed, f"saliency/{model.id}").integers(2**31))
-    result = saliency_maps(classifier, depth, dataset.label(model), cfg.method, cfg, seed,
+    result = saliency_maps(classifier, depth, dataset.label(model), method, cfg, seed,
                            cfg.batch_size)
     seconds = time.perf_counter() - start
     save_npz(Path(out) / saliency_map_file(model.class_name, model.id), compressed=True,
@@ -123,27 +174,42 @@ def run_saliency_stage(config: Config, inputs: StageInputs, out: Path,
     training viewsphere, one model per task over worker processes (each model has its own
     seed, so the maps do not depend on the number of processes).
 
+    Before any map, the recogniser's input gradient is probed on the first volume model's
+    views (:func:`saliency_method`): a recogniser that gives none is attributed with the
+    black-box method (``occlusion``) instead of a gradient method, one line on stderr says
+    so, and ``saliency.json`` records both. The stage's key is the same either way.
+
     Args:
         config: the run's configuration (``saliency``, ``volume.models_per_class``).
         inputs: the ``dataset``, ``render`` and ``train`` stage folders.
         out: the stage's folder: ``maps/<class>/<model>.npz`` and ``saliency.json``.
         context: threads, worker processes and progress bars.
     """
-    dataset = load_dataset(inputs.dataset)
+    views = load_training_views(inputs.render, inputs.dataset)
+    dataset = views.dataset
     cfg = config.saliency
+    models = saliency_models(dataset, config.volume.models_per_class)
+    classifier = load_stage_classifier(config, inputs.train, dataset.classes,
+                                       context.threads)
+    method = SaliencyMethod(cfg.method, None)
+    if models:
+        probe = views.load(models[0])[0][:GRADIENT_PROBE_VIEWS]
+        method = saliency_method(classifier, probe, dataset.label(models[0]), cfg.method)
+    if method.note is not None:
+        Console(stderr=True).print(method.note, highlight=False, soft_wrap=True)
     workers = context.worker_count
     task_threads = context.in_worker().threads if workers > 1 else context.threads
     tasks = [(config.model_dump_json(), str(inputs.render), str(inputs.dataset),
-              str(inputs.train), str(out), m.file, task_threads)
-             for m in saliency_models(dataset, config.volume.models_per_class)]
-    done = run_tasks(_saliency_task, tasks, workers, f"saliency ({cfg.method})",
+              str(inputs.train), str(out), m.file, task_threads, method.used)
+             for m in models]
+    done = run_tasks(_saliency_task, tasks, workers, f"saliency ({method.used})",
                      context.progress, context.scheduler, unit="volume models",
                      pool=context.pool)
     total_views, seconds = sum(v for v, _ in done), sum(s for _, s in done)
-    classifier = load_stage_classifier(config, inputs.train, dataset.classes,
-                                       context.threads)
+    fallback = ({} if method.note is None else
+                {"configured_method": cfg.method, "method_note": method.note})
     write_json_atomic(out / SALIENCY_FILE, {
-        "method": cfg.method, "config": cfg.model_dump(mode="json"),
+        "method": method.used, **fallback, "config": cfg.model_dump(mode="json"),
         "input_size_px": classifier.preprocessing.input_size_px,
         "views": total_views, "seconds": seconds,
         "maps_per_s": total_views / seconds if seconds > 0 else None,

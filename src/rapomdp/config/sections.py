@@ -9,11 +9,13 @@ that reading a configuration loads no arm, network or solver.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
 import yaml
 from pydantic import (
+    AfterValidator,
     BaseModel,
     Discriminator,
     Field,
@@ -181,6 +183,22 @@ class AugmentConfig(Section):
     noise: bool = Field(False, description="add axial + quantisation noise (render.noise model)")
 
 
+#: ``train.network``'s import path: a dotted module path, a colon, a Python name.
+NETWORK_FACTORY = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*")
+
+
+def _network_form(value: str) -> str:
+    """``train.network`` is ``alexnet`` or an import path (:data:`NETWORK_FACTORY`)."""
+    if value != "alexnet" and not NETWORK_FACTORY.fullmatch(value):
+        raise ValueError("expected 'alexnet' or an import path 'package.module:factory' (a "
+                         "module's dotted path, a colon, the name of a function in it)")
+    return value
+
+
+#: ``train.network``'s type: checked for its form here, imported by the train stage.
+NetworkName = Annotated[str, AfterValidator(_network_form)]
+
+
 class TrainConfig(Section):
     """The depth classifier and its training (paper Sec. 5.1.1: Adam, weight decay 5e-4, batch
     128; its lr 1e-4 fine-tuned a pretrained network, from scratch 1e-3 measured far better).
@@ -211,9 +229,13 @@ class TrainConfig(Section):
         "docs/recognition.md) or the path of a backbone file rapomdp pretrain wrote")
     preprocess: PreprocessConfig = PreprocessConfig()
     augment: AugmentConfig = AugmentConfig()
+    network: NetworkName = Field(
+        "alexnet", description="the recogniser: alexnet (DepthAlexNet: width, dropout) or "
+        "'package.module:factory', factory(classes, input_size_px) -> torch.nn.Module of "
+        "logits, imported from your code (docs/recognition.md, Bring your own recogniser)")
 
     #: At its default, what every workspace before the option trained: out of the keys.
-    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "backbone")
+    hash_omits_default: ClassVar[tuple[str, ...]] = ("ensemble", "backbone", "network")
 
     @field_validator("backbone")
     @classmethod

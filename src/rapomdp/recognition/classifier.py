@@ -2,10 +2,11 @@
 
 A checkpoint is two files side by side: ``classifier.pt``, the network's state dict written with
 ``torch.save`` and read with ``torch.load(..., weights_only=True)``, and ``classifier.json``, the
-metadata: class list, preprocessing parameters, network spec, camera focal lengths, the
-configuration hash and the SHA-256 of the weights file. :meth:`Classifier.load` checks the
-metadata against what the caller expects and refuses a mismatch with
-:class:`CheckpointMismatchError`, naming the file and the field.
+metadata: class list, preprocessing parameters, network spec (a user's recogniser's: its
+import path, ``kind: custom``, whose factory is imported again on load), camera focal
+lengths, the configuration hash and the SHA-256 of the weights file.
+:meth:`Classifier.load` checks the metadata against what the caller expects and refuses a
+mismatch with :class:`CheckpointMismatchError`, naming the file and the field.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ import numpy as np
 import torch
 
 from rapomdp.io import ArtefactError, read_json, write_bytes_atomic, write_json_atomic
-from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec, build_network
+from rapomdp.recognition.custom import RecogniserError
+from rapomdp.recognition.network import Network, build_network, spec_from_record
 from rapomdp.recognition.preprocess import Preprocessed, PreprocessParams, preprocess
 
 WEIGHTS_FILE = "classifier.pt"
@@ -93,7 +95,7 @@ class Classifier:
 
     def __init__(
         self,
-        network: DepthAlexNet | DepthEnsemble,
+        network: Network,
         classes: Sequence[str],
         preprocessing: PreprocessParams,
         fx_px: float,
@@ -228,9 +230,12 @@ class Classifier:
         torch_device = configure_torch(device, threads) if threads else select_device(device)
         try:
             state = torch.load(io.BytesIO(data), map_location=torch_device, weights_only=True)
-            spec = NetworkSpec.from_dict(meta["network"])
+            spec = spec_from_record(meta["network"])
             network = build_network(spec)
             network.load_state_dict(state)
+        except RecogniserError as exc:  # the user's recogniser, named by the record
+            raise CheckpointError(f"{meta_path}: cannot rebuild the recogniser the checkpoint "
+                                  f"names: {exc}") from exc
         except Exception as exc:  # any unpickling or shape error is a bad checkpoint
             raise CheckpointError(f"{weights_path}: cannot load weights ({exc})") from exc
         return cls(

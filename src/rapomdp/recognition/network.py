@@ -18,7 +18,8 @@ preprocessing and saliency see one channel.
 :class:`DepthEnsemble` averages the class probabilities of ``members`` such networks, each
 trained from its own seed (``train.ensemble``): the mean of independently trained networks is
 more accurate and better calibrated on unseen objects than any one of them (docs/recognition.md).
-:func:`build_network` builds the one a :class:`NetworkSpec` describes.
+:func:`build_network` builds the one a :class:`NetworkSpec` describes, or a user's own
+recogniser (``train.network``, a :class:`~rapomdp.recognition.custom.CustomSpec`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ from typing import Any
 
 import torch
 from torch import nn
+
+from rapomdp.recognition.custom import CUSTOM_KIND, CustomNetwork, CustomSpec
 
 ALEXNET_CHANNELS = (64, 192, 384, 256, 256)
 #: What the first convolution sees, as a checkpoint records it: the depth and its normals.
@@ -202,33 +205,101 @@ class DepthAlexNet(nn.Module):
         return self.classifier(torch.flatten(self.features(self.input_layer(x)), 1))
 
 
-class DepthEnsemble(nn.Module):
-    """``members`` DepthAlexNets whose output is the log of their mean class probability: a
-    softmax of it is the ensemble's probability, so every caller of a network (prediction,
-    the saliency masks' score) sees the ensemble as one network."""
+#: What describes a classifier's network: a DepthAlexNet's spec, or a custom recogniser's.
+AnySpec = NetworkSpec | CustomSpec
+#: One network of a classifier: a DepthAlexNet, or a user's recogniser wrapped.
+MemberNetwork = DepthAlexNet | CustomNetwork
 
-    def __init__(self, spec: NetworkSpec) -> None:
+
+def build_member(spec: AnySpec) -> MemberNetwork:
+    """One network of ``spec`` (``members`` 1): a DepthAlexNet, or the user's recogniser
+    (its factory imported and called now).
+
+    Args:
+        spec: the network's description.
+
+    Returns:
+        The network, its weights freshly initialised (from PyTorch's generator).
+
+    Raises:
+        ValueError: ``spec`` describes an ensemble.
+        RecogniserError: a custom recogniser cannot be imported or built.
+    """
+    if spec.members != 1:
+        raise ValueError(f"one network is built at a time, got a spec of {spec.members} "
+                         "members (build_network builds an ensemble)")
+    return DepthAlexNet(spec) if isinstance(spec, NetworkSpec) else CustomNetwork(spec)
+
+
+class DepthEnsemble(nn.Module):
+    """``members`` networks (DepthAlexNets, or a custom recogniser's) whose output is the log
+    of their mean class probability: a softmax of it is the ensemble's probability, so every
+    caller of a network (prediction, the saliency masks' score) sees the ensemble as one
+    network."""
+
+    def __init__(self, spec: AnySpec) -> None:
         super().__init__()
         if spec.members < 2:
             raise ValueError(f"an ensemble needs at least 2 members, got {spec.members}")
         self.spec = spec
         member = replace(spec, members=1)
-        self.members = nn.ModuleList(DepthAlexNet(member) for _ in range(spec.members))
+        self.members = nn.ModuleList(build_member(member) for _ in range(spec.members))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         log_p = torch.stack([torch.log_softmax(m(x), dim=1) for m in self.members])
         return torch.logsumexp(log_p, dim=0) - torch.log(torch.tensor(float(len(self.members))))
 
 
-def build_network(spec: NetworkSpec) -> DepthAlexNet | DepthEnsemble:
-    """The network ``spec`` describes: one DepthAlexNet, or an ensemble of ``members``."""
+#: A classifier's network: one network, or an ensemble of them.
+Network = DepthAlexNet | CustomNetwork | DepthEnsemble
+
+
+def build_network(spec: AnySpec) -> Network:
+    """The network ``spec`` describes: one DepthAlexNet or custom recogniser (a
+    :class:`~rapomdp.recognition.custom.CustomSpec`, whose factory is imported and called
+    now), or an ensemble of ``members``.
+
+    Args:
+        spec: the network's description.
+
+    Returns:
+        The network, its weights freshly initialised (from PyTorch's generator).
+
+    Raises:
+        ValueError: ``members`` is below 1.
+        RecogniserError: a custom recogniser cannot be imported or built
+            (:func:`~rapomdp.recognition.custom.build_recogniser`).
+    """
     if spec.members < 1:
         raise ValueError(f"members must be at least 1, got {spec.members}")
-    return DepthAlexNet(spec) if spec.members == 1 else DepthEnsemble(spec)
+    return build_member(spec) if spec.members == 1 else DepthEnsemble(spec)
 
 
-def member_networks(network: DepthAlexNet | DepthEnsemble) -> list[DepthAlexNet]:
+def spec_from_record(record: Mapping[str, Any]) -> AnySpec:
+    """The spec of a checkpoint's ``network`` record: a custom recogniser's (``kind:
+    custom``) or a DepthAlexNet's (no ``kind``, as every checkpoint before the option).
+
+    Args:
+        record: the ``network`` entry of a checkpoint's ``classifier.json``.
+
+    Returns:
+        The spec.
+
+    Raises:
+        ValueError: the record is of an unknown kind or a network no longer built.
+    """
+    kind = record.get("kind")
+    if kind is None:
+        return NetworkSpec.from_dict(record)
+    if kind == CUSTOM_KIND:
+        return CustomSpec.from_dict(record)
+    raise ValueError(f"a network record of kind {kind!r} is unknown (expected none, a "
+                     f"DepthAlexNet, or {CUSTOM_KIND!r})")
+
+
+def member_networks(network: Network) -> list[MemberNetwork]:
     """The networks whose mean a classifier's network is: an ensemble's members, or itself."""
     if isinstance(network, DepthEnsemble):
-        return [member for member in network.members if isinstance(member, DepthAlexNet)]
+        return [member for member in network.members
+                if isinstance(member, DepthAlexNet | CustomNetwork)]
     return [network]

@@ -44,7 +44,7 @@ from rapomdp.recognition.classifier import (
 )
 from rapomdp.recognition.evaluation import SingleViewResult, write_confusion_csv
 from rapomdp.recognition.figures import confusion_figure, hemisphere_figure, training_curves
-from rapomdp.recognition.network import DepthAlexNet, member_networks
+from rapomdp.recognition.network import build_member, member_networks
 from rapomdp.recognition.training import (
     History,
     collect_views,
@@ -139,7 +139,7 @@ def _train_members_in_tasks(config: Config, inputs: StageInputs, views: Training
     networks = []
     for states, _ in parts:
         for state in states:
-            network = DepthAlexNet(spec).to(device)
+            network = build_member(spec).to(device)
             network.load_state_dict(state)
             networks.append(network)
     return (ensemble_classifier(networks, classes, config.train, views.intrinsics.fx,
@@ -167,6 +167,8 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
     classes = views.dataset.classes
     if len(classes) < 2:
         raise StageError(f"{inputs.dataset}: training needs at least 2 classes, got {classes}")
+    if config.train.network != "alexnet":  # a recogniser that cannot be used, before any view
+        build_member(network_spec(len(classes), config.train))
     data = collect_views(views, "train")
     held = validation_mask(data, config.train.validation_fraction,
                            class_seed(config.train_seed, "train/validation"))

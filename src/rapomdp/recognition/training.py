@@ -27,12 +27,22 @@ from rapomdp.recognition.backbone import (
     BACKBONE_LR_FACTOR,
     SHIPPED_BACKBONE,
     Backbone,
+    BackboneError,
     check_fits,
     initialise_from_backbone,
     load_backbone,
 )
 from rapomdp.recognition.classifier import Classifier
-from rapomdp.recognition.network import DepthAlexNet, DepthEnsemble, NetworkSpec
+from rapomdp.recognition.custom import CustomSpec
+from rapomdp.recognition.network import (
+    AnySpec,
+    DepthAlexNet,
+    DepthEnsemble,
+    MemberNetwork,
+    Network,
+    NetworkSpec,
+    build_member,
+)
 from rapomdp.recognition.preprocess import (
     ObjectExtents,
     PreprocessParams,
@@ -174,11 +184,24 @@ def evaluate_inputs(
     return loss / len(labels), correct / len(labels)
 
 
-def network_spec(classes: int, cfg: TrainConfig) -> NetworkSpec:
-    """The network a training configuration describes (one member of its ensemble). The
-    normals' scale is the input's depth unit over its pixel's side at the crop's nominal
-    size (docs/recognition.md)."""
+def network_spec(classes: int, cfg: TrainConfig) -> AnySpec:
+    """The network a training configuration describes (one member of its ensemble).
+
+    ``train.network`` ``alexnet``: a DepthAlexNet of ``width`` and ``dropout``, whose normals'
+    scale is the input's depth unit over its pixel's side at the crop's nominal size
+    (docs/recognition.md); an import path: the user's recogniser (a
+    :class:`~rapomdp.recognition.custom.CustomSpec`; width and dropout are not read).
+
+    Args:
+        classes: logits per image.
+        cfg: the ``train`` section.
+
+    Returns:
+        The spec of one member.
+    """
     pre = cfg.preprocess
+    if cfg.network != "alexnet":
+        return CustomSpec(cfg.network, classes, pre.input_size_px)
     return NetworkSpec(classes, pre.input_size_px, cfg.width, cfg.dropout,
                        normal_scale=pre.depth_range_m * pre.input_size_px / pre.crop_size_m,
                        input_background=pre.background)
@@ -200,9 +223,16 @@ def training_backbone(cfg: TrainConfig) -> Backbone | None:
     """
     if cfg.backbone == "scratch":
         return None
+    if cfg.network != "alexnet":
+        raise BackboneError(f"train.backbone {cfg.backbone!r} starts the alexnet network's "
+                            f"convolutions; train.network is {cfg.network!r}: set "
+                            "train.backbone: scratch (a recogniser of your own brings its "
+                            "own initial weights)")
     backbone = load_backbone(SHIPPED_BACKBONE if cfg.backbone == "pretrained"
                              else Path(cfg.backbone))
-    check_fits(backbone, network_spec(2, cfg), preprocess_params(cfg.preprocess))
+    spec = network_spec(2, cfg)
+    assert isinstance(spec, NetworkSpec)  # train.network alexnet, checked above
+    check_fits(backbone, spec, preprocess_params(cfg.preprocess))
     return backbone
 
 
@@ -229,9 +259,10 @@ def train_classifier(
     members: Iterable[int] | None = None,
     report: Callable[[int], None] | None = None,
 ) -> tuple[Classifier, History]:
-    """Train ``cfg.ensemble`` DepthAlexNets on ``train``, each from its own
-    :func:`member_seed`; report ``val`` after every epoch (on a progress bar when
-    ``progress``). More than one member gives a :class:`DepthEnsemble`.
+    """Train ``cfg.ensemble`` networks of ``cfg.network`` (DepthAlexNets, or the user's
+    recogniser) on ``train``, each from its own :func:`member_seed`; report ``val`` after
+    every epoch (on a progress bar when ``progress``). More than one member gives a
+    :class:`DepthEnsemble`.
 
     ``members`` (indices; None: all) trains a share of the ensemble only (a worker's), and
     ``report(1)`` is called after every batch when given.
@@ -247,7 +278,7 @@ def train_classifier(
     history = History()
     batches = -(-len(train) // cfg.batch_size)
     backbone = training_backbone(cfg)
-    networks: list[DepthAlexNet] = []
+    networks: list[MemberNetwork] = []
     with progress_bar(progress, status=True) as bar:
         task = bar.add_task("train", total=len(members) * cfg.epochs * batches, status="",
                             unit="batches")
@@ -266,13 +297,13 @@ def train_classifier(
     return ensemble_classifier(networks, classes, cfg, fx_px, fy_px, device), history
 
 
-def ensemble_classifier(networks: Sequence[DepthAlexNet], classes: Sequence[str],
+def ensemble_classifier(networks: Sequence[MemberNetwork], classes: Sequence[str],
                         cfg: TrainConfig, fx_px: float, fy_px: float,
                         device: torch.device) -> Classifier:
     """The classifier of trained members: the one network, or their :class:`DepthEnsemble`."""
     params = preprocess_params(cfg.preprocess)
     if len(networks) == 1:
-        network: DepthAlexNet | DepthEnsemble = networks[0]
+        network: Network = networks[0]
     else:
         network = DepthEnsemble(replace(networks[0].spec, members=len(networks))).to(device)
         for slot, trained in zip(network.members, networks, strict=True):
@@ -323,21 +354,23 @@ def validation_drop_note(history: History) -> str | None:
 
 
 def _train_network(
-    spec: NetworkSpec, train: LabelledViews, val: LabelledViews, val_inputs: np.ndarray | None,
+    spec: AnySpec, train: LabelledViews, val: LabelledViews, val_inputs: np.ndarray | None,
     extents: ObjectExtents | None, cfg: TrainConfig, params: PreprocessParams, fx_px: float,
     fy_px: float, seed: int, device: torch.device, noise: NoiseConfig, history: History,
     member: int, report: Callable[[int, str | None, str], None],
     backbone: Backbone | None = None,
-) -> DepthAlexNet:
-    """One DepthAlexNet trained from ``seed``; its epochs are appended to ``history``. With a
-    ``backbone`` its convolutions start from the backbone's and learn at
+) -> MemberNetwork:
+    """One network of ``spec`` (a DepthAlexNet or the user's recogniser, the same loop)
+    trained from ``seed``; its epochs are appended to ``history``. With a ``backbone`` (a
+    DepthAlexNet only) its convolutions start from the backbone's and learn at
     ``BACKBONE_LR_FACTOR`` times the linear layer's rate (fine-tuning)."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    network = DepthAlexNet(spec)
+    network = build_member(spec)
     if backbone is None:
         groups = [{"params": list(network.parameters()), "lr": cfg.learning_rate}]
     else:
+        assert isinstance(network, DepthAlexNet)  # training_backbone refuses any other
         initialise_from_backbone(network, backbone)
         groups = [{"params": list(network.features.parameters()),
                    "lr": cfg.learning_rate * BACKBONE_LR_FACTOR},
