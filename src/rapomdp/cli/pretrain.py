@@ -22,7 +22,7 @@ def pretrain(
         help="The backbone's weights file (.pt; its card is written beside it as .json). "
              "Default: DIR/depth-backbone.pt. To rebuild the one the package ships: "
              "src/rapomdp/recognition/weights/depth-backbone-v1.pt.")] = None,
-    epochs: Annotated[int, typer.Option(min=1, help="Passes over the corpus views.")] = 15,
+    epochs: Annotated[int, typer.Option(min=1, help="Passes over the corpus views.")] = 10,
     families: Annotated[int, typer.Option(min=0, help="Abstract shape families (classes) "
                                           "in the corpus.")] = 160,
     models: Annotated[int, typer.Option(min=1, help="Models of each abstract family.")] = 20,
@@ -55,8 +55,8 @@ def pretrain(
     a sweethome3d* package), renders and preprocesses it as the pipeline does, trains the
     pipeline's network on it with a checkpoint after every epoch, and writes the
     convolutions' weights with a model card (corpus, recipe, seconds). Each step is kept when
-    already done; a stopped run resumes from its last epoch. About 40 minutes on 2 CPU cores
-    at the defaults (docs/recognition.md).
+    already done; a stopped run resumes from its last epoch. Under an hour on 2 CPU cores at
+    the defaults (docs/recognition.md).
     """
     from rapomdp.data.build import DatasetBuildError
     from rapomdp.pretrain import CorpusSettings, PretrainSettings, ViewSettings, run_pretrain

@@ -67,7 +67,7 @@ def card_markdown(card: dict[str, Any], name: str) -> str:
               "- " + ", ".join(f"{k} {v}" for k, v in recipe.items()
                                if k not in ("objective", "view_settings")) + ".",
               f"- {card['epochs']} epochs in {card['seconds']:,.0f} s on {card['device']} "
-              f"({card['threads']} threads).",
+              f"({card['threads']} thread{'s' if card['threads'] != 1 else ''}).",
               f"- Accuracy on the corpus's held-out objects (unseen models of its classes): "
               f"{card['validation_accuracy_unseen_objects']:.3f}.", ""]
     transfer = card.get("transfer")

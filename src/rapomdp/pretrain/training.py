@@ -13,7 +13,7 @@ card (:mod:`rapomdp.recognition.backbone`).
 Example:
     >>> from rapomdp.pretrain.training import PretrainSettings
     >>> PretrainSettings().epochs, PretrainSettings().width
-    (15, 0.25)
+    (10, 0.25)
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ class PretrainSettings:
 
     width: float = 0.25
     dropout: float = 0.5
-    epochs: int = 15
+    epochs: int = 10
     batch_size: int = 128
     learning_rate: float = 3e-4
     weight_decay: float = 5e-4
