@@ -210,7 +210,8 @@ def test_train_stage_fine_tunes_a_backbone_and_records_it(workspace, tmp_path):
     out.mkdir()
     run_train_stage(tuned, Workspace(root).inputs(get_stage("train")), out, TEST_CONTEXT)
     metrics = read_json(out / "metrics.json")
-    assert metrics["backbone"] == {"path": str(path), "sha256": load_backbone(path).sha256}
+    assert metrics["backbone"] == {"backbone": str(path), "file": "b.pt",
+                                   "sha256": load_backbone(path).sha256}
     scratch = read_json(root / "train" / "metrics.json")
     assert "backbone" not in scratch
     # the checkpoint carries its configuration's hash: the scratch one does not fit it

@@ -209,7 +209,8 @@ def run_train_stage(config: Config, inputs: StageInputs, out: Path,
     }
     backbone = training_backbone(config.train)
     if backbone is not None:  # a scratch network's record is as before the option
-        metrics["backbone"] = {"path": str(backbone.path), "sha256": backbone.sha256}
+        metrics["backbone"] = {"backbone": config.train.backbone, "file": backbone.path.name,
+                               "sha256": backbone.sha256}
     classifier.save(out, train_config_hash(config), extra={"training": metrics})
     rows = history.rows()
     with atomic_path(out / HISTORY_FILE) as tmp, open(tmp, "w", newline="") as handle:
