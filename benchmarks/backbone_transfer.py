@@ -97,23 +97,22 @@ def main() -> None:
     parser.add_argument("--arms", nargs="+", choices=ARMS, default=list(ARMS),
                         help="run only these arms now (the other's finished workspaces are "
                         "read; the pretrained arm starts from the scratch arm's copy)")
+    parser.add_argument("--no-run", action="store_true",
+                        help="run nothing: summarise the finished workspaces under --root")
     parser.add_argument("--out", type=Path, default=None,
                         help="also write OUT.json with every figure")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     figures: dict[str, dict[str, dict[int, dict[str, np.ndarray]]]] = {}
-    seconds: dict[str, dict[str, list[float]]] = {}
     for config in args.config:
         name = Path(config).stem
         figures[name] = {arm: {} for arm in ARMS}
-        seconds[name] = {arm: [] for arm in ARMS}
         for seed in args.seeds:
             base: Path | None = None
             for arm in ARMS:
                 workspace = args.root / name / f"{arm}-s{seed}"
-                if arm in args.arms:
-                    seconds[name][arm].append(run_arm(workspace, config, seed, arm,
-                                                      args.threads, args.workers, base))
+                if arm in args.arms and not args.no_run:
+                    run_arm(workspace, config, seed, arm, args.threads, args.workers, base)
                 base = workspace
     if set(args.arms) != set(ARMS):
         return
@@ -140,15 +139,18 @@ def main() -> None:
             record.setdefault(name, {})[key] = [a, b, mean, low, high]
             lines.append(f"{name:18s} {key:18s} {a:8.3f} {b:10.3f} "
                          f"{mean:+8.3f} [{low:+.3f}, {high:+.3f}]")
-    lines += ["", "wall seconds up to classifier_eval (scratch includes the shared stages):"]
-    lines += [f"{name:18s} " + "  ".join(f"{arm} {np.mean(s):.0f}" for arm, s in arms.items())
-              for name, arms in seconds.items() if all(arms.values())]
+    lines += ["", "train stage seconds (mean over seeds, 1 thread, from W/train/metrics.json; "
+              "the machine was shared, so compare within a row):"]
+    for name in figures:
+        walls = {arm: np.mean([json.loads((args.root / name / f"{arm}-s{seed}" / "train"
+                                           / "metrics.json").read_text())["wall_s"]
+                               for seed in args.seeds]) for arm in ARMS}
+        lines.append(f"{name:18s} " + "  ".join(f"{arm} {w:.0f}" for arm, w in walls.items()))
     print("\n".join(lines))
     if args.out is not None:
         args.out.with_suffix(".txt").write_text("\n".join(lines) + "\n")
         args.out.with_suffix(".json").write_text(json.dumps(
-            {"seeds": args.seeds, "configs": args.config, "figures": record,
-             "seconds": seconds}, indent=1))
+            {"seeds": args.seeds, "configs": args.config, "figures": record}, indent=1))
 
 
 if __name__ == "__main__":
