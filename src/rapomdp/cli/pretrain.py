@@ -32,7 +32,7 @@ def pretrain(
     deb: Annotated[Path | None, typer.Option(help="A downloaded kicad-packages3d .deb.")
                    ] = None,
     extra: Annotated[list[Path] | None, typer.Option(
-        help="More mesh folders (<class>/<model>.<ext>); an evaluation class or a held-back "
+        help="More mesh folders (CLASS/MODEL.EXT); an evaluation class or a held-back "
              "source is refused. Repeatable.")] = None,
     views: Annotated[int, typer.Option(min=1, help="Views per corpus model.")] = 24,
     seed: Annotated[int, typer.Option(min=0, help="Weights, batch order, validation split.")
