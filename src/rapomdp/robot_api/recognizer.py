@@ -378,6 +378,11 @@ class ActiveRecognizer:
                         self.q_rad[target].copy(), energy_m, distance_m, k, self.classes[k],
                         float(belief[k]))
 
+    def forget(self) -> None:
+        """End the episode without a declaration: the next :meth:`observe` needs a
+        :meth:`reset` (the server calls it when a client disconnects)."""
+        self._episode = None
+
     @property
     def visited(self) -> list[int]:
         """The viewpoints observed this episode, in order."""
