@@ -44,7 +44,8 @@ def test_the_object_takes_the_closed_loops_actions_episode_for_episode(
         while True:
             depth = views[model.file].look(viewpoint, np.random.default_rng())
             observed = recognizer.observe(depth, recognizer.camera_poses_world[viewpoint])
-            assert observed.viewpoint == viewpoint and observed.off_viewpoint_m < 1e-4  # the IK error
+            # the IK reaches the viewpoint to within its tolerance
+            assert observed.viewpoint == viewpoint and observed.off_viewpoint_m < 1e-4
             beliefs.append(observed.belief)
             step = recognizer.next_view()
             if step.is_declare:
