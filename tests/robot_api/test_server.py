@@ -164,3 +164,35 @@ def test_arrays_round_trip_and_refuse_what_is_not_numbers() -> None:
         assert back.dtype == array.dtype and np.array_equal(back, array)
     with pytest.raises(ValueError, match="not sent"):
         encode_array(np.array([object()]))
+
+
+def test_rapomdp_serve_serves_the_workspace_on_localhost(pipeline_workspace) -> None:
+    """``rapomdp serve -w W --port 0`` in a subprocess: it says where it listens (127.0.0.1)
+    and answers a client; it is stopped by its process id."""
+    import os
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    ws, _ = pipeline_workspace
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(root / "src"), "OMP_NUM_THREADS": "1",
+           "COLUMNS": "200"}
+    process = subprocess.Popen([sys.executable, "-m", "rapomdp.cli", "serve", "-w", str(ws.root),
+                                "--method", "static", "--port", "0"],
+                               stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                               env=env)
+    try:
+        assert process.stderr is not None
+        line = process.stderr.readline()
+        found = re.search(r"on 127\.0\.0\.1:(\d+)", line)
+        assert found, line
+        with RecognizerClient("127.0.0.1", int(found.group(1))) as client:
+            assert client.info()["method"] == "static"
+            client.reset(seed=0)
+            seen = client.observe(np.zeros((48, 64), dtype=np.uint16), viewpoint=0)
+            assert seen.done and client.next_view().is_declare
+    finally:
+        process.terminate()
+        process.wait(timeout=30)

@@ -37,7 +37,7 @@ def serve(
         server = RecognizerServer(recognizer, host, port)
         bound_host, bound_port = server.address
         console.print(f"serving {method} of {workspace} on {bound_host}:{bound_port} "
-                      "(Ctrl-C stops)", highlight=False)
+                      "(Ctrl-C stops)", highlight=False, soft_wrap=True)
         server.serve_forever()
 
     _guard(start)

@@ -62,8 +62,9 @@ def depth_in_metres(depth: np.ndarray) -> np.ndarray:
         (H, W) float32 metres with every hole 0 (the network's background).
 
     Example:
-        >>> depth_in_metres(np.array([[0, 650]], dtype=np.uint16)).tolist()
-        [[0.0, 0.6499999761581543]]
+        >>> metres = depth_in_metres(np.array([[0, 650, 65535]], dtype=np.uint16))
+        >>> metres.dtype, metres.astype(float).round(3).tolist()
+        (dtype('float32'), [[0.0, 0.65, 65.535]])
     """
     depth = np.asarray(depth)
     if depth.ndim != 2 or min(depth.shape) < 1:

@@ -149,11 +149,12 @@ class RecognizerServer:
         max_message_bytes: the largest request body accepted.
         idle_timeout_s: how long a connected client may stay silent.
 
-    Example:
-        >>> server = RecognizerServer(recognizer, port=0)  # doctest: +SKIP
-        >>> threading.Thread(target=server.serve_forever, daemon=True).start()  # doctest: +SKIP
-        >>> RecognizerClient(*server.address).info()["method"]  # doctest: +SKIP
-        'ra'
+    Example (a server in a thread, on a port the system picks)::
+
+        server = RecognizerServer(ActiveRecognizer.load("runs/demo"), port=0)
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+        with RecognizerClient(*server.address) as client:
+            client.info()["method"]  # 'ra'
     """
 
     def __init__(self, recognizer: ActiveRecognizer, host: str = DEFAULT_HOST,
