@@ -141,3 +141,24 @@ def test_bad_images_and_poses_are_refused_naming_the_problem(recognizer) -> None
         intrinsics_for(np.ones((48, 64)), {"fx": 50.0})
     with pytest.raises(ValueError, match="method 'nope'"):
         ActiveRecognizer.load(".", "nope")
+
+
+def test_an_image_at_another_resolution_with_its_intrinsics_reads_the_same(
+        pipeline_workspace, recognizer) -> None:
+    """The same views rendered at 160 x 120 instead of the workspace's 64 x 48, classified with
+    that camera's fx, fy: the CNN's probabilities agree to 0.005 (its crop is sized in metres)."""
+    ws, config = pipeline_workspace
+    dataset = load_dataset(ws.require("dataset"))
+    model = dataset.with_role("test")[0]
+    native = TestViews.of_model(dataset, model, config.viewpoints, config.camera,
+                                config.render.noise)
+    large = TestViews.of_model(dataset, model, config.viewpoints,
+                               config.camera.model_copy(update={"width": 160, "height": 120}),
+                               config.render.noise)
+    camera = xtion_intrinsics(160, 120)
+    intrinsics = {"fx": camera.fx, "fy": camera.fy, "cx": camera.cx, "cy": camera.cy}
+    for viewpoint in (0, 5, 10):
+        small = recognizer.classify(native.look(viewpoint, np.random.default_rng()))
+        big = recognizer.classify(large.look(viewpoint, np.random.default_rng()), intrinsics)
+        np.testing.assert_allclose(big, small, atol=0.005)
+        assert big.argmax() == small.argmax()
