@@ -131,6 +131,8 @@ def test_bad_images_and_poses_are_refused_naming_the_problem(recognizer) -> None
     recognizer.reset(seed=0)
     with pytest.raises(ValueError, match="uint16 millimetres or float metres"):
         recognizer.observe(np.ones((48, 64), dtype=np.int32), viewpoint=0)
+    with pytest.raises(ValueError, match="millimetres\\?"):
+        recognizer.observe(np.full((48, 64), 650.0, dtype=np.float32), viewpoint=0)
     with pytest.raises(ValueError, match=r"must be \(H, W\)"):
         recognizer.observe(np.ones((2, 48, 64), dtype=np.float32), viewpoint=0)
     with pytest.raises(ValueError, match="exactly one of camera_pose and viewpoint"):

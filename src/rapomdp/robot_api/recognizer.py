@@ -40,6 +40,8 @@ LOOP_STAGES = ("dataset", "train", "classifier_eval", "robot", "observe", "vptre
                "learn")
 #: Millimetres per metre: a uint16 depth image holds millimetres.
 MM_PER_M = 1000.0
+#: The median depth (metres) above which a float image is taken for millimetres and refused.
+MAX_FLOAT_DEPTH_M = 20.0
 
 
 class OutOfOrderError(RuntimeError):
@@ -56,7 +58,8 @@ def depth_in_metres(depth: np.ndarray) -> np.ndarray:
 
     Args:
         depth: (H, W) uint16 millimetres (a sensor's raw image) or floating-point metres;
-            zeros, NaN, infinities and negative values are holes.
+            zeros, NaN, infinities and negative values are holes. A float image whose median
+            depth exceeds :data:`MAX_FLOAT_DEPTH_M` is refused (millimetres sent as floats).
 
     Returns:
         (H, W) float32 metres with every hole 0 (the network's background).
@@ -77,6 +80,11 @@ def depth_in_metres(depth: np.ndarray) -> np.ndarray:
         raise ValueError(f"a depth image must be uint16 millimetres or float metres, got "
                          f"dtype {depth.dtype}")
     metres[~np.isfinite(metres) | (metres < 0)] = 0.0
+    seen = metres[metres > 0]
+    if depth.dtype.kind == "f" and seen.size and float(np.median(seen)) > MAX_FLOAT_DEPTH_M:
+        raise ValueError(f"a float depth image holds metres, but its median depth is "
+                         f"{float(np.median(seen)):.0f}: millimetres? Send them as uint16 or "
+                         "divide by 1000")
     return metres.astype(np.float32)
 
 
