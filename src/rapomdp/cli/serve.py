@@ -7,11 +7,13 @@ from typing import Annotated
 
 import typer
 
-from rapomdp.cli.common import WorkspaceOption, _guard, _require_existing, console
+from rapomdp.cli.common import _guard, _require_existing, _workspace_path, console
 
 
 def serve(
-    workspace: WorkspaceOption = Path("runs/demo"),
+    workspace: Annotated[Path, typer.Option(
+        "--workspace", "-w", parser=_workspace_path, metavar="DIR",
+        help="A workspace whose stages up to solve have run.")] = Path("runs/demo"),
     method: Annotated[str, typer.Option(
         help="The method to run: ra, classifier, vptree (solved by the solve stage), random, "
              "static or learned.")] = "ra",
