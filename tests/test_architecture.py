@@ -1,7 +1,8 @@
 """The package graph flows one way: geometry -> data -> recognition -> pretrain -> awareness ->
-robot -> planning -> experiment -> study (with pipeline) -> cli, with the top-level helpers (io,
-progress, parallel, workspace, section, config, context) beneath every stage. Every import
-counts, lazy ones inside functions included."""
+robot -> planning -> experiment -> robot_api -> study (with pipeline) -> cli, with the top-level
+helpers (io, progress, parallel, workspace, section, config, context) beneath every stage. Every
+import counts, lazy ones inside functions included. Nothing but the command line imports
+robot_api."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ SOURCE = Path(__file__).resolve().parents[1] / "src" / "rapomdp"
 
 #: The pipeline's stage packages in order; a package may import only itself and earlier ones.
 STAGE_ORDER = ["geometry", "data", "recognition", "pretrain", "awareness", "robot", "planning",
-               "experiment", "study", "cli"]
+               "experiment", "robot_api", "study", "cli"]
 #: Top-level modules that belong to the command line's level (they assemble every stage).
 TOP_LEVEL_STAGE = {"cli": "cli", "pipeline": "study"}
 #: The level of the foundations: top-level helpers that import no stage package.
@@ -187,6 +188,14 @@ def test_no_import_cycle_between_modules() -> None:
 
 def test_no_import_from_a_later_stage_into_an_earlier_one() -> None:
     assert upward_imports(import_graph()) == []
+
+
+def test_only_the_command_line_imports_the_robot_api() -> None:
+    importers = sorted(f"{module}:{line}" for module, edges in import_graph().items()
+                       for target, line in edges.items()
+                       if level_of(target) == "robot_api"
+                       and level_of(module) not in ("robot_api", "cli"))
+    assert importers == []
 
 
 @pytest.mark.parametrize("statement", ["import rapomdp.config", "import rapomdp.workspace"])

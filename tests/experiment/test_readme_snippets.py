@@ -138,8 +138,55 @@ def test_every_python_snippet_of_the_docs_is_covered() -> None:
     counts = {str(p.relative_to(DOCS)): len(python_blocks(p.read_text()))
               for p in sorted(DOCS.rglob("*.md"))}
     covered = {"awareness.md": 1, "experiment.md": 3, "planning.md": 1, "recognition.md": 2,
-               "robot.md": 1, "scale-out.md": 2, "howto/learned.md": 1, "howto/solver.md": 1}
+               "robot.md": 1, "robot-api.md": 3, "scale-out.md": 2, "howto/learned.md": 1,
+               "howto/solver.md": 1}
     assert {name: n for name, n in counts.items() if n} == covered
+
+
+def test_the_robot_api_docs_run_as_written(reader_folder, pipeline_workspace) -> None:
+    """docs/robot-api.md's three loops (the object, the client, plain sockets) on the tiny
+    workspace, the robot a simulated one: its images rendered, its arm moved to the joints
+    ``next_view`` answered. The three declare the same class."""
+    import threading
+
+    from rapomdp.data.dataset import load_dataset
+    from rapomdp.data.test_views import TestViews
+    from rapomdp.robot_api.recognizer import ActiveRecognizer
+    from rapomdp.robot_api.server import RecognizerServer
+
+    ws, config = pipeline_workspace
+    robot = ActiveRecognizer.load(ws.root, "ra")
+    dataset = load_dataset(ws.require("dataset"))
+    scene = TestViews.of_model(dataset, dataset.with_role("test")[0], config.viewpoints,
+                               config.camera, config.render.noise)
+    start = int(np.flatnonzero(robot.motion.reachable)[0])
+    at = {"viewpoint": start}
+
+    def move_arm(q_rad: np.ndarray) -> None:
+        at["viewpoint"] = int(np.flatnonzero((robot.q_rad == q_rad).all(axis=1))[0])
+
+    namespace: dict = {
+        "read_depth": lambda: (scene.look(at["viewpoint"], np.random.default_rng()) * 1000
+                               ).astype(np.uint16),
+        "read_camera_pose": lambda: robot.camera_poses_world[at["viewpoint"]],
+        "move_arm": move_arm}
+    blocks = python_blocks((DOCS / "robot-api.md").read_text())
+    exec(blocks[0], namespace)
+    declared = namespace["step"].declared_class_name
+    assert namespace["step"].is_declare and declared in robot.classes
+    server = RecognizerServer(robot, "127.0.0.1", 0)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        for block in blocks[1:]:
+            at["viewpoint"] = start
+            exec(block.replace("8765", str(server.address[1])), namespace)
+            step = namespace["step"]
+            assert (step.declared_class_name if hasattr(step, "declared_class_name")
+                    else step["declared_class_name"]) == declared
+    finally:
+        server.shutdown()
+        thread.join(timeout=5)
 
 
 def test_the_solver_howto_runs_as_written(reader_folder) -> None:

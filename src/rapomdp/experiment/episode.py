@@ -108,6 +108,43 @@ class Scene(Protocol):
     def look(self, viewpoint: int, rng: np.random.Generator) -> np.ndarray: ...
 
 
+@dataclass(frozen=True)
+class Step:
+    """What the closed loop decides after one image: the method's ``belief`` (C,) after it
+    (a copy), the ``action`` it takes (a move, or a declaration) and whether the step budget
+    forced that declaration (``exhausted``)."""
+
+    belief: np.ndarray
+    action: ARAction
+    exhausted: bool
+
+
+def closed_loop_step(policy: Policy, viewpoint: int, output: np.ndarray, moves_made: int,
+                     max_moves: int) -> Step:
+    """One step of the closed loop, the one rule :func:`run_episode` and
+    :class:`rapomdp.robot_api.ActiveRecognizer` both follow: the method updates its belief with
+    the recogniser's ``output`` (C,) at ``viewpoint`` (Eq. 5; its visited set), then acts (its
+    lookahead or walk, its stop rule); after ``max_moves`` moves (``moves_made`` so far) a
+    move becomes the declaration of the belief's most likely class (the step budget).
+
+    Args:
+        policy: the method, reset at the episode's start.
+        viewpoint: the index in X_rho the image was taken from.
+        output: the recogniser's class probabilities (C,) for the image.
+        moves_made: the moves made since the episode's first image.
+        max_moves: the step budget (``evaluate.max_moves``).
+
+    Returns:
+        The :class:`Step`: belief, action, exhausted.
+    """
+    policy.observe(viewpoint, output)
+    belief = np.array(policy.belief, dtype=np.float64)
+    action = policy.act(viewpoint)
+    if not action.is_declare and moves_made >= max_moves:
+        return Step(belief, ARAction("declare", int(np.argmax(belief))), True)
+    return Step(belief, action, False)
+
+
 def run_episode(scene: Scene, recogniser: Recogniser, policy: Policy, motion: Motion,
                 start_viewpoint: int, max_moves: int, rng: np.random.Generator,
                 memo: dict[int, np.ndarray] | None = None) -> Episode:
@@ -125,7 +162,6 @@ def run_episode(scene: Scene, recogniser: Recogniser, policy: Policy, motion: Mo
     policy.reset(start_viewpoint, rng)
     viewpoint = start_viewpoint
     views, outputs, beliefs, energy, distance = [], [], [], [], []
-    exhausted = False
     while True:
         raw = memo.get(viewpoint) if memo is not None else None
         if raw is None:
@@ -133,14 +169,11 @@ def run_episode(scene: Scene, recogniser: Recogniser, policy: Policy, motion: Mo
             if memo is not None:
                 memo[viewpoint] = raw
         output = np.array(raw, dtype=np.float64)  # a copy: the method may keep it
-        policy.observe(viewpoint, output)
+        step = closed_loop_step(policy, viewpoint, output, len(energy), max_moves)
         views.append(viewpoint)
         outputs.append(output)
-        beliefs.append(np.array(policy.belief, dtype=np.float64))
-        action = policy.act(viewpoint)
-        if not action.is_declare and len(energy) >= max_moves:
-            exhausted = True
-            action = ARAction("declare", int(np.argmax(beliefs[-1])))
+        beliefs.append(step.belief)
+        action, exhausted = step.action, step.exhausted
         if action.is_declare:
             break
         move_energy, move_distance_m = motion.move(viewpoint, action.target)
