@@ -4,7 +4,8 @@ The app and its console script (:func:`main`) live here; the commands live by to
 :mod:`~rapomdp.cli.stages` (``run``, ``demo`` and one command per stage),
 :mod:`~rapomdp.cli.dataset` (``dataset`` and ``dataset preview``),
 :mod:`~rapomdp.cli.report` (``report`` and ``figure``), :mod:`~rapomdp.cli.study` (``study``),
-:mod:`~rapomdp.cli.status` (``status`` and ``config``), :mod:`~rapomdp.cli.serve` (``serve``) and
+:mod:`~rapomdp.cli.status` (``status`` and ``config``), :mod:`~rapomdp.cli.serve` (``serve``),
+:mod:`~rapomdp.cli.record` (``record``, ``replay``) and
 :mod:`rapomdp.planning.cli` (``pomdp``), with the options and the one error style they share in
 :mod:`~rapomdp.cli.common`.
 """
@@ -22,6 +23,7 @@ from rapomdp.cli import stages as _stage_commands
 from rapomdp.cli.common import _duration as _duration
 from rapomdp.cli.dataset import dataset_app
 from rapomdp.cli.pretrain import pretrain
+from rapomdp.cli.record import record, replay
 from rapomdp.cli.report import figure_app
 from rapomdp.cli.serve import serve
 from rapomdp.cli.stages import _story as _story
@@ -88,6 +90,8 @@ app.command()(_report_commands.report)
 app.command()(study)
 app.command()(pretrain)
 app.command()(serve)
+app.command()(record)
+app.command()(replay)
 app.command("config")(show_config)
 app.command()(status)
 
