@@ -138,7 +138,7 @@ def test_every_python_snippet_of_the_docs_is_covered() -> None:
     counts = {str(p.relative_to(DOCS)): len(python_blocks(p.read_text()))
               for p in sorted(DOCS.rglob("*.md"))}
     covered = {"awareness.md": 1, "experiment.md": 3, "planning.md": 1, "recognition.md": 2,
-               "robot.md": 1, "robot-api.md": 3, "scale-out.md": 2, "howto/learned.md": 1,
+               "robot.md": 1, "robot-api.md": 4, "scale-out.md": 2, "howto/learned.md": 1,
                "howto/solver.md": 1}
     assert {name: n for name, n in counts.items() if n} == covered
 
@@ -146,7 +146,8 @@ def test_every_python_snippet_of_the_docs_is_covered() -> None:
 def test_the_robot_api_docs_run_as_written(reader_folder, pipeline_workspace) -> None:
     """docs/robot-api.md's three loops (the object, the client, plain sockets) on the tiny
     workspace, the robot a simulated one: its images rendered, its arm moved to the joints
-    ``next_view`` answered. The three declare the same class."""
+    ``next_view`` answered. The three declare the same class. Its fourth block replays a
+    recording of the simulator (``recordings/cup``) and declares what the closed loop did."""
     import threading
 
     from rapomdp.data.dataset import load_dataset
@@ -178,7 +179,7 @@ def test_the_robot_api_docs_run_as_written(reader_folder, pipeline_workspace) ->
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     try:
-        for block in blocks[1:]:
+        for block in blocks[1:3]:
             at["viewpoint"] = start
             exec(block.replace("8765", str(server.address[1])), namespace)
             step = namespace["step"]
@@ -187,6 +188,12 @@ def test_the_robot_api_docs_run_as_written(reader_folder, pipeline_workspace) ->
     finally:
         server.shutdown()
         thread.join(timeout=5)
+    from rapomdp.robot_api.recording import record_episode
+
+    recording, episode = record_episode(ws.root, reader_folder / "recordings" / "cup", "ra")
+    exec(blocks[3], namespace)
+    assert namespace["result"].declared_class == robot.classes[episode.declared]
+    assert namespace["result"].chosen == episode.viewpoints.tolist()
 
 
 def test_the_solver_howto_runs_as_written(reader_folder) -> None:
