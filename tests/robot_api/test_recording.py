@@ -19,6 +19,7 @@ from rapomdp.robot_api.recording import (
     load_recording,
     record_episode,
     replay,
+    replay_summary,
     replay_table,
     write_recording,
 )
@@ -64,7 +65,34 @@ def test_a_replayed_recording_repeats_the_closed_loops_episode(pipeline_workspac
     assert result.declared_confidence == pytest.approx(
         float(episode.beliefs[-1][episode.declared]), abs=1e-6)
     assert result.unused_frames == 0
-    assert replay_table(result, recognizer, recording)["same_as_recorded_closed_loop"] is True
+    table = replay_table(result, recognizer, recording)
+    assert table["same_as_recorded_closed_loop"] is True
+    assert [s["at_chosen_viewpoint"] for s in table["steps"]] == [None] + [True] * (
+        len(recording) - 1)
+
+
+def test_a_recording_that_ends_before_the_declaration_is_said(recorded, recognizer,
+                                                              tmp_path) -> None:
+    """Two frames of a longer episode: the replay makes two steps, declares nothing and says
+    so; the same two frames in the other order are counted where they were taken."""
+    recording, episode = recorded
+    assert len(recording) > 2
+    depths = [recording.depth(0), recording.depth(1)]
+    short = write_recording(tmp_path / "short", depths, recording.poses[:2],
+                            recording.intrinsics, recording.true_class,
+                            {**recording.source, "seed": None})
+    result = replay(recognizer, short)
+    assert result.declared_class is None and len(result.steps) == 2
+    assert result.chosen == episode.viewpoints[:2].tolist()
+    table = replay_table(result, recognizer, short)
+    assert table["same_as_recorded_closed_loop"] is False
+    assert replay_summary(table)[-2] == "no declaration: the 2 frames ran out first"
+    swapped = write_recording(tmp_path / "swapped", depths[::-1], recording.poses[1::-1],
+                              recording.intrinsics)
+    steps = replay_table(replay(recognizer, swapped), recognizer, swapped)["steps"]
+    assert [s["viewpoint"] for s in steps] == episode.viewpoints[1::-1].tolist()
+    assert steps[1]["at_chosen_viewpoint"] is (steps[0]["next_viewpoint"]
+                                               == int(episode.viewpoints[0]))
 
 
 def test_the_recording_format_on_disk(recorded) -> None:

@@ -442,8 +442,19 @@ def replay(recognizer: ActiveRecognizer, recording: Recording,
 
 def replay_table(result: ReplayResult, recognizer: ActiveRecognizer,
                  recording: Recording) -> dict[str, Any]:
-    """The replay as a JSON-ready map: the method, the recording, each step, the declaration,
-    and whether it repeats the recorded closed loop's (when the recording says)."""
+    """The replay as a JSON-ready map: the method, the recording, each step (with
+    ``at_chosen_viewpoint``: whether its frame was taken where the step before chose; None at
+    the start), the declaration, and whether it repeats the recorded closed loop's (when the
+    recording says).
+
+    Args:
+        result: what :func:`replay` answered.
+        recognizer: the recognizer it ran (its classes name the belief's entries).
+        recording: the recording it ran on.
+
+    Returns:
+        The map :func:`write_replay_table` writes.
+    """
     source = recording.source
     same: bool | None = None
     if "viewpoints" in source and source.get("method") == result.method:
@@ -452,12 +463,17 @@ def replay_table(result: ReplayResult, recognizer: ActiveRecognizer,
                 and result.declared_confidence is not None
                 and abs(result.declared_confidence - float(source["declared_confidence"]))
                 <= 1e-6)
+    rows = [s.row(recognizer.classes) for s in result.steps]
+    for before, row in zip(rows, rows[1:]):  # noqa: B905  (one shorter)
+        row["at_chosen_viewpoint"] = row["viewpoint"] == before["next_viewpoint"]
+    if rows:
+        rows[0]["at_chosen_viewpoint"] = None  # the start: nothing was chosen
     return {"method": result.method, "recording": str(recording.folder),
             "true_class": recording.true_class, "frames": len(recording),
             "declared_class": result.declared_class,
             "declared_confidence": result.declared_confidence,
             "unused_frames": result.unused_frames, "same_as_recorded_closed_loop": same,
-            "steps": [s.row(recognizer.classes) for s in result.steps]}
+            "steps": rows}
 
 
 def write_replay_table(path: str | Path, table: Mapping[str, Any]) -> None:
