@@ -464,7 +464,7 @@ def replay_table(result: ReplayResult, recognizer: ActiveRecognizer,
                 and abs(result.declared_confidence - float(source["declared_confidence"]))
                 <= 1e-6)
     rows = [s.row(recognizer.classes) for s in result.steps]
-    for before, row in zip(rows, rows[1:]):  # noqa: B905  (one shorter)
+    for before, row in zip(rows, rows[1:], strict=False):  # each step and the one before
         row["at_chosen_viewpoint"] = row["viewpoint"] == before["next_viewpoint"]
     if rows:
         rows[0]["at_chosen_viewpoint"] = None  # the start: nothing was chosen
