@@ -46,7 +46,11 @@ TINY: dict = {
 }
 #: Record fields that measure time or name the machine, not the result.
 TIMING_KEYS = {"seconds", "finished", "wall_s", "elapsed_s", "time_s", "seconds_per_episode",
-               "train_seconds", "images_per_second", "timed_out"}
+               "train_seconds", "images_per_second", "timed_out", "iterations"}
+#: How far a time-limited solve got (its iterations, the upper bound's grid resolution and the
+#: bound's last bits) depends on the machine's speed, not on the code: scrubbed like time.
+GRID_REACHED = re.compile(r"grid reached resolution \d+")
+SIGNIFICANT_DIGITS = 12
 #: Files that are not results: the manifest holds wall time; ``.lock`` is the workspace's lock
 #: file, there whether or not a run holds it.
 SKIP = {"manifest.json", ".lock"}
@@ -58,6 +62,10 @@ def _scrub(value: object) -> object:
                 if k not in TIMING_KEYS and "second" not in k and not k.endswith("_s")}
     if isinstance(value, list):
         return [_scrub(v) for v in value]
+    if isinstance(value, float):
+        return float(f"{value:.{SIGNIFICANT_DIGITS}g}")
+    if isinstance(value, str):
+        return GRID_REACHED.sub("grid reached resolution N", value)
     return value
 
 
