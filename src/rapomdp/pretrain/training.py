@@ -35,7 +35,7 @@ from rapomdp.pretrain.views import CorpusViews, ViewSettings
 from rapomdp.progress import progress_bar
 from rapomdp.recognition.backbone import write_backbone
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
-from rapomdp.recognition.training import evaluate_inputs
+from rapomdp.recognition.training import evaluate_inputs, optimisation_step
 
 CHECKPOINT_WEIGHTS = "checkpoint.pt"
 CHECKPOINT_STATE = "checkpoint.json"
@@ -181,17 +181,15 @@ def pretrain(views: CorpusViews, view_settings: ViewSettings, out: Path,
             loss_sum, correct = 0.0, 0
             for b in range(batches):
                 idx = np.sort(order[b * settings.batch_size:(b + 1) * settings.batch_size])
-                x = torch.from_numpy(views.inputs[idx].astype(np.float32)).to(device)
-                y = torch.from_numpy(views.labels[idx]).to(device)
-                logits = network(x)
-                loss = nn.functional.cross_entropy(logits, y)
-                optimiser.zero_grad(set_to_none=True)
-                loss.backward()
-                optimiser.step()
-                loss_sum += float(loss.detach()) * len(idx)
-                correct += int((logits.argmax(1) == y).sum())
+                batch_loss, batch_correct = optimisation_step(
+                    network, optimiser,
+                    torch.from_numpy(views.inputs[idx].astype(np.float32)).to(device),
+                    torch.from_numpy(views.labels[idx]).to(device))
+                loss_sum += batch_loss
+                correct += batch_correct
+                seen = min((b + 1) * settings.batch_size, len(train_index))
                 bar.update(task, advance=1, description=f"pretrain {state.epoch + 1}/"
-                           f"{settings.epochs}", status=f"loss {loss_sum / ((b + 1) * 128):.3f}")
+                           f"{settings.epochs}", status=f"loss {loss_sum / seen:.3f}")
             val_loss, val_accuracy = evaluate_inputs(network, val_inputs, val_labels, device)
             state.epoch += 1
             state.seconds += time.perf_counter() - start

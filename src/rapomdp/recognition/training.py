@@ -236,6 +236,27 @@ def training_backbone(cfg: TrainConfig) -> Backbone | None:
     return backbone
 
 
+def optimisation_step(network: nn.Module, optimiser: torch.optim.Optimizer, x: torch.Tensor,
+                      y: torch.Tensor) -> tuple[float, int]:
+    """One optimiser step of cross-entropy on a batch (the train stage's and pretraining's).
+
+    Args:
+        network: the network, in train mode.
+        optimiser: its optimiser.
+        x: the batch's inputs (n, 1, S, S).
+        y: their labels (n,).
+
+    Returns:
+        The batch's summed loss (before the step) and how many it classified right.
+    """
+    logits = network(x)
+    loss = nn.functional.cross_entropy(logits, y)
+    optimiser.zero_grad(set_to_none=True)
+    loss.backward()
+    optimiser.step()
+    return float(loss.detach()) * len(y), int((logits.argmax(1) == y).sum())
+
+
 def member_seed(seed: int, member: int) -> int:
     """Ensemble member ``member``'s seed: ``seed`` itself for the first (an ensemble of one is
     the single classifier), then draws of ``SeedSequence([seed, member])`` (so the members of
@@ -389,14 +410,10 @@ def _train_network(
                 train.depth[idx], cfg.augment, noise, rng, fx_px, fy_px, params,
                 None if extents is None else extents[idx]))
             y = torch.from_numpy(train.labels[idx])
-            x, y = x.to(device), y.to(device)
-            logits = network(x)
-            loss = nn.functional.cross_entropy(logits, y)
-            optimiser.zero_grad(set_to_none=True)
-            loss.backward()
-            optimiser.step()
-            loss_sum += float(loss.detach()) * len(idx)
-            correct += int((logits.argmax(1) == y).sum())
+            batch_loss, batch_correct = optimisation_step(network, optimiser, x.to(device),
+                                                          y.to(device))
+            loss_sum += batch_loss
+            correct += batch_correct
             seen = min((b + 1) * cfg.batch_size, len(train))
             report(1, f"{epoch}/{cfg.epochs}",
                    f"loss {loss_sum / seen:.3f} acc {correct / seen:.1%}")
