@@ -26,7 +26,6 @@ import os
 import shutil
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -38,8 +37,8 @@ BOOTSTRAP = 2000
 
 
 def run_arm(workspace: Path, config: str, seed: int, arm: str, threads: int, workers: int,
-            base: Path | None) -> float:
-    """Run up to classifier_eval; returns the wall seconds."""
+            base: Path | None) -> None:
+    """Run up to classifier_eval (after hard-linking ``base``'s stages when it is given)."""
     if base is not None and not workspace.exists():
         # hard links: every artefact is replaced by a rename, never written in place
         shutil.copytree(base, workspace, copy_function=os.link)
@@ -48,9 +47,7 @@ def run_arm(workspace: Path, config: str, seed: int, arm: str, threads: int, wor
                "--workers", str(workers), "--reconfigure"]
     if config != "default":
         command += ["-c", config]
-    start = time.perf_counter()
     subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
-    return time.perf_counter() - start
 
 
 def object_figures(folder: Path) -> dict[str, np.ndarray]:

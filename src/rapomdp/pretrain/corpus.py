@@ -176,7 +176,6 @@ def _kicad_source(out: Path, cache: Path, deb: Path | None, cap: int,
 
 
 def _extra_source(out: Path, folder: Path) -> dict[str, Any]:
-    refuse_held_back(folder.resolve().parts, "--extra folder")
     if not folder.is_dir():
         raise DatasetBuildError(f"--extra {folder}: no such folder")
     classes: dict[str, int] = {}

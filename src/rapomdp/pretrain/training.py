@@ -30,12 +30,13 @@ import numpy as np
 import torch
 from torch import nn
 
+from rapomdp.config import PreprocessConfig, TrainConfig
 from rapomdp.io import ArtefactError, read_json, write_bytes_atomic, write_json_atomic
 from rapomdp.pretrain.views import CorpusViews, ViewSettings
 from rapomdp.progress import progress_bar
 from rapomdp.recognition.backbone import write_backbone
 from rapomdp.recognition.network import DepthAlexNet, NetworkSpec
-from rapomdp.recognition.training import evaluate_inputs, optimisation_step
+from rapomdp.recognition.training import evaluate_inputs, network_spec, optimisation_step
 
 CHECKPOINT_WEIGHTS = "checkpoint.pt"
 CHECKPOINT_STATE = "checkpoint.json"
@@ -79,12 +80,13 @@ class PretrainState:
 
 def network_for(views: CorpusViews, view_settings: ViewSettings,
                 settings: PretrainSettings) -> NetworkSpec:
-    """The pretrained network's spec: the pipeline's input at the corpus's class count."""
-    return NetworkSpec(len(views.classes), view_settings.input_size_px, settings.width,
-                       settings.dropout,
-                       normal_scale=view_settings.depth_range_m * view_settings.input_size_px
-                       / view_settings.crop_size_m,
-                       input_background=view_settings.background)
+    """The pretrained network's spec: the train stage's (:func:`network_spec`) for the
+    corpus's class count and the views' input."""
+    cfg = TrainConfig(width=settings.width, dropout=settings.dropout,
+                      preprocess=PreprocessConfig(**view_settings.preprocessing.to_dict()))
+    spec = network_spec(len(views.classes), cfg)
+    assert isinstance(spec, NetworkSpec)  # train.network alexnet
+    return spec
 
 
 def held_out_models(views: CorpusViews, per_class: int, seed: int) -> np.ndarray:

@@ -173,6 +173,5 @@ def initialise_from_backbone(network: DepthAlexNet, backbone: Backbone) -> None:
         network: a DepthAlexNet of a spec :func:`check_fits` accepted.
         backbone: the backbone.
     """
-    missing = network.features.load_state_dict(
+    network.features.load_state_dict(
         {k.removeprefix("features."): v for k, v in backbone.state.items()}, strict=True)
-    del missing

@@ -232,13 +232,14 @@ class ActiveRecognizer:
             raise ValueError(f"method {method!r} is not one of {', '.join(METHOD_NAMES)}")
         ws = Workspace(workspace)
         config = ws.config()
+        ran = ws.manifest()["stages"]
         finished = {name: ws.stage_dir(name) for name in LOOP_STAGES
-                    if ws.manifest()["stages"].get(name) and ws.stage_dir(name).is_dir()}
+                    if ran.get(name) and ws.stage_dir(name).is_dir()}
         inputs = StageInputs.of("evaluate", finished)
         declared_fit: dict[str, float] | None = None
         source = "walks"
         record = None
-        if ws.manifest()["stages"].get("evaluate") and ws.stage_dir("evaluate").is_dir():
+        if ran.get("evaluate") and ws.stage_dir("evaluate").is_dir():
             record = load_declared_fit(ws.stage_dir("evaluate"))
         if record is not None and method in record.get("methods", {}):
             fitted = record["methods"][method]["declared_confidence"]["temperature"]
